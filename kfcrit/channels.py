@@ -1,0 +1,228 @@
+"""Packet channels: the arrival process γ_t of the measurements.
+
+A channel model is a frozen dataclass registered under the name used in system files
+(``channel: {model: NAME, ...}``). Adding a model never touches the others: write a class with
+``from_mapping`` and ``to_dict`` and add one line to ``_REGISTRY`` (import path, so that heavy
+models load lazily).
+
+Every channel exposes ``arrival_probability``: the stationary probability that a packet arrives
+(exact sympy number where the input is exact), which is what the mean-stability theory compares
+with the critical value p_c for i.i.d. losses.
+"""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import sympy as sp
+
+from .errors import InputError
+
+_REGISTRY: dict[str, str] = {
+    "bernoulli": "kfcrit.channels:Bernoulli",
+    "gilbert-elliott": "kfcrit.channels:GilbertElliott",
+    "trace": "kfcrit.channels:Trace",
+    "link-budget": "kfcrit.linkbudget:LinkBudget",
+}
+
+
+def channel_models() -> list[str]:
+    """Names of the registered channel models."""
+    return sorted(_REGISTRY)
+
+
+def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.Rational:
+    """Read a probability exactly and check it lies in [0, 1] (or (0, 1] if ``low_open``)."""
+    from .exprparse import number_from_text, parse_expression
+
+    if isinstance(value, bool) or value is None:
+        raise InputError("must be a number", field=field)
+    if isinstance(value, sp.Basic):
+        p = value
+    elif isinstance(value, int):
+        p = sp.Integer(value)
+    elif isinstance(value, float):
+        if not np.isfinite(value):
+            raise InputError("must be a finite number", field=field)
+        p = number_from_text(repr(value), field)
+    elif isinstance(value, str):
+        p = parse_expression(value, field)
+    else:
+        raise InputError(f"must be a number, got {type(value).__name__}", field=field)
+    lo_ok = bool(p > 0) if low_open else bool(p >= 0)
+    if not (lo_ok and bool(p <= 1)):
+        raise InputError(f"must be in {'(0' if low_open else '[0'}, 1], got {sp.sstr(p)}",
+                         field=field)
+    return p
+
+
+def check_keys(data: dict, allowed: set[str], required: set[str], prefix: str) -> None:
+    """Unknown keys and missing required keys are errors naming the field."""
+    for key in data:
+        if key not in allowed:
+            raise InputError(f"unknown key (allowed: {', '.join(sorted(allowed))})",
+                             field=f"{prefix}.{key}")
+    for key in sorted(required):
+        if key not in data:
+            raise InputError("is required", field=f"{prefix}.{key}")
+
+
+class Channel:
+    """Base class of channel models."""
+
+    model: ClassVar[str]
+
+    @property
+    def arrival_probability(self) -> sp.Expr:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def to_dict(self) -> dict[str, Any]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    @property
+    def iid(self) -> bool:
+        """True when losses are i.i.d. Bernoulli (the setting of the mean-stability theorems)."""
+        return False
+
+
+@dataclass(frozen=True)
+class Bernoulli(Channel):
+    """I.i.d. arrivals: P(γ_t = 1) = p."""
+
+    p: sp.Expr
+    model: ClassVar[str] = "bernoulli"
+
+    @classmethod
+    def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> Bernoulli:
+        check_keys(data, {"model", "arrival_probability"}, {"arrival_probability"}, prefix)
+        return cls(exact_probability(data["arrival_probability"],
+                                     f"{prefix}.arrival_probability"))
+
+    @property
+    def arrival_probability(self) -> sp.Expr:
+        return self.p
+
+    @property
+    def iid(self) -> bool:
+        return True
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.model, "arrival_probability": float(self.p),
+                "arrival_probability_expression": sp.sstr(self.p)}
+
+
+@dataclass(frozen=True)
+class GilbertElliott(Channel):
+    """Two-state Markov losses.
+
+    ``failure_rate`` f = P(lost next | received now), ``recovery_rate`` r = P(received next | lost
+    now). Stationary arrival probability r / (f + r); loss bursts are geometric with mean 1/r.
+    """
+
+    failure_rate: sp.Expr
+    recovery_rate: sp.Expr
+    model: ClassVar[str] = "gilbert-elliott"
+
+    @classmethod
+    def from_mapping(cls, data: dict, prefix: str,
+                     base_dir: Path | None = None) -> GilbertElliott:
+        check_keys(data, {"model", "failure_rate", "recovery_rate"},
+                   {"failure_rate", "recovery_rate"}, prefix)
+        return cls(exact_probability(data["failure_rate"], f"{prefix}.failure_rate",
+                                     low_open=True),
+                   exact_probability(data["recovery_rate"], f"{prefix}.recovery_rate",
+                                     low_open=True))
+
+    @property
+    def arrival_probability(self) -> sp.Expr:
+        return self.recovery_rate / (self.failure_rate + self.recovery_rate)
+
+    @property
+    def iid(self) -> bool:
+        return bool(self.failure_rate + self.recovery_rate == 1)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.model, "failure_rate": float(self.failure_rate),
+                "recovery_rate": float(self.recovery_rate),
+                "arrival_probability": float(self.arrival_probability),
+                "arrival_probability_expression": sp.sstr(self.arrival_probability),
+                "mean_burst_length": float(1 / self.recovery_rate)}
+
+
+MAX_TRACE_BYTES = 50_000_000
+
+
+@dataclass(frozen=True, eq=False)
+class Trace(Channel):
+    """A measured 0/1 arrival sequence read from a text file (whitespace/commas separate values).
+
+    The file path is relative to the system file. The stationary arrival probability is the
+    empirical frequency of ones.
+    """
+
+    path: str
+    arrivals: np.ndarray
+    model: ClassVar[str] = "trace"
+
+    @classmethod
+    def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> Trace:
+        check_keys(data, {"model", "path"}, {"path"}, prefix)
+        raw = data["path"]
+        if not isinstance(raw, str) or not raw.strip():
+            raise InputError("must be a file path", field=f"{prefix}.path")
+        path = Path(raw)
+        if not path.is_absolute() and base_dir is not None:
+            path = base_dir / path
+        return cls(raw, read_trace(path, f"{prefix}.path"))
+
+    @property
+    def arrival_probability(self) -> sp.Expr:
+        return sp.Rational(int(self.arrivals.sum()), int(self.arrivals.size))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.model, "path": self.path, "length": int(self.arrivals.size),
+                "arrival_probability": float(self.arrival_probability),
+                "arrival_probability_expression": sp.sstr(self.arrival_probability)}
+
+
+def read_trace(path: Path, field: str) -> np.ndarray:
+    """Read a 0/1 packet trace; anything other than 0 and 1 separated by spaces/commas is an error."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        raise InputError(f"cannot read trace file {str(path)[:80]!r}", field=field) from None
+    if size > MAX_TRACE_BYTES:
+        raise InputError(f"trace file larger than {MAX_TRACE_BYTES} bytes", field=field)
+    try:
+        text = path.read_bytes().decode("ascii")
+    except (OSError, UnicodeDecodeError):
+        raise InputError("trace file must be ASCII text of 0 and 1 values", field=field) from None
+    tokens = text.replace(",", " ").split()
+    bad = next((t for t in tokens if t not in ("0", "1")), None)
+    if bad is not None:
+        raise InputError(f"trace file holds {bad[:20]!r}; only 0 and 1 are allowed", field=field)
+    if not tokens:
+        raise InputError("trace file is empty", field=field)
+    arr = np.fromiter((t == "1" for t in tokens), dtype=bool, count=len(tokens))
+    arr.setflags(write=False)
+    return arr
+
+
+def channel_from_mapping(data: Any, prefix: str = "channel",
+                         base_dir: Path | None = None) -> Channel:
+    """Build a channel from its system-file mapping, dispatching on ``model``."""
+    if not isinstance(data, dict):
+        raise InputError("must be a mapping with a 'model' key", field=prefix)
+    model = data.get("model")
+    if not isinstance(model, str):
+        raise InputError(f"is required (one of: {', '.join(channel_models())})",
+                         field=f"{prefix}.model")
+    if model not in _REGISTRY:
+        raise InputError(f"unknown channel model {model[:40]!r} (known: "
+                         f"{', '.join(channel_models())})", field=f"{prefix}.model")
+    module_name, _, cls_name = _REGISTRY[model].partition(":")
+    cls = getattr(importlib.import_module(module_name), cls_name)
+    return cls.from_mapping(data, prefix, base_dir)

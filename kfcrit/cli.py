@@ -1,0 +1,144 @@
+"""Command line: ``kfcrit analyze | report | simulate | sweep``.
+
+stdout carries data only (the summary, or exactly the JSON record with ``--json``); progress and
+errors go to stderr. Exit codes are :class:`kfcrit.errors.ExitCode`: 0 done, 1 a verification
+failed, 2 bad usage or bad input file, 3 a numerical method was inconclusive, 4 internal error.
+"""
+from __future__ import annotations
+
+import functools
+import sys
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from . import __version__
+from .errors import ExitCode, KfcritError
+
+EXAMPLES = """\b
+Examples:
+  kfcrit analyze reports/sinopoli-scalar.yaml
+  kfcrit analyze reports/rotation-third-turn.yaml --json
+  kfcrit report reports/sinopoli-general.yaml -o review.html
+  kfcrit report reports/sinopoli-general.yaml -o review.pdf --quick
+  kfcrit simulate reports/kar-scalar-fractal.yaml --paths 2000 --steps 500 --seed 1
+
+\b
+Exit codes: 0 done, 1 a verification failed, 2 bad usage or bad input file,
+3 a numerical method was inconclusive, 4 internal error (a bug: please report it).
+"""
+
+
+def fail(message: str, code: int) -> None:
+    """Print one line to stderr and exit with ``code``."""
+    click.echo(f"kfcrit: error: {' '.join(str(message).split())}", err=True)
+    sys.exit(int(code))
+
+
+def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn kfcrit errors into one stderr line and the documented exit code."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        debug = kwargs.get("debug", False)
+        try:
+            return func(*args, **kwargs)
+        except KfcritError as exc:
+            if debug:
+                traceback.print_exc()
+            fail(str(exc), exc.exit_code)
+        except KeyboardInterrupt:
+            fail("interrupted", 130)
+        except (click.exceptions.Exit, click.ClickException, SystemExit):
+            raise
+        except MemoryError:
+            fail("out of memory (is the problem too large? see --max-states)", ExitCode.BAD_INPUT)
+        except Exception as exc:  # noqa: BLE001 - last-resort guard, one line for the user
+            if debug:
+                traceback.print_exc()
+            fail(f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for the "
+                 "traceback", 4)
+
+    return wrapper
+
+
+debug_option = click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
+max_states_option = click.option("--max-states", type=click.IntRange(1, 100_000), default=400,
+                                 show_default=True, help="Refuse systems with more states.")
+
+
+@click.group(epilog=EXAMPLES, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="kfcrit")
+def main() -> None:
+    """kfcrit: critical packet-arrival probability of a Kalman filter over a lossy link."""
+
+
+@main.command(epilog=EXAMPLES)
+@click.argument("system_file", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print the analysis record as JSON.")
+@click.option("--tolerance", type=click.FloatRange(0, 0.1), default=1e-9, show_default=True,
+              help="Relative perturbation size for the robust critical value.")
+@click.option("--no-simulate", is_flag=True, help="Skip the Monte Carlo simulation.")
+@click.option("--quick", is_flag=True, help="Fewer simulations (a fast draft).")
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@max_states_option
+@debug_option
+@handle_errors
+def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool, quick: bool,
+            seed: int, max_states: int, debug: bool) -> None:
+    """Analyse SYSTEM_FILE: critical value, bounds, simulation and verdict."""
+    from .analysis import AnalysisOptions
+    from .analysis import analyze as run
+    from .record import dumps
+    from .systemfile import load_spec
+    from .textview import summary
+
+    spec = load_spec(system_file, max_states=max_states)
+    record = run(spec, AnalysisOptions(tolerance=tolerance, simulate=not no_simulate,
+                                       quick=quick, seed=seed))
+    click.echo(dumps(record) if as_json else summary(record.to_dict()))
+    sys.exit(exit_code_of(record.to_dict()))
+
+
+def exit_code_of(record: dict[str, Any]) -> int:
+    """3 when a numerical method was inconclusive (an undetermined upper bound), else 0."""
+    ub = record.get("upper_bound") or {}
+    if ub.get("status") == "undetermined":
+        return int(ExitCode.INCONCLUSIVE)
+    return int(ExitCode.OK)
+
+
+@main.command(epilog=EXAMPLES)
+@click.argument("system_file", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output file (.html or .pdf).")
+@click.option("--format", "fmt", type=click.Choice(["html", "pdf"]), default=None,
+              help="Output format (default: from the output file's extension).")
+@click.option("--quick", is_flag=True, help="A fast draft with fewer simulations.")
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@max_states_option
+@debug_option
+@handle_errors
+def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: int,
+           max_states: int, debug: bool) -> None:
+    """Write a design-review report of SYSTEM_FILE to OUTPUT (HTML or PDF)."""
+    fail("report is not implemented yet", ExitCode.BAD_INPUT)
+
+
+@main.command(epilog=EXAMPLES)
+@click.argument("system_file", type=click.Path(dir_okay=False))
+@click.option("--paths", type=click.IntRange(1, 10_000_000), default=1000, show_default=True)
+@click.option("--steps", type=click.IntRange(1, 10_000_000), default=500, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="Print the simulation summary as JSON.")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+              help="Write a figure of the simulated traces (SVG or PNG).")
+@max_states_option
+@debug_option
+@handle_errors
+def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
+             plot: str | None, max_states: int, debug: bool) -> None:
+    """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
+    fail("simulate is not implemented yet", ExitCode.BAD_INPUT)

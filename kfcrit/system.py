@@ -1,0 +1,236 @@
+"""The linear system (A, C, Q, R, Σ0): exact matrices, float views, validation.
+
+Invariant: ``System.A`` … ``System.Sigma0`` are immutable sympy matrices holding exactly what the
+user entered (rationals and exact expressions; binary floats from NumPy input are kept exactly as
+the rationals they are), and ``System.a`` … ``System.sigma0`` are the float64 views of the same
+numbers. ``System.exact`` is True when every entry came from exact input (YAML text, integers,
+fractions, sympy), False when any entry came from a binary float array.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .errors import InputError
+
+MAX_STATES_DEFAULT = 400
+"""Largest state dimension accepted unless the caller raises the guard (``max_states``)."""
+
+
+def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
+    """Convert one matrix entry to an exact sympy number; return it and whether input was exact."""
+    from .exprparse import _finish, number_from_text, parse_expression
+
+    if isinstance(value, bool):
+        raise InputError("booleans are not numbers", field=where)
+    if isinstance(value, sp.Basic):
+        if not value.is_number:
+            raise InputError("symbolic entries are not allowed", field=where)
+        return _finish(sp.nsimplify(value) if isinstance(value, sp.Float) else value, where,
+                       str(value)), not isinstance(value, sp.Float)
+    if isinstance(value, (int, np.integer)):
+        return number_from_text(str(int(value)), where), True
+    if isinstance(value, Fraction):
+        return _finish(sp.Rational(value.numerator, value.denominator), where, str(value)), True
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        if not np.isfinite(f):
+            raise InputError(f"{f} is not a finite number", field=where)
+        return _finish(sp.Rational(f), where, repr(f)), False
+    if isinstance(value, str):
+        return parse_expression(value, where), True
+    if isinstance(value, (complex, np.complexfloating)):
+        raise InputError("complex entries are not allowed", field=where)
+    raise InputError(f"expected a number, got {type(value).__name__}", field=where)
+
+
+def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None,
+              max_size: int = MAX_STATES_DEFAULT) -> tuple[sp.ImmutableMatrix, bool]:
+    """Convert nested lists / arrays / sympy matrices to an exact immutable sympy matrix.
+
+    Parameters
+    ----------
+    value
+        Nested list, NumPy array, sympy matrix or scalar.
+    name : str
+        The user's name for the matrix (``"Q"``), used in every error message.
+    allow_scalar_identity : int, optional
+        If given, a scalar means that scalar times the identity of this size.
+    max_size : int
+        Guard on either dimension.
+    """
+    if isinstance(value, sp.MatrixBase):
+        rows = value.tolist()
+    elif isinstance(value, np.ndarray):
+        if value.ndim == 0:
+            rows = value.item()
+        elif value.ndim == 2:
+            rows = value.tolist()
+        else:
+            raise InputError(f"must be a matrix (2-D), got {value.ndim}-D array", field=name)
+    else:
+        rows = value
+    if not isinstance(rows, (list, tuple)):
+        entry, exact = _entry_to_sympy(rows, name)
+        size = allow_scalar_identity if allow_scalar_identity is not None else 1
+        return sp.ImmutableMatrix(sp.eye(size) * entry), exact
+    if len(rows) == 0:
+        raise InputError("must be a non-empty matrix", field=name)
+    if not all(isinstance(r, (list, tuple)) for r in rows):
+        raise InputError("must be a list of rows (e.g. [[1, 0], [0, 1]])", field=name)
+    ncols = len(rows[0])
+    if len(rows) > max_size or ncols > max_size:
+        raise InputError(f"has more than {max_size} rows or columns (raise the limit with "
+                         "--max-states)", field=name)
+    if ncols == 0:
+        raise InputError("has an empty row", field=name)
+    exact_all = True
+    out = []
+    for i, row in enumerate(rows):
+        if len(row) != ncols:
+            raise InputError(f"row {i} has {len(row)} entries, row 0 has {ncols}", field=name)
+        new_row = []
+        for j, v in enumerate(row):
+            entry, exact = _entry_to_sympy(v, f"{name}[{i}][{j}]")
+            exact_all &= exact
+            new_row.append(entry)
+        out.append(new_row)
+    return sp.ImmutableMatrix(out), exact_all
+
+
+def to_float(M: sp.MatrixBase) -> np.ndarray:
+    """Float64 view of an exact matrix (each entry rounded once, to nearest)."""
+    rows, cols = M.shape
+    out = np.empty((rows, cols))
+    for i in range(rows):
+        for j in range(cols):
+            e = M[i, j]
+            out[i, j] = float(e) if e.is_Rational else float(sp.N(e, 20))
+    return out
+
+
+def sym_tolerance(M: np.ndarray) -> float:
+    """Scale-aware tolerance for symmetry/definiteness of a float matrix: ``64·n·eps·‖M‖``."""
+    n = M.shape[0]
+    return 64 * n * np.finfo(float).eps * max(np.linalg.norm(M, ord=2), np.finfo(float).tiny)
+
+
+def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: bool) -> None:
+    if exact:
+        diff = M - M.T
+        if any(sp.simplify(d) != 0 for d in diff if d != 0):
+            raise InputError("must be symmetric", field=name)
+    elif np.max(np.abs(Mf - Mf.T), initial=0.0) > sym_tolerance(Mf):
+        raise InputError("must be symmetric", field=name)
+
+
+def _check_definite(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: bool,
+                    strict: bool) -> None:
+    """Positive (semi)definiteness: exact (rational LDL via sympy) for small rational input."""
+    what = "positive definite" if strict else "positive semidefinite"
+    rational = exact and all(e.is_Rational for e in M) and M.shape[0] <= 12
+    if rational:
+        ok = bool(M.is_positive_definite) if strict else bool(M.is_positive_semidefinite)
+    else:
+        w = np.linalg.eigvalsh(0.5 * (Mf + Mf.T))
+        tol = sym_tolerance(Mf)
+        ok = (w.min() > tol) if strict else (w.min() >= -tol)
+    if not ok:
+        raise InputError(f"must be symmetric {what}", field=name)
+
+
+@dataclass(frozen=True, eq=False)
+class System:
+    """A linear system x_{t+1} = A x_t + w_t, y_t = C x_t + v_t, w ~ N(0,Q), v ~ N(0,R).
+
+    Parameters
+    ----------
+    A, C, Q, R : array_like
+        Nested lists, NumPy arrays or sympy matrices. ``Q`` and ``R`` may be scalars (times I).
+    Sigma0 : array_like, optional
+        Initial covariance, default identity. A scalar means that scalar times I.
+    name : str, optional
+        A label for reports.
+    max_states : int
+        Guard on the state dimension.
+    """
+
+    A: sp.ImmutableMatrix
+    C: sp.ImmutableMatrix
+    Q: sp.ImmutableMatrix
+    R: sp.ImmutableMatrix
+    Sigma0: sp.ImmutableMatrix
+    name: str
+    exact: bool
+    a: np.ndarray = field(repr=False)
+    c: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    r: np.ndarray = field(repr=False)
+    sigma0: np.ndarray = field(repr=False)
+
+    def __init__(self, A: Any, C: Any, Q: Any, R: Any, Sigma0: Any = None, name: str | None = None,
+                 max_states: int = MAX_STATES_DEFAULT) -> None:
+        A_, ea = to_matrix(A, "A", max_size=max_states)
+        n = A_.shape[0]
+        if A_.shape != (n, n):
+            raise InputError(f"must be square, got {A_.shape[0]}x{A_.shape[1]}", field="A")
+        C_, ec = to_matrix(C, "C", max_size=max_states)
+        if C_.shape[1] != n:
+            raise InputError(f"must have {n} columns (the size of A), got {C_.shape[1]}",
+                             field="C")
+        m = C_.shape[0]
+        Q_, eq = to_matrix(Q, "Q", allow_scalar_identity=n, max_size=max_states)
+        R_, er = to_matrix(R, "R", allow_scalar_identity=m, max_size=max_states)
+        if Sigma0 is None:
+            S_, es = sp.ImmutableMatrix(sp.eye(n)), True
+        else:
+            S_, es = to_matrix(Sigma0, "Sigma0", allow_scalar_identity=n, max_size=max_states)
+        for M, nm, size in ((Q_, "Q", n), (R_, "R", m), (S_, "Sigma0", n)):
+            if M.shape != (size, size):
+                raise InputError(f"must be {size}x{size}, got {M.shape[0]}x{M.shape[1]}",
+                                 field=nm)
+        exact = ea and ec and eq and er and es
+        floats = {nm: to_float(M) for nm, M in
+                  (("A", A_), ("C", C_), ("Q", Q_), ("R", R_), ("Sigma0", S_))}
+        for M, nm, ex, strict in ((Q_, "Q", eq, False), (R_, "R", er, True),
+                                  (S_, "Sigma0", es, False)):
+            _check_symmetric(M, floats[nm], nm, ex)
+            _check_definite(M, floats[nm], nm, ex, strict)
+        set_ = object.__setattr__
+        for key, val in (("A", A_), ("C", C_), ("Q", Q_), ("R", R_), ("Sigma0", S_)):
+            set_(self, key, val)
+        set_(self, "name", str(name) if name is not None else "unnamed system")
+        set_(self, "exact", bool(exact))
+        for key, nm in (("a", "A"), ("c", "C"), ("q", "Q"), ("r", "R"), ("sigma0", "Sigma0")):
+            arr = floats[nm]
+            arr.setflags(write=False)
+            set_(self, key, arr)
+
+    @property
+    def n(self) -> int:
+        """State dimension."""
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        """Output dimension."""
+        return self.C.shape[0]
+
+    @classmethod
+    def from_statespace(cls, sys: Any, Q: Any, R: Any, Sigma0: Any = None,
+                        name: str | None = None) -> System:
+        """Build from a discrete-time python-control ``StateSpace`` (needs ``control``)."""
+        dt = getattr(sys, "dt", None)
+        if dt is None or dt is False or dt == 0:
+            raise InputError("must be a discrete-time StateSpace (dt > 0 or True)", field="sys")
+        return cls(np.asarray(sys.A), np.asarray(sys.C), Q, R, Sigma0, name=name)
+
+    def matrices_text(self) -> dict[str, list[list[str]]]:
+        """Exact entries as strings readable by :func:`kfcrit.exprparse.parse_expression`."""
+        return {nm: [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
+                for nm, M in (("A", self.A), ("C", self.C), ("Q", self.Q), ("R", self.R),
+                              ("Sigma0", self.Sigma0))}

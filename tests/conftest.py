@@ -1,0 +1,47 @@
+"""Shared test configuration: Hypothesis profiles and paths to the example systems.
+
+Profiles (choose with ``HYPOTHESIS_PROFILE``; CI uses ``ci``):
+
+* ``ci``: derandomized, no deadline, modest example counts — the whole suite well inside CI's limit;
+* ``dev``: the Hypothesis defaults with no deadline (randomized, for local exploration);
+* ``thorough``: many more examples; also enables the statistical checks marked ``slow``.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+ROOT = Path(__file__).resolve().parents[1]
+REPORTS = ROOT / "reports"
+SHARED_CASES = ROOT.parent / "shared" / "cases"
+
+settings.register_profile("ci", derandomize=True, deadline=None, max_examples=40,
+                          print_blob=True, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("dev", deadline=None, max_examples=100)
+settings.register_profile("thorough", deadline=None, max_examples=1000,
+                          suppress_health_check=[HealthCheck.too_slow])
+PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "dev")
+settings.load_profile(PROFILE)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Skip ``slow`` tests unless the ``thorough`` profile is active."""
+    if PROFILE == "thorough":
+        return
+    skip = pytest.mark.skip(reason="slow statistical check: run with HYPOTHESIS_PROFILE=thorough")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def reports_dir() -> Path:
+    return REPORTS
+
+
+def example_files() -> list[Path]:
+    """The example system files shipped in ``reports/``."""
+    return sorted(REPORTS.glob("*.yaml"))
