@@ -124,7 +124,10 @@ def exit_code_of(record: dict[str, Any]) -> int:
 def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: int,
            max_states: int, debug: bool) -> None:
     """Write a design-review report of SYSTEM_FILE to OUTPUT (HTML or PDF)."""
-    fail("report is not implemented yet", ExitCode.BAD_INPUT)
+    from .report import report_command
+
+    sys.exit(report_command(system_file, output, fmt=fmt, quick=quick, seed=seed,
+                            max_states=max_states))
 
 
 @main.command(epilog=EXAMPLES)
@@ -141,4 +144,27 @@ def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: in
 def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              plot: str | None, max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
-    fail("simulate is not implemented yet", ExitCode.BAD_INPUT)
+    from .simulate import simulate_command
+
+    sys.exit(simulate_command(system_file, paths=paths, steps=steps, seed=seed, as_json=as_json,
+                              plot=plot, max_states=max_states))
+
+
+@main.command(epilog=EXAMPLES)
+@click.argument("sweep_file", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", default=None, type=click.Path(file_okay=False),
+              help="Output folder for the CSV, JSON and plots (default: next to the sweep file).")
+@click.option("--scheduler", default=None,
+              help="Address of an existing Dask scheduler (tcp://HOST:PORT); default local.")
+@click.option("--workers", type=click.IntRange(1, 256), default=None,
+              help="Local worker processes (default: number of cores).")
+@max_states_option
+@debug_option
+@handle_errors
+def sweep(sweep_file: str, output: str | None, scheduler: str | None, workers: int | None,
+          max_states: int, debug: bool) -> None:
+    """Sweep a grid of system/channel parameters described in SWEEP_FILE."""
+    from .sweep import sweep_command
+
+    sys.exit(sweep_command(sweep_file, output=output, scheduler=scheduler, workers=workers,
+                           max_states=max_states))
