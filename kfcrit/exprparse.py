@@ -43,6 +43,9 @@ _FUNCTIONS = {
     "log": sp.log,
 }
 _NAMES = {"pi": sp.pi, "E": sp.E, "e": sp.E}
+_DESCRIPTIONS = {"Attribute": "attribute access", "Subscript": "indexing", "Lambda": "lambda",
+                 "ListComp": "a comprehension", "GeneratorExp": "a comprehension",
+                 "Compare": "a comparison", "IfExp": "a conditional"}
 _NUMBER_TEXT = re.compile(r"^[+-]?(\d[\d_]*)?(\.\d*)?([eE][+-]?\d+)?$")
 
 
@@ -57,6 +60,8 @@ def number_from_text(text: str, field: str | None = None) -> sp.Rational:
         Name of the field, for the error message.
     """
     t = text.strip().replace("_", "")
+    if t.lower().lstrip("+-") in (".inf", ".nan", "inf", "nan", "infinity"):
+        raise ExpressionError(f"{text.strip()[:20]!r} is not a finite number", field=field)
     if not t or not _NUMBER_TEXT.match(t) or not any(ch.isdigit() for ch in t):
         raise ExpressionError(f"not a number: {text[:40]!r}", field=field)
     mantissa = re.split(r"[eE]", t)[0]
@@ -103,6 +108,11 @@ def parse_expression(text: str, field: str | None = None) -> sp.Expr:
     if any(ord(ch) < 32 or ord(ch) > 126 for ch in text):
         raise ExpressionError("expression contains characters outside printable ASCII",
                               field=field)
+    depth = 0
+    for ch in text:
+        depth += (ch == "(") - (ch == ")")
+        if depth > MAX_DEPTH:
+            raise ExpressionError(f"parentheses nested deeper than {MAX_DEPTH}", field=field)
     source = text.strip().replace("^", "**")
     try:
         tree = ast.parse(source, mode="eval")
@@ -161,7 +171,7 @@ class _Walker:
             return self.binop(node, depth)
         if isinstance(node, ast.Call):
             return self.call(node, depth)
-        raise self.fail(f"{type(node).__name__} is not allowed")
+        raise self.fail(f"{_DESCRIPTIONS.get(type(node).__name__, type(node).__name__)} is not allowed")
 
     def constant(self, node: ast.Constant) -> sp.Expr:
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
@@ -202,9 +212,10 @@ class _Walker:
         return base**exponent
 
     def call(self, node: ast.Call, depth: int) -> sp.Expr:
-        if not isinstance(node.func, ast.Name) or node.func.id not in _FUNCTIONS:
-            name = node.func.id if isinstance(node.func, ast.Name) else type(node.func).__name__
-            raise self.fail(f"function {name[:20]!r} is not allowed")
+        if not isinstance(node.func, ast.Name):
+            raise self.fail("only calls of sqrt, cos, sin, tan, exp, log are allowed")
+        if node.func.id not in _FUNCTIONS:
+            raise self.fail(f"function {node.func.id[:20]!r} is not allowed")
         if len(node.args) != 1 or node.keywords:
             raise self.fail(f"{node.func.id} takes exactly one argument")
         arg = self.visit(node.args[0], depth + 1)

@@ -103,7 +103,7 @@ def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> tuple[Any
         raise InputError(f"cannot read {str(p)[:80]!r} (no such file or not readable)",
                          field="file") from None
     if size > max_bytes:
-        raise InputError(f"file is larger than {max_bytes} bytes", field="file")
+        raise InputError(f"is larger than {max_bytes} bytes", field="file")
     try:
         data = p.read_bytes()
     except OSError:
@@ -112,9 +112,9 @@ def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> tuple[Any
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
-        raise InputError("file is not valid UTF-8 text", field="file") from None
+        raise InputError("is not valid UTF-8 text", field="file") from None
     if not text.strip():
-        raise InputError("file is empty", field="file")
+        raise InputError("is empty", field="file")
     try:
         doc = yaml.load(text, Loader=_ExactLoader)  # noqa: S506 - SafeLoader subclass
     except InputError:
