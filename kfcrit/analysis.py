@@ -31,7 +31,8 @@ CONTRACT_KEYS = ("name", "classification", "critical_value", "robust_critical_va
                  "lower_bound", "block_lower_bound", "upper_bound", "operating_point",
                  "warnings")
 DETAIL_KEYS = ("description", "system", "structure", "theory", "covariance_bounds",
-               "phase_transition", "simulation", "link_budget", "requirements", "provenance")
+               "static_gain", "phase_transition", "simulation", "invariant", "link_budget",
+               "requirements", "verification", "provenance")
 
 
 @dataclass(frozen=True)
@@ -135,29 +136,160 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         The system, or a loaded system file (which adds channel and requirements).
     options : AnalysisOptions, optional
         Tolerances, simulation size and seed; keyword arguments override its fields.
-    """
-    from . import critical
 
+    Notes
+    -----
+    The order is that of the theory: exact structure and p_c (Mo–Sinopoli), the numerical upper
+    bound p_up (Sinopoli Thm 5), the covariance bounds S̄ ⪯ lim E[P_t] ⪯ V̄ at the operating point
+    (Thm 4, 6), then the simulation that cross-checks them, and finally the verdict.
+    """
     opts = options or AnalysisOptions()
     if kwargs:
         opts = AnalysisOptions(**{**opts.__dict__, **kwargs})
     spec = _as_spec(system)
     s = spec.system
-    sections: dict[str, Any] = {k: None for k in CONTRACT_KEYS + DETAIL_KEYS}
+    sec: dict[str, Any] = {k: None for k in CONTRACT_KEYS + DETAIL_KEYS}
+    sec["name"] = s.name
+    sec["description"] = spec.description
+    sec["system"] = system_section(spec)
+    sec["requirements"] = spec.requirements.to_dict()
     warnings: list[str] = []
-    sections["name"] = s.name
-    sections["description"] = spec.description
-    sections["system"] = system_section(spec)
-    sections["lower_bound"] = critical.lower_bound(s)
-    sections["critical_value"] = {"value": None, "exact": None, "expression": None,
-                                  "latex": None, "reason": "not computed yet"}
-    sections["block_lower_bound"] = None
-    sections["upper_bound"] = None
-    sections["warnings"] = warnings
-    sections["requirements"] = spec.requirements.to_dict()
-    sections["operating_point"] = operating_point(spec, sections)
-    sections["provenance"] = provenance(spec, opts)
-    return Analysis(sections=sections)
+
+    _critical_sections(spec, opts, sec, warnings)
+    _upper_sections(spec, opts, sec, warnings)
+    close_bracket(sec)
+    sec["operating_point"] = operating_point(spec, sec)
+    _bounds_sections(spec, sec, warnings)
+    _simulation_sections(spec, opts, sec, warnings)
+    _link_sections(spec, sec, warnings)
+    sec["verification"] = verification(sec)
+    sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
+    sec["provenance"] = provenance(spec, opts)
+    return Analysis(sections=sec)
+
+
+def _critical_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
+                       warnings: list[str]) -> None:
+    from . import critical
+
+    crit = critical.critical_section(spec.system, opts.tolerance, channel=spec.channel)
+    for key in ("classification", "critical_value", "robust_critical_value", "lower_bound",
+                "block_lower_bound", "structure", "theory"):
+        sec[key] = crit.get(key)
+    warnings.extend(crit.get("warnings") or [])
+
+
+def _upper_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
+                    warnings: list[str]) -> None:
+    from . import upper
+
+    ub = upper.upper_section(spec.system, tol=opts.upper_tol)
+    sec["upper_bound"] = ub
+    warnings.extend(ub.get("warnings") or [])
+
+
+def close_bracket(sec: dict[str, Any]) -> None:
+    """If p_c has no closed form but the exact block lower bound and the *certified* upper end
+    of p_up lie within the upper-bound tolerance, p_c is known to that width (Thm 3: p_c ≥ every
+    block value; Sinopoli Thm 3: p_c ≤ p_up). Fill ``critical_value`` accordingly (not exact)."""
+    cv = sec.get("critical_value") or {}
+    blb = sec.get("block_lower_bound") or {}
+    ub = sec.get("upper_bound") or {}
+    if cv.get("value") is not None or blb.get("value") is None or not ub.get("certified"):
+        return
+    hi = (ub.get("interval") or [None, None])[1]
+    tol = (ub.get("tolerance") or 1e-9)
+    if hi is not None and 0 <= hi - blb["value"] <= max(tol, 1e-12):
+        sec["critical_value"] = {
+            **cv, "value": blb["value"], "exact": False, "expression": blb.get("expression"),
+            "reason": (f"{cv.get('reason', '')} The bracket closes: the block lower bound "
+                       f"{blb.get('expression')} (Mo–Sinopoli Thm 3) and the certified upper end "
+                       f"{hi:.12g} of p_up (Sinopoli Thm 3) differ by at most {tol:g}.").strip()}
+
+
+def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -> None:
+    from . import bounds
+
+    s = spec.system
+    markers = {"p_low": (sec.get("lower_bound") or {}).get("value"),
+               "p_c": (sec.get("critical_value") or {}).get("value"),
+               "p_up": (sec.get("upper_bound") or {}).get("value"),
+               "operating": (float(spec.channel.arrival_probability)
+                             if spec.channel is not None else None)}
+    if markers["operating"] is not None:
+        cb = bounds.covariance_bounds(s, markers["operating"])
+        sec["covariance_bounds"] = cb
+        warnings.extend(cb.get("warnings") or [])
+        sec["static_gain"] = bounds.static_gain(s, markers["operating"])
+    sec["phase_transition"] = bounds.phase_transition(s, markers)
+
+
+def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
+                         warnings: list[str]) -> None:
+    from . import invariant
+
+    sec["invariant"] = invariant.invariant_section(spec.system)
+    if not opts.simulate:
+        sec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
+        return
+    from . import simulate
+
+    sim = simulate.simulation_section(
+        spec, critical_value=(sec.get("critical_value") or {}).get("value"),
+        upper_bound=(sec.get("upper_bound") or {}).get("value"), seed=opts.seed,
+        quick=opts.quick)
+    sec["simulation"] = sim
+    warnings.extend((sim or {}).get("warnings") or [])
+
+
+def _link_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -> None:
+    ch = spec.channel
+    if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
+        return
+    from . import linkbudget
+
+    if ch.model == "gilbert-elliott":
+        sec["link_budget"] = linkbudget.gilbert_elliott_section(spec.system, ch)
+        return
+    op = sec.get("operating_point") or {}
+    sec["link_budget"] = linkbudget.design_section(
+        ch, critical_value=(sec.get("critical_value") or {}).get("value"),
+        robust_value=(sec.get("robust_critical_value") or {}).get("value"),
+        bracket=tuple(op.get("bracket") or (None, None)),
+        upper_bound=(sec.get("upper_bound") or {}).get("value"))
+    warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
+
+
+def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
+    """The checks the record relies on, each with its outcome (for the report's appendix).
+
+    Every entry is ``{check, passed (True/False/None = not applicable), detail}``; nothing here
+    recomputes a result, it reads what the sections measured.
+    """
+    checks: list[dict[str, Any]] = []
+    ub = sec.get("upper_bound") or {}
+    if ub:
+        cert = ub.get("certificate") or {}
+        checks.append({"check": "upper-bound certificate X ≻ g_p(X), X ≻ 0 (exact re-check)",
+                       "passed": bool(ub.get("certified")),
+                       "detail": cert.get("verified_by") or cert.get("kind") or ub.get("status")})
+    cb = sec.get("covariance_bounds") or {}
+    if cb:
+        checks.append({"check": "covariance bounds ordered: S̄ ⪯ V̄",
+                       "passed": cb.get("ordered"),
+                       "detail": f"MARE residual {((cb.get('upper') or {}).get('residual'))}"})
+    sim = sec.get("simulation") or {}
+    for c in sim.get("checks") or []:
+        checks.append(c)
+    pcv = (sec.get("critical_value") or {}).get("value")
+    lb = (sec.get("lower_bound") or {}).get("value")
+    up = ub.get("value") if ub else None
+    if pcv is not None and lb is not None:
+        ok = lb <= pcv + 1e-12 and (up is None or pcv <= up + max(ub.get("tolerance") or 0,
+                                                                     1e-9))
+        checks.append({"check": "ordering p_low ≤ p_c ≤ p_up", "passed": bool(ok),
+                       "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
+    return checks
 
 
 def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:

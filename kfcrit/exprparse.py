@@ -33,6 +33,7 @@ MAX_EXPONENT = 64
 MAX_EXPONENT_DENOMINATOR = 64
 MAX_MAGNITUDE = sp.Integer(10) ** 300
 MAX_NODES = 200
+_BOUND = 10**300
 
 _FUNCTIONS = {
     "sqrt": sp.sqrt,
@@ -70,15 +71,19 @@ def number_from_text(text: str, field: str | None = None) -> sp.Rational:
     exp_part = re.split(r"[eE]", t)[1] if re.search(r"[eE]", t) else "0"
     if abs(int(exp_part)) > 400:
         raise ExpressionError(f"number {text[:40]!r} is out of range", field=field)
-    value = Fraction(t)
-    r = sp.Rational(value.numerator, value.denominator)
+    if re.fullmatch(r"[+-]?\d+", t):
+        r = sp.Integer(int(t))
+    else:
+        value = Fraction(t)
+        r = sp.Rational(value.numerator, value.denominator)
     _check_magnitude(r, field, text)
     return r
 
 
 def _check_magnitude(value: sp.Expr, field: str | None, text: str) -> None:
     if value.is_Rational:
-        if abs(value) > MAX_MAGNITUDE or (value != 0 and abs(value) < 1 / MAX_MAGNITUDE):
+        p, q = abs(int(value.p)), int(value.q)
+        if p > _BOUND * q or (p != 0 and p * _BOUND < q):
             raise ExpressionError(f"{text[:40]!r} is out of range (|x| must be in [1e-300, 1e300])",
                                   field=field)
 

@@ -27,6 +27,8 @@ def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
 
     if isinstance(value, bool):
         raise InputError("booleans are not numbers", field=where)
+    if isinstance(value, sp.Rational):  # already exact; range-checked where it was read
+        return value, True
     if isinstance(value, sp.Basic):
         if not value.is_number:
             raise InputError("symbolic entries are not allowed", field=where)
@@ -105,12 +107,8 @@ def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None
 def to_float(M: sp.MatrixBase) -> np.ndarray:
     """Float64 view of an exact matrix (each entry rounded once, to nearest)."""
     rows, cols = M.shape
-    out = np.empty((rows, cols))
-    for i in range(rows):
-        for j in range(cols):
-            e = M[i, j]
-            out[i, j] = float(e) if e.is_Rational else float(sp.N(e, 20))
-    return out
+    flat = [float(e) if e.is_Rational else float(sp.N(e, 20)) for e in M.tolist() for e in e]
+    return np.array(flat, dtype=float).reshape(rows, cols)
 
 
 def sym_tolerance(M: np.ndarray) -> float:

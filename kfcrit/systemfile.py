@@ -29,25 +29,33 @@ class YamlNumber(str):
     """The source text of a YAML int or float scalar (converted exactly later)."""
 
 
-class _ExactLoader(yaml.SafeLoader):
-    """SafeLoader that keeps number text, forbids aliases and duplicate keys."""
+_BaseLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # LibYAML when available
 
-    def compose_node(self, parent, index):  # noqa: ANN001 - PyYAML signature
-        if self.check_event(yaml.events.AliasEvent):
-            event = self.peek_event()
-            raise InputError(f"YAML aliases are not allowed (line {event.start_mark.line + 1})",
+
+class _ExactLoader(_BaseLoader):  # type: ignore[misc, valid-type]
+    """Safe loader that keeps number text and forbids aliases and duplicate keys.
+
+    Aliases are detected at construction: a node met a second time can only be an alias (every
+    non-alias node is constructed exactly once), so the check works for the C and the pure-Python
+    parser alike.
+    """
+
+    def construct_object(self, node, deep=False):  # noqa: ANN001 - PyYAML signature
+        if node in self.constructed_objects or node in self.recursive_objects:
+            raise InputError(f"YAML aliases are not allowed (line {node.start_mark.line + 1})",
                              field="file")
-        return super().compose_node(parent, index)
+        return super().construct_object(node, deep=deep)
 
     def construct_mapping(self, node, deep=False):  # noqa: ANN001
+        if not isinstance(node, yaml.MappingNode):
+            return super().construct_mapping(node, deep=deep)
         seen = set()
         for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)
-            if isinstance(key, (str, int)) and key in seen:
-                raise InputError(f"duplicate key (line {key_node.start_mark.line + 1})",
-                                 field=str(key)[:40])
-            if isinstance(key, (str, int)):
-                seen.add(key)
+            if isinstance(key_node, yaml.ScalarNode):
+                if key_node.value in seen:
+                    raise InputError(f"duplicate key (line {key_node.start_mark.line + 1})",
+                                     field=str(key_node.value)[:40])
+                seen.add(key_node.value)
         return super().construct_mapping(node, deep=deep)
 
 
@@ -59,12 +67,17 @@ _ExactLoader.add_constructor("tag:yaml.org,2002:int", _number)
 _ExactLoader.add_constructor("tag:yaml.org,2002:float", _number)
 
 
-def _exact_numbers(obj: Any, where: str) -> Any:
-    """Replace every :class:`YamlNumber` in nested lists by an exact sympy rational."""
+def _exact_numbers(obj: Any, where: str, depth: int = 0) -> Any:
+    """Replace every :class:`YamlNumber` in nested lists by an exact sympy rational.
+
+    A matrix is at most a list of lists, so nesting deeper than two levels is an error.
+    """
     if isinstance(obj, YamlNumber):
         return number_from_text(str(obj), where)
     if isinstance(obj, list):
-        return [_exact_numbers(v, f"{where}[{i}]") for i, v in enumerate(obj)]
+        if depth >= 2:
+            raise InputError("must be a matrix: a list of rows of numbers", field=where)
+        return [_exact_numbers(v, f"{where}[{i}]", depth + 1) for i, v in enumerate(obj)]
     return obj
 
 

@@ -43,5 +43,5 @@ def reports_dir() -> Path:
 
 
 def example_files() -> list[Path]:
-    """The example system files shipped in ``reports/``."""
-    return sorted(REPORTS.glob("*.yaml"))
+    """The example system files shipped in ``reports/`` (sweep files excluded)."""
+    return sorted(p for p in REPORTS.glob("*.yaml") if not p.name.startswith("sweep-"))
