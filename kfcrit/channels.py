@@ -70,8 +70,38 @@ def check_keys(data: dict, allowed: set[str], required: set[str], prefix: str) -
             raise InputError("is required", field=f"{prefix}.{key}")
 
 
+@dataclass(frozen=True, eq=False)
+class ArrivalProcess:
+    """Numeric description of an arrival process γ_t, read by the simulation kernels.
+
+    ``kind`` is one of
+
+    * ``"iid"``: γ_t i.i.d. Bernoulli(``p``);
+    * ``"markov"``: the two-state (Gilbert–Elliott) chain with P(γ_{t+1}=0 | γ_t=1) =
+      ``failure_rate`` and P(γ_{t+1}=1 | γ_t=0) = ``recovery_rate``, started in its stationary
+      law P(γ_0 = 1) = r/(f + r);
+    * ``"sequence"``: the given 0/1 ``sequence``, read cyclically.
+    """
+
+    kind: str
+    p: float = 0.0
+    failure_rate: float = 0.0
+    recovery_rate: float = 0.0
+    sequence: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("iid", "markov", "sequence"):
+            raise ValueError(f"unknown arrival process kind {self.kind!r}")
+
+
 class Channel:
-    """Base class of channel models."""
+    """Base class of channel models.
+
+    Subclasses must provide ``arrival_probability`` and ``to_dict``. The simulation reads the
+    arrival process from :meth:`arrival_process`; the default is i.i.d. Bernoulli with the
+    stationary ``arrival_probability``, which is right for every memoryless model (a model with
+    memory overrides it).
+    """
 
     model: ClassVar[str]
 
@@ -86,6 +116,55 @@ class Channel:
     def iid(self) -> bool:
         """True when losses are i.i.d. Bernoulli (the setting of the mean-stability theorems)."""
         return False
+
+    def arrival_process(self) -> ArrivalProcess:
+        """The arrival process for simulation (default: i.i.d. with the stationary probability)."""
+        return ArrivalProcess("iid", p=float(self.arrival_probability))
+
+    def draw_arrivals(self, rng: np.random.Generator, steps: int, *,
+                      offset: int = 0) -> np.ndarray:
+        """Draw γ_0 … γ_{steps−1} (bool array) with a NumPy ``Generator``.
+
+        A plain-NumPy reference implementation of :meth:`arrival_process` (the simulation kernels
+        use their own per-path streams; this one serves users and the tests).
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The random stream (unused for a given sequence).
+        steps : int
+            Number of arrivals to draw.
+        offset : int
+            For a given sequence: the index read first (the sequence is read cyclically).
+        """
+        return process_arrivals(self.arrival_process(), rng, steps, offset=offset)
+
+
+def process_arrivals(process: ArrivalProcess, rng: np.random.Generator, steps: int, *,
+                     offset: int = 0) -> np.ndarray:
+    """Draw ``steps`` arrivals of ``process`` with NumPy (see :meth:`Channel.draw_arrivals`).
+
+    The Markov chain is drawn as alternating geometric runs: an arrival run has length
+    Geometric(f) (mean 1/f), a loss run Geometric(r) (mean 1/r); the first state is drawn from the
+    stationary law r/(f + r), and the first run, by memorylessness, is again geometric.
+    """
+    if steps < 0:
+        raise InputError("must be >= 0", field="steps")
+    if process.kind == "iid":
+        return rng.random(steps) < process.p
+    if process.kind == "sequence":
+        seq = np.asarray(process.sequence, dtype=bool)
+        return seq[(offset + np.arange(steps)) % seq.size]
+    f, r = process.failure_rate, process.recovery_rate
+    state = bool(rng.random() < r / (f + r))
+    out = np.empty(steps, dtype=bool)
+    filled = 0
+    while filled < steps:
+        run = int(rng.geometric(f if state else r))
+        out[filled:filled + run] = state
+        filled += run
+        state = not state
+    return out
 
 
 @dataclass(frozen=True)
@@ -151,6 +230,11 @@ class GilbertElliott(Channel):
                 "arrival_probability_expression": sp.sstr(self.arrival_probability),
                 "mean_burst_length": float(1 / self.recovery_rate)}
 
+    def arrival_process(self) -> ArrivalProcess:
+        """The two-state Markov chain, started in its stationary law."""
+        return ArrivalProcess("markov", failure_rate=float(self.failure_rate),
+                              recovery_rate=float(self.recovery_rate))
+
 
 MAX_TRACE_BYTES = 50_000_000
 
@@ -187,9 +271,26 @@ class Trace(Channel):
                 "arrival_probability": float(self.arrival_probability),
                 "arrival_probability_expression": sp.sstr(self.arrival_probability)}
 
+    def arrival_process(self) -> ArrivalProcess:
+        """The measured sequence, read cyclically."""
+        return ArrivalProcess("sequence", p=float(self.arrival_probability),
+                              sequence=self.arrivals)
+
+    @classmethod
+    def from_arrivals(cls, arrivals: Any, name: str = "<given sequence>") -> Trace:
+        """A trace channel from an in-memory 0/1 sequence (anything else is an error)."""
+        arr = np.asarray(arrivals)
+        if arr.ndim != 1 or arr.size == 0:
+            raise InputError("must be a non-empty 1-D sequence of 0 and 1", field="arrivals")
+        if arr.dtype != bool and not np.isin(arr, (0, 1)).all():
+            raise InputError("only 0 and 1 are allowed", field="arrivals")
+        out = arr.astype(bool)
+        out.setflags(write=False)
+        return cls(name, out)
+
 
 def read_trace(path: Path, field: str) -> np.ndarray:
-    """Read a 0/1 packet trace; anything other than 0 and 1 separated by spaces/commas is an error."""
+    """Read a 0/1 packet trace; anything but 0 and 1 separated by spaces/commas is an error."""
     try:
         size = path.stat().st_size
     except OSError:
@@ -201,9 +302,10 @@ def read_trace(path: Path, field: str) -> np.ndarray:
     except (OSError, UnicodeDecodeError):
         raise InputError("trace file must be ASCII text of 0 and 1 values", field=field) from None
     tokens = text.replace(",", " ").split()
-    bad = next((t for t in tokens if t not in ("0", "1")), None)
-    if bad is not None:
-        raise InputError(f"trace file holds {bad[:20]!r}; only 0 and 1 are allowed", field=field)
+    bad = next((i for i, t in enumerate(tokens) if t not in ("0", "1")), None)
+    if bad is not None:  # the offending text is not echoed: the file may not be a trace at all
+        raise InputError(f"trace file value number {bad + 1} is not 0 or 1; only 0 and 1 are "
+                         "allowed", field=field)
     if not tokens:
         raise InputError("trace file is empty", field=field)
     arr = np.fromiter((t == "1" for t in tokens), dtype=bool, count=len(tokens))

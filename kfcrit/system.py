@@ -71,6 +71,9 @@ def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None
         if value.ndim == 0:
             rows = value.item()
         elif value.ndim == 2:
+            if max(value.shape) > max_size:
+                raise InputError(f"has more than {max_size} rows or columns (raise the limit "
+                                 "with --max-states)", field=name)
             rows = value.tolist()
         else:
             raise InputError(f"must be a matrix (2-D), got {value.ndim}-D array", field=name)
