@@ -95,6 +95,16 @@ def operating_point(spec: SystemSpec, sections: dict[str, Any]) -> dict[str, Any
     pc = cv.get("value")
     out: dict[str, Any] = {"arrival_probability": p, "channel": spec.channel.to_dict(),
                            "iid": spec.channel.iid}
+    if sections.get("classification") == "stable":
+        out.update(margin=p - (pc or 0.0), margin_robust=p - (pc or 0.0), bracket=None,
+                   verdict="mean-stable",
+                   reason="ρ(A) < 1: E[P_t] is bounded for every arrival probability")
+        return out
+    if sections.get("classification") == "not-detectable":
+        out.update(margin=None, margin_robust=None, bracket=None, verdict="mean-unstable",
+                   reason="(C, A) is not detectable: the error covariance diverges even with "
+                          "no losses")
+        return out
     if pc is not None:
         out["margin"] = p - pc
         worst = max(pc, robust.get("value") if robust.get("value") is not None else pc)

@@ -42,12 +42,12 @@ def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.R
         raise InputError("must be a number", field=field)
     if isinstance(value, sp.Basic):
         p = value
-    elif isinstance(value, int):
-        p = sp.Integer(value)
-    elif isinstance(value, float):
+    elif isinstance(value, (int, np.integer)):
+        p = sp.Integer(int(value))
+    elif isinstance(value, (float, np.floating)):
         if not np.isfinite(value):
             raise InputError("must be a finite number", field=field)
-        p = number_from_text(repr(value), field)
+        p = number_from_text(repr(float(value)), field)
     elif isinstance(value, str):
         p = parse_expression(value, field)
     else:

@@ -51,3 +51,80 @@ def phi(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, K: np.ndarra
     F = A + K @ C
     V = Q + K @ R @ K.T
     return symmetrize((1 - p) * (A @ X @ A.T + Q) + p * (F @ X @ F.T + V))
+
+
+# ---------------------------------------------------------------------------------------------
+# Noise-free maps, the jump-linear second-moment operator and linear solvers (issue 9).
+#
+# * noise-free MARE  G_p(X) = A X A' − p A X C' (C X C')^{-1} C X A'   (g_p with Q = R = 0)
+# * second moment    L_{K,p}(X) = (1−p) A X A' + p F X F',  F = A + K C
+#   (the error covariance operator of the jump-linear system e' = (A + γ K C) e);
+#   G_p(X) = min_K L_{K,p}(X), attained at K_X = −A X C' (C X C')^{-1}.
+# Symmetric matrices are vectorised by their upper triangle (``vech``) in the basis
+# E_ii, E_ij + E_ji (i < j): the coordinates of X are X[i, j], i ≤ j.
+# ---------------------------------------------------------------------------------------------
+
+
+def noise_free_g(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float,
+                 reg: float = 0.0) -> np.ndarray:
+    """G_p(X) = A X A' − p A X C' (C X C' + reg·I)^{-1} C X A' (noise-free MARE map).
+
+    ``reg`` > 0 is a homogeneous regulariser (pass ε·tr X) for nearly singular C X C'.
+    """
+    AXC = A @ X @ C.T
+    S = C @ X @ C.T + reg * np.eye(C.shape[0])
+    return symmetrize(A @ X @ A.T - p * AXC @ np.linalg.solve(S, AXC.T))
+
+
+def second_moment_map(A: np.ndarray, C: np.ndarray, K: np.ndarray, X: np.ndarray,
+                      p: float) -> np.ndarray:
+    """L_{K,p}(X) = (1−p) A X A' + p F X F' with F = A + K C."""
+    F = A + K @ C
+    return symmetrize((1 - p) * (A @ X @ A.T) + p * (F @ X @ F.T))
+
+
+def vech(X: np.ndarray) -> np.ndarray:
+    """Upper-triangle coordinates X[i, j], i ≤ j (row-major)."""
+    iu = np.triu_indices(X.shape[-1])
+    return X[..., iu[0], iu[1]]
+
+
+def unvech(x: np.ndarray, n: int) -> np.ndarray:
+    """Inverse of :func:`vech`: the symmetric matrix with upper triangle ``x``."""
+    X = np.zeros((n, n))
+    iu = np.triu_indices(n)
+    X[iu] = x
+    return X + np.triu(X, 1).T
+
+
+def congruence_matrix(M: np.ndarray) -> np.ndarray:
+    """Matrix of X ↦ M X M' on ``vech`` coordinates (size n(n+1)/2).
+
+    The image of the basis element E_ij + E_ji is m_i m_j' + m_j m_i' (m_i the columns of M);
+    of E_ii it is m_i m_i'.
+    """
+    n = M.shape[0]
+    iu, ju = np.triu_indices(n)
+    # row (r, s), column (i, j): M[r, i] M[s, j] + M[r, j] M[s, i] (halved when i = j)
+    Mr, Ms = M[iu], M[ju]
+    T = Mr[:, iu] * Ms[:, ju] + Mr[:, ju] * Ms[:, iu]
+    T[:, iu == ju] *= 0.5
+    return T
+
+
+def stein_matrix(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: float) -> np.ndarray:
+    """Matrix of L_{K,p} on ``vech`` coordinates."""
+    return (1 - p) * congruence_matrix(A) + p * congruence_matrix(A + K @ C)
+
+
+def solve_generalized_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: float,
+                            W: np.ndarray) -> np.ndarray:
+    """Solve X = L_{K,p}(X) + W, i.e. X = (1−p) A X A' + p F X F' + W, directly (vech + LU).
+
+    The solution is unique when ρ(L_{K,p}) ≠ 1; it is ⪰ W ⪰ 0 when ρ(L_{K,p}) < 1.
+    Cost O(n^6) in time and O(n^4) in memory: meant for n ≲ 60.
+    """
+    n = A.shape[0]
+    L = stein_matrix(A, C, K, p)
+    x = np.linalg.solve(np.eye(L.shape[0]) - L, vech(symmetrize(W)))
+    return unvech(x, n)

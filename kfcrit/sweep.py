@@ -1,10 +1,878 @@
-"""Parameter sweeps (placeholder until the sweep work lands)."""
+"""Parameter sweeps: ``kfcrit sweep sweep.yaml`` over any system or channel parameter.
+
+A sweep file names a base system (a system file, or an inline system mapping) and a grid (the
+Cartesian product of value lists) or an explicit list of points::
+
+    name: distance and packet size
+    system: link-oqpsk-sensor.yaml          # relative to the sweep file, or an inline mapping
+    tolerance: 1e-9                         # optional, for the robust critical value
+    grid:                                   # first parameter varies slowest
+      channel.distance_m: {start: 20, stop: 200, num: 10}      # inclusive, exact steps
+      channel.packet_bytes: [20, 40, 127]
+      A[0][0]: {start: 1.1, stop: 1.5, step: 0.1}
+      channel.noise.bandwidth_hz: {start: 1e5, stop: 1e7, num: 5, scale: log}
+    # points: [{channel.distance_m: 10, channel.tx_power_dbm: 0}, ...]   (instead of grid)
+    plot: {x: channel.distance_m}           # optional; default the first parameter
+
+A parameter is ``channel.KEY[.KEY…]`` (any channel field, nested mappings included) or a
+matrix entry ``A[i][j]`` (also ``C``, ``Q``, ``R``, ``Sigma0``; an off-diagonal entry of the
+symmetric Q, R, Σ0 sets both (i, j) and (j, i)). Values are kept as text and read exactly by the
+system-file parser, like any system file; nothing is ever evaluated.
+
+Each point gives one row: the critical value (or the best bound available), the arrival
+probability and the margin p − p_req, and for link budgets the SINR, the required SINR, the
+link margin in dB and the largest distance. Output folder: ``sweep.csv``, ``sweep.json``,
+``margin.svg`` and ``margin.png``, each written atomically (temporary file, fsync, rename).
+
+Invariant (resumability): every finished row is appended to ``sweep.journal.jsonl`` and fsynced
+before it is counted; a row is keyed by the SHA-256 of (format, kfcrit version, base system,
+tolerance, max_states, the point's assignments), so after an interruption only the missing
+points are computed, and a changed base system or tolerance recomputes everything.
+Invariant (reproducibility): a row depends only on its key's inputs — never on the worker,
+the chunking or the order of completion — and rows are written sorted by point index, so local
+processes, a single process and a Dask cluster give byte-identical tables.
+"""
 from __future__ import annotations
 
-from .errors import InputError
+import copy
+import csv
+import hashlib
+import io
+import itertools
+import json
+import math
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from decimal import Decimal
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+
+from . import __version__
+from .errors import ExitCode, InputError, KfcritError
+from .record import jsonable
+
+FORMAT_VERSION = 1
+MAX_POINTS = 1_000_000
+MAX_NUM = 100_000
+MAX_SERIES = 12
+SWEEP_KEYS = {"name", "description", "system", "tolerance", "grid", "points", "plot"}
+MATRICES = ("A", "C", "Q", "R", "Sigma0")
+SYMMETRIC = ("Q", "R", "Sigma0")
+_MATRIX_PATH = re.compile(r"^(A|C|Q|R|Sigma0)\[(\d{1,6})\]\[(\d{1,6})\]$")
+_CHANNEL_PATH = re.compile(r"^channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
+_SCHEDULER = re.compile(r"^(tcp|tls)://[A-Za-z0-9.\-\[\]:]{1,200}$")
+
+RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
+                  "critical_expression", "robust_critical_value", "upper_bound", "requirement",
+                  "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
+                  "sinr_db", "required_sinr_db", "link_margin_db", "max_distance_m",
+                  "outage_probability", "mean_arrival_probability")
+"""Columns of every row after ``index``, ``key`` and the parameters (fixed: a tidy table)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# The sweep file
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class SweepSpec:
+    """A validated sweep: base system document, parameters and points (value texts)."""
+
+    name: str
+    base_doc: dict[str, Any]
+    base_dir: Path
+    parameters: tuple[str, ...]
+    points: tuple[tuple[str, ...], ...]
+    tolerance: float
+    tolerance_text: str
+    plot_x: str
+    path: str | None = None
+    sha256: str | None = None
+    description: str = ""
+    base_path: str | None = None
+    keys: tuple[str, ...] = field(default=(), repr=False)
+
+    def assignments(self, index: int) -> list[tuple[str, str]]:
+        """The (parameter, value text) pairs of point ``index``."""
+        return list(zip(self.parameters, self.points[index]))
+
+
+def _plain(obj: Any) -> Any:
+    """YAML number texts (str subclass) → plain str, recursively; other scalars unchanged."""
+    if isinstance(obj, str):
+        return str(obj)
+    if isinstance(obj, dict):
+        return {str(k) if isinstance(k, str) else k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_plain(v) for v in obj]
+    return obj
+
+
+def _exact_text(value: sp.Rational) -> str:
+    """Readable exact text of a rational: a finite decimal when there is one, else ``p/q``."""
+    frac = Fraction(int(value.p), int(value.q))
+    q = frac.denominator
+    for prime in (2, 5):
+        while q % prime == 0:
+            q //= prime
+    if q != 1:
+        return f"{frac.numerator}/{frac.denominator}"
+    text = format(Decimal(frac.numerator) / Decimal(frac.denominator), "f")
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return text
+
+
+def _scalar_text(value: Any, where: str) -> str:
+    """A value of a list as text (numbers keep their YAML source text)."""
+    if isinstance(value, bool) or value is None or isinstance(value, (dict, list)):
+        raise InputError("must be a number or a string", field=where)
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, str):
+        if not value.strip() or len(value) > 500:
+            raise InputError("must be a non-empty string of at most 500 characters", field=where)
+        return str(value)
+    raise InputError(f"must be a number or a string, got {type(value).__name__}", field=where)
+
+
+def _exact(value: Any, where: str) -> sp.Expr:
+    from .linkbudget import exact_number
+
+    return exact_number(_scalar_text(value, where), where)
+
+
+def _range_values(spec: dict, where: str) -> list[str]:
+    """``{start, stop, num}`` (inclusive linspace), ``{start, stop, step}`` or ``scale: log``."""
+    from .channels import check_keys
+
+    check_keys(spec, {"start", "stop", "num", "step", "scale"}, {"start", "stop"}, where)
+    scale = spec.get("scale", "linear")
+    if scale not in ("linear", "log"):
+        raise InputError("must be linear or log", field=f"{where}.scale")
+    if ("num" in spec) == ("step" in spec):
+        raise InputError("give exactly one of num and step", field=f"{where}.num")
+    start = _exact(spec["start"], f"{where}.start")
+    stop = _exact(spec["stop"], f"{where}.stop")
+    if not (start.is_Rational and stop.is_Rational):
+        raise InputError("range ends must be plain numbers", field=f"{where}.start")
+    if "num" in spec:
+        num = _exact(spec["num"], f"{where}.num")
+        if not num.is_Integer or not 1 <= int(num) <= MAX_NUM:
+            raise InputError(f"must be an integer from 1 to {MAX_NUM}", field=f"{where}.num")
+        n = int(num)
+        if scale == "log":
+            if start <= 0 or stop <= 0:
+                raise InputError("a log scale needs positive start and stop",
+                                 field=f"{where}.start")
+            lo, hi = math.log10(float(start)), math.log10(float(stop))
+            return [repr(10 ** (lo + (hi - lo) * k / (n - 1))) if 0 < k < n - 1 else
+                    _exact_text(start if k == 0 else stop) for k in range(n)] if n > 1 \
+                else [_exact_text(start)]
+        if n == 1:
+            return [_exact_text(start)]
+        return [_exact_text(start + (stop - start) * sp.Rational(k, n - 1)) for k in range(n)]
+    if scale == "log":
+        raise InputError("a log scale needs num, not step", field=f"{where}.scale")
+    step = _exact(spec["step"], f"{where}.step")
+    if not step.is_Rational or step == 0 or (stop - start) / step < 0:
+        raise InputError("must be a non-zero number leading from start to stop",
+                         field=f"{where}.step")
+    count = int(sp.floor((stop - start) / step)) + 1
+    if count > MAX_NUM:
+        raise InputError(f"gives more than {MAX_NUM} values", field=f"{where}.step")
+    return [_exact_text(start + k * step) for k in range(count)]
+
+
+def _values(spec: Any, where: str) -> list[str]:
+    if isinstance(spec, list):
+        if not spec:
+            raise InputError("must not be empty", field=where)
+        if len(spec) > MAX_NUM:
+            raise InputError(f"has more than {MAX_NUM} values", field=where)
+        return [_scalar_text(v, f"{where}[{i}]") for i, v in enumerate(spec)]
+    if isinstance(spec, dict):
+        return _range_values(spec, where)
+    return [_scalar_text(spec, where)]
+
+
+def check_parameter(path: Any, base_doc: dict, where: str) -> str:
+    """Validate a parameter path against the base system document."""
+    if not isinstance(path, str):
+        raise InputError("parameter names must be strings", field=where)
+    m = _MATRIX_PATH.match(path)
+    if m:
+        name, i, j = m.group(1), int(m.group(2)), int(m.group(3))
+        rows = base_doc.get(name)
+        if rows is None and name == "Sigma0":
+            raise InputError("the base system has no Sigma0 to change", field=where)
+        if not isinstance(rows, list) or not all(isinstance(r, list) for r in rows):
+            raise InputError(f"{name} in the base system must be a list of rows to sweep "
+                             "an entry", field=where)
+        if i >= len(rows) or j >= len(rows[i]):
+            raise InputError(f"index out of range ({name} is {len(rows)}x{len(rows[0])})",
+                             field=where)
+        return path
+    if _CHANNEL_PATH.match(path):
+        node = base_doc.get("channel")
+        keys = path.split(".")[1:]
+        if not isinstance(node, dict):
+            raise InputError("the base system has no channel mapping", field=where)
+        for key in keys[:-1]:
+            node = node.get(key)
+            if not isinstance(node, dict):
+                raise InputError(f"the base channel has no mapping {key!r}", field=where)
+        return path
+    raise InputError("unknown parameter: use channel.KEY[.KEY...] or a matrix entry like "
+                     "A[0][1]", field=where)
+
+
+def apply_point(base_doc: dict, assignments: Iterable[tuple[str, str]]) -> dict:
+    """A copy of the base document with the point's values set (as text)."""
+    doc = copy.deepcopy(base_doc)
+    for path, text in assignments:
+        m = _MATRIX_PATH.match(path)
+        if m:
+            name, i, j = m.group(1), int(m.group(2)), int(m.group(3))
+            doc[name][i][j] = text
+            if name in SYMMETRIC and i != j and j < len(doc[name]) and i < len(doc[name][j]):
+                doc[name][j][i] = text
+            continue
+        keys = path.split(".")[1:]
+        node = doc["channel"]
+        for key in keys[:-1]:
+            node = node[key]
+        node[keys[-1]] = text
+    return doc
+
+
+def point_key(spec_base: dict, tolerance_text: str, max_states: int,
+              assignments: Iterable[tuple[str, str]]) -> str:
+    """SHA-256 key of one point's inputs (see the resumability invariant)."""
+    blob = json.dumps({"format": FORMAT_VERSION, "kfcrit": __version__, "system": spec_base,
+                       "tolerance": tolerance_text, "max_states": max_states,
+                       "point": [list(a) for a in assignments]},
+                      sort_keys=True, ensure_ascii=True, separators=(",", ":"))
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _load_base(system: Any, sweep_dir: Path) -> tuple[dict, Path, str | None]:
+    from .systemfile import read_yaml
+
+    if isinstance(system, dict):
+        return _plain(system), sweep_dir, None
+    if isinstance(system, str) and system.strip():
+        path = Path(system)
+        if not path.is_absolute():
+            path = sweep_dir / path
+        try:
+            doc, _ = read_yaml(path)
+        except InputError as exc:
+            raise InputError(f"base system file: {exc}", field="system") from None
+        if not isinstance(doc, dict):
+            raise InputError("the base system file must be a YAML mapping", field="system")
+        return _plain(doc), path.resolve().parent, str(path)
+    raise InputError("must be a system file path or an inline system mapping", field="system")
+
+
+def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
+    """Read and validate a sweep file (every error is one line naming the field)."""
+    from .channels import check_keys
+    from .systemfile import read_yaml
+
+    doc, digest = read_yaml(path)
+    if not isinstance(doc, dict):
+        raise InputError("the sweep file must be a YAML mapping (system:, grid: or points:)",
+                         field="file")
+    check_keys(doc, SWEEP_KEYS, {"system"}, "sweep")
+    if ("grid" in doc) == ("points" in doc):
+        raise InputError("give exactly one of grid and points", field="sweep.grid")
+    sweep_dir = Path(path).resolve().parent
+    base_doc, base_dir, base_path = _load_base(doc["system"], sweep_dir)
+    _validate_base(base_doc, base_dir, max_states)
+    tol_text = _scalar_text(doc.get("tolerance", "1e-9"), "sweep.tolerance")
+    tol = _exact(tol_text, "sweep.tolerance")
+    if not (0 <= tol <= sp.Rational(1, 10)):
+        raise InputError("must be in [0, 0.1]", field="sweep.tolerance")
+    if "grid" in doc:
+        parameters, points = _grid(doc["grid"], base_doc)
+    else:
+        parameters, points = _points(doc["points"], base_doc)
+    if not parameters:
+        raise InputError("needs at least one parameter", field="sweep.grid")
+    plot_x = parameters[0]
+    if doc.get("plot") is not None:
+        plot = doc["plot"]
+        if not isinstance(plot, dict):
+            raise InputError("must be a mapping like {x: channel.distance_m}", field="sweep.plot")
+        check_keys(plot, {"x"}, set(), "sweep.plot")
+        if "x" in plot:
+            if plot["x"] not in parameters:
+                raise InputError("must be one of the swept parameters", field="sweep.plot.x")
+            plot_x = str(plot["x"])
+    name = doc.get("name") or Path(path).stem
+    description = doc.get("description") or ""
+    if not isinstance(name, str) or not isinstance(description, str):
+        raise InputError("must be a string", field="sweep.name")
+    keys = tuple(point_key(base_doc, tol_text, max_states, zip(parameters, pt))
+                 for pt in points)
+    return SweepSpec(name=name[:200], base_doc=base_doc, base_dir=base_dir,
+                     parameters=tuple(parameters), points=tuple(points),
+                     tolerance=float(tol), tolerance_text=tol_text, plot_x=plot_x,
+                     path=str(path), sha256=digest, description=description[:2000],
+                     base_path=base_path, keys=keys)
+
+
+def _validate_base(base_doc: dict, base_dir: Path, max_states: int) -> None:
+    from .systemfile import spec_from_mapping
+
+    try:
+        spec_from_mapping(base_doc, base_dir=base_dir, max_states=max_states)
+    except KfcritError as exc:
+        raise InputError(f"base system: {exc}", field="system") from None
+
+
+def _grid(grid: Any, base_doc: dict) -> tuple[list[str], list[tuple[str, ...]]]:
+    if not isinstance(grid, dict) or not grid:
+        raise InputError("must be a non-empty mapping of parameter: values", field="sweep.grid")
+    params, lists = [], []
+    total = 1
+    for path, spec in grid.items():
+        where = f"sweep.grid.{path}"
+        params.append(check_parameter(path, base_doc, where))
+        values = _values(spec, where)
+        total *= len(values)
+        if total > MAX_POINTS:
+            raise InputError(f"the grid has more than {MAX_POINTS} points", field="sweep.grid")
+        lists.append(values)
+    return params, [tuple(p) for p in itertools.product(*lists)]
+
+
+def _points(points: Any, base_doc: dict) -> tuple[list[str], list[tuple[str, ...]]]:
+    if not isinstance(points, list) or not points:
+        raise InputError("must be a non-empty list of mappings", field="sweep.points")
+    if len(points) > MAX_POINTS:
+        raise InputError(f"has more than {MAX_POINTS} points", field="sweep.points")
+    first = points[0]
+    if not isinstance(first, dict) or not first:
+        raise InputError("must be a non-empty mapping", field="sweep.points[0]")
+    params = [check_parameter(p, base_doc, f"sweep.points[0].{p}") for p in first]
+    out = []
+    for i, pt in enumerate(points):
+        if not isinstance(pt, dict) or set(pt) != set(first):
+            raise InputError(f"every point must set the same parameters ({', '.join(params)})",
+                             field=f"sweep.points[{i}]")
+        out.append(tuple(_scalar_text(pt[p], f"sweep.points[{i}].{p}") for p in params))
+    return params, out
+
+
+# ---------------------------------------------------------------------------------------------
+# One point
+# ---------------------------------------------------------------------------------------------
+
+_SYSTEMS: dict[str, Any] = {}
+_CRITICAL: dict[str, dict[str, Any]] = {}
+_CACHE_LIMIT = 512
+
+
+def _cached(cache: dict, key: str, build: Callable[[], Any]) -> Any:
+    """Per-process memo (results are pure functions of the key, so caching never changes them)."""
+    if key not in cache:
+        if len(cache) >= _CACHE_LIMIT:
+            cache.clear()
+        cache[key] = build()
+    return cache[key]
+
+
+def _value(obj: Any) -> float | None:
+    """``x`` or ``x["value"]`` as a float; None when absent."""
+    if isinstance(obj, dict):
+        obj = obj.get("value")
+    if obj is None or isinstance(obj, bool):
+        return None
+    try:
+        v = float(obj)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def critical_summary(system: Any, tolerance: float) -> dict[str, Any]:
+    """Critical value (``critical.critical_value`` when available) and bounds of one system."""
+    from . import critical
+
+    out: dict[str, Any] = {"classification": None, "lower_bound": None, "critical_value": None,
+                           "critical_expression": None, "robust_critical_value": None,
+                           "upper_bound": None, "block_lower_bound": None}
+    out["lower_bound"] = _value(critical.lower_bound(system))
+    fn = getattr(critical, "critical_value", None)
+    if fn is None:
+        out["classification"] = "lower-bound-only"
+        return out
+    rec = fn(system, tolerance)
+    d = rec.to_dict() if hasattr(rec, "to_dict") else dict(rec)
+    cv = d.get("critical_value")
+    out.update(classification=d.get("classification"), critical_value=_value(cv),
+               critical_expression=cv.get("expression") if isinstance(cv, dict) else None,
+               robust_critical_value=_value(d.get("robust_critical_value")),
+               block_lower_bound=_value(d.get("block_lower_bound")),
+               upper_bound=_value(d.get("upper_bound")))
+    if out["block_lower_bound"] is not None and out["lower_bound"] is not None:
+        out["lower_bound"] = max(out["lower_bound"], out["block_lower_bound"])
+    return out
+
+
+def _requirement(crit: dict[str, Any]) -> tuple[float | None, str | None]:
+    """The arrival probability a point must exceed, and the basis of that number."""
+    pc, robust = crit["critical_value"], crit["robust_critical_value"]
+    if pc is not None:
+        if robust is not None and robust > pc:
+            return robust, "robust critical value"
+        return pc, "critical value"
+    if crit["upper_bound"] is not None:
+        return crit["upper_bound"], "upper bound (sufficient)"
+    if crit["lower_bound"] is not None:
+        return crit["lower_bound"], "lower bound (necessary only)"
+    return None, None
+
+
+def _verdict(p: float, crit: dict[str, Any], req: float | None, basis: str | None) -> str:
+    pc = crit["critical_value"]
+    low = pc if pc is not None else crit["lower_bound"]
+    if low is not None and p <= low:
+        return "mean-unstable"
+    if req is not None and p > req and basis != "lower bound (necessary only)":
+        return "mean-stable"
+    return "undetermined"
+
+
+def _link_columns(channel: Any, req: float | None) -> dict[str, Any]:
+    from .linkbudget import LinkBudget
+
+    out: dict[str, Any] = {}
+    if not isinstance(channel, LinkBudget):
+        return out
+    sinr = channel.sinr_db
+    out.update(sinr_db=sinr, mean_arrival_probability=channel.mean_arrival(sinr))
+    if req is None or req >= 1:
+        return out
+    try:
+        s_req = channel.required_sinr_db(req)
+    except ValueError:
+        return out
+    out["outage_probability"] = channel.outage_probability(req)
+    if s_req is not None:
+        out.update(required_sinr_db=s_req, link_margin_db=sinr - s_req,
+                   max_distance_m=channel.max_distance_m(s_req, channel.effective_margin_db))
+    return out
+
+
+def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
+                   assignments: list[tuple[str, str]]) -> dict[str, Any]:
+    """The result columns of one point (``status`` ``error`` with a one-line message on error)."""
+    from .channels import channel_from_mapping
+    from .system import System
+
+    row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
+    try:
+        doc = apply_point(base_doc, assignments)
+        mats = {k: doc[k] for k in MATRICES if doc.get(k) is not None}
+        skey = json.dumps([mats, max_states], sort_keys=True)
+        system = _cached(_SYSTEMS, skey, lambda: System(
+            mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
+            name=str(doc.get("name")), max_states=max_states))
+        crit = _cached(_CRITICAL, f"{skey}|{tolerance!r}",
+                       lambda: critical_summary(system, tolerance))
+        channel = (channel_from_mapping(doc["channel"], "channel", Path(base_dir))
+                   if doc.get("channel") is not None else None)
+        req, basis = _requirement(crit)
+        row.update(status="ok", classification=crit["classification"],
+                   lower_bound=crit["lower_bound"], critical_value=crit["critical_value"],
+                   critical_expression=crit["critical_expression"],
+                   robust_critical_value=crit["robust_critical_value"],
+                   upper_bound=crit["upper_bound"], requirement=req, requirement_basis=basis)
+        if channel is not None:
+            p = float(channel.arrival_probability)
+            row.update(arrival_probability=p, iid=bool(channel.iid),
+                       margin=(p - req) if req is not None else None,
+                       verdict=_verdict(p, crit, req, basis))
+            row.update(_link_columns(channel, req))
+    except KfcritError as exc:
+        row.update(status="error", error=str(exc)[:300],
+                   error_code=int(exc.exit_code))
+    except (ValueError, ArithmeticError) as exc:
+        row.update(status="error", error=f"{type(exc).__name__}: {str(exc)[:250]}",
+                   error_code=int(ExitCode.INCONCLUSIVE))
+    return jsonable(row)
+
+
+def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
+                   items: list[tuple[int, str, list[tuple[str, str]]]]
+                   ) -> list[tuple[int, str, dict[str, Any]]]:
+    """Evaluate a chunk of points (the unit of work sent to a process or a Dask worker)."""
+    return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments))
+            for index, key, assignments in items]
+
+
+# ---------------------------------------------------------------------------------------------
+# The journal (resumability)
+# ---------------------------------------------------------------------------------------------
+
+class Journal:
+    """Append-only JSON-lines file of finished points, fsynced after every batch.
+
+    A torn last line (the process died mid-write) is ignored on reading and a newline is
+    written before the next append, so the file stays parseable line by line.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def load(self) -> dict[str, dict[str, Any]]:
+        """Key → result columns of every complete line."""
+        out: dict[str, dict[str, Any]] = {}
+        try:
+            text = self.path.read_text(encoding="utf-8", errors="replace")
+        except FileNotFoundError:
+            return out
+        except OSError:
+            raise InputError(f"cannot read the journal {str(self.path)[:80]!r}",
+                             field="output") from None
+        for line in text.splitlines():
+            try:
+                entry = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(entry, dict) and isinstance(entry.get("key"), str) \
+                    and isinstance(entry.get("result"), dict):
+                out[entry["key"]] = entry["result"]
+        return out
+
+    def append(self, entries: list[tuple[str, dict[str, Any]]]) -> None:
+        """Append ``(key, result)`` entries and fsync."""
+        if not entries:
+            return
+        needs_newline = False
+        if self.path.exists() and self.path.stat().st_size > 0:
+            with open(self.path, "rb") as fh:
+                fh.seek(-1, os.SEEK_END)
+                needs_newline = fh.read(1) != b"\n"
+        lines = "".join(json.dumps({"key": k, "result": r}, allow_nan=False,
+                                   separators=(",", ":")) + "\n" for k, r in entries)
+        with open(self.path, "a", encoding="utf-8") as fh:
+            fh.write(("\n" if needs_newline else "") + lines)
+            fh.flush()
+            os.fsync(fh.fileno())
+
+
+# ---------------------------------------------------------------------------------------------
+# Runners
+# ---------------------------------------------------------------------------------------------
+
+Items = list[tuple[int, str, list[tuple[str, str]]]]
+
+
+def _chunks(items: Items, workers: int) -> list[Items]:
+    size = max(1, min(64, math.ceil(len(items) / (4 * max(1, workers)))))
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def run_serial(spec: SweepSpec, items: Items, max_states: int,
+               ) -> Iterator[list[tuple[int, str, dict]]]:
+    """Evaluate in this process (chunk by chunk, so the journal is written as it goes)."""
+    for chunk in _chunks(items, 1):
+        yield evaluate_chunk(spec.base_doc, str(spec.base_dir), spec.tolerance, max_states,
+                             chunk)
+
+
+def run_processes(spec: SweepSpec, items: Items, max_states: int, workers: int,
+                  ) -> Iterator[list[tuple[int, str, dict]]]:
+    """Evaluate on a local process pool (spawned, so safe next to threads)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        futures = [pool.submit(evaluate_chunk, spec.base_doc, str(spec.base_dir),
+                               spec.tolerance, max_states, chunk)
+                   for chunk in _chunks(items, workers)]
+        try:
+            for fut in as_completed(futures):
+                yield fut.result()
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            raise
+
+
+def run_dask(spec: SweepSpec, items: Items, max_states: int, scheduler: str,
+             ) -> Iterator[list[tuple[int, str, dict]]]:
+    """Evaluate on an existing Dask distributed cluster (``tcp://HOST:PORT``)."""
+    if not _SCHEDULER.match(scheduler):
+        raise InputError("must look like tcp://HOST:PORT (or tls://)", field="--scheduler")
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise InputError("needs dask[distributed] (pip install 'kfcrit[dask]')",
+                         field="--scheduler") from None
+    try:
+        client = Client(scheduler, timeout="15s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise InputError(f"cannot connect to the Dask scheduler ({type(exc).__name__})",
+                         field="--scheduler") from None
+    try:
+        workers = max(1, len(client.scheduler_info().get("workers", {})))
+        base = client.scatter(spec.base_doc, broadcast=True)
+        futures = [client.submit(evaluate_chunk, base, str(spec.base_dir), spec.tolerance,
+                                 max_states, chunk, pure=False)
+                   for chunk in _chunks(items, workers)]
+        try:
+            for fut in as_completed(futures):
+                yield fut.result()
+        except BaseException:
+            client.cancel(futures)
+            raise
+    finally:
+        client.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# Outputs
+# ---------------------------------------------------------------------------------------------
+
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically: temporary file in the folder, fsync, rename."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def _param_value(text: str) -> Any:
+    """A parameter's value for the table: a float when the text is a number, else the text."""
+    from .exprparse import parse_expression
+
+    try:
+        return float(sp.N(parse_expression(text), 17))
+    except (KfcritError, TypeError, ValueError):
+        return text
+
+
+def assemble_rows(spec: SweepSpec, results: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """The table: one row per point, sorted by index, fixed columns."""
+    cache: dict[str, Any] = {}
+    rows = []
+    for index, (pt, key) in enumerate(zip(spec.points, spec.keys)):
+        row: dict[str, Any] = {"index": index, "key": key[:16]}
+        for param, text in zip(spec.parameters, pt):
+            if text not in cache:
+                cache[text] = _param_value(text)
+            row[param] = cache[text]
+        res = results[key]
+        row.update({c: res.get(c) for c in RESULT_COLUMNS})
+        rows.append(row)
+    return rows
+
+
+def table_csv(spec: SweepSpec, rows: list[dict[str, Any]]) -> str:
+    """CSV text: header, then one line per point (floats in repr, None as empty)."""
+    columns = ["index", "key", *spec.parameters, *RESULT_COLUMNS]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    for row in rows:
+        writer.writerow(["" if row[c] is None else (repr(row[c]) if isinstance(row[c], float)
+                                                    else row[c]) for c in columns])
+    return buf.getvalue()
+
+
+def plot_margin(spec: SweepSpec, rows: list[dict[str, Any]]) -> dict[str, bytes]:
+    """Margin p − p_req (and the link margin in dB when present) against ``plot_x``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    x_name = spec.plot_x
+    others = [p for p in spec.parameters if p != x_name]
+    series: dict[tuple, list[dict]] = {}
+    for row in rows:
+        series.setdefault(tuple(row[p] for p in others), []).append(row)
+    has_db = any(r.get("link_margin_db") is not None for r in rows)
+    with plt.rc_context({"svg.hashsalt": "kfcrit", "font.size": 9}):
+        fig, axes = plt.subplots(2 if has_db else 1, 1, figsize=(6.4, 6.4 if has_db else 3.8),
+                                 sharex=True, squeeze=False)
+        for label_key, group in list(series.items())[:MAX_SERIES]:
+            group = [r for r in group if isinstance(r[x_name], float)]
+            group.sort(key=lambda r: r[x_name])
+            label = ", ".join(f"{p}={v:g}" if isinstance(v, float) else f"{p}={v}"
+                              for p, v in zip(others, label_key)) or None
+            for ax, col in zip(axes[:, 0], ("margin", "link_margin_db")):
+                pts = [(r[x_name], r[col]) for r in group if r.get(col) is not None]
+                if pts:
+                    ax.plot(*zip(*pts), marker="o", markersize=3, label=label)
+        titles = ("margin p − p_req", "link margin (dB)")
+        for ax, title in zip(axes[:, 0], titles):
+            ax.axhline(0.0, color="0.4", linewidth=0.8)
+            ax.set_ylabel(title)
+            ax.grid(True, linewidth=0.3)
+        axes[-1, 0].set_xlabel(x_name)
+        if len(series) > 1:
+            axes[0, 0].legend(fontsize=7)
+        if len(series) > MAX_SERIES:
+            axes[0, 0].set_title(f"first {MAX_SERIES} of {len(series)} series", fontsize=8)
+        fig.tight_layout()
+        out = {}
+        for fmt in ("svg", "png"):
+            buf = io.BytesIO()
+            fig.savefig(buf, format=fmt, metadata={"Date": None} if fmt == "svg" else None,
+                        dpi=120)
+            out[fmt] = buf.getvalue()
+        plt.close(fig)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Driver
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What a sweep run did: the table, and how many points it computed or reused."""
+
+    rows: list[dict[str, Any]]
+    computed: int
+    reused: int
+    errors: int
+    exit_code: int
+    output: str
+    files: dict[str, str]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"computed": self.computed, "reused": self.reused, "errors": self.errors,
+                "exit_code": self.exit_code, "output": self.output, "files": self.files,
+                "points": len(self.rows)}
+
+
+def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[], None]]:
+    """A rich progress bar on stderr when stderr is a terminal; otherwise no-ops."""
+    if not sys.stderr.isatty() or total == 0:
+        return (lambda n: None), (lambda: None)
+    from rich.console import Console
+    from rich.progress import Progress
+
+    prog = Progress(console=Console(stderr=True), transient=True)
+    task = prog.add_task("sweep", total=total, completed=done)
+    prog.start()
+    return (lambda n: prog.advance(task, n)), prog.stop
+
+
+def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = None,
+              workers: int | None = None, max_states: int = 400) -> SweepResult:
+    """Run (or resume) a sweep and write its outputs to the folder ``output``."""
+    out = Path(output)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        raise InputError(f"cannot create the output folder {str(out)[:80]!r}",
+                         field="output") from None
+    journal = Journal(out / "sweep.journal.jsonl")
+    known = journal.load()
+    pending: Items = []
+    seen: set[str] = set()
+    for index, key in enumerate(spec.keys):
+        if key not in known and key not in seen:
+            seen.add(key)
+            pending.append((index, key, spec.assignments(index)))
+    reused = len(spec.keys) - len(pending)
+    workers = workers or os.cpu_count() or 1
+    if scheduler:
+        batches = run_dask(spec, pending, max_states, scheduler)
+    elif workers == 1 or len(pending) <= 8:
+        batches = run_serial(spec, pending, max_states)
+    else:
+        batches = run_processes(spec, pending, max_states, workers)
+    advance, stop = _progress(len(spec.keys), reused)
+    try:
+        for batch in batches:
+            journal.append([(key, res) for _, key, res in batch])
+            for _, key, res in batch:
+                known[key] = res
+            advance(len(batch))
+    finally:
+        stop()
+    rows = assemble_rows(spec, known)
+    errors = [r for r in rows if r["status"] != "ok"]
+    codes = [known[k].get("error_code") or int(ExitCode.BAD_INPUT)
+             for k in spec.keys if known[k].get("status") != "ok"]
+    exit_code = max(codes) if codes else int(ExitCode.OK)
+    files = write_outputs(spec, rows, out, scheduler=scheduler, workers=workers,
+                          computed=len(pending), reused=reused)
+    return SweepResult(rows=rows, computed=len(pending), reused=reused, errors=len(errors),
+                       exit_code=exit_code, output=str(out), files=files)
+
+
+def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
+                  scheduler: str | None, workers: int, computed: int,
+                  reused: int) -> dict[str, str]:
+    """Write sweep.csv, sweep.json and the margin plots atomically; return their paths."""
+    meta = {"name": spec.name, "description": spec.description, "sweep_file": spec.path,
+            "sweep_sha256": spec.sha256, "base_system": spec.base_path,
+            "parameters": list(spec.parameters), "tolerance": spec.tolerance,
+            "points": len(rows), "plot_x": spec.plot_x, "kfcrit": __version__,
+            "format": FORMAT_VERSION, "columns": ["index", "key", *spec.parameters,
+                                                 *RESULT_COLUMNS]}
+    record = {"sweep": meta, "rows": rows}
+    run = {"runner": "dask" if scheduler else "local", "workers": workers,
+           "computed": computed, "reused": reused}
+    files = {"csv": out / "sweep.csv", "json": out / "sweep.json",
+             "svg": out / "margin.svg", "png": out / "margin.png",
+             "run": out / "run.json"}
+    atomic_write(files["csv"], table_csv(spec, rows).encode())
+    atomic_write(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
+                                           ensure_ascii=False).encode())
+    atomic_write(files["run"], json.dumps(run, indent=1).encode())
+    for fmt, data in plot_margin(spec, rows).items():
+        atomic_write(files[fmt], data)
+    return {k: str(v) for k, v in files.items()}
 
 
 def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
                   workers: int | None, max_states: int) -> int:
-    """Run the sweep subcommand; return the exit code."""
-    raise InputError("sweep is not implemented yet", field="sweep")
+    """Run the ``kfcrit sweep`` subcommand; return the exit code.
+
+    Errors in the sweep file are :class:`InputError` (exit 2). Points that fail (for example a
+    swept value outside its allowed range) are rows with ``status = error`` and their message;
+    the outputs are still written and the exit code is the worst point's (2 input, 3 numerical).
+    """
+    spec = load_sweep(sweep_file, max_states=max_states)
+    if output is None:
+        output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
+    result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
+                       max_states=max_states)
+    print(f"kfcrit: sweep {spec.name!r}: {len(result.rows)} points ({result.computed} computed, "
+          f"{result.reused} from the journal), {result.errors} errors; outputs in "
+          f"{result.output}", file=sys.stderr)
+    if result.errors:
+        first = next(r for r in result.rows if r["status"] != "ok")
+        print(f"kfcrit: first failing point {first['index']}: {first['error']}",
+              file=sys.stderr)
+    return result.exit_code

@@ -1,0 +1,105 @@
+"""Benchmark: kfcrit's upper bound p_up against the reference LMI bisection, in one process.
+
+    python -m kfcrit.bench.bench_upper [--quick] [--reference-seconds S]
+
+Times ``upper_bound`` of ``../shared/bench/reference_lmi.py`` (cvxpy + Clarabel, bisection to
+width 1e-6) and ``kfcrit.upper.upper_bound`` (default method) on ``random_system(n, m, seed)``
+from ``../shared/bench/systems.py``, and prints the brackets and the ratios. Targets (issue 9):
+(20, 6) ≥ 50× faster at width 1e-6; (50, 10) faster than the reference at (20, 6); width 1e-9
+reachable. ``--reference-seconds`` skips the (slow) reference run and uses a given time.
+For stable timings on a loaded machine run with OPENBLAS_NUM_THREADS=1 (applies to both).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+
+def shared_bench() -> Path:
+    """../shared/bench relative to the repository (override: KFCRIT_SHARED_BENCH)."""
+    env = os.environ.get("KFCRIT_SHARED_BENCH")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[3] / "shared" / "bench"
+
+
+def _ours(n: int, m: int, seed: int, tol: float, repeat: int):
+    from systems import random_system
+
+    from kfcrit import upper
+    from kfcrit.system import System
+    from kfcrit.upper import upper_bound
+
+    A, C, Q, R = random_system(n, m, seed)
+    system = System(A, C, Q, R)
+    times, result = [], None
+    for _ in range(repeat):
+        upper._CACHE.clear()                 # time the computation, not the memo
+        t = time.perf_counter()
+        result = upper_bound(system, tol=tol)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), min(times), result
+
+
+def _reference(n: int, m: int, seed: int, tol: float):
+    import reference_lmi
+    from systems import random_system
+
+    A, C, _, _ = random_system(n, m, seed)
+    t = time.perf_counter()
+    lo, hi, solves = reference_lmi.upper_bound(A, C, tol)
+    return time.perf_counter() - t, (lo, hi), solves
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="skip the reference (uses 41 s)")
+    ap.add_argument("--reference-seconds", type=float, default=None,
+                    help="use this reference time for (20, 6) instead of running it")
+    ap.add_argument("--repeat", type=int, default=3, help="runs of kfcrit per case (median)")
+    args = ap.parse_args(argv)
+    sys.path.insert(0, str(shared_bench()))
+
+    print(f"machine: {os.cpu_count()} cores, OPENBLAS_NUM_THREADS="
+          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+    if args.quick and args.reference_seconds is None:
+        args.reference_seconds = 41.0
+    if args.reference_seconds is None:
+        ref_t, ref_br, ref_solves = _reference(20, 6, 0, 1e-6)
+        print(f"reference  (20, 6) tol 1e-6: [{ref_br[0]:.9f}, {ref_br[1]:.9f}] "
+              f"solves={ref_solves} time={ref_t:.2f} s")
+    else:
+        ref_t, ref_br = args.reference_seconds, None
+        print(f"reference  (20, 6) tol 1e-6: not run, time taken as {ref_t:.2f} s")
+
+    rows = [(20, 6, 1e-6), (20, 6, 1e-9), (50, 10, 1e-6), (50, 10, 1e-9), (30, 5, 1e-9)]
+    results, results_interval = {}, {}
+    for n, m, tol in rows:
+        med, best, res = _ours(n, m, 0, tol, args.repeat)
+        results[(n, m, tol)] = med
+        results_interval[(n, m, tol)] = res.interval
+        lo, hi = res.interval
+        print(f"kfcrit     ({n}, {m}) tol {tol:g}: [{lo:.12f}, {hi:.12f}] width={hi - lo:.2e} "
+              f"certified={res.certified} status={res.status} lower={res.lower_evidence['kind']}"
+              f" time median={med:.3f} s min={best:.3f} s")
+    if ref_br is not None:
+        ours = results_interval[(20, 6, 1e-6)]
+        verdict = ("consistent" if ref_br[0] <= ours[1] else
+                   "WRONG: its lower end exceeds kfcrit's certified upper end")
+        print(f"reference bracket at (20, 6) vs kfcrit's certified hi {ours[1]:.9f}: {verdict}")
+    print()
+    r1 = ref_t / results[(20, 6, 1e-6)]
+    print(f"ratio reference(20,6)/kfcrit(20,6) at 1e-6: {r1:.0f}x   (target >= 50x)")
+    r2 = ref_t / results[(50, 10, 1e-6)]
+    print(f"ratio reference(20,6)/kfcrit(50,10) at 1e-6: {r2:.0f}x   (target > 1x)")
+    r3 = ref_t / results[(50, 10, 1e-9)]
+    print(f"ratio reference(20,6)/kfcrit(50,10) at 1e-9: {r3:.0f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,282 @@
+"""Report figures: matplotlib drawings of record data, returned as inline SVG strings.
+
+Every function here reads only the analysis record (``Analysis.to_dict()``) and draws; nothing is
+computed beyond unit conversions. A figure whose data is missing or malformed is ``None`` and the
+report says "not computed" in its place. ``None`` inside a data list is a non-finite value in the
+record (a divergent trace, a bound that does not exist at that p) and is drawn as a gap.
+
+Figures (keys of :func:`build_figures`):
+
+* ``phase_transition``: tr S̄ and tr V̄ against p (log scale) with p_low, p_c, p_up and the
+  operating point marked (Sinopoli et al. 2004, Fig. 1-style);
+* ``traces``: simulated mean tr P_t just below and just above the critical value;
+* ``operating``: simulated mean tr P_t at the operating point with its band, against tr S̄, tr V̄;
+* ``cdf``: empirical CDF of tr P at the operating point, with the requirement's limit;
+* ``invariant``: support of the invariant distribution of a scalar system (Kar et al. Thm 10).
+"""
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
+
+from .mathsvg import clean_svg  # noqa: E402
+
+FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "invariant")
+COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",
+          "p_up": "#7c3aed", "operating": "#15803d", "sim": "#111827", "band": "#9ca3af"}
+FIG_RC = {"font.size": 8.5, "axes.titlesize": 9, "axes.labelsize": 8.5, "legend.fontsize": 7.5,
+          "xtick.labelsize": 7.5, "ytick.labelsize": 7.5, "svg.fonttype": "path",
+          "svg.hashsalt": "kfcrit", "axes.spines.top": False, "axes.spines.right": False,
+          "axes.grid": True, "grid.color": "#e5e7eb", "grid.linewidth": 0.6,
+          "mathtext.fontset": "dejavuserif"}
+WIDTH_IN = 6.4
+HEIGHT_IN = 2.9
+
+
+def _floats(values: Any) -> list[float] | None:
+    """A list of floats (``None`` entries become NaN); ``None`` if ``values`` is not a list."""
+    if not isinstance(values, (list, tuple)) or not values:
+        return None
+    out = []
+    for v in values:
+        if v is None:
+            out.append(math.nan)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            out.append(float(v))
+        else:
+            return None
+    return out
+
+
+def _number(v: Any) -> float | None:
+    """A finite float or ``None``."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+        return float(v)
+    return None
+
+
+def _section(record: dict[str, Any], *keys: str) -> Any:
+    """``record[k1][k2]...`` or ``None`` when any level is missing or not a mapping."""
+    cur: Any = record
+    for k in keys:
+        if not isinstance(cur, dict):
+            return None
+        cur = cur.get(k)
+    return cur
+
+
+def _positive(values: Sequence[float]) -> bool:
+    """True when at least one value is finite and positive (something to draw on a log axis)."""
+    return any(math.isfinite(v) and v > 0 for v in values)
+
+
+def _to_svg(fig: Figure, label: str) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight", pad_inches=0.04,
+                metadata={"Date": None, "Creator": None, "Format": None, "Type": None})
+    return clean_svg(buf.getvalue().decode("utf-8"), label=label, css_class="figure-svg")
+
+
+def _new_figure(height: float = HEIGHT_IN) -> tuple[Figure, Any]:
+    fig = Figure(figsize=(WIDTH_IN, height), layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _mark(ax: Any, x: float | None, key: str, label: str, style: str = "--") -> None:
+    if x is not None:
+        ax.axvline(x, color=COLORS[key], linestyle=style, linewidth=1.1, label=label)
+
+
+def markers_of(record: dict[str, Any]) -> dict[str, float | None]:
+    """p_low, p_c, p_up and the operating p: the phase-transition markers, else the contract."""
+    marks = _section(record, "phase_transition", "markers") or {}
+    fallback = {"p_low": _section(record, "lower_bound", "value"),
+                "p_c": _section(record, "critical_value", "value"),
+                "p_up": _section(record, "upper_bound", "value"),
+                "operating": _section(record, "operating_point", "arrival_probability")}
+    return {k: _number(marks.get(k)) if _number(marks.get(k)) is not None else _number(v)
+            for k, v in fallback.items()}
+
+
+def phase_transition_svg(record: dict[str, Any]) -> str | None:
+    """tr S̄(p) and tr V̄(p) on a log axis with p_low, p_c, p_up and the operating point."""
+    pt = record.get("phase_transition")
+    if not isinstance(pt, dict):
+        return None
+    p = _floats(pt.get("p"))
+    lower = _floats(pt.get("trace_lower"))
+    upper = _floats(pt.get("trace_upper"))
+    if p is None or (lower is None and upper is None):
+        return None
+    marks = markers_of(record)
+    with matplotlib.rc_context(FIG_RC):
+        fig, ax = _new_figure()
+        drawn = False
+        if lower is not None and len(lower) == len(p) and _positive(lower):
+            ax.plot(p, lower, color=COLORS["lower"], linewidth=1.6,
+                    label=r"tr $\bar S$ (lower bound of lim E[P])")
+            drawn = True
+        if upper is not None and len(upper) == len(p) and _positive(upper):
+            ax.plot(p, upper, color=COLORS["upper"], linewidth=1.6,
+                    label=r"tr $\bar V$ (upper bound of lim E[P])")
+            drawn = True
+        if not drawn:
+            return None
+        ax.set_yscale("log")
+        _mark(ax, marks["p_low"], "p_low", r"$p_{low}$", ":")
+        _mark(ax, marks["p_c"], "p_c", r"$p_c$", "-")
+        _mark(ax, marks["p_up"], "p_up", r"$p_{up}$", "--")
+        _mark(ax, marks["operating"], "operating", "operating p", "-.")
+        ax.set_xlabel("arrival probability p")
+        ax.set_ylabel("trace of the bound")
+        ax.set_xlim(min(p), max(p))
+        ax.legend(loc="upper right", frameon=False, ncols=2)
+        return _to_svg(fig, "Phase transition: trace of the lower and upper covariance bounds "
+                            "against the arrival probability")
+
+
+def traces_svg(record: dict[str, Any]) -> str | None:
+    """Simulated mean tr P_t for arrival probabilities just below and above the critical value."""
+    demo = _section(record, "simulation", "phase_demo")
+    if not isinstance(demo, list) or not demo:
+        return None
+    with matplotlib.rc_context(FIG_RC):
+        fig, ax = _new_figure()
+        palette = ["#b91c1c", "#d9730d", "#1f5fa8", "#15803d", "#7c3aed"]
+        drawn = 0
+        for i, run in enumerate(demo):
+            if not isinstance(run, dict):
+                continue
+            t, y = _floats(run.get("t")), _floats(run.get("mean_trace"))
+            if t is None or y is None or len(t) != len(y) or not _positive(y):
+                continue
+            p = _number(run.get("p"))
+            label = str(run.get("label") or "")
+            text = f"p = {p:.4g}" if p is not None else "p = ?"
+            ax.plot(t, y, color=palette[i % len(palette)], linewidth=1.2,
+                    label=f"{text} ({label})" if label else text)
+            drawn += 1
+        if not drawn:
+            return None
+        ax.set_yscale("log")
+        ax.set_xlabel("time step t")
+        ax.set_ylabel("mean tr $P_t$ over paths")
+        ax.legend(loc="upper left", frameon=False)
+        return _to_svg(fig, "Simulated mean error covariance trace below and above the critical "
+                            "value")
+
+
+def operating_svg(record: dict[str, Any]) -> str | None:
+    """Mean tr P_t at the operating point (with its band) against tr S̄ and tr V̄."""
+    op = _section(record, "simulation", "operating_point")
+    if not isinstance(op, dict):
+        return None
+    t, y = _floats(op.get("t")), _floats(op.get("mean_trace"))
+    if t is None or y is None or len(t) != len(y) or not _positive(y):
+        return None
+    lo, hi = _floats(op.get("band_low")), _floats(op.get("band_high"))
+    s_tr = _number(_section(record, "covariance_bounds", "lower", "trace"))
+    v_tr = _number(_section(record, "covariance_bounds", "upper", "trace"))
+    with matplotlib.rc_context(FIG_RC):
+        fig, ax = _new_figure()
+        if lo is not None and hi is not None and len(lo) == len(t) == len(hi):
+            ax.fill_between(t, lo, hi, color=COLORS["band"], alpha=0.35, linewidth=0,
+                            label="band of the simulated mean")
+        ax.plot(t, y, color=COLORS["sim"], linewidth=1.3, label="simulated mean tr $P_t$")
+        if s_tr is not None and s_tr > 0:
+            ax.axhline(s_tr, color=COLORS["lower"], linestyle="--", linewidth=1.2,
+                       label=r"tr $\bar S$")
+        if v_tr is not None and v_tr > 0:
+            ax.axhline(v_tr, color=COLORS["upper"], linestyle="--", linewidth=1.2,
+                       label=r"tr $\bar V$")
+        ax.set_yscale("log")
+        ax.set_xlabel("time step t")
+        ax.set_ylabel("tr $P_t$")
+        ax.legend(loc="best", frameon=False, ncols=2)
+        return _to_svg(fig, "Simulated mean error covariance trace at the operating point "
+                            "against the covariance bounds")
+
+
+def cdf_svg(record: dict[str, Any]) -> str | None:
+    """Empirical CDF of tr P at the operating point, with the requirement's limit if given."""
+    cdf = _section(record, "simulation", "operating_point", "cdf")
+    if not isinstance(cdf, dict):
+        return None
+    x, f = _floats(cdf.get("x")), _floats(cdf.get("F"))
+    if x is None or f is None or len(x) != len(f) or not _positive(x):
+        return None
+    limit = _number(_section(record, "requirements", "max_error_trace"))
+    tail = _number(_section(record, "simulation", "operating_point", "tail_probability"))
+    with matplotlib.rc_context(FIG_RC):
+        fig, ax = _new_figure()
+        ax.step(x, f, where="post", color=COLORS["sim"], linewidth=1.3,
+                label="empirical CDF of tr P")
+        if limit is not None:
+            text = f"limit M = {limit:.4g}"
+            if tail is not None:
+                text += f"; P(tr P > M) = {tail:.3g}"
+            ax.axvline(limit, color=COLORS["p_c"], linestyle="--", linewidth=1.1, label=text)
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel("tr P")
+        ax.set_ylabel("P(tr P ≤ x)")
+        ax.legend(loc="lower right", frameon=False)
+        return _to_svg(fig, "Distribution of the error covariance trace at the operating point")
+
+
+def invariant_svg(record: dict[str, Any]) -> str | None:
+    """Support of the invariant distribution of a scalar system: points and empty gaps."""
+    inv = record.get("invariant")
+    if not isinstance(inv, dict):
+        return None
+    points = _floats(inv.get("support_points")) or []
+    gaps = [g for g in (inv.get("gaps") or []) if isinstance(g, (list, tuple)) and len(g) == 2
+            and _number(g[0]) is not None and _number(g[1]) is not None]
+    fixed = _number(inv.get("fixed_point"))
+    if not _positive(points) and not gaps:
+        return None
+    with matplotlib.rc_context(FIG_RC):
+        fig, ax = _new_figure(height=1.7)
+        pts = [v for v in points if math.isfinite(v) and v > 0]
+        if pts:
+            ax.vlines(pts, 0, 1, color=COLORS["lower"], linewidth=0.5, alpha=0.8,
+                      label="support points (finite compositions)")
+        for i, (a, b) in enumerate(gaps):
+            ax.axvspan(float(a), float(b), color=COLORS["upper"], alpha=0.25, linewidth=0,
+                       label="empty interval (no mass)" if i == 0 else None)
+        if fixed is not None:
+            ax.axvline(fixed, color=COLORS["p_c"], linewidth=1.2, label="P* (Riccati fixed point)")
+        ax.set_xscale("log")
+        ax.set_yticks([])
+        ax.grid(False, axis="y")
+        ax.set_xlabel("P (scalar error covariance)")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.45), frameon=False, ncols=3)
+        return _to_svg(fig, "Support of the invariant distribution")
+
+
+BUILDERS: dict[str, Callable[[dict[str, Any]], str | None]] = {
+    "phase_transition": phase_transition_svg, "traces": traces_svg, "operating": operating_svg,
+    "cdf": cdf_svg, "invariant": invariant_svg}
+
+
+def build_figures(record: dict[str, Any]) -> dict[str, str | None]:
+    """Every report figure as inline SVG (``None`` where the record lacks the data).
+
+    A malformed section (wrong types or lengths) also gives ``None`` rather than an exception:
+    a report with one figure missing is more useful to a reviewer than no report.
+    """
+    out: dict[str, str | None] = {}
+    for key, builder in BUILDERS.items():
+        try:
+            out[key] = builder(record)
+        except (TypeError, ValueError, KeyError, IndexError, OverflowError):
+            out[key] = None
+    return out

@@ -1,0 +1,203 @@
+"""Support of the invariant distribution of the random Riccati equation (scalar systems).
+
+Kar–Sinopoli–Moura (MATH.md §5): for 0 < p < 1 the RRE P_{t+1} = f_{γ_t}(P_t) converges weakly to
+a unique invariant law μ_p whose support is K = closure{ f_{i_1}∘…∘f_{i_s}(P*) } (P* the fixed
+point of the arrival map f_1), independent of p. For a scalar system (a, c, q, r), c ≠ 0,
+
+    f_0(X) = a² X + q,        f_1(X) = a² r X / (c² X + r) + q,
+
+both increasing, f_1([P*, ∞)) = [P*, f_1(∞)) with f_1(∞) = a² r / c² + q and
+f_0([P*, ∞)) = [f_0(P*), ∞). When f_1(∞) < f_0(P*) (that is r/c² < P*) the two images are
+disjoint and G_0 = (f_1(∞), f_0(P*)) carries no mass. Since K = f_0(K) ∪ cl f_1(K) and, by
+induction, the intervals f_w([P*, ∞)) of the words w of one length are disjoint, every image
+f_w(G_0) is a hole of K as well; in particular the holes
+G_n = f_0^n(G_0) = (f_0^n(f_1(∞)), f_0^{n+1}(P*)) separate the self-similar pieces
+S_n = K ∩ [f_0^n(P*), f_0^n(f_1(∞))] = f_0(S_{n−1}), i.e. S_n = a² S_{n−1} + q.
+
+Example (A = √2, C = Q = R = 1): P* = 1 + √2, f_1(∞) = 3, G_0 = (3, 3 + 2√2), S_n = 2 S_{n−1} + 1.
+Exact (sympy) where the system is exact; floats otherwise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .errors import InputError
+from .system import System
+
+MAX_DEPTH = 20
+"""Largest word length for the numeric support points (2^(depth+1) − 1 compositions)."""
+GAP_LEVELS = 5
+HOLE_DEPTH = 3
+
+
+@dataclass(frozen=True)
+class ScalarMaps:
+    """The scalar loss and arrival maps with exact (sympy) coefficients."""
+
+    a2: sp.Expr
+    c2: sp.Expr
+    q: sp.Expr
+    r: sp.Expr
+
+    @classmethod
+    def of(cls, system: System) -> ScalarMaps:
+        if system.n != 1 or system.m != 1:
+            raise InputError("the invariant-distribution support is computed for scalar systems "
+                             "(n = m = 1) only", field="A")
+        c2 = sp.nsimplify(system.C[0, 0] ** 2) if system.exact else system.C[0, 0] ** 2
+        if c2 == 0:
+            raise InputError("C = 0: arrivals carry no information", field="C")
+        return cls(sp.radsimp(system.A[0, 0] ** 2), sp.radsimp(c2), system.Q[0, 0],
+                   system.R[0, 0])
+
+    def f0(self, X: Any) -> Any:
+        """Loss map a² X + q (sympy or float)."""
+        return self.a2 * X + self.q if isinstance(X, sp.Basic) else \
+            float(self.a2) * X + float(self.q)
+
+    def f1(self, X: Any) -> Any:
+        """Arrival map a² r X / (c² X + r) + q (sympy or float)."""
+        if isinstance(X, sp.Basic):
+            return sp.radsimp(self.a2 * self.r * X / (self.c2 * X + self.r) + self.q)
+        a2, c2, q, r = (float(v) for v in (self.a2, self.c2, self.q, self.r))
+        return a2 * r * X / (c2 * X + r) + q
+
+    def f1_limit(self) -> sp.Expr:
+        """f_1(∞) = a² r / c² + q."""
+        return sp.radsimp(self.a2 * self.r / self.c2 + self.q)
+
+    def fixed_point(self) -> sp.Expr:
+        """P*: the non-negative root of c² X² + (r − a² r − q c²) X − q r = 0."""
+        b = self.r - self.a2 * self.r - self.q * self.c2
+        disc = b * b + 4 * self.c2 * self.q * self.r
+        return sp.radsimp((-b + sp.sqrt(disc)) / (2 * self.c2))
+
+
+@dataclass(frozen=True, eq=False)
+class SupportPoints:
+    """Support points f_w(P*) for all words |w| ≤ depth, sorted, and the exact first holes."""
+
+    depth: int
+    fixed_point: sp.Expr
+    points: np.ndarray = field(repr=False)
+    holes: tuple[tuple[float, float], ...] = ()
+    first_gap: tuple[sp.Expr, sp.Expr] | None = None
+
+    def largest_gaps(self, count: int = 8, upto: float | None = None) -> list[tuple[float, float]]:
+        """The ``count`` widest intervals between consecutive support points ≤ ``upto``.
+
+        Finite-depth points are sparse at the top of their range (deeper words fill it in), so
+        only a bounded window is meaningful; :func:`invariant_section` uses the first pieces.
+        """
+        x = self.points if upto is None else self.points[self.points <= upto]
+        if x.size < 2:
+            return []
+        widths = np.diff(x)
+        order = np.argsort(widths)[::-1][:count]
+        return sorted((float(x[i]), float(x[i + 1])) for i in order)
+
+
+def support_points(system: System, depth: int) -> SupportPoints:
+    """Support points {f_{i_1}∘…∘f_{i_s}(P*) : s ≤ depth} of μ_p and its holes f_w(G_0).
+
+    Parameters
+    ----------
+    system : System
+        A scalar system (n = m = 1) with C ≠ 0.
+    depth : int
+        Largest word length s (0 … MAX_DEPTH).
+
+    Returns
+    -------
+    SupportPoints
+        ``points`` (unique, sorted floats), ``holes`` f_w(G_0) for |w| < min(depth, 3)
+        (empty when f_1(∞) ≥ f_0(P*), i.e. the images overlap), ``first_gap`` G_0 exactly.
+    """
+    if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_DEPTH:
+        raise InputError(f"must be an integer in [0, {MAX_DEPTH}]", field="depth")
+    maps = ScalarMaps.of(system)
+    pstar = maps.fixed_point()
+    level = np.array([float(pstar)])
+    allpts = [level]
+    for _ in range(depth):
+        level = np.unique(np.concatenate([maps.f0(level), maps.f1(level)]))
+        allpts.append(level)
+    points = np.unique(np.concatenate(allpts))
+    lo, hi = maps.f1_limit(), maps.f0(pstar)
+    first = (lo, hi) if bool(lo < hi) else None
+    holes: list[tuple[float, float]] = []
+    if first is not None:
+        words: list[tuple[float, float]] = [(float(lo), float(hi))]
+        holes.extend(words)
+        for _ in range(min(depth, HOLE_DEPTH) - 1):
+            words = [(float(f(np.array(a))), float(f(np.array(b)))) for a, b in words
+                     for f in (maps.f0, maps.f1)]
+            holes.extend(words)
+    return SupportPoints(depth=depth, fixed_point=pstar, points=points,
+                         holes=tuple(sorted(holes)), first_gap=first)
+
+
+def gap_levels(system: System, levels: int = GAP_LEVELS) -> list[dict[str, Any]]:
+    """The holes G_n = (f_0^n(f_1(∞)), f_0^{n+1}(P*)), n = 0 … levels−1, exactly."""
+    maps = ScalarMaps.of(system)
+    lo, hi = maps.f1_limit(), maps.f0(maps.fixed_point())
+    if not bool(lo < hi):
+        return []
+    out = []
+    for n in range(levels):
+        out.append({"n": n, "lower": float(lo), "upper": float(hi),
+                    "lower_expression": sp.sstr(sp.nsimplify(lo) if lo.is_Rational else lo),
+                    "upper_expression": sp.sstr(hi), "lower_exact": lo, "upper_exact": hi})
+        lo, hi = sp.expand(maps.f0(lo)), sp.expand(maps.f0(hi))
+    return out
+
+
+def invariant_section(system: System) -> dict[str, Any] | None:
+    """The ``invariant`` record section for scalar systems; None otherwise.
+
+    Keys: ``fixed_point`` {value, expression}, ``maps`` {loss, arrival}, ``arrival_limit``
+    {value, expression}, ``first_gap`` {lower, upper, lower_expression, upper_expression,
+    width} | None, ``gap_levels`` [{n, lower, upper, lower_expression, upper_expression}],
+    ``self_similarity`` {scale, offset, statement}, ``support_points`` {depth, count, min,
+    largest_gaps}, ``holes``, ``note``.
+    """
+    if system.n != 1 or system.m != 1 or system.C[0, 0] == 0:
+        return None
+    maps = ScalarMaps.of(system)
+    sup = support_points(system, 12)
+    pstar = sup.fixed_point
+    limit = maps.f1_limit()
+    a2, q, r, c2 = maps.a2, maps.q, maps.r, maps.c2
+    X = sp.Symbol("X", positive=True)
+    gap = None
+    if sup.first_gap is not None:
+        lo, hi = sup.first_gap
+        gap = {"lower": float(lo), "upper": float(hi), "lower_expression": sp.sstr(lo),
+               "upper_expression": sp.sstr(hi), "width": float(hi - lo)}
+    window = float(maps.f0(maps.f0(limit)))  # the pieces S_0, S_1, S_2
+    levels = [{k: v for k, v in g.items() if not k.endswith("_exact")}
+              for g in gap_levels(system)]
+    return {
+        "fixed_point": {"value": float(pstar), "expression": sp.sstr(pstar)},
+        "maps": {"loss": f"f0(X) = {sp.sstr(a2 * X + q)}",
+                 "arrival": f"f1(X) = {sp.sstr(a2 * r * X / (c2 * X + r) + q)}"},
+        "arrival_limit": {"value": float(limit), "expression": sp.sstr(limit)},
+        "first_gap": gap,
+        "gap_levels": levels,
+        "self_similarity": {"scale": float(a2), "offset": float(q),
+                            "statement": f"S_n = {sp.sstr(a2)}*S_(n-1) + {sp.sstr(q)}",
+                            "pieces": "S_n = supp(mu) within [f0^n(P*), f0^n(f1(inf))]"},
+        "support_points": {"depth": sup.depth, "count": int(sup.points.size),
+                           "min": float(sup.points[0]),
+                           "window": [float(pstar), window],
+                           "largest_gaps": [list(g) for g in sup.largest_gaps(upto=window)]},
+        "holes": [list(h) for h in sup.holes],
+        "note": ("support of the invariant law (Kar-Sinopoli-Moura Thm 10): independent of p; "
+                 "the holes carry no mass for every 0 < p < 1"
+                 if gap is not None else
+                 "the images of f0 and f1 overlap (r/c^2 >= P*): no first-level hole"),
+    }

@@ -1,0 +1,717 @@
+"""The upper bound p_up of the critical arrival probability, with a checked certificate.
+
+p_up = inf { p : ∃ K, X ≻ 0 with X ≻ L_{K,p}(X) },  L_{K,p}(X) = (1−p) A X A' + p F X F',
+F = A + K C (Sinopoli Thm 5 with Q, R scaled away). Minimising over K for fixed X gives the
+noise-free MARE map G_p(X) = A X A' − p A X C'(C X C')^{-1} C X A' = min_K L_{K,p}(X), which is
+monotone, concave and positively homogeneous; p_up is where its cone spectral radius r(p)
+crosses 1 (MATH.md §3).
+
+The default method ("newton") works in four steps:
+
+1. *Reduce.* Only the modes with |λ| ≥ 1 matter: with an ordered real Schur form
+   A = Z [[T_uu, T_us], [0, T_ss]] Z', p_up(A, C) = p_up(T_uu, C Z_u) (a stable block driven by
+   nothing decays; a gain that ignores it keeps mean-square stability — and the unstable
+   subspace carries an invariant sub-cone of G_p, so the reduced radius is a lower bound).
+2. *Bracket.* Bisection on p with r(p) estimated by normalised power iteration.
+3. *Newton* on the eigen-system G_p(X) = X, tr X = 1 in the unknowns (X, p): the Jacobian in X
+   is L_{K_X,p} − I (envelope theorem), in p it is −A X C'(C X C')^{-1} C X A'. Quadratic
+   convergence to p* (the eigenvector X* ⪰ 0 shows r(p*) ≥ 1, hence p_up ≥ p*).
+   The same Newton on the *regularised* map G^ε_p(X) = G_p with Q = R = ε·tr(X)·I gives
+   p_ε ≥ p_up (a little above p*), with X_ε ≻ 0 and X_ε − L_{K,p_ε}(X_ε) ⪰ ε·tr(X_ε)·I.
+4. *Certify.* Lift (X_ε, K_ε) to the full state and prove X ≻ 0, X − L_{K,hi}(X) ≻ 0 in ball
+   arithmetic on the exact matrices (:mod:`kfcrit.certify`). The lower end is p_low (Thm 3,
+   proven) when hi − tol ≤ p_low, otherwise the Newton root p* (numerical), upgraded to a
+   proof when a positive definite eigenvector of G_lo with eigenvalue > 1 is verified.
+
+``method="lmi"`` runs Sinopoli's Ψ_p LMI (:mod:`kfcrit.lmi`) instead; "auto" runs "newton" and
+falls back to the LMI when Newton cannot produce a certified bracket.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+import sympy as sp
+
+from . import certify
+from .riccati import noise_free_g, stein_matrix, symmetrize, unvech, vech
+from .system import System
+
+UNSTABLE_TOL = 1e-9
+"""Modes with |λ| ≥ 1 − UNSTABLE_TOL are kept in the reduced system."""
+NEWTON_MAX_REDUCED = 60
+"""Largest unstable block for the dense Newton (its Jacobian has (k(k+1)/2 + 1)² entries)."""
+NEAR_P_LOW = 1e-6
+"""A Newton root this close to p_low is first tried as p_up = p_low (certificate at p_low + tol)."""
+SMALL_MATRIX = 6
+"""Certificates of systems with at most this many states are included in the record."""
+
+
+@dataclass(frozen=True)
+class UpperBound:
+    """The upper bound p_up with its bracket, certificate and evidence (a plain record)."""
+
+    value: float | None
+    interval: tuple[float, float]
+    certified: bool
+    status: str
+    method: str
+    certificate: dict[str, Any] | None
+    lower_evidence: dict[str, Any]
+    solver: dict[str, Any]
+    warnings: tuple[str, ...] = ()
+    extras: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    tolerance: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able data (no NaN/inf)."""
+        return {"value": self.value, "interval": [float(self.interval[0]), float(self.interval[1])],
+                "certified": self.certified, "status": self.status, "method": self.method,
+                "certificate": self.certificate, "lower_evidence": self.lower_evidence,
+                "solver": self.solver, "warnings": list(self.warnings),
+                "tolerance": self.tolerance}
+
+
+# ---------------------------------------------------------------------------------------------
+# reduction, power iteration, Newton
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Reduced:
+    """Ordered real Schur reduction: A = Z T Z', the first k modes have |λ| ≥ 1 − tol."""
+
+    T: np.ndarray
+    Z: np.ndarray
+    k: int
+    Au: np.ndarray
+    Cu: np.ndarray
+
+
+def reduce_unstable(A: np.ndarray, C: np.ndarray, tol: float = UNSTABLE_TOL) -> Reduced:
+    """Real Schur form with the modes |λ| ≥ 1 − tol first; (T_uu, C Z_u) is the reduced system."""
+    T, Z, k = sla.schur(A, output="real",
+                        sort=lambda re, im: re * re + im * im >= (1.0 - tol) ** 2)
+    return Reduced(T, Z, int(k), T[:k, :k], C @ Z[:, :k])
+
+
+def regularised_g(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float,
+                  eps: float) -> np.ndarray:
+    """G^ε_p(X) = A X A' + εt I − p A X C'(C X C' + εt I)^{-1} C X A', t = tr X (ε = 0: G_p)."""
+    t = float(np.trace(X))
+    Y = noise_free_g(A, C, X, p, reg=max(eps, 1e-12) * t)
+    return Y + eps * t * np.eye(A.shape[0]) if eps else Y
+
+
+def cone_radius(A: np.ndarray, C: np.ndarray, p: float, X0: np.ndarray | None = None,
+                iterations: int = 600, rtol: float = 1e-10,
+                eps: float = 0.0) -> tuple[float, np.ndarray, int]:
+    """Cone spectral radius r(p) of G^ε_p by averaged normalised power iteration
+    X ← (X + G(X)/tr G(X))/2, tr X = 1 (a fixed point has G(X) = r X).
+
+    With ε = 0 a homogeneous regulariser 1e-12·tr X keeps C X C' invertible.
+    Returns (r, X, iterations).
+    """
+    n = A.shape[0]
+    X = np.eye(n) / n if X0 is None else X0 / np.trace(X0)
+    r = float("nan")
+    for i in range(1, iterations + 1):
+        Y = regularised_g(A, C, X, p, eps)
+        r = float(np.trace(Y))
+        if not np.isfinite(r) or r <= 0:
+            return r, X, i
+        Y = Y / r
+        done = np.abs(Y - X).max() < rtol
+        # Krasnoselskii averaging: breaks the periodic orbits of rotations (e.g. λ = ±jρ)
+        X = 0.5 * (X + Y)
+        if done:
+            break
+    return r, X, i
+
+
+@dataclass(frozen=True)
+class NewtonResult:
+    X: np.ndarray
+    p: float
+    K: np.ndarray
+    iterations: int
+    converged: bool
+    residual: float
+
+
+def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, eps: float = 0.0,
+                     max_iterations: int = 40, atol: float = 1e-14) -> NewtonResult:
+    """Newton on G^ε_p(X) = X, tr X = 1 in (X, p) (see the module docstring).
+
+    G^ε_p(X) = A X A' + εt I − p A X C'(C X C' + εt I)^{-1} C X A', t = tr X. Its Jacobian in X
+    is L_{K,p}(dX) + ε tr(dX) (I + p K K') with K the optimal gain; in p, −A X C' S^{-1} C X A'.
+    """
+    n, m = A.shape[0], C.shape[0]
+    N = n * (n + 1) // 2
+    iu, ju = np.triu_indices(n)
+    diag = (iu == ju).astype(float)
+    X, p = symmetrize(X0) / np.trace(X0), float(p0)
+    K = np.zeros((n, m))
+    res = np.inf
+    for it in range(max_iterations + 1):
+        t = np.trace(X)
+        S = C @ X @ C.T + max(eps, 1e-15) * t * np.eye(m)   # 1e-15: keep S invertible
+        AXC = A @ X @ C.T
+        try:
+            K = -np.linalg.solve(S.T, AXC.T).T
+            P = symmetrize(AXC @ np.linalg.solve(S, AXC.T))
+        except np.linalg.LinAlgError:
+            return NewtonResult(X, p, K, it, False, np.inf)
+        Fv = vech(symmetrize(A @ X @ A.T) + eps * t * np.eye(n) - p * P - X)
+        r = np.concatenate([Fv, [t - 1.0]])
+        res = float(np.abs(r).max())
+        if not np.isfinite(res):
+            return NewtonResult(X, p, K, it, False, res)
+        if res < atol:
+            return NewtonResult(X, p, K, it, True, res)
+        if it == max_iterations:
+            break
+        J = np.zeros((N + 1, N + 1))
+        J[:N, :N] = stein_matrix(A, C, K, p) - np.eye(N)
+        if eps:
+            J[:N, :N] += eps * np.outer(vech(np.eye(n) + p * K @ K.T), diag)
+        J[:N, N] = -vech(P)
+        J[N, :N] = diag
+        try:
+            d = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError:
+            return NewtonResult(X, p, K, it, False, res)
+        X = X + unvech(d[:N], n)
+        p = p + float(d[N])
+    return NewtonResult(X, p, K, max_iterations, res < 1e3 * atol, res)
+
+
+def perron_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float, eps: float = 0.0,
+                  max_iterations: int = 40, atol: float = 1e-14
+                  ) -> tuple[np.ndarray, float, np.ndarray, bool]:
+    """Newton on G^ε_p(X) = r X, tr X = 1 in (X, r) at fixed p: the cone eigenpair of G^ε_p.
+
+    Returns (X, r, K, converged) with K the optimal gain at X.
+    """
+    n, m = A.shape[0], C.shape[0]
+    N = n * (n + 1) // 2
+    iu, ju = np.triu_indices(n)
+    diag = (iu == ju).astype(float)
+    X = symmetrize(X0) / np.trace(X0)
+    r = float(np.trace(regularised_g(A, C, X, p, eps)))
+    K = np.zeros((n, m))
+    for _ in range(max_iterations + 1):
+        t = float(np.trace(X))
+        S = C @ X @ C.T + max(eps, 1e-15) * t * np.eye(m)   # 1e-15: keep S invertible
+        AXC = A @ X @ C.T
+        try:
+            K = -np.linalg.solve(S.T, AXC.T).T
+            G = regularised_g(A, C, X, p, eps)
+        except np.linalg.LinAlgError:
+            return X, r, K, False
+        res_v = np.concatenate([vech(G - r * X), [t - 1.0]])
+        if not np.all(np.isfinite(res_v)):
+            return X, r, K, False
+        if np.abs(res_v).max() < atol:
+            return X, r, K, True
+        J = np.zeros((N + 1, N + 1))
+        J[:N, :N] = stein_matrix(A, C, K, p) - r * np.eye(N)
+        if eps:
+            J[:N, :N] += eps * np.outer(vech(np.eye(n) + p * K @ K.T), diag)
+        J[:N, N] = -vech(X)
+        J[N, :N] = diag
+        try:
+            d = np.linalg.solve(J, -res_v)
+        except np.linalg.LinAlgError:
+            return X, r, K, False
+        X = X + unvech(d[:N], n)
+        r = r + float(d[N])
+    return X, r, K, False
+
+
+# ---------------------------------------------------------------------------------------------
+# lifting a reduced certificate to the full state
+# ---------------------------------------------------------------------------------------------
+
+
+def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray,
+                     p: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Full-state certificate (Z, X_z, K_z) from a reduced one X_u ≻ L_{K_u,p}(X_u).
+
+    The full-state certificate is X = Z X_z Z', K = Z K_z (formed exactly by the checker).
+
+    In Schur coordinates take K = [K_u; 0] and X = diag(c X_u, Y_s), Y_s = T_ss Y_s T_ss' + I.
+    Then X − L(X) = [[c M_u − a, −b], [−b', I]] with M_u = X_u − L_u(X_u),
+    a = (1−p) T_us Y_s T_us' + p B Y_s B', b = ((1−p) T_us + p B) Y_s T_ss', B = T_us + K_u C_s;
+    it is ≻ 0 when c M_u ≻ a + b b', which holds for c = max(2‖a + b b'‖ / λ_min(M_u), 1).
+    (Scaling the unstable block up, not the stable block down, keeps X well inside the cone.)
+    """
+    n, k = red.T.shape[0], red.k
+    Fu = red.Au + Ku @ red.Cu
+    Mu = symmetrize(Xu - (1 - p) * red.Au @ Xu @ red.Au.T - p * Fu @ Xu @ Fu.T)
+    if k == n:
+        Xz, Kz = Xu, Ku
+    else:
+        Tss, Tus = red.T[k:, k:], red.T[:k, k:]
+        Cs = C @ red.Z[:, k:]
+        Ys = sla.solve_discrete_lyapunov(Tss, np.eye(n - k))
+        B = Tus + Ku @ Cs
+        a = (1 - p) * Tus @ Ys @ Tus.T + p * B @ Ys @ B.T
+        b = ((1 - p) * Tus + p * B) @ Ys @ Tss.T
+        lam = float(np.linalg.eigvalsh(Mu).min())
+        scale = float(np.linalg.norm(a + b @ b.T, 2))
+        c = max(2.0 * scale / lam, 1.0) if lam > 0 else 1.0
+        Xz = np.zeros((n, n))
+        Xz[:k, :k] = c * Xu
+        Xz[k:, k:] = Ys
+        Kz = np.zeros((n, C.shape[0]))
+        Kz[:k] = Ku
+    return red.Z, symmetrize(Xz), Kz
+
+
+def stable_certificate(A: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For ρ(A) < 1: K = 0 and X = A X A' + I certify p = 0."""
+    X = sla.solve_discrete_lyapunov(A, np.eye(A.shape[0]))
+    return symmetrize(X), np.zeros((A.shape[0], C.shape[0]))
+
+
+# ---------------------------------------------------------------------------------------------
+# the fast method
+# ---------------------------------------------------------------------------------------------
+
+
+def p_low_of(A: np.ndarray) -> float:
+    """p_low = 1 − 1/ρ(A)² (0 when ρ(A) ≤ 1), Sinopoli Thm 3."""
+    rho = float(max(abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    return max(0.0, 1.0 - 1.0 / rho**2) if rho > 1 else 0.0
+
+
+def _evidence_p_low(p_low: float) -> dict[str, Any]:
+    return {"kind": "theorem", "value": p_low, "certified": True,
+            "statement": "p_up >= p_c >= p_low = 1 - 1/rho(A)^2 (Sinopoli Thm 3)"}
+
+
+def _newton_method(system: System, tol: float) -> UpperBound:
+    t0 = time.perf_counter()
+    A, C = system.a, system.c
+    stats: dict[str, Any] = {"power_iterations": 0, "newton_iterations": 0, "certificate_checks": 0}
+    warnings: list[str] = []
+    p_low = p_low_of(A)
+    red = reduce_unstable(A, C)
+    stats["reduced_states"] = red.k
+
+    def done(value, interval, certified, status, cert, lower, extras=None):
+        stats["seconds"] = time.perf_counter() - t0
+        stats["solves"] = stats["newton_iterations"]      # dense Newton linear solves
+        return UpperBound(value, (float(interval[0]), float(interval[1])), certified, status,
+                          "newton", cert, lower, dict(stats), tuple(warnings), extras or {})
+
+    if red.k == 0:
+        X, K = stable_certificate(A, C)
+        check = certify.verify_upper(system, 0.0, X, K)
+        stats["certificate_checks"] += 1
+        cert = _certificate_summary(system, check, X, K, "Lyapunov X = A X A' + I, K = 0")
+        lower = {"kind": "trivial", "value": 0.0, "certified": True,
+                 "statement": "p >= 0; rho(A) < 1, so p = 0 is already mean-square stable"}
+        return done(0.0, (0.0, 0.0), check.ok, "determined", cert, lower)
+
+    Au, Cu = red.Au, red.Cu
+    # 2. bracket by bisection on the power-iteration radius
+    lo, hi = p_low, 1.0
+    r1, X1, it = cone_radius(Au, Cu, 1.0)
+    stats["power_iterations"] += it
+    if not (r1 < 1.0):
+        warnings.append("(A, C) looks undetectable: the noise-free Riccati map has cone spectral "
+                        f"radius {r1:.6g} >= 1 at p = 1, so no arrival probability < 1 works")
+        return done(None, (p_low, 1.0), False, "undetermined", None, _evidence_p_low(p_low))
+    Xh, Xl = X1, None
+    while hi - lo > 1.0 / 64:
+        mid = 0.5 * (lo + hi)
+        r, Xm, it = cone_radius(Au, Cu, mid, Xh)
+        stats["power_iterations"] += it
+        if r < 1.0:
+            hi, Xh = mid, Xm
+        else:
+            lo, Xl = mid, Xm
+    if red.k > NEWTON_MAX_REDUCED:
+        return _power_bisection(system, red, lo, hi, Xh, tol, stats, warnings, done)
+    # 3. Newton on the threshold (plain and regularised) and 4. certificates; if Newton lands
+    #    on a face of the cone (a boundary eigenvector: a lower bound only) or nothing can be
+    #    certified, the power-iteration bracket is refined and Newton restarted from inside it.
+    best, plain, plain_ok, p_star = None, None, False, None
+    lo_seen = p_low                  # the largest lower end with (numerical) evidence
+    for _round in range(4):
+        start = Xl if Xl is not None else Xh
+        plain = threshold_newton(Au, Cu, start, 0.5 * (lo + hi))
+        stats["newton_iterations"] += plain.iterations
+        lam = float(np.linalg.eigvalsh(plain.X).min()) if plain.converged else -1.0
+        plain_ok = plain.converged and lo - 0.05 <= plain.p <= hi + 0.05 and lam > -1e-8
+        p_star = max(plain.p, p_low) if plain_ok else None
+        if p_star is not None and p_star - p_low <= NEAR_P_LOW:
+            # the root sits at p_low (a single critical mode): try p_up <= p_low + tol
+            best = fixed_p_certificate(system, red, p_low, plain.X, tol, stats)
+            if best is not None:
+                p_star = p_low
+                break
+        if plain_ok and lam > 1e-9 * np.trace(plain.X):
+            best = _regularised_certificate(system, red, plain, start, 0.5 * (lo + hi), p_star,
+                                            p_low, tol, stats)
+        elif plain_ok:        # singular X*: a face root, or a genuine but degenerate one
+            best = fixed_p_certificate(system, red, p_star, plain.X, tol, stats)
+        if best is not None:
+            break
+        if plain_ok and lo < p_star < hi:
+            lo = p_star          # an eigenvector X* ⪰ 0 with eigenvalue 1 shows p_up >= p*
+            lo_seen = max(lo_seen, p_star)
+        target = max((hi - lo) / 64, 1e-3 * (hi - lo), 4 * tol)
+        lo_before = lo
+        lo, hi, Xl, Xh = _refine_bracket(Au, Cu, lo, hi, Xl, Xh, target, stats)
+        if lo > lo_before:       # raised only by a Collatz–Wielandt bound r(lo) >= 1
+            lo_seen = max(lo_seen, lo)
+        plain_ok = False
+    if best is None:
+        warnings.append("no certificate could be verified; the upper end is a numerical "
+                        "power-iteration estimate")
+        lower = _evidence_p_low(p_low) if lo_seen <= p_low else {
+            "kind": "numerical", "value": lo_seen, "certified": False,
+            "statement": "a cone eigenvector with eigenvalue >= 1 (Newton root or "
+                         "Collatz-Wielandt bound of the power iterate)", "p_low_theorem": p_low}
+        return done(None, (lo_seen, hi), False, "undetermined", None, lower)
+    hi_p, (Z, Xz, Kz), check, eps_used = best
+    X, K = symmetrize(Z @ Xz @ Z.T), Z @ Kz
+    stats["regularisation"] = eps_used
+    origin = ("cone eigenvector of the regularised noise-free MARE map (epsilon = "
+              f"{eps_used:.3g}), lifted from the unstable Schur block; checked as Z X_z Z', Z K_z "
+              "with the float Schur basis Z (X, K below are rounded copies)")
+    cert = _certificate_summary(system, check, X, K, origin, (Z, Xz, Kz))
+    lo_p = _lower_end(hi_p, tol, p_low)
+    if p_star is None:
+        warnings.append("plain Newton root not found; the lower end rests on p_low only")
+        lo_p = p_low
+    elif p_star < lo_p:
+        warnings.append(f"the certificate holds only at hi = {hi_p:.12g}, more than tol above "
+                        f"the Newton root {p_star:.12g}: the bracket is wider than requested")
+        lo_p = max(p_low, p_star)
+    lower = _lower_evidence(system, red, plain, lo_p, p_low, stats) if plain_ok else \
+        _evidence_p_low(p_low)
+    if lower.get("inconsistent"):
+        warnings.append(lower["inconsistent"])
+        lo_p = p_low
+        lower = _evidence_p_low(p_low)
+    status = "determined" if hi_p - lo_p <= tol else "undetermined"
+    return done(hi_p, (lo_p, hi_p), check.ok, status, cert, lower,
+                {"X": X, "K": K, "basis": Z, "X_basis": Xz, "K_basis": Kz, "p_star": p_star})
+
+
+def collatz_wielandt(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float
+                     ) -> tuple[float, float]:
+    """Bounds c_lo ≤ r(p) ≤ c_hi from X ≻ 0: the extreme eigenvalues of X^{-1/2} G_p(X) X^{-1/2}.
+
+    G_p(X) ⪯ c_hi X gives r ≤ c_hi (monotone, homogeneous map); G_p(X) ⪰ c_lo X gives
+    r ≥ c_lo (a sub-eigenvector). Returns (0, inf) when X is not numerically positive definite.
+    """
+    try:
+        L = np.linalg.cholesky(X)
+        G = noise_free_g(A, C, X, p, reg=1e-15 * np.trace(X))
+        Li = np.linalg.solve(L, np.eye(L.shape[0]))
+        ev = np.linalg.eigvalsh(symmetrize(Li @ G @ Li.T))
+    except np.linalg.LinAlgError:
+        return 0.0, float("inf")
+    return float(ev[0]), float(ev[-1])
+
+
+def _refine_bracket(A, C, lo, hi, Xl, Xh, width, stats):
+    """Bisection on r(p) until hi − lo ≤ width, each step decided by Collatz–Wielandt bounds of
+    the power iterate (r < 1 proven numerically: hi; r ≥ 1: lo); stops when neither holds."""
+    while hi - lo > width:
+        mid = 0.5 * (lo + hi)
+        _, Xm, it = cone_radius(A, C, mid, Xh, iterations=3000, rtol=1e-12)
+        stats["power_iterations"] += it
+        c_lo, c_hi = collatz_wielandt(A, C, Xm, mid)
+        if c_hi < 1.0:
+            hi, Xh = mid, Xm
+        elif c_lo >= 1.0:
+            lo, Xl = mid, Xm
+        else:
+            break
+    return lo, hi, Xl, Xh
+
+
+def _power_bisection(system: System, red: Reduced, lo: float, hi: float, Xh: np.ndarray,
+                     tol: float, stats: dict[str, Any], warnings: list[str], done) -> UpperBound:
+    """Large unstable blocks: bisection on r(p) by power iteration to width max(tol, 1e-6),
+    with a ball-checked certificate from the power-iteration eigenvector at each feasible p."""
+    width = max(tol, 1e-6)
+    best = None
+    while hi - lo > width:
+        mid = 0.5 * (lo + hi)
+        r, X, it = cone_radius(red.Au, red.Cu, mid, Xh, iterations=2000, rtol=1e-11)
+        stats["power_iterations"] += it
+        found = None
+        if r < 1.0:
+            for eps in (0.0, 1e-3 * width, 1e-6 * width):   # regularised: X ⪰ ε tr(X) I
+                _, Xe, it = cone_radius(red.Au, red.Cu, mid, X, iterations=2000, rtol=1e-11,
+                                        eps=eps)
+                stats["power_iterations"] += it
+                if float(np.linalg.eigvalsh(Xe).min()) <= 0:
+                    continue
+                K = optimal_gain_noise_free(red.Au, red.Cu, Xe, eps)
+                Z, Xz, Kz = lift_certificate(red, system.c, Xe, K, mid)
+                check = certify.verify_upper(system, mid, Xz, Kz, basis=Z)
+                stats["certificate_checks"] += 1
+                if check.ok:
+                    found = (mid, (Z, Xz, Kz), check)
+                    break
+        if found is not None:
+            hi, Xh, best = mid, X, found
+        elif r >= 1.0:
+            lo = mid
+        else:
+            warnings.append(f"r({mid:.9g}) = {r:.12g} < 1 but no certificate verified there; "
+                            "bisection stopped")
+            break
+    warnings.append(f"unstable block of {red.k} states: power-iteration bisection to width "
+                    f"{width:g} (Newton is used up to {NEWTON_MAX_REDUCED}); the lower end is "
+                    "numerical (power iteration r(lo) >= 1 or no certificate found)")
+    lower = {"kind": "numerical", "value": lo, "certified": False,
+             "statement": "power iteration: r(lo) >= 1, or no certificate could be verified"}
+    if best is None:
+        return done(None, (lo, 1.0), False, "undetermined", None, lower)
+    hi_p, (Z, Xz, Kz), check = best
+    cert = _certificate_summary(system, check, Z @ Xz @ Z.T, Z @ Kz,
+                                "power-iteration cone eigenvector, lifted from the unstable block",
+                                (Z, Xz, Kz))
+    status = "determined" if hi_p - lo <= tol else "undetermined"
+    return done(hi_p, (lo, hi_p), True, status, cert, lower,
+                {"X": Z @ Xz @ Z.T, "K": Z @ Kz, "basis": Z, "X_basis": Xz, "K_basis": Kz})
+
+
+def optimal_gain_noise_free(A: np.ndarray, C: np.ndarray, X: np.ndarray,
+                            eps: float = 0.0) -> np.ndarray:
+    """K_X = −A X C' (C X C' + ε tr(X) I)^{+} (the minimiser of G^ε_p; pseudo-inverse)."""
+    S = C @ X @ C.T + eps * float(np.trace(X)) * np.eye(C.shape[0])
+    return -(A @ X @ C.T) @ np.linalg.pinv(S)
+
+
+def _lower_end(hi: float, tol: float, p_low: float) -> float:
+    """The smallest float lo ≥ max(p_low, hi − tol) with hi − lo ≤ tol (in floating point)."""
+    lo = max(p_low, hi - tol)
+    while hi - lo > tol:
+        lo = float(np.nextafter(lo, hi))
+    return lo
+
+
+def _regularised_certificate(system: System, red: Reduced, plain: NewtonResult | None,
+                             start: np.ndarray, p_start: float, p_star: float | None,
+                             p_low: float, tol: float, stats: dict[str, Any]):
+    """Continuation in ε of the regularised Newton, then a ball-checked lifted certificate.
+
+    From a starting ε (1e-6, else 1e-4, 1e-8, 1e-3), ε goes down (at most tenfold per step, each
+    solve warm-started, each eigenvector checked to be positive definite) until
+    p_ε − p* ≤ tol/4 (slope dp_ε/dε estimated on the way). The certificate is tried from the
+    smallest ε back. Returns (hi, (Z, X_z, K_z), check, ε) or None.
+    """
+    p0 = plain.p if plain is not None else p_start
+    X0 = plain.X if plain is not None else start
+    base = max(p_star if p_star is not None else p_start, p_low)
+    for eps0 in (1e-6, 1e-4, 1e-8, 1e-3):
+        good = _continuation(red, X0, p0, eps0, p_star, tol, stats)
+        for eps_used, reg in reversed(good[-3:]):
+            hi = float(np.nextafter(max(reg.p, p_low), 2.0))
+            Z, Xz, Kz = lift_certificate(red, system.c, reg.X, reg.K, hi)
+            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z)
+            stats["certificate_checks"] += 1
+            if check.ok:
+                stats["regularisation"] = eps_used
+                return hi, (Z, Xz, Kz), check, eps_used
+    return fixed_p_certificate(system, red, base, X0, tol, stats)
+
+
+def fixed_p_certificate(system: System, red: Reduced, base: float, X0: np.ndarray, tol: float,
+                        stats: dict[str, Any]):
+    """Certificate at p = base + offset (offsets tol/2 … 10^4 tol) from the cone eigenvector of
+    G^ε_p (ε = 0 first): r_ε(p) < 1 with X ≻ 0 gives X − L_{K,p}(X) ⪰ (1 − r) X ≻ 0."""
+    for offset in (0.5 * tol, tol, 10 * tol, 100 * tol, 1e4 * tol):
+        hi = float(min(base + offset, 1.0))
+        for eps in (0.0, 1e-2 * offset, 1e-4 * offset):
+            X, r, K, ok = perron_newton(red.Au, red.Cu, X0 + eps * np.eye(red.k), hi, eps=eps)
+            stats["newton_iterations"] += 1
+            if not (ok and r < 1 and float(np.linalg.eigvalsh(X).min()) > 0):
+                _, Xs, its = cone_radius(red.Au, red.Cu, hi, X0, eps=eps, iterations=2000)
+                stats["power_iterations"] += its
+                X, r, K, ok = perron_newton(red.Au, red.Cu, Xs, hi, eps=eps)
+                stats["newton_iterations"] += 1
+            if not (ok and r < 1 and float(np.linalg.eigvalsh(X).min()) > 0):
+                continue
+            Z, Xz, Kz = lift_certificate(red, system.c, X, K, hi)
+            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z)
+            stats["certificate_checks"] += 1
+            if check.ok:
+                stats["regularisation"] = eps
+                return hi, (Z, Xz, Kz), check, eps
+    return None
+
+
+def _continuation(red: Reduced, X0: np.ndarray, p0: float, eps: float, p_star: float | None,
+                  tol: float, stats: dict[str, Any]) -> list[tuple[float, NewtonResult]]:
+    """The regularised Newton solutions (ε, result) along a decreasing sequence of ε."""
+    _, X, its = cone_radius(red.Au, red.Cu, p0, X0, eps=eps)
+    stats["power_iterations"] += its
+    p = p0
+    good: list[tuple[float, NewtonResult]] = []
+    for _ in range(30):
+        reg = threshold_newton(red.Au, red.Cu, X, p, eps=eps)
+        stats["newton_iterations"] += reg.iterations
+        if not (reg.converged and float(np.linalg.eigvalsh(reg.X).min()) > 0
+                and reg.p >= (p_star if p_star is not None else -1.0) - 1e-12
+                and reg.p <= 1.0):
+            break
+        good.append((eps, reg))
+        X, p = reg.X, reg.p
+        if p_star is None:
+            if eps <= 0.02 * tol:
+                break
+            eps = max(0.1 * eps, 0.02 * tol)
+            continue
+        gap = reg.p - p_star
+        if gap <= 0.25 * tol:
+            break
+        eps = max(0.1 * eps, 0.2 * tol * eps / gap)
+    return good
+
+
+def _lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float, p_low: float,
+                    stats: dict[str, Any]) -> dict[str, Any]:
+    """The strongest evidence for p_up ≥ lo that we can check, labelled.
+
+    p_low (theorem) when lo ≤ p_low; else the cone eigenpair (X, r) of G_lo by Newton: r ≥ 1
+    supports lo numerically, and is proven (:func:`certify.verify_lower`) when the reduced
+    system is the whole system and X ≻ 0, G_lo(X) − X ≻ 0 pass in balls. An eigenvalue r < 1
+    contradicts lo: the evidence is then marked ``inconsistent``.
+    """
+    if lo <= p_low:
+        return _evidence_p_low(p_low)
+    X, r, _K, ok = perron_newton(red.Au, red.Cu, plain.X, lo)
+    stats["newton_iterations"] += 1
+    evidence: dict[str, Any] = {
+        "kind": "numerical", "value": lo, "certified": False,
+        "statement": ("Newton root p* of the cone spectral radius r(p) = 1 of the noise-free "
+                      f"MARE map (p* = {plain.p:.15g}, residual {plain.residual:.2g}); at lo "
+                      f"the cone eigenvalue is r(lo) = {r:.15g} >= 1, so no X > 0 has "
+                      "X > G_lo(X) (numerically)"),
+        "p_low_theorem": p_low}
+    if not ok or float(np.linalg.eigvalsh(X).min()) < -1e-10:
+        evidence["statement"] = (f"Newton root p* = {plain.p:.15g} of r(p) = 1 (residual "
+                                 f"{plain.residual:.2g}); the eigenpair at lo did not converge")
+        return evidence
+    if r < 1 - 1e-12:
+        return {"inconsistent": f"cone eigenvalue r({lo:.12g}) = {r:.15g} < 1 contradicts the "
+                                "Newton root; the lower end falls back to p_low"}
+    if red.k == red.T.shape[0] and r > 1:
+        Xf = symmetrize(red.Z @ X @ red.Z.T)
+        check = certify.verify_lower(system, lo, Xf)
+        stats["certificate_checks"] += 1
+        if check.ok:
+            evidence.update({"kind": "certificate", "certified": True,
+                             "statement": "X > 0 with G_lo(X) - X > 0 (cone eigenvalue "
+                                          f"{r:.15g} > 1 of the noise-free MARE map), "
+                                          "proven in ball arithmetic",
+                             "check": check.to_dict()})
+    return evidence
+
+
+def _certificate_summary(system: System, check: certify.CheckResult, X: np.ndarray,
+                         K: np.ndarray, origin: str, basis: tuple | None = None
+                         ) -> dict[str, Any]:
+    """The record's certificate: what was proven, how, and (small systems) the matrices.
+
+    A certificate checked in a basis (X = Z X_z Z') is reported with its float copies X, K; for
+    small systems those copies are re-checked directly (``matrices_verified``) and, if they do
+    not pass on their own, the basis form (``basis``, ``X_basis``, ``K_basis``) is included.
+    """
+    out = {"kind": "X > 0 and X - L_{K,hi}(X) > 0 (Sinopoli Thm 5, Psi_hi(X^-1, X^-1 K) > 0)",
+           "origin": origin, **check.to_dict()}
+    if system.n <= SMALL_MATRIX:
+        out["X"] = [[float(v) for v in row] for row in X]
+        out["K"] = [[float(v) for v in row] for row in K]
+        direct = check if basis is None else certify.verify_upper(system, check.p, X, K)
+        out["matrices_verified"] = direct.ok
+        if not direct.ok and basis is not None:
+            for name, M in zip(("basis", "X_basis", "K_basis"), basis):
+                out[name] = [[float(v) for v in row] for row in M]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# public interface
+# ---------------------------------------------------------------------------------------------
+
+
+METHODS = ("auto", "newton", "lmi")
+
+
+def upper_bound(system: System, tol: float = 1e-9, method: str = "auto") -> UpperBound:
+    """Upper bound p_up on the critical arrival probability with a bracket [lo, hi], hi − lo ≤ tol.
+
+    Parameters
+    ----------
+    system : System
+    tol : float
+        Requested width of the bracket.
+    method : {"auto", "newton", "lmi"}
+        "newton" — cone-spectral-radius Newton with a lifted, ball-checked certificate (fast);
+        "lmi" — Sinopoli's Ψ_p LMI bisection (cvxpy + Clarabel); "auto" — "newton", falling
+        back to "lmi" if Newton gives no certified bracket.
+
+    Returns
+    -------
+    UpperBound
+        ``certified`` is True only if the upper end ``hi`` passed :func:`certify.verify_upper`.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    key = ((sp.srepr(system.A), sp.srepr(system.C)) if system.exact else
+           (system.a.tobytes(), system.c.tobytes(), system.a.shape, system.c.shape),
+           float(tol), method)
+    if key in _CACHE:
+        return _CACHE[key]
+    result = replace(_upper_bound(system, tol, method), tolerance=float(tol))
+    _CACHE[key] = result
+    while len(_CACHE) > 16:
+        _CACHE.pop(next(iter(_CACHE)))
+    return result
+
+
+_CACHE: dict[tuple, UpperBound] = {}
+"""Memo of results (immutable records) by exact (A, C), tol and method: p_up depends on A and C
+only, and the covariance-bound and static-gain sections ask for it again."""
+
+
+def _upper_bound(system: System, tol: float, method: str) -> UpperBound:
+    if method == "lmi":
+        from .lmi import lmi_upper_bound
+        return lmi_upper_bound(system, tol=max(tol, 1e-7))
+    result = _newton_method(system, tol)
+    if method == "auto" and not result.certified and system.n <= 30:
+        from .lmi import lmi_upper_bound
+        alt = lmi_upper_bound(system, tol=max(tol, 1e-7))
+        if alt.certified:
+            width_ok = alt.interval[1] - alt.interval[0] <= tol
+            return replace(alt, status=alt.status if width_ok else "undetermined",
+                           warnings=result.warnings + ("newton method gave no certificate; LMI "
+                                                       "used (its lower end is solver-based)",)
+                           + alt.warnings)
+    return result
+
+
+def upper_section(system: System, tol: float = 1e-9) -> dict[str, Any]:
+    """``upper_bound(system, tol).to_dict()``; numerical trouble gives status "undetermined"."""
+    try:
+        return upper_bound(system, tol=tol).to_dict()
+    except (np.linalg.LinAlgError, ValueError, ArithmeticError, RuntimeError) as exc:
+        p_low = p_low_of(system.a)
+        return UpperBound(None, (p_low, 1.0), False, "undetermined", "newton", None,
+                          _evidence_p_low(p_low), {}, (f"numerical failure: {exc}",)).to_dict()

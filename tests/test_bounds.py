@@ -1,0 +1,147 @@
+"""Covariance bounds S̄ ⪯ V̄, the phase transition and static gains (kfcrit.bounds).
+
+Expected values: hand derivations for scalar systems, residuals of the defining equations, and
+independent methods — the MARE iteration against Newton–Kleinman, and both against the SDP of
+Sinopoli Thm 6(b) *with Q* (MATH.md §3 flags the printed version, which omits Q, as a misprint).
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from kfcrit import bounds
+from kfcrit.riccati import g
+from kfcrit.system import System
+
+
+def scalar(a: float, q: float = 1.0, r: float = 1.0) -> System:
+    return System([[a]], [[1.0]], [[q]], [[r]])
+
+
+GENERAL = System([["5/4", 0], [1, "11/10"]], [[1, 1]], [[20, 0], [0, 20]], [["5/2"]])
+
+
+def mare_scalar(a: float, q: float, r: float, p: float) -> float:
+    """Positive root of V = a²V + q − p a² V²/(V + r) (c = 1), by hand:
+    (1 − a² + p a²) V² + (r − a² r − q) V − q r = 0."""
+    A2 = a * a
+    qa, qb, qc = 1 - A2 + p * A2, r - A2 * r - q, -q * r
+    return (-qb + math.sqrt(qb * qb - 4 * qa * qc)) / (2 * qa)
+
+
+def test_lower_covariance_scalar_hand_derivation():
+    # S = (1−p) a² S + q  ⇒  S = q / (1 − (1−p) a²), exists iff (1−p) a² < 1
+    S = bounds.lower_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.8)
+    assert S[0, 0] == pytest.approx(1 / (1 - 0.2 * 4))
+    assert bounds.lower_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.75) is None
+    assert bounds.lower_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.7) is None
+
+
+@pytest.mark.parametrize("a, p", [(2.0, 0.8), (-1.25, 0.5), (1.5, 0.9), (0.5, 0.2)])
+def test_upper_covariance_scalar_hand_derivation(a, p):
+    d = bounds.covariance_bounds(scalar(a), p)
+    assert d["upper"]["exists"]
+    assert d["upper"]["trace"] == pytest.approx(mare_scalar(a, 1.0, 1.0, p), rel=1e-10)
+    assert d["upper"]["residual"] < 1e-12
+
+
+def test_newton_and_iteration_agree_and_solve_the_mare():
+    s = GENERAL
+    A, C, Q, R = s.a, s.c, s.q, s.r
+    for p in (0.5, 0.6, 0.9):
+        Vi, its = bounds.mare_iteration(A, C, Q, R, p)
+        res = bounds.upper_covariance(s, p)
+        Vn = res["V"]
+        assert Vi is not None and Vn is not None and its > 1
+        assert res["method"].startswith("newton")
+        assert np.linalg.norm(Vn - Vi) <= 1e-9 * np.linalg.norm(Vn)
+        assert np.linalg.norm(g(A, C, Q, R, Vn, p) - Vn) <= 1e-12 * np.linalg.norm(Vn)
+
+
+@pytest.mark.parametrize("system, p", [(GENERAL, 0.6), (scalar(-1.25, 1.0, 2.5), 0.5),
+                                       (System([[2, 0], [0, -2]], [[1, 1]], [[1, 0], [0, 1]],
+                                               [[1]]), 0.97)])
+def test_v_bar_matches_corrected_thm6b_sdp_with_q(system, p):
+    cp = pytest.importorskip("cvxpy")
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    n = system.n
+    V = cp.Variable((n, n), symmetric=True)
+    M = cp.bmat([[A @ V @ A.T + Q - V, np.sqrt(p) * A @ V @ C.T],
+                 [np.sqrt(p) * C @ V @ A.T, C @ V @ C.T + R]])
+    prob = cp.Problem(cp.Maximize(cp.trace(V)), [(M + M.T) / 2 >> 0, V >> 0])
+    prob.solve(solver="CLARABEL")
+    assert prob.status == cp.OPTIMAL
+    d = bounds.covariance_bounds(system, p)
+    assert d["upper"]["trace"] == pytest.approx(prob.value, rel=1e-5)
+    assert np.allclose(np.array(d["upper"]["matrix"]), V.value, rtol=1e-4,
+                       atol=1e-5 * abs(prob.value))
+
+
+@pytest.mark.parametrize("p", [0.5, 0.6, 0.8, 0.99])
+def test_lower_below_upper(p):
+    d = bounds.covariance_bounds(GENERAL, p)
+    assert d["lower"]["exists"] and d["upper"]["exists"]
+    assert d["ordered"] is True
+    S, V = np.array(d["lower"]["matrix"]), np.array(d["upper"]["matrix"])
+    assert np.linalg.eigvalsh(V - S).min() >= -1e-9 * np.linalg.norm(V)
+    assert d["lower"]["trace"] <= d["upper"]["trace"]
+    json.dumps(d, allow_nan=False)
+
+
+def test_bounds_absent_below_thresholds():
+    d = bounds.covariance_bounds(GENERAL, 0.3)           # below p_low = 9/25
+    assert not d["lower"]["exists"] and not d["upper"]["exists"] and d["ordered"] is None
+    d = bounds.covariance_bounds(GENERAL, 0.4)           # p_low < 0.4 < p_up = 57/121
+    assert d["lower"]["exists"] and not d["upper"]["exists"]
+    assert set(d) == {"p", "lower", "upper", "ordered"}
+    assert set(d["upper"]) == {"exists", "trace", "max_eig", "matrix", "residual", "method",
+                               "iterations"}
+    json.dumps(d, allow_nan=False)
+
+
+def test_phase_transition_resolves_both_blow_ups():
+    out = bounds.phase_transition(GENERAL, {"operating": 0.6}, points=60)
+    p = np.array(out["p"])
+    assert np.all(np.diff(p) > 0) and p[0] == 0.0 and p[-1] == 1.0
+    p_low, p_up = 9 / 25, 57 / 121
+    assert out["markers"]["operating"] == 0.6
+    assert out["markers"]["p_up"] == pytest.approx(p_up, abs=1e-9)
+    assert np.min(np.abs(p[p > p_low] - p_low)) < 1e-5
+    assert np.min(np.abs(p[p > p_up] - p_up)) < 1e-5
+    for pi, lo, up in zip(p, out["trace_lower"], out["trace_upper"]):
+        assert (lo is None) == (pi <= p_low)
+        if pi <= p_up:
+            assert up is None
+        elif pi > p_up + 1e-6:
+            assert up is not None and up >= lo
+    # traces blow up towards the thresholds and decrease in p
+    tl = [v for v in out["trace_lower"] if v is not None]
+    tu = [v for v in out["trace_upper"] if v is not None]
+    assert all(x >= y for x, y in zip(tl, tl[1:])) and all(x >= y for x, y in zip(tu, tu[1:]))
+    assert tl[0] > 1e4 * tl[-1] and tu[0] > 1e3 * tu[-1]
+
+
+def test_ms_critical_value_scalar_hand_derivation():
+    # (1−p) a² + p (a + k)² < 1  ⇔  p > (a² − 1)/(a² − (a + k)²)
+    a, k = 2.0, -1.5
+    crit = bounds.ms_critical_value(np.array([[a]]), np.array([[1.0]]), np.array([[k]]))
+    assert crit["critical_value"] == pytest.approx((a * a - 1) / (a * a - (a + k) ** 2))
+    assert crit["stable_up_to_one"]
+    # k = −a (deadbeat) attains p_low = 1 − 1/a² = p_up for scalar systems
+    crit = bounds.ms_critical_value(np.array([[a]]), np.array([[1.0]]), np.array([[-a]]))
+    assert crit["critical_value"] == pytest.approx(0.75)
+
+
+def test_static_gain_best_equals_p_up_and_kalman_is_not_better():
+    out = bounds.static_gain(GENERAL, 0.6)
+    best, kalman = out["best"], out["kalman"]
+    assert best["equals_p_up"] and abs(best["critical_value"] - 57 / 121) < 1e-9
+    assert kalman["critical_value"] >= out["p_up_interval"][0] - 1e-12
+    # at p = 0.6 > p_{K*} the best static gain has a steady covariance, and it is ⪰ V̄
+    assert best["covariance_exists"]
+    V = np.array(bounds.covariance_bounds(GENERAL, 0.6)["upper"]["matrix"])
+    assert np.linalg.eigvalsh(np.array(best["covariance_matrix"]) - V).min() >= -1e-8
+    json.dumps(out, allow_nan=False)

@@ -1,0 +1,131 @@
+"""Rigorous certificate checks (kfcrit.certify): hand-derived cases, re-verification, tampering.
+
+Expected outcomes come from hand derivations: for the scalar system a = 2, c = 1 and K = −2
+(F = 0), L_{K,p}(x) = 4(1−p)x, so x = 1 certifies p exactly when p > 3/4; and the noise-free
+map is G_p(x) = 4(1−p)x, so x = 1 is a lower certificate exactly when p < 3/4.
+"""
+from __future__ import annotations
+
+import math
+
+import flint
+import numpy as np
+import pytest
+
+from kfcrit import certify
+from kfcrit.system import System
+from kfcrit.upper import upper_bound
+
+
+def scalar(a="2", c="1") -> System:
+    return System([[a]], [[c]], [[1]], [[1]])
+
+
+@pytest.mark.parametrize("p, ok", [(0.76, True), (0.75 + 2**-40, True), (0.75, False),
+                                   (0.74, False), (0.0, False)])
+def test_upper_check_scalar_hand_derivation(p, ok):
+    res = certify.verify_upper(scalar(), p, np.array([[1.0]]), np.array([[-2.0]]))
+    assert res.ok is ok
+    if ok:  # the margin is that of the equilibrated matrix D M D (here 1×1: scaled to 1)
+        assert 0 < res.margin <= 1.0
+
+
+@pytest.mark.parametrize("p, ok", [(0.74, True), (0.75 - 2**-40, True), (0.75, False),
+                                   (0.8, False)])
+def test_lower_check_scalar_hand_derivation(p, ok):
+    assert certify.verify_lower(scalar(), p, np.array([[1.0]])).ok is ok
+
+
+def test_definite_margin_known_matrices():
+    assert certify.definite_margin(flint.arb_mat([[1, 1], [1, 1]])) is None       # singular
+    assert certify.definite_margin(flint.arb_mat([[1, 2], [2, 1]])) is None       # indefinite
+    m = certify.definite_margin(flint.arb_mat([[2, 1], [1, 2]]))                # λ = 1, 3
+    assert m is not None and 0 < m <= 0.5 + 1e-12     # diag scaling gives [[1, .5], [.5, 1]]
+    # very different scales on the diagonal: equilibration still proves definiteness
+    assert certify.definite_margin(flint.arb_mat([[1e20, 0], [0, 1e-20]])) is not None
+
+
+def test_irrational_system_entries_are_enclosed():
+    # A = [[1, −√3], [√3, 1]] (rotation-third-turn); F = 0 with K = −A C^{-1}, C = I
+    s = System([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0], [0, 1]], [[1, 0], [0, 1]],
+               [[1, 0], [0, 1]])
+    K = -s.a  # rounded √3: F = A + K is tiny but nonzero, proof must still go through
+    # L(X) = (1−p) A X A' + p F F' ≈ 4(1−p) I: p = 0.76 is certifiable, p = 0.74 is not
+    assert certify.verify_upper(s, 0.76, np.eye(2), K).ok
+    assert not certify.verify_upper(s, 0.74, np.eye(2), K).ok
+
+
+@pytest.fixture(scope="module")
+def general_certificate():
+    s = System([["5/4", 0], [1, "11/10"]], [[1, 1]], [[20, 0], [0, 20]], [["5/2"]])
+    ub = upper_bound(s, tol=1e-9, method="newton")
+    return s, ub
+
+
+def test_certificate_reverifies(general_certificate):
+    s, ub = general_certificate
+    ex = ub.extras
+    assert ub.certified
+    assert certify.verify_upper(s, ub.interval[1], ex["X_basis"], ex["K_basis"],
+                                basis=ex["basis"]).ok
+    # p_up = 57/121 (Sinopoli general example) lies in the certified bracket
+    assert ub.interval[0] <= 57 / 121 <= ub.interval[1]
+
+
+def test_tampered_certificates_are_rejected(general_certificate):
+    s, ub = general_certificate
+    ex = ub.extras
+    Z, Xz, Kz, hi = ex["basis"], ex["X_basis"], ex["K_basis"], ub.interval[1]
+    # below p_up no certificate can exist: the same one, claimed for a smaller p
+    assert not certify.verify_upper(s, 57 / 121 - 1e-4, Xz, Kz, basis=Z).ok
+    assert not certify.verify_upper(s, 0.4, Xz, Kz, basis=Z).ok
+    # perturbed gain
+    assert not certify.verify_upper(s, hi, Xz, Kz + 0.5, basis=Z).ok
+    # X not positive definite
+    bad = Xz.copy()
+    bad[0, 0] = -abs(bad[0, 0])
+    assert not certify.verify_upper(s, hi, bad, Kz, basis=Z).ok
+    # singular basis
+    assert not certify.verify_upper(s, hi, Xz, Kz, basis=np.zeros_like(Z)).ok
+    # garbage
+    nan = Xz.copy()
+    nan[0, 0] = math.nan
+    assert not certify.verify_upper(s, hi, nan, Kz, basis=Z).ok
+    assert not certify.verify_upper(s, 1.5, Xz, Kz, basis=Z).ok
+
+
+def test_tampered_lower_certificate_is_rejected():
+    # diag(2, -2), C = [1, 1]: p_up = 15/16 (Mo–Sinopoli degenerate example)
+    s = System([[2, 0], [0, -2]], [[1, 1]], [[1, 0], [0, 1]], [[1]])
+    ub = upper_bound(s, tol=1e-9, method="newton")
+    assert ub.interval[0] <= 15 / 16 <= ub.interval[1]
+    ev = ub.lower_evidence
+    if ev["kind"] == "certificate":
+        assert ev["check"]["ok"]
+    # a lower certificate claimed above p_up must fail, whatever X
+    for X in (np.eye(2), np.array([[1.0, 0.3], [0.3, 2.0]])):
+        assert not certify.verify_lower(s, 0.95, X).ok
+
+
+@pytest.mark.parametrize("A, C", [
+    ([["5/4", 0, 0], [0, "9/10", 7], [0, 0, "3/5"]], [[1, 0, 2]]),   # one unstable mode of three
+    ([[2, 2], [2, 2]], [[2, 2]]),                                    # eigenvalues 4 and 0
+    ([[0, "7/4"], ["-7/4", 0]], [[0, 2]]),                           # rotation, |λ| = 7/4
+])
+def test_record_certificate_reverifies_from_the_record(A, C):
+    """The certificate in the record (small systems) re-verifies from its own matrices."""
+    n, m = len(A), len(C)
+    s = System(A, C, np.eye(n).tolist(), np.eye(m).tolist())
+    d = upper_bound(s, tol=1e-9).to_dict()
+    cert, hi = d["certificate"], d["interval"][1]
+    assert d["certified"] and "X" in cert
+    if cert["matrices_verified"]:
+        assert certify.verify_upper(s, hi, np.array(cert["X"]), np.array(cert["K"])).ok
+    else:
+        assert certify.verify_upper(s, hi, np.array(cert["X_basis"]), np.array(cert["K_basis"]),
+                                    basis=np.array(cert["basis"])).ok
+    # and the same matrices do not certify a p clearly below the interval
+    lo = d["interval"][0]
+    if lo > 0.01:
+        assert not certify.verify_upper(s, lo - 0.01, np.array(cert["X"]),
+                                        np.array(cert["K"])).ok

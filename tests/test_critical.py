@@ -1,0 +1,357 @@
+"""Critical values: the paper cases, hand-derived cases, robustness, invariances (Hypothesis).
+
+Every expected value comes from /work/shared/cases/expected.json (derived from the papers) or
+from a hand derivation written next to the case with MATH.md §4:
+non-degenerate p_c = 1 − |λ_1|^{-2}; degenerate pair p_c = 1 − |λ_1|^{-2q/(q−1)}.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from kfcrit import critical
+from kfcrit.channels import Bernoulli, GilbertElliott
+from kfcrit.exprparse import parse_expression
+from kfcrit.system import System
+from kfcrit.systemfile import load_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+REPORTS = ROOT / "reports"
+SHARED_CASES = ROOT.parent / "shared" / "cases"
+EXPECTED = json.loads((SHARED_CASES / "expected.json").read_text())
+CASES = sorted(k for k in EXPECTED if not k.startswith("_"))
+CONTRACT = {"classification", "critical_value", "robust_critical_value", "lower_bound",
+            "block_lower_bound", "structure", "theory", "warnings"}
+
+
+def _sys(A, C, Q=None, R=None, Sigma0=None) -> System:
+    n, m = len(A), len(C)
+    Q = Q if Q is not None else np.eye(n).astype(int).tolist()
+    R = R if R is not None else np.eye(m).astype(int).tolist()
+    return System(A, C, Q, R, Sigma0)
+
+
+def _same(expression: str, expected: str) -> bool:
+    a = parse_expression(expression, "got")
+    b = parse_expression(expected, "expected")
+    return sp.simplify(a - b) == 0 and sp.simplify(sp.sympify(expression) - b) == 0
+
+
+# --------------------------------------------------------------------------- paper cases
+
+@pytest.mark.parametrize("name", CASES)
+def test_expected_cases(name):
+    spec = load_spec(REPORTS / name)
+    exp = EXPECTED[name]
+    d = critical.critical_section(spec.system, channel=spec.channel)
+    assert CONTRACT <= set(d)
+    json.dumps(d, allow_nan=False)
+    assert d["classification"] == exp["classification"]
+    cv = d["critical_value"]
+    assert cv["exact"] is True
+    assert _same(cv["expression"], exp["critical_value"])
+    assert abs(cv["value"] - float(parse_expression(exp["critical_value"], "e"))) <= 1e-12
+    assert _same(d["lower_bound"]["expression"], exp["lower_bound"])
+    assert d["robust_critical_value"] is None  # exact cases far from any other decision
+    if "q" in exp:
+        pairs = d["structure"]["equal_modulus_pairs"]
+        assert [p["q"] for p in pairs if p["degenerate"]] == [exp["q"]]
+
+
+def test_lower_bound_interface():
+    spec = load_spec(REPORTS / "sinopoli-general.yaml")
+    lb = critical.lower_bound(spec.system)
+    assert set(lb) == {"value", "expression"} and _same(lb["expression"], "9/25")
+
+
+# --------------------------------------------------------------------------- hand derivations
+
+HAND = [
+    # ρ(A) = 1/2 < 1: p_c = 0
+    ("stable", [["1/2", 1], [0, "1/3"]], [[1, 0]], "stable", "0"),
+    # rotation by π/2 of modulus 1, one output: critically stable degenerate pair, p_c = 0
+    ("critical rotation", [[0, -1], [1, 0]], [[1, 0]], "degenerate-second-order", "0"),
+    # ±2j: θ = π/2, z = e^{∓jπ} = −1, q = 2: 1 − 2^{−4} = 15/16
+    ("quarter turn", [[0, -2], [2, 0]], [[1, 0]], "degenerate-second-order", "15/16"),
+    # 1 ± j = √2 e^{±jπ/4}, z = e^{∓jπ/2}, q = 4: 1 − (√2)^{−8/3} = 1 − 2^{−4/3}
+    ("eighth turn", [[1, -1], [1, 1]], [[1, 0]], "degenerate-second-order", "1 - 2**(-4/3)"),
+    # 3 ± 4j, |λ| = 5, angle atan(4/3) irrational: 1 − 1/25
+    ("atan(4/3)", [[3, -4], [4, 3]], [[1, 0]], "degenerate-second-order", "24/25"),
+    # 2 e^{±2πj/5}: z = e^{∓4πj/5}, q = 5: 1 − 2^{−2·5/4} = 1 − 2^{−5/2}
+    ("fifth turn", [["2*cos(2*pi/5)", "-2*sin(2*pi/5)"], ["2*sin(2*pi/5)", "2*cos(2*pi/5)"]],
+     [[1, 0]], "degenerate-second-order", "1 - 2**(-5/2)"),
+    # T diag(2, −2) T^{-1} with T = [[1, 1], [0, 1]] is [[2, 4], [0, −2]]; C = [1, 1] T^{-1}
+    # = [1, 0]: the Mo–Sinopoli degenerate pair in disguise, 15/16
+    ("similar pair", [[2, 4], [0, -2]], [[1, 0]], "degenerate-second-order", "15/16"),
+    # same pair with a stable third state (Thm 3 ≥, Thm 8 ≤): still 15/16
+    ("pair + stable", [[2, 0, 0], [0, -2, 0], [0, 0, "1/2"]], [[1, 1, 1]],
+     "degenerate-second-order", "15/16"),
+    # C invertible, Jordan block: Sinopoli §IV, p_c = p_low = 3/4
+    ("jordan, C = I", [[2, 1], [0, 2]], [[1, 0], [0, 1]], "non-diagonalizable", "3/4"),
+    # one unstable eigenvalue, Jordan block among the stable ones: Sinopoli §IV, 1 − 1/9
+    ("single unstable", [[3, 0, 0], [0, "1/2", 1], [0, 0, "1/2"]], [[1, 1, 0]],
+     "non-diagonalizable", "8/9"),
+]
+
+
+@pytest.mark.parametrize("label, A, C, cls, expected", HAND, ids=[h[0] for h in HAND])
+def test_hand_cases(label, A, C, cls, expected):
+    d = critical.critical_section(_sys(A, C))
+    assert d["classification"] == cls
+    assert _same(d["critical_value"]["expression"], expected)
+    assert abs(d["critical_value"]["value"] - float(sp.N(parse_expression(expected, "e")))) \
+        <= 1e-12
+    assert d["block_lower_bound"]["value"] >= d["lower_bound"]["value"] - 1e-15
+
+
+def test_not_detectable():
+    d = critical.critical_section(_sys([[2, 0], [0, "1/2"]], [[0, 1]]))
+    assert d["classification"] == "not-detectable"
+    assert d["critical_value"]["value"] is None
+    assert "diverges" in d["critical_value"]["reason"]
+
+
+def test_three_equal_moduli_bracket():
+    # 2 and 2 e^{±2πj/3}, one output: a degenerate equi-block of order 3, no closed form.
+    # Pairs: (2e^{2πj/3}, 2e^{−2πj/3}) has z of order 3 → 1 − 2^{−3} = 7/8; the pairs with the
+    # real eigenvalue have z of order 3 as well → 7/8. Block lower bound 7/8 > p_low = 3/4.
+    A = [[2, 0, 0], [0, -1, "-sqrt(3)"], [0, "sqrt(3)", -1]]
+    d = critical.critical_section(_sys(A, [[1, 1, 0]]))
+    assert d["classification"] == "degenerate"
+    assert d["critical_value"]["value"] is None
+    assert _same(d["block_lower_bound"]["expression"], "7/8")
+    assert _same(d["lower_bound"]["expression"], "3/4")
+
+
+def test_jordan_block_bracket():
+    d = critical.critical_section(_sys([[2, 1], [0, 2]], [[1, 0]]))
+    assert d["classification"] == "non-diagonalizable"
+    assert d["critical_value"]["value"] is None
+    assert _same(d["block_lower_bound"]["expression"], "3/4")
+
+
+def test_numeric_path_cross_check():
+    # Second method: the float path on the same systems gives the same values to 1e-9.
+    for _, A, C, cls, expected in HAND[:8]:
+        s = _sys(A, C)
+        st_num = critical.eigen_structure(s, force_numeric=True)
+        critical._CACHE[s] = st_num
+        d = critical.critical_section(s)
+        assert d["structure"]["path"] == "numeric"
+        assert d["classification"] == cls
+        assert abs(d["critical_value"]["value"] - float(sp.N(parse_expression(expected, "e")))) \
+            <= 1e-9
+
+
+def test_expressions_are_parseable_with_latex():
+    d = critical.critical_section(_sys([[1, -1], [1, 1]], [[1, 0]]))
+    cv = d["critical_value"]
+    parse_expression(cv["expression"], "x")
+    assert cv["latex"] == sp.latex(sp.sympify(cv["expression"]))
+
+
+# --------------------------------------------------------------------------- robust value
+
+@pytest.mark.parametrize("r3", [1.7320508075688772, "1.7320508075688772"],
+                         ids=["binary float", "decimal text"])
+def test_third_turn_with_floats(r3):
+    # √3 entered as the float 1.7320508075688772: the exact rational is not √3, so φ/2π is
+    # irrational (Thm 10, p_c = 1 − 1/|λ|² ≈ 3/4), but within 1e-9 of 1/3 (q = 3, p_c ≈ 7/8).
+    neg = -r3 if isinstance(r3, float) else f"-{r3}"
+    s = _sys([[1, neg], [r3, 1]], [[1, 0]])
+    d = critical.critical_section(s, tolerance=1e-9)
+    assert d["classification"] == "degenerate-second-order"
+    assert abs(d["critical_value"]["value"] - 0.75) < 1e-12
+    rob = d["robust_critical_value"]
+    assert rob is not None and abs(rob["value"] - 0.875) < 1e-12 and rob["tolerance"] == 1e-9
+    assert "q = 3" in rob["nearby_case"]
+    assert any("q = 3" in w for w in d["warnings"])
+    parse_expression(rob["expression"], "robust")
+    # with a much smaller tolerance the nearby rational is out of reach
+    assert critical.critical_section(s, tolerance=1e-20)["robust_critical_value"] is None
+
+
+def test_moduli_nearly_equal():
+    # 2 and −(2 − 1e−12), C = [1, 1]: non-degenerate (p_c = 3/4) but within 1e-9 of the
+    # degenerate pair diag(2, −2) (q = 2, p_c = 15/16).
+    d = critical.critical_section(_sys([[2, 0], [0, "-(2 - 1e-12)"]], [[1, 1]]))
+    assert d["classification"] == "non-degenerate" and _same(d["critical_value"]["expression"],
+                                                             "3/4")
+    assert _same(d["robust_critical_value"]["expression"], "15/16")
+    assert d["warnings"]
+
+
+def test_nearly_equal_real_eigenvalues_flag_detectability():
+    # 2 and 2 − 1e−12 through one output: nearby, the repeated eigenvalue 2 with one output is
+    # not detectable, so no p < 1 is safe: robust value 1.
+    d = critical.critical_section(_sys([[2, 0], [0, "2 - 1e-12"]], [[1, 1]]))
+    assert d["robust_critical_value"]["value"] == 1.0
+    assert "not detectable" in d["robust_critical_value"]["nearby_case"]
+
+
+def test_near_rank_drop():
+    # diag(2, −2) with C = [[1, 1], [0, 1e−12]]: rank 2 exactly, rank 1 within 1e-9.
+    d = critical.critical_section(_sys([[2, 0], [0, -2]], [[1, 1], [0, "1e-12"]]))
+    assert d["classification"] == "non-degenerate"
+    assert _same(d["robust_critical_value"]["expression"], "15/16")
+
+
+def test_exact_irrational_angle_not_flagged():
+    # atan(4/3): no rational with q ≤ 1000 within 1e-9 of φ/2π.
+    assert critical.critical_section(_sys([[3, -4], [4, 3]], [[1, 0]]))[
+        "robust_critical_value"] is None
+
+
+# --------------------------------------------------------------------------- theory
+
+def test_theory_moment_thresholds_and_channels():
+    spec = load_spec(REPORTS / "mo-nondegenerate-four.yaml")
+    th = critical.critical_section(spec.system, channel=spec.channel)["theory"]
+    mt = {m["q"]: m for m in th["moment_thresholds"]}
+    # 1 − 3^{−2} = 8/9, 1 − 3^{−4} = 80/81; Cor. 2 applies (non-degenerate, all unstable)
+    assert _same(mt[1]["expression"], "8/9") and _same(mt[2]["expression"], "80/81")
+    assert mt[1]["applies"] and mt[2]["applies"]
+    assert "stochastically bounded" in th["stochastic_boundedness"]
+    assert any("Consequence" in s for s in th["almost_sure"])
+    # single-unstable case has stable eigenvalues: Cor. 2 does not apply
+    spec = load_spec(REPORTS / "sinopoli-single-unstable.yaml")
+    th = critical.critical_section(spec.system)["theory"]
+    assert not any(m["applies"] for m in th["moment_thresholds"])
+    ge = GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2))
+    th = critical.critical_section(spec.system, channel=ge)["theory"]
+    assert "Gilbert" in th["almost_sure"][0]
+    th = critical.critical_section(spec.system, channel=Bernoulli(sp.Integer(1)))["theory"]
+    assert "standard Kalman filter" in th["almost_sure"][0]
+
+
+# --------------------------------------------------------------------------- invariances
+
+BASES = [
+    ([[2, 0], [0, -2]], [[1, 1]]),
+    ([[0, -2], [2, 0]], [[1, 0]]),
+    ([[1, -1], [1, 1]], [[1, 2]]),
+    ([[2, 0, 0], [0, -2, 0], [0, 0, 3]], [[1, 1, 0], [0, 1, 1]]),
+    ([["5/4", 0], [1, "11/10"]], [[1, 1]]),
+    ([[2, 1], [0, 2]], [[1, 0]]),
+]
+
+
+@st.composite
+def unimodular(draw, n):
+    """T = L·U with unit triangular integer factors: det T = 1, exact rational inverse."""
+    L = sp.eye(n)
+    U = sp.eye(n)
+    for i in range(n):
+        for j in range(i):
+            L[i, j] = draw(st.integers(-2, 2))
+            U[j, i] = draw(st.integers(-2, 2))
+    return L * U
+
+
+@settings(max_examples=25)
+@given(data=st.data())
+def test_similarity_invariance(data):
+    A, C = BASES[data.draw(st.integers(0, len(BASES) - 1))]
+    base = critical.critical_section(_sys(A, C))
+    n = len(A)
+    T = data.draw(unimodular(n))
+    Am = T * sp.Matrix([[parse_expression(str(v), "A") for v in r] for r in A]) * T.inv()
+    Cm = sp.Matrix(C) * T.inv()
+    moved = critical.critical_section(System(Am, Cm, sp.eye(n), sp.eye(len(C))))
+    assert moved["classification"] == base["classification"]
+    for key in ("critical_value", "block_lower_bound"):
+        if base[key]["value"] is None:
+            assert moved[key]["value"] is None
+        else:
+            assert _same(moved[key]["expression"], base[key]["expression"])
+
+
+@settings(max_examples=25)
+@given(st.integers(0, len(BASES) - 1), st.fractions(min_value=1/100, max_value=100),
+       st.fractions(min_value=1/100, max_value=100), st.fractions(min_value=1/100,
+                                                                 max_value=100),
+       st.integers(-3, 3))
+def test_noise_scaling_invariance(k, sq, sr, s0, off):
+    # Mo–Sinopoli Thm 2: p_c depends on (A, C) only (Q, R, Σ0 ≻ 0).
+    A, C = BASES[k]
+    n, m = len(A), len(C)
+    base = critical.critical_section(_sys(A, C))
+    L = sp.eye(n)
+    if n > 1:
+        L[1, 0] = off
+    Q = (L * L.T) * sp.Rational(sq.numerator, sq.denominator)
+    moved = critical.critical_section(System(A, C, Q, sp.eye(m) * sp.Rational(sr.numerator,
+                                                                             sr.denominator),
+                                             sp.eye(n) * sp.Rational(s0.numerator,
+                                                                     s0.denominator)))
+    assert moved["classification"] == base["classification"]
+    assert moved["critical_value"]["value"] == base["critical_value"]["value"]
+
+
+EIGS = [2, -2, 3, -3, sp.Rational(3, 2), sp.Rational(1, 2), 1, -1]
+
+
+@settings(max_examples=30)
+@given(st.lists(st.sampled_from(EIGS), min_size=2, max_size=4, unique=True),
+       st.data())
+def test_block_monotonicity(eigs, data):
+    # Mo–Sinopoli Thm 3: p_c(A, C) ≥ p_c(A_I, C_I) for every index set I (diagonal form).
+    n = len(eigs)
+    m = data.draw(st.integers(1, 2))
+    C = [[data.draw(st.integers(-2, 2)) for _ in range(n)] for _ in range(m)]
+    full = critical.critical_section(_sys(sp.diag(*eigs).tolist(), C))
+    if full["classification"] == "not-detectable":
+        return
+    known_full = full["critical_value"]["value"]
+    floor_full = full["block_lower_bound"]["value"]
+    for mask in range(1, 2**n - 1):
+        idx = [i for i in range(n) if mask >> i & 1]
+        sub = critical.critical_section(_sys(sp.diag(*[eigs[i] for i in idx]).tolist(),
+                                             [[row[i] for i in idx] for row in C]))
+        v = sub["critical_value"]["value"]
+        if v is None:
+            continue
+        if known_full is not None:
+            assert known_full >= v - 1e-12
+        assert floor_full >= v - 1e-12
+
+
+def test_cubic_eigenvalues_exact_path():
+    # Companion matrix of f = x³ − 2x² + 5x − 2 (no rational root: f(±1), f(±2) ≠ 0, so
+    # irreducible): one real root r ∈ (0, 1) and a complex pair with |λ|² = 2/r > 1 (product of
+    # the roots is 2). One output: degenerate pair; its angle is irrational (z = λ̄/λ is not a
+    # root of unity: checked exactly), so Thm 10 gives p_c = 1 − 1/|λ|² = 1 − r/2.
+    A = [[0, 0, 2], [1, 0, -5], [0, 1, 2]]
+    d = critical.critical_section(_sys(A, [[1, 0, 0]]))
+    assert d["structure"]["path"] == "exact"
+    assert d["classification"] == "degenerate-second-order"
+    r = min(np.roots([1, -2, 5, -2]), key=lambda z: abs(z.imag)).real
+    assert abs(d["critical_value"]["value"] - (1 - r / 2)) <= 1e-12
+    assert d["structure"]["equal_modulus_pairs"][0]["q"] is None
+
+
+def test_sextic_conjugate_pairs_with_rational_angle():
+    # λ = s(1 + j√3) = 2s e^{jπ/3} for the three real roots s of y³ − 3y − 1 (|s| distinct):
+    # λ is a root of Res_y(y³ − 3y − 1, x² − 2xy + 4y²) = x⁶ + 12x⁴ + 16x³ + 144x² + 96x + 64,
+    # irreducible of degree 6. Each conjugate pair has z = e^{∓2jπ/3} (q = 3). With one output
+    # both unstable pairs are degenerate: no closed form (two equi-blocks), block lower bound
+    # 1 − (2 s_max)^{−2·3/2} = 1 − (2 s_max)^{−3} (Thm 3 with Thm 9).
+    c = [1, 0, 12, 16, 144, 96, 64]
+    n = 6
+    A = [[0] * n for _ in range(n)]
+    for i in range(1, n):
+        A[i][i - 1] = 1
+    for i in range(n):
+        A[i][n - 1] = -c[n - i]
+    d = critical.critical_section(_sys(A, [[1, 0, 0, 0, 0, 0]]))
+    assert d["structure"]["path"] == "exact"
+    assert d["classification"] == "degenerate"
+    assert [p["q"] for p in d["structure"]["equal_modulus_pairs"]] == [3, 3]
+    s_max = max(abs(np.roots([1, 0, -3, -1])))
+    assert abs(d["block_lower_bound"]["value"] - (1 - (2 * s_max) ** -3)) <= 1e-12

@@ -1,0 +1,501 @@
+"""Tests of the design-review report: view model, filters, formulas, figures, HTML, PDF, CLI.
+
+The full record used here is a hand-made FIXTURE (``fixture_record``): it has realistic values for
+every key the report reads, so the layout can be checked before every analysis section lands.
+Its numbers are those of the rotation example (A = [[1, −√3], [√3, 1]], eigenvalues 1 ± j√3 of
+modulus 2, C = [1 0]) from MATH.md §4: q = 3, p_c = 1 − 2^(−2q/(q−1)) = 1 − 2^(−3) = 7/8,
+p_low = 1 − 1/4 = 3/4; p_up = 15/16 from shared/cases/expected.json. The lower covariance bound
+is hand-derived: A Aᵀ = 4 I, so S̄ = Q / (1 − 4(1 − p)) and tr S̄ = 2 / (4p − 3). Series that are
+not closed-form (tr V̄, simulated traces, the CDF) are synthetic shapes, marked as such.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+import re
+import subprocess
+import sys
+import zipfile
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from kfcrit import figures, filters, mathsvg, report
+from kfcrit.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+REPORTS = ROOT / "reports"
+SECTION_ORDER = ["verdict", "system", "bounds", "phase-transition", "simulation", "distribution",
+                 "statements", "appendix"]
+
+
+def fixture_record() -> dict:
+    """A complete, hand-made analysis record (FIXTURE; see the module docstring)."""
+    p_grid = [0.75 + 0.25 * i / 80 for i in range(1, 80)]
+    tr_s = [2 / (4 * p - 3) for p in p_grid]                       # hand-derived (docstring)
+    tr_v = [s * (1 + 0.05 / (p - 15 / 16)) if p > 15 / 16 else None  # synthetic shape
+            for p, s in zip(p_grid, tr_s)]
+    t = list(range(0, 200, 5))
+    return {
+        "name": "Oscillator sampled at a sixth of its period",
+        "classification": "degenerate-second-order",
+        "critical_value": {"value": 0.875, "exact": True, "expression": "7/8",
+                           "latex": r"1 - 2^{-3} = \frac{7}{8}",
+                           "reason": "degenerate equi-block {1, 2} with q = 3 (Mo–Sinopoli Thm 9)"},
+        "robust_critical_value": {"value": 0.75, "tolerance": 1e-9, "expression": "3/4",
+                                  "nearby_case": "an irrational angle gives 1 − 1/|λ₁|²"},
+        "lower_bound": {"value": 0.75, "expression": "3/4"},
+        "block_lower_bound": {"value": 0.875, "expression": "7/8"},
+        "upper_bound": {"value": 0.9375, "interval": [0.93749999, 0.93750001], "certified": True,
+                        "status": "certified", "method": "bisection on LMI feasibility",
+                        "certificate": {"kind": "X ≻ g_p(X)", "verified_by": "exact rationals"},
+                        "lower_evidence": "MARE iteration diverges at 0.93749999",
+                        "solver": "clarabel", "warnings": []},
+        "operating_point": {"arrival_probability": 0.9,
+                            "channel": {"model": "bernoulli", "arrival_probability": 0.9,
+                                        "arrival_probability_expression": "9/10"},
+                            "iid": True, "margin": 0.025, "margin_robust": 0.025,
+                            "bracket": None, "verdict": "mean-stable"},
+        "warnings": ["FIXTURE warning: shown to check the warnings box"],
+        "description": "Eigenvalues 2 exp(+-j pi/3) seen through one output; degenerate, q = 3.",
+        "system": {"n": 2, "m": 1, "exact_input": True,
+                   "matrices": {"A": [["1", "-sqrt(3)"], ["sqrt(3)", "1"]], "C": [["1", "0"]],
+                                "Q": [["1", "0"], ["0", "1"]], "R": [["1"]],
+                                "Sigma0": [["1", "0"], ["0", "1"]]},
+                   "channel": {"model": "bernoulli", "arrival_probability": 0.9,
+                               "arrival_probability_expression": "9/10"}},
+        "structure": {"path": "exact",
+                      "eigenvalues": [{"value": "1 + sqrt(3)*I", "re": 1.0, "im": math.sqrt(3),
+                                       "modulus": 2.0, "modulus_expression": "2"},
+                                      {"value": "1 - sqrt(3)*I", "re": 1.0, "im": -math.sqrt(3),
+                                       "modulus": 2.0, "modulus_expression": "2"}],
+                      "equi_blocks": [{"indices": [0, 1], "modulus": 2.0,
+                                       "one_step_observable": False, "rank": 1}],
+                      "diagonalizable": True, "detectable": True, "controllable_Q": True},
+        "theory": {"moment_thresholds": [
+            {"q": 1, "value": 0.75, "expression": "3/4", "applies": False},
+            {"q": 2, "value": 0.9375, "expression": "15/16", "applies": False}],
+            "stochastic_boundedness": "FIXTURE: P_t is stochastically bounded for every p > 0 "
+                                      "and converges weakly to a unique invariant distribution.",
+            "almost_sure": ["FIXTURE: limsup tr P_t = ∞ almost surely for 0 < p < 1.",
+                            "FIXTURE: liminf tr P_t ≤ tr M almost surely."]},
+        "covariance_bounds": {"p": 0.9,
+                              "lower": {"exists": True, "trace": 2 / (4 * 0.9 - 3),
+                                        "max_eig": 1 / (4 * 0.9 - 3), "matrix": None},
+                              "upper": {"exists": False, "trace": None, "max_eig": None,
+                                        "matrix": None, "residual": None, "method": "MARE"}},
+        "phase_transition": {"p": p_grid, "trace_lower": tr_s, "trace_upper": tr_v,
+                             "markers": {"p_low": 0.75, "p_c": 0.875, "p_up": 0.9375,
+                                         "operating": 0.9}},
+        "simulation": {
+            "operating_point": {
+                "t": t, "mean_trace": [3.3 + 2 * math.exp(-k / 30) for k in t],
+                "band_low": [3.0 + 2 * math.exp(-k / 30) for k in t],
+                "band_high": [3.6 + 2 * math.exp(-k / 30) for k in t],
+                "cdf": {"x": [2 + 0.5 * i for i in range(40)],
+                        "F": [1 - math.exp(-0.25 * i) for i in range(40)]},
+                "tail_probability": 0.018},
+            "phase_demo": [
+                {"p": 0.85, "label": "below p_c", "t": t,
+                 "mean_trace": [3 * 1.03 ** k for k in t]},
+                {"p": 0.9, "label": "above p_c", "t": t,
+                 "mean_trace": [3.3 + 2 * math.exp(-k / 30) for k in t]}],
+            "seeds": [0, 1], "paths": 400, "steps": 200},
+        "invariant": None,
+        "link_budget": None,
+        "requirements": {"max_error_trace": 10.0, "max_tail_probability": 0.05},
+        "verification": [{"check": "FIXTURE upper-bound certificate", "passed": True,
+                          "detail": "exact rationals"}],
+        "provenance": {"versions": {"kfcrit": "0.1.0", "numpy": "2.4"}, "seed": 0,
+                       "input_path": "reports/rotation-third-turn.yaml",
+                       "input_sha256": "ab" * 32,
+                       "options": {"tolerance": 1e-9, "quick": False, "seed": 0}},
+    }
+
+
+def scalar_fixture() -> dict:
+    """FIXTURE of the Kar–Sinopoli–Moura scalar example (MATH §5): P* = 1 + √2, first gap
+    (3, 3 + 2√2), S_n = 2 S_{n−1} + 1 so the second gap is (7, 7 + 4√2 + ...)."""
+    rec = fixture_record()
+    rec["system"]["n"] = 1
+    rec["invariant"] = {"fixed_point": 1 + math.sqrt(2),
+                        "support_points": [1 + math.sqrt(2), 3, 2 * (1 + math.sqrt(2)) + 1, 7],
+                        "gaps": [[3, 3 + 2 * math.sqrt(2)], [7, 4 * (1 + math.sqrt(2)) + 3]]}
+    return rec
+
+
+class _Tags(HTMLParser):
+    """Collects tags, ids and attributes (to check structure without a browser)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.ids: list[str] = []
+        self.tags: list[tuple[str, dict]] = []
+
+    def handle_starttag(self, tag: str, attrs: list) -> None:
+        d = dict(attrs)
+        self.tags.append((tag, d))
+        if "id" in d:
+            self.ids.append(d["id"])
+
+
+def parse(html: str) -> _Tags:
+    p = _Tags()
+    p.feed(html)
+    return p
+
+
+@pytest.fixture(scope="module")
+def full_html() -> str:
+    rec = fixture_record()
+    return report.render_html(rec, figures.build_figures(rec))
+
+
+# ----------------------------------------------------------------------------- filters
+
+def test_num_formats_and_missing():
+    assert filters.num(None) == "—"
+    assert filters.num(0.875) == "0.875"
+    assert filters.num(1 / 3, 4) == "0.3333"
+    assert filters.num(7) == "7"
+    assert filters.num(True) == "yes"
+
+
+def test_signed_interval_yesno_pct():
+    assert filters.signed(0.025) == "+0.025"
+    assert filters.signed(-0.04) == "−0.04"
+    assert filters.signed(None) == "—"
+    assert filters.interval([0.75, None]) == "[0.75, —]"
+    assert filters.yesno(None) == "not computed"
+    assert filters.yesno(False) == "no"
+    assert filters.pct(0.0123) == "1.23 %"
+
+
+def test_pretty_expr_and_indices():
+    assert filters.pretty_expr("1 - 2**(-3)") == "1 − 2^−3"
+    assert filters.pretty_expr("-sqrt(3)") == "−√(3)"
+    assert filters.pretty_expr(None) == "—"
+    assert filters.indices([0, 1]) == "{1, 2}"
+    assert filters.verdict_label("mean-stable") == "MEAN STABLE"
+    assert filters.verdict_label(None) == "NOT DETERMINED"
+
+
+# ----------------------------------------------------------------------------- formulas
+
+def test_latex_svg_is_inline_svg_with_unique_ids():
+    a = mathsvg.latex_svg(r"p_c = \frac{7}{8}")
+    b = mathsvg.latex_svg(r"p_c = \frac{7}{8}")
+    assert a.startswith("<svg") and "<title>" in a
+    assert "<?xml" not in a and "<!DOCTYPE" not in a and "<style" not in a
+    ids_a = set(re.findall(r'id="([^"]+)"', a))
+    ids_b = set(re.findall(r'id="([^"]+)"', b))
+    assert ids_a and not ids_a & ids_b
+    for ref in re.findall(r'href="#([^"]+)"', a):
+        assert ref in ids_a
+
+
+def test_latex_svg_refuses_bad_latex_and_escapes_label():
+    assert mathsvg.latex_svg(r"\frac{") is None
+    svg = mathsvg.latex_svg("x", label='<script>"')
+    assert "<script>" not in svg and "&lt;script&gt;" in svg
+
+
+def test_expression_latex_uses_safe_parser():
+    assert mathsvg.expression_latex("-sqrt(3)") == r"- \sqrt{3}"
+    assert mathsvg.expression_latex("7/8") == r"\frac{7}{8}"
+    assert mathsvg.expression_latex("__import__('os')") is None
+
+
+# ----------------------------------------------------------------------------- figures
+
+def test_every_figure_drawn_from_full_fixture():
+    figs = figures.build_figures(scalar_fixture())
+    assert set(figs) == set(figures.FIGURE_KEYS)
+    for key, svg in figs.items():
+        assert svg is not None and svg.startswith("<svg"), key
+
+
+def test_figures_missing_or_malformed_data_give_none():
+    assert all(v is None for v in figures.build_figures({}).values())
+    rec = fixture_record()
+    rec["phase_transition"]["trace_lower"] = "oops"
+    rec["phase_transition"]["trace_upper"] = [1.0]   # wrong length
+    rec["simulation"]["phase_demo"] = [{"p": 0.5, "t": [1, 2], "mean_trace": ["x", 1]}]
+    figs = figures.build_figures(rec)
+    assert figs["phase_transition"] is None and figs["traces"] is None
+    assert figs["operating"] is not None
+
+
+# ----------------------------------------------------------------------------- HTML
+
+def test_full_report_has_every_section_in_reading_order(full_html):
+    ids = parse(full_html).ids
+    positions = [ids.index(s) for s in SECTION_ORDER]
+    assert positions == sorted(positions)
+    assert len(ids) == len(set(ids)), "duplicate ids in the page"
+
+
+def test_full_report_shows_verdict_and_critical_value(full_html):
+    assert "MEAN STABLE" in full_html
+    assert "0.875" in full_html and "7/8" in full_html
+    assert "+0.025" in full_html                     # margin 0.9 − 7/8
+    assert "Mo–Sinopoli, Theorem 5" in full_html     # degenerate second order decides p_c
+
+
+def test_full_report_sections_present_not_missing(full_html):
+    body = full_html.split("<main>")[1]
+    for text in ("Phase transition", "Simulated error traces", "Distribution of tr P",
+                 "0.018", "met", "FIXTURE: limsup", "FIXTURE warning", "ab" * 32):
+        assert text in body, text
+    # every figure is drawn, none says "not computed"
+    for fig_id in ("fig-phase-transition", "fig-traces", "fig-operating", "fig-cdf"):
+        chunk = body.split(f'id="{fig_id}"')[1].split("</figure>")[0]
+        assert "<svg" in chunk and "not computed" not in chunk
+
+
+def test_html_is_self_contained(full_html):
+    tags = parse(full_html).tags
+    assert not [t for t, _ in tags if t in ("script", "link", "iframe", "object", "embed")]
+    for _, attrs in tags:
+        for name in ("src", "href"):
+            value = attrs.get(name)
+            assert value is None or value.startswith(("#", "data:")), value
+    assert "url(http" not in full_html and "@import" not in full_html
+
+
+def test_missing_sections_say_not_computed():
+    rec = {"name": "bare", "critical_value": None}
+    html = report.render_html(rec, figures.build_figures(rec))
+    ids = parse(html).ids
+    for s in SECTION_ORDER:
+        assert s in ids, s
+    for phrase in ("operating point: not computed", "structure analysis: not computed",
+                   "phase transition: not computed", "simulation: not computed",
+                   "covariance bounds: not computed",
+                   "almost-sure and distributional statements: not computed"):
+        assert phrase in html, phrase
+
+
+def test_every_single_section_missing_renders():
+    full = fixture_record()
+    for key in full:
+        rec = copy.deepcopy(full)
+        rec[key] = None
+        html = report.render_html(rec, figures.build_figures(rec))
+        assert 'id="verdict"' in html, key
+        rec.pop(key)
+        report.render_html(rec, {})
+
+
+def test_malformed_sections_do_not_crash():
+    rec = fixture_record()
+    rec["structure"] = {"eigenvalues": "not a list", "equi_blocks": [None, 3]}
+    rec["theory"] = {"moment_thresholds": [None], "almost_sure": "one sentence"}
+    rec["upper_bound"] = {"interval": "x"}
+    html = report.render_html(rec, figures.build_figures(rec))
+    assert "one sentence" in html
+
+
+def test_autoescape_of_record_text():
+    rec = fixture_record()
+    rec["name"] = "<script>alert(1)</script>"
+    rec["warnings"] = ["<b>bold</b>"]
+    html = report.render_html(rec, {})
+    assert "<script>alert" not in html and "&lt;script&gt;alert(1)" in html
+    assert "<b>bold</b>" not in html
+
+
+def test_scalar_system_shows_invariant_support():
+    rec = scalar_fixture()
+    html = report.render_html(rec, figures.build_figures(rec))
+    assert "Support of the invariant distribution" in html
+    assert "[3, 5.82842712]" in html       # 3 + 2√2 = 5.828427125 (MATH §5)
+    html2 = report.render_html(fixture_record(), {})
+    assert "Support of the invariant" not in html2     # n = 2: not applicable
+
+
+def test_undetermined_and_unstable_verdicts():
+    rec = fixture_record()
+    rec["operating_point"].update(verdict="undetermined", margin=None, margin_robust=None,
+                                  bracket=[0.875, 0.9375], margin_to_bracket=[0.025, -0.0375])
+    html = report.render_html(rec, {})
+    assert "verdict-undetermined" in html and "[0.875, 0.9375]" in html
+    rec["operating_point"].update(verdict="mean-unstable")
+    assert "verdict-unstable" in report.render_html(rec, {})
+
+
+def test_requirement_not_met_is_flagged():
+    rec = fixture_record()
+    rec["simulation"]["operating_point"]["tail_probability"] = 0.2   # above 0.05
+    assert "NOT met" in report.render_html(rec, {})
+
+
+def test_quick_draft_banner():
+    rec = fixture_record()
+    rec["provenance"]["options"]["quick"] = True
+    assert 'id="draft"' in report.render_html(rec, {})
+    assert 'id="draft"' not in report.render_html(fixture_record(), {})
+
+
+def test_strict_undefined_catches_template_typos(tmp_path, monkeypatch):
+    import jinja2
+
+    (tmp_path / report.TEMPLATE).write_text("{{ verdict.no_such_key }}")
+    monkeypatch.setattr(report, "template_dir", lambda: tmp_path)
+    with pytest.raises(jinja2.UndefinedError):
+        report.render_html(fixture_record(), {})
+
+
+def test_template_dir_is_repository_templates_in_a_checkout():
+    d = report.template_dir()
+    assert (d / "report.html.j2").is_file() and (d / "report.css").is_file()
+
+
+# ----------------------------------------------------------------------------- PDF
+
+@pytest.fixture(scope="module")
+def full_pdf(full_html) -> bytes:
+    pytest.importorskip("weasyprint")
+    return report.render_pdf(full_html)
+
+
+def pdf_text(data: bytes) -> tuple[int, str]:
+    import io
+
+    pypdf = pytest.importorskip("pypdf")
+    reader = pypdf.PdfReader(io.BytesIO(data))
+    return len(reader.pages), "\n".join(page.extract_text() for page in reader.pages)
+
+
+def test_pdf_text_has_verdict_and_critical_value(full_pdf):
+    pages, text = pdf_text(full_pdf)
+    assert full_pdf.startswith(b"%PDF")
+    assert pages >= 2
+    flat = " ".join(text.split())
+    assert "MEAN STABLE" in flat
+    assert "0.875" in flat
+    assert f"page 1 of {pages}" in flat            # page numbers from the print stylesheet
+
+
+def test_pdf_fetcher_refuses_external_urls(monkeypatch):
+    pytest.importorskip("weasyprint")
+    import urllib.request
+
+    def no_network(*args, **kwargs):
+        raise AssertionError("network access attempted")
+
+    monkeypatch.setattr(urllib.request.OpenerDirector, "open", no_network)
+    html = ('<html><body><p>x</p><img src="http://example.invalid/a.png">'
+            '<link rel="stylesheet" href="https://example.invalid/s.css"></body></html>')
+    assert report.render_pdf(html).startswith(b"%PDF")
+    fetcher = report._refusing_fetcher()
+    fetch = getattr(fetcher, "fetch", fetcher)
+    with pytest.raises(Exception):  # noqa: B017 - any refusal is fine
+        fetch("http://example.invalid/a.png")
+
+
+# ----------------------------------------------------------------------------- command
+
+def test_output_format_rules():
+    assert report.output_format("a.html", None) == "html"
+    assert report.output_format("a.PDF", None) == "pdf"
+    assert report.output_format("a.txt", "pdf") == "pdf"
+    with pytest.raises(InputError) as exc:
+        report.output_format("a.txt", None)
+    assert exc.value.exit_code == 2
+
+
+def test_refuses_to_overwrite_input(tmp_path):
+    src = tmp_path / "sys.html"
+    src.write_text((REPORTS / "sinopoli-scalar.yaml").read_text())
+    before = src.read_bytes()
+    with pytest.raises(InputError, match="input file"):
+        report.report_command(str(src), str(src), fmt=None, quick=True, seed=0, max_states=50)
+    link = tmp_path / "link.html"
+    link.symlink_to(src)
+    with pytest.raises(InputError, match="input file"):
+        report.report_command(str(src), str(link), fmt=None, quick=True, seed=0, max_states=50)
+    assert src.read_bytes() == before
+
+
+def test_refuses_missing_folder_and_directory(tmp_path):
+    src = REPORTS / "sinopoli-scalar.yaml"
+    with pytest.raises(InputError, match="does not exist"):
+        report.check_output_path(src, tmp_path / "nope" / "r.html")
+    (tmp_path / "d.html").mkdir()
+    with pytest.raises(InputError, match="directory"):
+        report.check_output_path(src, tmp_path / "d.html")
+
+
+def test_write_atomic_replaces_and_leaves_no_temporary(tmp_path):
+    target = tmp_path / "r.html"
+    target.write_text("old")
+    report.write_atomic(target, b"new")
+    assert target.read_bytes() == b"new"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+
+
+def test_write_atomic_failure_keeps_old_file(tmp_path, monkeypatch):
+    target = tmp_path / "r.html"
+    target.write_text("old")
+
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError):
+        report.write_atomic(target, b"new")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+
+
+def example_files() -> list[Path]:
+    return sorted(REPORTS.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", example_files(), ids=lambda p: p.stem)
+def test_render_every_example_html(path, tmp_path, capsys):
+    out = tmp_path / f"{path.stem}.html"
+    code = report.report_command(str(path), str(out), fmt=None, quick=True, seed=0,
+                                 max_states=50)
+    assert code in (0, 3)
+    html = out.read_text(encoding="utf-8")
+    ids = parse(html).ids
+    assert [s for s in SECTION_ORDER if s in ids] == SECTION_ORDER
+    assert len(ids) == len(set(ids))
+    assert "Verdict" in html and "critical value" in html
+    err = capsys.readouterr().err
+    assert "wrote" in err and str(out) in err
+    assert capsys.readouterr().out == ""            # stdout carries no progress
+
+
+def test_cli_report_pdf_and_unknown_extension(tmp_path):
+    src = REPORTS / "sinopoli-scalar.yaml"
+    out = tmp_path / "r.pdf"
+    run = subprocess.run([sys.executable, "-m", "kfcrit", "report", str(src), "-o", str(out),
+                          "--quick"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert run.returncode in (0, 3), run.stderr
+    assert out.read_bytes().startswith(b"%PDF") and run.stdout == ""
+    _, text = pdf_text(out.read_bytes())
+    assert "Verdict" in text and "critical value" in text
+    bad = subprocess.run([sys.executable, "-m", "kfcrit", "report", str(src), "-o",
+                          str(tmp_path / "r.txt")], capture_output=True, text=True, cwd=ROOT,
+                         timeout=120)
+    assert bad.returncode == 2 and "--format" in bad.stderr
+    assert not (tmp_path / "r.txt").exists()
+
+
+@pytest.mark.slow
+def test_wheel_ships_templates(tmp_path):
+    """The built wheel holds kfcrit/templates/report.html.j2 and report.css (force-include)."""
+    run = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps",
+                          "--no-build-isolation", "-w", str(tmp_path), str(ROOT)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    wheel = next(tmp_path.glob("kfcrit-*.whl"))
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for name in ("kfcrit/templates/report.html.j2", "kfcrit/templates/report.css",
+                 "kfcrit/templates/_verdict.html.j2", "kfcrit/report.py"):
+        assert name in names, name

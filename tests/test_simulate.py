@@ -1,0 +1,491 @@
+"""Monte Carlo of the random Riccati equation: exactness, reproducibility, statistics, CLI.
+
+Reference values come from independent computations: ``kfcrit.riccati`` (the standard-form
+Riccati maps, not the kernel's Joseph form), closed-form scalar recursions, scipy's
+``solve_discrete_lyapunov`` for S̄ and a plain MARE iteration for V̄ (Sinopoli Thm 4/6), and the
+Gilbert–Elliott condition (1 − r) a² < 1 of MATH.md §7.
+
+Statistical tolerance. Sample means are compared with their bound using the standard error
+estimated from the same sample: |mean − target| ≤ 5 · sd/√N (one-sided where the theorem is an
+inequality). Where the variance is finite (checked by the moment condition stated next to each
+test) the CLT makes a 5σ excursion a ~3e-7 event; the seeds are fixed, so the tests are
+deterministic anyway and the tolerance documents how far from the bound a correct estimator can
+plausibly be.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.linalg import solve_discrete_lyapunov
+
+from kfcrit.channels import GilbertElliott, Trace
+from kfcrit.errors import InputError
+from kfcrit.record import dumps
+from kfcrit.riccati import f_arrival, f_loss, g
+from kfcrit.simulate import (
+    LANES,
+    _lambda_max_lanes,
+    _riccati_lanes,
+    ergodic,
+    path_keys,
+    simulate,
+    simulate_command,
+    simulation_section,
+)
+from kfcrit.system import System
+from kfcrit.systemfile import Requirements, SystemSpec, load_spec
+
+from .conftest import REPORTS
+
+SCALAR = System([[-1.25]], [[1]], 1, 2.5, name="sinopoli scalar")  # p_c = 9/25
+GENERAL = System([[1.25, 0], [1, 1.1]], [[1, 1]], 20, 2.5, name="sinopoli general")
+
+
+def floats(lo, hi):
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False, allow_subnormal=False)
+
+
+@st.composite
+def small_systems(draw):
+    """Random (A, C, Q, R) with n ≤ 3, m ≤ 2 built from bounded floats; Q, R = L L' + δ I."""
+    n = draw(st.integers(1, 3))
+    m = draw(st.integers(1, 2))
+
+    def mat(r, c, k=130):  # entries in [-k/100, k/100], two decimals
+        entries = st.integers(-k, k).map(lambda i: i / 100)
+        return np.array(draw(st.lists(entries, min_size=r * c, max_size=r * c))).reshape(r, c)
+
+    A, C = mat(n, n), mat(m, n)
+    Lq, Lr = mat(n, n, 100), mat(m, m, 100)
+    Q = Lq @ Lq.T + draw(st.integers(0, 100)) / 100 * np.eye(n)
+    R = Lr @ Lr.T + draw(st.integers(5, 200)) / 100 * np.eye(m)
+    return A, C, 0.5 * (Q + Q.T), 0.5 * (R + R.T)
+
+
+def mare_fixed_point(A, C, Q, R, p, iters=5000):
+    """V̄ = lim V_t, V_{t+1} = g_p(V_t), V_0 = 0 (Sinopoli Thm 1, converges for p > p_up)."""
+    V = np.zeros_like(A, dtype=float)
+    for _ in range(iters):
+        V = g(A, C, Q, R, V, p)
+    return V
+
+
+# --------------------------------------------------------------------------------------------
+# exactness of the kernel
+
+
+@given(small_systems(), st.lists(st.booleans(), min_size=1, max_size=25))
+def test_kernel_follows_the_standard_riccati_maps(sysmats, arrivals):
+    """Path 0 of a trace channel reads the trace from offset 0: compare with kfcrit.riccati."""
+    A, C, Q, R = sysmats
+    system = System(A, C, Q, R)
+    res = simulate(system, 1, len(arrivals), 0, Trace.from_arrivals(arrivals),
+                   record_traces=True, divergence_threshold=1e300)
+    P = system.sigma0.copy()
+    expected = [np.trace(P)]
+    for gam in arrivals:
+        P = f_arrival(A, C, Q, R, P) if gam else f_loss(A, Q, P)
+        expected.append(np.trace(P))
+    np.testing.assert_allclose(res.traces[0], expected, rtol=1e-9, atol=1e-12)
+
+
+@given(small_systems(), st.integers(0, 6), floats(0.0, 1.0), st.integers(1, 9))
+def test_lane_step_is_symmetric_psd_and_equals_the_maps(sysmats, rank, scale, lanes):
+    """One kernel step on rank-deficient PSD X: exactly symmetric, PSD, equal to f_γ(X)."""
+    A, C, Q, R = sysmats
+    n, m = A.shape[0], C.shape[0]
+    rng_free = np.arange(1, n * n + 1, dtype=float).reshape(n, n)  # deterministic, no RNG
+    L = np.cos(rng_free * (1 + scale))[:, : min(rank, n)]
+    X = 10.0 ** (4 * scale) * (L @ L.T)
+    Xs = np.repeat(X[:, :, None], lanes, axis=2).copy()
+    gam = (np.arange(lanes) % 2).astype(float)
+    out = np.empty_like(Xs)
+    ws = [np.empty((n, n, lanes)) for _ in range(2)]
+    wm = [np.empty((n, m, lanes)), np.empty((m, m, lanes)), np.empty((n, m, lanes)),
+          np.empty((n, m, lanes))]
+    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3])
+    for b in range(lanes):
+        Y = out[:, :, b]
+        assert np.array_equal(Y, Y.T)
+        ref = f_arrival(A, C, Q, R, X) if gam[b] else f_loss(A, Q, X)
+        tol = 1e-9 * max(1.0, np.abs(ref).max())
+        np.testing.assert_allclose(Y, ref, rtol=1e-8, atol=tol)
+        assert np.linalg.eigvalsh(Y).min() >= -tol
+
+
+@given(st.integers(1, 6), st.integers(1, 6), st.lists(st.integers(-9, 9), min_size=36,
+                                                       max_size=36), st.integers(-3, 3))
+def test_lambda_max_bisection_matches_eigvalsh(n, rank, entries, exponent):
+    """λ_max by Cholesky bisection (n ≥ 3) or closed form (n ≤ 2) against LAPACK's eigvalsh."""
+    L = np.array(entries[: n * n], dtype=float).reshape(n, n)[:, : min(rank, n)]
+    X = 10.0 ** exponent * (L @ L.T)
+    W = 3
+    Xs = np.repeat(X[:, :, None], W, axis=2).copy()
+    Xs[:, :, 1] *= 2.0
+    out = np.empty(W)
+    work = [np.empty(W) for _ in range(5)]
+    _lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *work)
+    for b in range(W):
+        ref = np.linalg.eigvalsh(Xs[:, :, b])[-1]
+        assert abs(out[b] - ref) <= 1e-10 * max(np.trace(Xs[:, :, b]), 1e-300)
+
+
+def test_p_one_and_p_zero_follow_the_deterministic_recursions():
+    a2, q, r = 1.5625, 1.0, 2.5
+    res = simulate(SCALAR, 5, 30, 1, arrival_probability=1, horizon_samples=31)
+    x, xs = 1.0, [1.0]
+    for _ in range(30):
+        x = a2 * r * x / (x + r) + q  # f_1 for c = 1
+        xs.append(x)
+    np.testing.assert_allclose(res.mean_trace, xs, rtol=1e-12)
+    assert np.all(res.std_trace <= 1e-9 * np.asarray(xs))
+    res0 = simulate(SCALAR, 3, 20, 1, arrival_probability=0, horizon_samples=21)
+    lyap = [a2 ** t + q * (a2 ** t - 1) / (a2 - 1) for t in range(21)]
+    np.testing.assert_allclose(res0.mean_trace, lyap, rtol=1e-12)
+
+
+# --------------------------------------------------------------------------------------------
+# reproducibility and records
+
+
+@pytest.mark.parametrize("seed", [0, 1, 42, 2 ** 32 + 7, 2 ** 63 - 1, 3 ** 80])
+def test_path_keys_are_seedsequence_spawn_children(seed):
+    children = np.random.SeedSequence(seed).spawn(3)
+    for stream in (0, 2):
+        grand = children[stream].spawn(10)
+        expected = [c.generate_state(1, np.uint64)[0] for c in grand]
+        np.testing.assert_array_equal(path_keys(seed, 0, 10, stream), expected)
+        np.testing.assert_array_equal(path_keys(seed, 4, 7, stream), expected[4:7])
+    big = 70_000
+    ref = np.random.SeedSequence(seed, spawn_key=(0, big)).generate_state(1, np.uint64)[0]
+    assert path_keys(seed, big, big + 1)[0] == ref
+
+
+@pytest.mark.parametrize("channel", [None, GilbertElliott(sp.Rational(1, 5), sp.Rational(1, 2))])
+def test_bit_identical_for_any_batch_size(channel):
+    kw = {"arrival_probability": 0.6} if channel is None else {"channel": channel}
+    paths = LANES + 37
+    ref = simulate(GENERAL, paths, 60, 5, **kw)
+    for bs in (1, 7, 1000):
+        other = simulate(GENERAL, paths, 60, 5, batch_size=bs, **kw)
+        for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces"):
+            assert np.array_equal(getattr(ref, name), getattr(other, name)), (bs, name)
+    again = simulate(GENERAL, paths, 60, 5, **kw).to_dict()
+    first = ref.to_dict()
+    first.pop("runtime_seconds")
+    again.pop("runtime_seconds")
+    assert first == again
+    assert not np.array_equal(simulate(GENERAL, paths, 60, 6, **kw).horizon_traces,
+                              ref.horizon_traces)
+
+
+def test_paths_are_independent_of_how_many_are_run():
+    few = simulate(GENERAL, 3, 40, 9, arrival_probability=0.5, record_traces=True)
+    many = simulate(GENERAL, 300, 40, 9, arrival_probability=0.5, record_traces=3)
+    np.testing.assert_array_equal(few.traces, many.traces)
+
+
+def test_memory_does_not_grow_with_steps():
+    res = simulate(SCALAR, 10, 20_000, 0, arrival_probability=0.7)
+    assert res.times.size <= 200 and res.traces is None and res.horizon_traces.size == 10
+    assert res.times[0] == 0 and res.times[-1] == 20_000
+
+
+def test_divergence_is_detected_reported_and_json_safe():
+    # p = 0, a = 2, c = q = r = 1, P0 = 1: tr P_t = 4^t + (4^t − 1)/3 by hand; first > 1e6 at t = 10
+    system = System([[2]], [[1]], 1, 1)
+    res = simulate(system, 4, 30, 0, arrival_probability=0, divergence_threshold=1e6,
+                   horizon_samples=31)
+    assert res.diverged_paths == 4 and res.mean_is_lower_bound
+    assert list(res.divergence_times) == [10] * 4
+    assert np.all(res.diverged_fraction[res.times >= 10] == 1)
+    assert np.all(res.diverged_fraction[res.times < 10] == 0)
+    assert res.warnings
+    d = res.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["divergence"]["first_time"] == 10 and d["divergence"]["mean_is_lower_bound"]
+    assert d["horizon"]["quantiles"][-1] is None  # censored quantile
+
+
+def test_far_below_critical_long_horizon_stays_finite():
+    res = simulate(SCALAR, 300, 5000, 2, arrival_probability=0.02)
+    assert np.all(np.isfinite(res.mean_trace)) and np.all(np.isfinite(res.horizon_traces))
+    assert res.diverged_paths > 0  # ((1−p) a²)^t explodes: paths must be stopped and counted
+    json.dumps(res.to_dict(), allow_nan=False)
+
+
+def test_bad_arguments():
+    with pytest.raises(InputError):
+        simulate(SCALAR, 0, 10, 0, arrival_probability=0.5)
+    with pytest.raises(InputError):
+        simulate(SCALAR, 10, 10, 0)
+    with pytest.raises(InputError):
+        simulate(SCALAR, 10, 10, 0, arrival_probability=1.5)
+    with pytest.raises(InputError):
+        simulate(SCALAR, 10, 10, 0, channel=GilbertElliott(sp.Rational(1, 2), sp.Rational(1, 2)),
+                 arrival_probability=0.5)
+    with pytest.raises(InputError):
+        simulate(SCALAR, 10, 10, 0, arrival_probability=0.5, initial=[[-1.0]])
+    with pytest.raises(InputError, match="GB"):
+        simulate(SCALAR, 10**6, 10**6, 0, arrival_probability=0.5, record_traces=True)
+
+
+# --------------------------------------------------------------------------------------------
+# statistics against the theory
+
+
+def test_full_state_error_matches_the_riccati_covariance():
+    """E[e_t e_t' | γ] = P_t: the mean of |e_t|² equals the mean of tr P_t (Kalman filter)."""
+    res = simulate(GENERAL, 300, 40, 3, arrival_probability=0.7, full_state_paths=300)
+    fs = res.full_state
+    e = fs.error_sq[:, 20:].ravel()
+    tr = fs.trace[:, 20:].ravel()
+    # paths share arrivals with the RRE paths: the filter's P is the RRE's P
+    np.testing.assert_allclose(fs.trace[:, -1], res.horizon_traces[:300], rtol=1e-9)
+    # |e|² − tr P has mean 0; errors at one path are correlated in time, so use path totals
+    per_path = (fs.error_sq[:, 20:] - fs.trace[:, 20:]).mean(axis=1)
+    se = per_path.std(ddof=1) / math.sqrt(per_path.size)
+    assert abs(per_path.mean()) < 5 * se
+    assert 0.8 < e.mean() / tr.mean() < 1.25
+
+
+@pytest.mark.parametrize("system,p", [(SCALAR, 0.8), (GENERAL, 0.8)])
+def test_above_p_up_the_mean_settles_between_the_bounds(system, p):
+    """S̄ ⪯ lim E[P_t] ⪯ V̄ (Sinopoli Thm 4, 6) for p > p_up (0.36 scalar, ≈0.471 general).
+
+    Finite variance: (1 − p)·ρ(A)⁴ = 0.2·1.25⁴ ≈ 0.49 < 1, so the 5σ CLT tolerance applies.
+    """
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    S_bar = solve_discrete_lyapunov(math.sqrt(1 - p) * A, Q)
+    V_bar = mare_fixed_point(A, C, Q, R, p)
+    res = simulate(system, 4000, 150, 11, arrival_probability=p)
+    mean, se = res.mean_trace[-1], res.std_trace[-1] / math.sqrt(res.paths)
+    assert np.trace(S_bar) - 5 * se <= mean <= np.trace(V_bar) + 5 * se
+    assert np.trace(S_bar) < np.trace(V_bar)
+
+
+@pytest.mark.parametrize("system,p", [(SCALAR, 0.15), (GENERAL, 0.2)])
+def test_below_p_low_the_mean_grows_at_least_like_the_lyapunov_bound(system, p):
+    """E[P_t] ⪰ S_t, S_{t+1} = (1 − p) A S_t A' + Q, S_0 = Σ0 (Lemma 1(f)/(h) by induction).
+
+    (1 − p)ρ(A)² > 1 here, so S_t grows geometrically. Heavy tails make the sample mean
+    underestimate E[P_t] at large t; at t ≤ 40 the dominant event (a loss burst of length
+    ~ t) still has ≳ 30 occurrences among the paths, and the check is one-sided with 5 se.
+    """
+    A, Q = system.a, system.q
+    res = simulate(system, 20_000, 40, 4, arrival_probability=p, horizon_samples=41)
+    S = system.sigma0.copy()
+    lower = [np.trace(S)]
+    for _ in range(40):
+        S = (1 - p) * A @ S @ A.T + Q
+        lower.append(np.trace(S))
+    se = res.std_trace / math.sqrt(res.paths)
+    assert np.all(res.mean_trace >= np.array(lower) - 5 * se)
+    assert lower[-1] > 100 * lower[0]  # the bound itself explodes
+    assert res.mean_trace[-1] > 100 * res.mean_trace[0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["sinopoli-single-unstable", "sinopoli-general",
+                                  "mo-nondegenerate-four"])
+def test_bounds_bracket_the_mean_on_the_examples_slow(name):
+    """Thorough profile: S̄ − 5 se ≤ E[tr P_t] ≤ V̄ + 5 se at p = (1 + p_up)/2 on paper examples,
+    p_up estimated independently as the least p on a 0.01 grid where the MARE iteration from 0
+    stays bounded (MATH §3, equivalent characterisation)."""
+    system = load_spec(REPORTS / f"{name}.yaml").system
+    A, C, Q, R = system.a, system.c, system.q, system.r
+
+    def bounded(p):
+        V = np.zeros_like(A)
+        for _ in range(3000):
+            V = g(A, C, Q, R, V, p)
+            if not np.isfinite(V).all() or np.trace(V) > 1e12:
+                return False
+        return True
+
+    p_up = next(p for p in np.arange(0.01, 1.0, 0.01) if bounded(p))
+    p = (1 + p_up) / 2
+    rho = max(abs(np.linalg.eigvals(A)))
+    if (1 - p) * rho ** 4 >= 1:
+        pytest.skip("infinite variance at this p: the CLT tolerance does not apply")
+    S_bar = solve_discrete_lyapunov(math.sqrt(1 - p) * A, Q)
+    V_bar = mare_fixed_point(A, C, Q, R, p)
+    res = simulate(system, 40_000, 300, 13, arrival_probability=p)
+    mean, se = res.mean_trace[-1], res.std_trace[-1] / math.sqrt(res.paths)
+    assert np.trace(S_bar) - 5 * se <= mean <= np.trace(V_bar) + 5 * se
+
+
+A2 = System([[2]], [[1]], 1, 1, name="a = 2")  # GE condition: bounded iff (1 − r)·4 < 1
+
+
+def burst_growth_factor(channel) -> float:
+    """Estimate (1 − r)·a² from one long path: burst-length tail ratio × growth per lost step."""
+    erg = ergodic(A2, 400_000, 1, channel, replicas=1, max_burst=12)
+    d = erg.to_dict()["bursts"]
+    count = np.array(d["count"], dtype=float)[:8]
+    after = np.array([x if x is not None else np.nan for x in d["mean_trace_after"]])[:8]
+    tail = np.nanmean(count[1:] / count[:-1])
+    growth = np.nanmean(after[1:] / after[:-1])
+    return tail * growth
+
+
+@pytest.mark.parametrize("f,r,bounded", [(0.9, 0.95, True), (0.01, 0.5, False)])
+def test_gilbert_elliott_mean_bounded_iff_condition(f, r, bounded):
+    """MATH §7: E[P] bounded iff (1 − r) a² < 1. The two channels are chosen so that the
+    stationary arrival probability says the opposite (0.51 < 0.75 = iid p_c but bounded;
+    0.98 > 0.75 but unbounded): only r decides. The mechanism is measured: P(burst = j+1)/P(j)
+    → 1 − r and E[tr P after a burst of j+1]/E[… j] → a², so Σ_j P(j)·E[P | j] converges iff
+    their product is below 1."""
+    ch = GilbertElliott(sp.nsimplify(f), sp.nsimplify(r))
+    factor = burst_growth_factor(ch)
+    expected = (1 - r) * 4
+    assert abs(factor - expected) < 0.25 * expected
+    assert (factor < 1) == bounded == ((1 - r) * 4 < 1)
+
+
+def test_gilbert_elliott_direct_means():
+    """Bounded (f, r) = (0.9, 0.95): E[tr P_t] at t = 100 and 200 agree ((1 − r)a⁴ = 0.8 < 1,
+    finite variance); unbounded (0.5, 0.25), (1 − r) a² = 3: the mean keeps growing."""
+    ok = simulate(A2, 8000, 200, 3, GilbertElliott(sp.Rational(9, 10), sp.Rational(19, 20)),
+                  horizon_samples=201)
+    se = ok.std_trace / math.sqrt(ok.paths)
+    assert abs(ok.mean_trace[100] - ok.mean_trace[200]) < 5 * math.hypot(se[100], se[200])
+    bad = simulate(A2, 8000, 30, 3, GilbertElliott(sp.Rational(1, 2), sp.Rational(1, 4)),
+                   horizon_samples=31)
+    assert bad.mean_trace[30] > 10 * bad.mean_trace[15] > 10 * bad.mean_trace[5]
+
+
+def test_ergodic_time_average_matches_the_ensemble_mean():
+    """Kar et al. Prop. 25: (1/T) Σ tr P_t → E_μ[tr P] = lim E[tr P_t] (p = 0.8 > p_c)."""
+    erg = ergodic(SCALAR, 200_000, 5, arrival_probability=0.8, replicas=4)
+    pooled = erg.pooled()
+    ens = simulate(SCALAR, 20_000, 200, 5, arrival_probability=0.8)
+    se_ens = ens.std_trace[-1] / math.sqrt(ens.paths)
+    half = (pooled["upper"] - pooled["lower"]) / 2
+    assert abs(pooled["mean"] - ens.mean_trace[-1]) < 2.5 * math.hypot(half, 1.96 * se_ens)
+    d = erg.to_dict()
+    json.dumps(d, allow_nan=False)
+    b = d["bursts"]
+    assert abs(b["loss_fraction"] - 0.2) < 0.01 and abs(b["mean_length"] - 1.25) < 0.05
+
+
+def test_tail_levels_count_visits():
+    """The tail estimate is the fraction of times above M: compare with a recorded trace."""
+    res = simulate(SCALAR, 1, 3000, 0, Trace.from_arrivals(
+        [1, 0, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1]), record_traces=True)
+    erg = ergodic(SCALAR, 3000, 0, Trace.from_arrivals([1, 0, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1]),
+                  replicas=1, burn_in=0, levels=(5.0, 10.0))
+    tr = res.traces[0, 1:]
+    assert erg.exceed[0].tolist() == [float((tr > 5).sum()), float((tr > 10).sum())]
+    assert erg.sums[0, 0] == pytest.approx(tr.sum(), rel=1e-12)
+
+
+def test_almost_sure_indicators_below_critical():
+    """Unstable A, i.i.d. 0 < p < 1: limsup tr P = ∞ and liminf bounded (MATH §6): the dyadic
+    block maxima of one long path grow while the block minima stay near tr P* (arrivals pull
+    the covariance down to f_1-images)."""
+    erg = ergodic(SCALAR, 2 ** 17, 8, arrival_probability=0.5, replicas=1, burn_in=0)
+    a = erg.to_dict()["almost_sure"]
+    bmax = [x for x in a["block_max"] if x is not None]
+    bmin = [x for x in a["block_min"] if x is not None]
+    assert max(bmax[-4:]) > 20 * max(bmax[:4])
+    assert max(bmin[-6:]) < 10
+
+
+# --------------------------------------------------------------------------------------------
+# the analysis section and the command line
+
+
+def test_simulation_section_keys_and_json():
+    spec = SystemSpec(system=SCALAR, channel=GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
+                      requirements=Requirements(max_error_trace=20.0))
+    d = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=3, quick=True)
+    assert set(d) == {"seed", "quick", "budget", "seeds", "operating_point", "phase_demo",
+                      "checks", "runtime_seconds", "warnings"}
+    assert d["checks"] and all(c["passed"] for c in d["checks"])
+    assert {"check", "passed", "detail"} == set(d["checks"][0])
+    op = d["operating_point"]
+    for key in ("channel", "arrival_probability", "iid", "times", "mean_trace",
+                "mean_lambda_max", "horizon", "exceedance", "ergodic", "bursts", "almost_sure",
+                "divergence"):
+        assert key in op
+    assert len(op["times"]) <= 200 and op["exceedance"]["level"] == 20.0
+    assert op["ergodic"]["time_averages"]["path"]["tail"][0]["level"] == 20.0
+    demo = d["phase_demo"]
+    assert demo["reference"] == "critical_value" and len(demo["curves"]) == 4
+    below = [c for c in demo["curves"] if c["side"] == "below"]
+    above = [c for c in demo["curves"] if c["side"] == "above"]
+    assert min(c["mean_trace"][-1] for c in below) > max(c["mean_trace"][-1] for c in above)
+    assert d["seeds"]["phase_demo"] == [4, 5, 6, 7]
+    text = dumps(d)
+    assert "NaN" not in text and "Infinity" not in text
+
+
+def test_simulation_section_without_channel_or_reference():
+    d = simulation_section(SystemSpec(system=SCALAR), critical_value=None, upper_bound=None,
+                           seed=0, quick=True)
+    assert d["operating_point"] is None and d["phase_demo"] is None
+    d0 = simulation_section(SystemSpec(system=SCALAR), critical_value=0.0, upper_bound=0.5,
+                            seed=0, quick=True)
+    assert d0["phase_demo"] is None
+    du = simulation_section(SystemSpec(system=SCALAR), critical_value=None, upper_bound=0.36,
+                            seed=0, quick=True)
+    assert du["phase_demo"]["reference"] == "upper_bound"
+
+
+def test_simulate_command_json_text_and_plot(tmp_path, capsys):
+    f = str(REPORTS / "sinopoli-scalar.yaml")
+    assert simulate_command(f, paths=50, steps=40, seed=1, as_json=True, plot=None,
+                            max_states=400) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["paths"] == 50 and d["arrival_probability"] == 0.5
+    out = tmp_path / "fig.svg"
+    assert simulate_command(f, paths=50, steps=40, seed=1, as_json=False, plot=str(out),
+                            max_states=400) == 0
+    text = capsys.readouterr().out
+    assert "E[tr P_t]" in text and "50 paths" in text
+    assert out.read_text()[:200].lstrip().startswith(("<?xml", "<svg"))
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".kfcrit-")]
+    with pytest.raises(InputError, match="svg"):
+        simulate_command(f, paths=5, steps=5, seed=1, as_json=False, plot=str(tmp_path / "x.gif"),
+                         max_states=400)
+
+
+def test_progress_bar_path_runs_and_reports(capsys):
+    """The rich progress path (used only when stderr is a terminal) gives the same result."""
+    from kfcrit.simulate import _with_progress
+
+    spec = load_spec(REPORTS / "sinopoli-scalar.yaml")
+    res = _with_progress(spec, 600, 20, 3, False)
+    ref = simulate(spec.system, 600, 20, 3, spec.channel)
+    assert np.array_equal(res.mean_trace, ref.mean_trace)
+    assert capsys.readouterr().out == ""  # nothing on stdout
+
+
+def test_numpy_scalars_are_accepted_as_probabilities():
+    a = simulate(SCALAR, 20, 10, 0, arrival_probability=np.float64(0.5))
+    b = simulate(SCALAR, 20, 10, 0, arrival_probability=0.5)
+    assert np.array_equal(a.horizon_traces, b.horizon_traces)
+
+
+def test_simulate_command_needs_a_channel(tmp_path):
+    spec_file = tmp_path / "nochan.yaml"
+    spec_file.write_text("name: x\nA: [[2]]\nC: [[1]]\nQ: [[1]]\nR: [[1]]\n")
+    with pytest.raises(InputError, match="channel"):
+        simulate_command(str(spec_file), paths=5, steps=5, seed=0, as_json=True, plot=None,
+                         max_states=400)
+
+
+@settings(max_examples=5)
+@given(st.sampled_from([p for p in sorted(REPORTS.glob("*.yaml"))
+                        if not p.name.startswith("sweep")]))
+def test_example_files_simulate(path):
+    spec = load_spec(path)
+    res = simulate(spec, 20, 30, 0)
+    json.dumps(res.to_dict(), allow_nan=False)

@@ -1,0 +1,203 @@
+"""Eigen-structure decisions (kfcrit.structure): exact path, numeric path, fallbacks.
+
+Expected facts are hand derivations (stated next to each case) or a second method (brute force
+for the simplest rational; the numeric path against the exact path).
+"""
+from __future__ import annotations
+
+import json
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from kfcrit.structure import MAX_DENOMINATOR, eigen_structure, simplest_rational
+from kfcrit.system import System
+
+
+def _sys(A, C, Q=None) -> System:
+    n, m = len(A), len(C)
+    Q = Q if Q is not None else np.eye(n).astype(int).tolist()
+    return System(A, C, Q, np.eye(m).astype(int).tolist())
+
+
+# --------------------------------------------------------------------------- simplest rational
+
+def _brute_simplest(lo: Fraction, hi: Fraction) -> Fraction:
+    q = 1
+    while True:
+        p = math.ceil(lo * q)
+        if Fraction(p, q) <= hi:
+            return Fraction(p, q)
+        q += 1
+
+
+@pytest.mark.parametrize("lo, hi, expected", [
+    (Fraction(333, 1000), Fraction(334, 1000), Fraction(1, 3)),
+    (Fraction(1, 2) - Fraction(1, 10**9), Fraction(1, 2) + Fraction(1, 10**9), Fraction(1, 2)),
+    (Fraction(314, 100), Fraction(31416, 10000), Fraction(157, 50)),
+    (Fraction(2), Fraction(2), Fraction(2)),
+])
+def test_simplest_rational_known(lo, hi, expected):
+    assert simplest_rational(lo, hi) == expected
+
+
+@given(st.integers(0, 10**6), st.integers(1, 10**4))
+def test_simplest_rational_matches_brute_force(a, width):
+    lo = Fraction(a, 10**6)
+    hi = lo + Fraction(width, 10**7)
+    got = simplest_rational(lo, hi)
+    assert lo <= got <= hi
+    assert got.denominator == _brute_simplest(lo, hi).denominator
+
+
+# --------------------------------------------------------------------------- exact path
+
+def _pair(s):
+    assert len(s.pairs) == 1
+    return s.pairs[0]
+
+
+def test_third_turn_rotation_exact():
+    # A = [[1, -√3], [√3, 1]]: eigenvalues 1 ± j√3 = 2 e^{±jπ/3}; z = e^{∓2jπ/3}, order 3.
+    s = eigen_structure(_sys([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]]))
+    assert s.path == "exact"
+    assert [e.mod2_expr for e in s.eigen] == [4, 4]
+    p = _pair(s)
+    assert (p.q, p.rank, p.size, p.degenerate) == (3, 1, 2, True)
+    assert s.diagonalizable and s.detectable and s.controllable_Q
+
+
+def test_fifth_turn_rotation_exact():
+    # 2·rotation(2π/5) written with cos/sin: z = e^{∓4jπ/5} has order 5.
+    A = [["2*cos(2*pi/5)", "-2*sin(2*pi/5)"], ["2*sin(2*pi/5)", "2*cos(2*pi/5)"]]
+    s = eigen_structure(_sys(A, [[1, 0]]))
+    assert s.path == "exact"
+    assert _pair(s).q == 5
+
+
+def test_atan_four_thirds_is_irrational():
+    # [[3,-4],[4,3]]: eigenvalues 3 ± 4j, z = (3−4j)/(3+4j) = (−7 − 24j)/25; its minimal
+    # polynomial 25x² + 14x + 25 is not monic, so z is not a root of unity.
+    s = eigen_structure(_sys([[3, -4], [4, 3]], [[1, 0]]))
+    assert s.path == "exact" and _pair(s).q is None
+    assert s.eigen[0].mod2_expr == 25
+
+
+def test_rank_two_output_makes_pair_non_degenerate():
+    s = eigen_structure(_sys([[0, -2], [2, 0]], [[1, 0], [0, 1]]))
+    p = _pair(s)
+    assert (p.rank, p.degenerate, p.q) == (2, False, 2)
+    assert s.blocks[0].one_step_observable
+
+
+def test_jordan_block_not_diagonalizable():
+    s = eigen_structure(_sys([[2, 1], [0, 2]], [[1, 0]]))
+    assert s.path == "exact" and not s.diagonalizable
+    assert s.eigen[0].multiplicity == 2 and s.eigen[0].geometric == 1
+    assert s.detectable  # the eigenvector e1 is seen by C = [1, 0]
+
+
+def test_repeated_diagonalizable_eigenvalue():
+    # A = 2I (3x3) is diagonalizable; C = I has full rank on the 3-dim eigenspace.
+    s = eigen_structure(_sys([[2, 0, 0], [0, 2, 0], [0, 0, 2]], np.eye(3).astype(int).tolist()))
+    assert s.diagonalizable and s.eigen[0].geometric == 3 and s.detectable
+
+
+def test_undetectable_and_uncontrollable():
+    # Unstable mode 2 on e1 invisible to C = [0, 1]; Q = diag(0, 1) does not excite e1.
+    s = eigen_structure(_sys([[2, 0], [0, "1/2"]], [[0, 1]], Q=[[0, 0], [0, 1]]))
+    assert not s.detectable and not s.controllable_Q
+    # A stable invisible mode does not break detectability (PBH only on |λ| ≥ 1).
+    s2 = eigen_structure(_sys([["1/2", 0], [0, 2]], [[0, 1]]))
+    assert s2.detectable
+
+
+def test_equal_moduli_from_different_factors():
+    # 2 (rational) and 2 e^{±jπ/3} (from x² − 2x + 4): three eigenvalues of modulus 2.
+    A = [[2, 0, 0], [0, 1, "-sqrt(3)"], [0, "sqrt(3)", 1]]
+    s = eigen_structure(_sys(A, [[1, 1, 0]]))
+    assert s.path == "exact"
+    assert len(s.blocks) == 1 and s.blocks[0].size == 3 and s.blocks[0].rank == 1
+    # pairs: (2, 2e^{jπ/3}) q = 6, (2, 2e^{-jπ/3}) q = 6, conjugates q = 3
+    assert sorted(p.q for p in s.pairs) == [3, 6, 6]
+
+
+def test_observability_index():
+    # Chain e3 → e2 → e1 seen through e1: needs three steps.
+    s = eigen_structure(_sys([[2, 1, 0], [0, 2, 1], [0, 0, 2]], [[1, 0, 0]]))
+    assert s.observability_index == 3
+
+
+def test_record_is_json():
+    s = eigen_structure(_sys([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]]))
+    d = s.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["path"] == "exact" and d["eigenvalues"][0]["modulus_expression"] == "2"
+    assert {"indices", "modulus", "one_step_observable", "rank", "size"} <= set(
+        d["equi_blocks"][0])
+
+
+# --------------------------------------------------------------------------- numeric path
+
+def test_fallback_large_n():
+    n = 7
+    A = np.diag([2.0, -2.0, 0.5, 0.4, 0.3, 0.2, 0.1]).tolist()
+    s = eigen_structure(_sys(A, [[1.0] * n]))
+    assert s.path == "numeric" and "n = 7" in s.path_reason
+    assert s.pairs[0].q == 2 and s.pairs[0].degenerate
+
+
+def test_fallback_irreducible_cubic():
+    # companion matrix of x³ − 2: the real root and the complex pair have equal moduli, a
+    # coincidence between non-conjugate CRootOf eigenvalues the exact path does not certify
+    s = eigen_structure(_sys([[0, 0, 2], [1, 0, 0], [0, 1, 0]], [[1, 0, 0]]))
+    assert s.path == "numeric" and "degree" in s.path_reason
+    # moduli all 2^(1/3): one equi-block of three; q of the pairs: e^{±2πj/3} ratios → 3
+    assert len(s.blocks) == 1 and s.blocks[0].size == 3
+    assert all(p.q == 3 for p in s.pairs)
+
+
+@pytest.mark.parametrize("A, C", [
+    ([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]]),
+    ([[2, 0, 0, 0], [0, -2, 0, 0], [0, 0, 3, 0], [0, 0, 0, -3]], [[1, 0, 1, 0], [0, 1, 0, 1]]),
+    ([[2, 1], [0, 2]], [[1, 0]]),
+    ([[1, -1], [1, 1]], [[1, 2]]),
+])
+def test_numeric_path_agrees_with_exact(A, C):
+    system = _sys(A, C)
+    ex, nu = eigen_structure(system), eigen_structure(system, force_numeric=True)
+    assert ex.path == "exact" and nu.path == "numeric"
+    assert ex.diagonalizable == nu.diagonalizable and ex.detectable == nu.detectable
+    assert [b.size for b in ex.blocks] == [b.size for b in nu.blocks]
+    assert [b.rank for b in ex.blocks] == [b.rank for b in nu.blocks]
+    assert [p.q for p in ex.pairs] == [p.q for p in nu.pairs]
+    assert np.allclose([e.mod2 for e in ex.eigen], [e.mod2 for e in nu.eigen], rtol=1e-9)
+
+
+def test_numeric_tolerances_reported():
+    s = eigen_structure(_sys([[2, 0], [0, -2]], [[1, 1]]), force_numeric=True)
+    assert s.tolerances["max_denominator"] == MAX_DENOMINATOR
+    assert s.tolerances["modulus_relative"] > 0
+
+
+def test_float_rotation_exact_path_with_large_surd():
+    # A = [[a, -b], [c, a]] entered as floats with a² + bc ≈ 1: eigenvalues a ± j√(bc), |λ|² =
+    # a² + bc exactly (a rational). The discriminant −4bc is a large rational whose square root
+    # sympy rewrites (square factors pulled out); the exact path must still convert it. With
+    # C = 0, (C, A) is detectable iff no eigenvalue has |λ| ≥ 1 (PBH), i.e. iff a² + bc < 1.
+    A = [[0.5403023058681398, -0.5609855267969309], [1.2622174352931448, 0.5403023058681398]]
+    s = eigen_structure(_sys(A, [[0, 0]]))
+    assert s.path == "exact"
+    from fractions import Fraction as F
+    a, b, c = (F(v) for v in (A[0][0], -A[0][1], A[1][0]))
+    assert (a * a + b * c >= 1) == (not s.detectable)
+    assert not s.observable
+
+
+def test_observable_flag():
+    assert eigen_structure(_sys([[2, 1], [0, 3]], [[1, 0]])).observable
+    assert not eigen_structure(_sys([[2, 0], [0, 3]], [[1, 0]])).observable

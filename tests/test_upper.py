@@ -1,0 +1,255 @@
+"""The upper bound p_up (kfcrit.upper, kfcrit.lmi): closed forms, paper values, cross-checks.
+
+Expected values: MATH.md §3 and ../shared/cases/expected.json (paper values); the single-output
+closed form p_up = 1 − 1/Π|λ_u|² ([beyond] in MATH.md, tested here as a property); p_low
+(Sinopoli Thm 3); the issue's MARE observations for random_system(20, 6, 0). Cross-checks use
+independent methods: the LMI, the MARE iteration and the static-gain critical value.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import assume, example, given
+from hypothesis import strategies as st
+
+from kfcrit import bounds
+from kfcrit.system import System
+from kfcrit.systemfile import load_spec
+from kfcrit.upper import UpperBound, upper_bound, upper_section
+
+from .conftest import SHARED_CASES
+
+sys.path.insert(0, str(SHARED_CASES.parent / "bench"))
+from systems import random_system  # noqa: E402
+
+
+def make(A, C) -> System:
+    A, C = np.atleast_2d(np.asarray(A, float)), np.atleast_2d(np.asarray(C, float))
+    return System(A, C, np.eye(A.shape[0]), np.eye(C.shape[0]))
+
+
+def closed_form_single_output(A) -> float:
+    lam = np.linalg.eigvals(np.asarray(A, float))
+    prod = float(np.prod([abs(v) ** 2 for v in lam if abs(v) > 1]))
+    return 1.0 - 1.0 / prod if prod > 1 else 0.0
+
+
+def assert_contains(ub: UpperBound, value: float, slack: float = 1e-12):
+    lo, hi = ub.interval
+    assert lo - slack <= value <= hi + slack, (ub.interval, value)
+
+
+# ---------------------------------------------------------------------------------------------
+# paper values
+# ---------------------------------------------------------------------------------------------
+
+EXPECTED = json.loads((SHARED_CASES / "expected.json").read_text())
+CASES = sorted(k for k, v in EXPECTED.items() if k.endswith(".yaml")
+               and ("upper_bound" in v or "upper_bound_approx" in v))
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_expected_upper_bounds(name):
+    spec = load_spec(SHARED_CASES / name)
+    ub = upper_bound(spec.system, tol=1e-9)
+    d = ub.to_dict()
+    assert d["certified"] and d["status"] == "determined"
+    assert d["interval"][1] - d["interval"][0] <= 1e-9
+    want = EXPECTED[name]
+    if "upper_bound" in want:
+        assert_contains(ub, float(Fraction(want["upper_bound"])))
+    else:  # given to 1e-6
+        assert abs(d["value"] - want["upper_bound_approx"]) <= 1e-6
+    json.dumps(d, allow_nan=False)
+
+
+def test_random_5_1_closed_form_inside_certified_interval():
+    A, C, _, _ = random_system(5, 1, 0)
+    ub = upper_bound(make(A, C), tol=1e-9)
+    want = closed_form_single_output(A)
+    assert abs(want - 0.54115) < 1e-5                      # the issue's ≈ 0.54115
+    assert ub.certified and ub.status == "determined"
+    assert_contains(ub, want, slack=1e-10)
+
+
+def test_random_20_6_matches_mare_observations():
+    A, C, Q, R = random_system(20, 6, 0)
+    s = make(A, C)
+    ub = upper_bound(s, tol=1e-9)
+    p_low = 1 - 1 / max(abs(np.linalg.eigvals(A))) ** 2
+    assert abs(p_low - 0.40828) < 1e-5
+    assert ub.certified and ub.interval[1] <= 0.409
+    assert ub.interval[0] >= p_low - 1e-15
+    # the MARE iteration from 0 is bounded at 0.409 (above p_up) and not at 0.405 (< p_low)
+    V, _ = bounds.mare_iteration(A, C, Q, R, 0.409, rtol=1e-9)
+    assert V is not None
+    V, _ = bounds.mare_iteration(A, C, Q, R, 0.405, max_iterations=20_000)
+    assert V is None
+
+
+# ---------------------------------------------------------------------------------------------
+# single-output closed form ([beyond] claim) as a property
+# ---------------------------------------------------------------------------------------------
+
+entry = st.floats(-2.0, 2.0, allow_nan=False, allow_infinity=False).map(lambda v: round(v, 3))
+
+
+@st.composite
+def single_output_systems(draw):
+    n = draw(st.integers(1, 4))
+    A = np.array(draw(st.lists(st.lists(entry, min_size=n, max_size=n), min_size=n,
+                               max_size=n)))
+    C = np.array([draw(st.lists(entry, min_size=n, max_size=n))])
+    return A, C
+
+
+@given(single_output_systems())
+@example((np.array([[-1.25]]), np.array([[1.0]])))                   # p_up = 9/25
+@example((np.array([[1.25, 0.0], [1.0, 1.1]]), np.array([[1.0, 1.0]])))  # p_up = 57/121
+@example((np.array([[0.0, -2.0], [2.0, 0.0]]), np.array([[1.0, 0.0]])))  # q = 2: 15/16
+def test_single_output_closed_form(system):
+    A, C = system
+    lam, V = np.linalg.eig(A)
+    mods = np.abs(lam)
+    assume(np.all(np.abs(mods - 1) > 0.05))
+    assume(np.linalg.cond(V) < 1e3)
+    unstable = mods > 1
+    assume(np.prod(mods[unstable] ** 2) < 50)
+    n = A.shape[0]
+    for i in np.flatnonzero(unstable):          # detectable (PBH test), with some margin
+        pbh = np.vstack([A - lam[i] * np.eye(n), C])
+        assume(np.linalg.svd(pbh, compute_uv=False)[-1] > 0.05)
+    ub = upper_bound(make(A, C), tol=1e-9, method="newton")
+    want = closed_form_single_output(A)
+    assert ub.certified
+    assert_contains(ub, want, slack=1e-8)
+
+
+# ---------------------------------------------------------------------------------------------
+# edge cases
+# ---------------------------------------------------------------------------------------------
+
+
+def test_stable_a_gives_zero():
+    ub = upper_bound(make([[0.5, 1.0], [0.0, -0.3]], [[1.0, 0.0]]))
+    assert ub.interval == (0.0, 0.0) and ub.value == 0.0 and ub.certified
+
+
+@pytest.mark.parametrize("A, C", [([[0.0, -1.0], [1.0, 0.0]], [[1.0, 0.0]]),   # |λ| = 1
+                                  ([[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.0, 1.0]])])
+def test_marginally_stable_gives_zero(A, C):
+    ub = upper_bound(make(A, C), tol=1e-9)
+    assert ub.interval[0] == 0.0 and ub.interval[1] <= 1e-9 and ub.certified
+
+
+def test_invertible_c_gives_p_low():
+    A = np.array([[1.2, 0.5, 0.0], [0.0, -1.5, 1.0], [0.3, 0.0, 0.9]])
+    ub = upper_bound(make(A, np.eye(3)), tol=1e-9)
+    p_low = 1 - 1 / max(abs(np.linalg.eigvals(A))) ** 2
+    assert ub.certified and ub.interval[0] == pytest.approx(p_low, abs=1e-15)
+    assert ub.interval[1] - p_low <= 1e-9
+    assert ub.lower_evidence["kind"] == "theorem"
+
+
+def test_undetectable_is_undetermined_not_an_error():
+    d = upper_section(make([[2.0, 0.0], [0.0, 0.5]], [[0.0, 1.0]]))
+    assert d["status"] == "undetermined" and d["value"] is None and not d["certified"]
+    assert d["warnings"]
+
+
+def test_upper_section_never_raises(monkeypatch):
+    from kfcrit import upper
+
+    def boom(*_a, **_k):
+        raise np.linalg.LinAlgError("singular matrix")
+
+    monkeypatch.setattr(upper, "_newton_method", boom)
+    monkeypatch.setattr(upper, "_CACHE", {})
+    d = upper_section(make([[2.0]], [[1.0]]))
+    assert d["status"] == "undetermined" and d["interval"] == [0.75, 1.0]
+    json.dumps(d, allow_nan=False)
+
+
+def test_record_keys():
+    d = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])).to_dict()
+    assert set(d) == {"value", "interval", "certified", "status", "method", "certificate",
+                      "lower_evidence", "solver", "warnings", "tolerance"}
+    assert d["value"] == d["interval"][1]
+    assert {"kind", "ok", "margin_lower", "verified_by"} <= set(d["certificate"])
+    assert "X" in d["certificate"]               # small system: the matrix is included
+    assert d["solver"]["seconds"] >= 0
+
+
+# ---------------------------------------------------------------------------------------------
+# cross-checks: LMI, MARE iteration, static gain
+# ---------------------------------------------------------------------------------------------
+
+SMALL = [(3, 1, 1), (3, 2, 2), (4, 2, 3)]
+
+
+@pytest.mark.parametrize("n, m, seed", SMALL)
+def test_lmi_mare_static_gain_agree(n, m, seed):
+    A, C, Q, R = random_system(n, m, seed)
+    s = make(A, C)
+    fast = upper_bound(s, tol=1e-9, method="newton")
+    lmi = upper_bound(s, tol=1e-6, method="lmi")
+    assert fast.certified
+    # both upper ends are proven, so each is >= p_up >= the other's (numerical) lower end
+    if lmi.certified:
+        assert fast.interval[0] <= lmi.interval[1] + 1e-12
+    assert lmi.interval[0] <= fast.interval[1] + 1e-6
+    # MARE iteration: bounded just above the bracket, unbounded just below it
+    hi, lo = fast.interval[1], fast.interval[0]
+    V, _ = bounds.mare_iteration(A, C, Q, R, min(hi + 1e-3, 1.0), rtol=1e-9)
+    assert V is not None
+    if lo - 1e-3 > 0:
+        V, _ = bounds.mare_iteration(A, C, Q, R, lo - 1e-3, max_iterations=20_000)
+        assert V is None
+    # the best static gain's mean-square critical value is p_up
+    crit = bounds.ms_critical_value(A, C, fast.extras["K"])["critical_value"]
+    assert lo - 1e-9 <= crit <= hi + 1e-9
+
+
+def test_lmi_never_reads_inaccurate_or_errors_as_a_decision(monkeypatch):
+    import cvxpy as cp
+
+    from kfcrit.lmi import PsiProblem
+
+    s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
+    prob = PsiProblem(s.a, s.c)
+
+    class Fake:
+        def __init__(self, status=None, error=False):
+            self.status, self.error = status, error
+
+        def solve(self, **_k):
+            if self.error:
+                raise cp.error.SolverError("boom")
+
+    lift = None
+    for fake in (Fake(cp.OPTIMAL_INACCURATE), Fake(cp.INFEASIBLE_INACCURATE),
+                 Fake(cp.INFEASIBLE), Fake(error=True)):
+        monkeypatch.setattr(prob, "prob", fake)
+        out = prob.solve(s, 0.6, lift)
+        assert out["decision"] == "undetermined", fake.status
+
+
+def test_lmi_brackets_the_paper_value():
+    s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
+    ub = upper_bound(s, tol=1e-6, method="lmi")
+    assert ub.method == "lmi" and ub.certified
+    assert ub.interval[0] - 1e-9 <= 57 / 121 <= ub.interval[1]
+    assert ub.solver["solves"] >= 1
+
+
+def test_width_1e9_on_random_50_10_is_reachable():
+    A, C, _, _ = random_system(50, 10, 0)
+    ub = upper_bound(make(A, C), tol=1e-9)
+    assert ub.certified and ub.status == "determined"
+    assert ub.interval[1] - ub.interval[0] <= 1e-9
+    assert math.isfinite(ub.value)
