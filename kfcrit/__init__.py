@@ -16,7 +16,7 @@ from .errors import ExitCode, KfcritError  # noqa: E402
 from .system import System  # noqa: E402
 from .systemfile import SystemSpec, load_spec, load_system  # noqa: E402
 
-_LAZY = {"critical_value": "critical", "upper_bound": "upper", "simulate": "simulate",
+_LAZY = {"critical_value": "critical", "upper_bound": "upper", "simulate": "montecarlo",
          "covariance_bounds": "bounds"}
 
 

@@ -58,10 +58,38 @@ class Analysis:
         return self.sections[key]
 
     def to_dict(self) -> dict[str, Any]:
-        """The record as plain JSON types, contract keys first."""
+        """The record as plain JSON types, contract keys first.
+
+        Wall-clock timings are left out (see :meth:`timings`), so that the same input and seed
+        give byte-identical JSON.
+        """
         out = {k: self.sections.get(k) for k in CONTRACT_KEYS}
         out.update({k: self.sections.get(k) for k in DETAIL_KEYS})
-        return jsonable(out)
+        return _split_timings(jsonable(out), "", {})
+
+    def timings(self) -> dict[str, float]:
+        """Wall-clock seconds reported by the sections, keyed by their dotted path."""
+        found: dict[str, float] = {}
+        _split_timings(jsonable(dict(self.sections)), "", found)
+        return found
+
+
+TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
+
+
+def _split_timings(obj: Any, path: str, found: dict[str, float]) -> Any:
+    """Copy of ``obj`` without the keys in :data:`TIMING_KEYS`; those go into ``found``."""
+    if isinstance(obj, dict):
+        out = {}
+        for k, v in obj.items():
+            if k in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
+                found[f"{path}.{k}".lstrip(".")] = v
+            else:
+                out[k] = _split_timings(v, f"{path}.{k}", found)
+        return out
+    if isinstance(obj, list):
+        return [_split_timings(v, f"{path}[{i}]", found) for i, v in enumerate(obj)]
+    return obj
 
 
 def _as_spec(system: System | SystemSpec) -> SystemSpec:
@@ -242,9 +270,9 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     if not opts.simulate:
         sec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
         return
-    from . import simulate
+    from .montecarlo import simulation_section
 
-    sim = simulate.simulation_section(
+    sim = simulation_section(
         spec, critical_value=(sec.get("critical_value") or {}).get("value"),
         upper_bound=(sec.get("upper_bound") or {}).get("value"), seed=opts.seed,
         quick=opts.quick)

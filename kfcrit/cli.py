@@ -144,7 +144,7 @@ def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: in
 def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              plot: str | None, max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
-    from .simulate import simulate_command
+    from .montecarlo import simulate_command
 
     sys.exit(simulate_command(system_file, paths=paths, steps=steps, seed=seed, as_json=as_json,
                               plot=plot, max_states=max_states))

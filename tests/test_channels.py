@@ -27,7 +27,7 @@ from kfcrit.channels import (
     channel_from_mapping,
 )
 from kfcrit.errors import InputError
-from kfcrit.simulate import _KIND_CODE, arrival_sequence, path_keys
+from kfcrit.montecarlo import _KIND_CODE, arrival_sequence, path_keys
 
 
 def runs(x: np.ndarray, value: bool) -> np.ndarray:
@@ -94,7 +94,7 @@ def test_base_class_default_is_iid_with_the_stationary_probability():
     x = ch.draw_arrivals(np.random.default_rng(1), 40_000)
     se = math.sqrt(0.75 * 0.25 / x.size)
     assert abs(x.mean() - 0.75) < 5 * se
-    from kfcrit.simulate import simulate
+    from kfcrit.montecarlo import simulate
     from kfcrit.system import System
 
     res = simulate(System([[0.5]], [[1]], 1, 1), 10, 5, 0, ch)

@@ -12,7 +12,7 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.invariant import ScalarMaps, gap_levels, invariant_section, support_points
-from kfcrit.simulate import ergodic, simulate
+from kfcrit.montecarlo import ergodic, simulate
 from kfcrit.system import System
 from kfcrit.systemfile import load_spec
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import example, given
+from hypothesis import example, given, target
 from hypothesis import strategies as st
 
 from kfcrit import riccati
@@ -75,11 +75,13 @@ def tolerance(n: int, scale: float) -> float:
     return TOL_FACTOR * n * EPS * scale
 
 
-def assert_psd(M: np.ndarray, tol: float, what: str) -> None:
-    """Raise :class:`PropertyViolation` unless λ_min((M + M')/2) ≥ −tol."""
+def assert_psd(M: np.ndarray, tol: float, what: str) -> float:
+    """Raise :class:`PropertyViolation` unless λ_min((M + M')/2) ≥ −tol; return λ_min / tol
+    (the margin in tolerances, for Hypothesis ``target``)."""
     low = float(np.linalg.eigvalsh(0.5 * (M + M.T))[0])
     if not low >= -tol:
         raise PropertyViolation(f"{what}: λ_min = {low:.3e} < −{tol:.3e}")
+    return low / tol
 
 
 def assert_close(M1: np.ndarray, M2: np.ndarray, tol: float, what: str) -> None:
@@ -145,12 +147,12 @@ def check_lemma1b(inp: RiccatiInput) -> None:
     assert_close(P - G, p * D @ (c.C @ X @ c.C.T + c.R) @ D.T, tol, "completed square")
 
 
-def check_lemma1c(inp: RiccatiInput) -> None:
+def check_lemma1c(inp: RiccatiInput) -> float:
     """Lemma 1(c): X ⪯ Y ⇒ g_p(X) ⪯ g_p(Y)."""
     c = inp.case
     tol = tolerance(c.n, riccati_scale(c, inp.X, inp.Y))
-    assert_psd(riccati.g(c.A, c.C, c.Q, c.R, inp.Y, inp.p)
-               - riccati.g(c.A, c.C, c.Q, c.R, inp.X, inp.p), tol, "g_p(Y) − g_p(X)")
+    return assert_psd(riccati.g(c.A, c.C, c.Q, c.R, inp.Y, inp.p)
+                      - riccati.g(c.A, c.C, c.Q, c.R, inp.X, inp.p), tol, "g_p(Y) − g_p(X)")
 
 
 def check_lemma1d(inp: RiccatiInput) -> None:
@@ -161,7 +163,7 @@ def check_lemma1d(inp: RiccatiInput) -> None:
                - riccati.g(c.A, c.C, c.Q, c.R, inp.X, inp.p2), tol, "g_p1(X) − g_p2(X)")
 
 
-def check_lemma1e(inp: RiccatiInput) -> None:
+def check_lemma1e(inp: RiccatiInput) -> float:
     """Lemma 1(e): g_p(αX + (1−α)Y) ⪰ α g_p(X) + (1−α) g_p(Y)."""
     c, a = inp.case, inp.alpha
     Z = a * inp.X + (1 - a) * inp.Y
@@ -170,7 +172,7 @@ def check_lemma1e(inp: RiccatiInput) -> None:
         return riccati.g(c.A, c.C, c.Q, c.R, M, inp.p)
 
     tol = tolerance(c.n, riccati_scale(c, inp.X, inp.Y, Z))
-    assert_psd(gp(Z) - a * gp(inp.X) - (1 - a) * gp(inp.Y), tol, "concavity defect")
+    return assert_psd(gp(Z) - a * gp(inp.X) - (1 - a) * gp(inp.Y), tol, "concavity defect")
 
 
 def check_lemma1f(inp: RiccatiInput) -> None:
@@ -311,7 +313,7 @@ def test_lemma1b_g_is_min_over_gains(inp: RiccatiInput) -> None:
 @given(inp=riccati_inputs())
 @with_paper_examples
 def test_lemma1c_monotone(inp: RiccatiInput) -> None:
-    check_lemma1c(inp)
+    target(-min(check_lemma1c(inp), 1e6), label="closeness to a monotonicity violation")
 
 
 @given(inp=riccati_inputs())
@@ -323,7 +325,7 @@ def test_lemma1d_decreasing_in_p(inp: RiccatiInput) -> None:
 @given(inp=riccati_inputs())
 @with_paper_examples
 def test_lemma1e_concave(inp: RiccatiInput) -> None:
-    check_lemma1e(inp)
+    target(-min(check_lemma1e(inp), 1e6), label="closeness to a concavity violation")
 
 
 @given(inp=riccati_inputs())

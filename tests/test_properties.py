@@ -360,7 +360,7 @@ def check_simulated_mean_between_bounds(case: SystemCase, p: float, mean: float,
 
 
 def _simulate_case(name: str, p: float, paths: int, steps: int, seed: int) -> tuple:
-    from kfcrit.simulate import simulate
+    from kfcrit.montecarlo import simulate
 
     c = PAPER_CASES[name]
     result = simulate(System(c["A"], c["C"], c["Q"], c["R"]), paths, steps, seed,

@@ -28,7 +28,7 @@ from kfcrit.channels import GilbertElliott, Trace
 from kfcrit.errors import InputError
 from kfcrit.record import dumps
 from kfcrit.riccati import f_arrival, f_loss, g
-from kfcrit.simulate import (
+from kfcrit.montecarlo import (
     LANES,
     _lambda_max_lanes,
     _riccati_lanes,
@@ -459,7 +459,7 @@ def test_simulate_command_json_text_and_plot(tmp_path, capsys):
 
 def test_progress_bar_path_runs_and_reports(capsys):
     """The rich progress path (used only when stderr is a terminal) gives the same result."""
-    from kfcrit.simulate import _with_progress
+    from kfcrit.montecarlo import _with_progress
 
     spec = load_spec(REPORTS / "sinopoli-scalar.yaml")
     res = _with_progress(spec, 600, 20, 3, False)

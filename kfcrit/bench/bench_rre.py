@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     from reference_rre import simulate_traces  # noqa: E402 - found through sys.path
     from systems import random_system  # noqa: E402
 
-    from kfcrit.simulate import simulate
+    from kfcrit.montecarlo import simulate
     from kfcrit.system import System
 
     print(f"machine: {machine()}")
