@@ -157,9 +157,9 @@ def operating_point(spec: SystemSpec, sections: dict[str, Any]) -> dict[str, Any
         else:
             verdict = "undetermined"
     if not spec.channel.iid:
-        out["note"] = ("the mean-stability theorems assume i.i.d. losses; for a bursty channel "
-                       "the verdict compares the stationary arrival probability and is indicative "
-                       "only (see link_budget / theory for the Gilbert-Elliott condition)")
+        out["note"] = ("p_c, p_up and the covariance bounds S̄, V̄ assume i.i.d. losses; for this "
+                       "bursty channel the margin compares only the stationary arrival "
+                       "probability, and the verdict follows the basis stated")
     out["verdict"] = verdict
     return out
 
@@ -200,6 +200,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     _bounds_sections(spec, sec, warnings)
     _simulation_sections(spec, opts, sec, warnings)
     _link_sections(spec, sec, warnings)
+    bursty_verdict(sec)
     sec["verification"] = verification(sec)
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
     sec["provenance"] = provenance(spec, opts)
@@ -298,6 +299,50 @@ def _link_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -
     warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
 
 
+def bursty_verdict(sec: dict[str, Any]) -> None:
+    """For a non-i.i.d. Gilbert–Elliott channel the i.i.d. comparison p > p_c does not decide
+    mean stability; where the scalar condition (1 − r)a² < 1 (MATH §7) applies as a theorem, it
+    decides the verdict instead, otherwise the verdict is ``undetermined``."""
+    op = sec.get("operating_point")
+    lb = sec.get("link_budget") or {}
+    if not op or op.get("iid") or op["channel"].get("model") != "gilbert-elliott":
+        return
+    cond = lb.get("condition") if isinstance(lb.get("condition"), dict) else {}
+    iid_verdict = op.get("verdict")
+    if cond.get("status", "").startswith("theorem") and cond.get("holds") is not None:
+        op["verdict"] = "mean-stable" if cond["holds"] else "mean-unstable"
+        op["basis"] = (f"Gilbert–Elliott condition {cond.get('expression')}: value "
+                       f"{cond.get('value'):.6g} (MATH §7, scalar case)")
+    else:
+        op["verdict"] = "undetermined"
+        op["basis"] = ("bursty losses: no theorem in the papers decides mean stability for this "
+                       "system; see the literature claims in link_budget")
+    op["iid_comparison_verdict"] = iid_verdict
+
+
+def _simulated_mean_between_bounds(cb: dict[str, Any],
+                                   sim_op: dict[str, Any]) -> dict[str, Any] | None:
+    """Sinopoli Thm 4/6 cross-check: the simulated E[tr P_t] at the horizon lies in
+    [tr S̄, tr V̄] up to its confidence band (and a 5 % allowance for the finite horizon)."""
+    lower, upper = cb.get("lower") or {}, cb.get("upper") or {}
+    mt = sim_op.get("mean_trace") or {}
+    if not (lower.get("exists") and upper.get("exists") and mt.get("mean")):
+        return None
+    if sim_op.get("iid") is False:  # S̄ and V̄ are bounds for i.i.d. losses only
+        return None
+    if (sim_op.get("divergence") or {}).get("diverged_paths"):
+        return None
+    mean, lo, hi = mt["mean"][-1], (mt.get("lower") or mt["mean"])[-1], \
+        (mt.get("upper") or mt["mean"])[-1]
+    if None in (mean, lo, hi):
+        return None
+    ok = hi >= 0.95 * lower["trace"] and lo <= 1.05 * upper["trace"]
+    return {"check": "simulation: E[tr P_t] at the horizon within [tr S̄, tr V̄] (Thm 4, 6)",
+            "passed": bool(ok),
+            "detail": f"{lower['trace']:.6g} ≤ {mean:.6g} (band {lo:.6g}–{hi:.6g}) ≤ "
+                      f"{upper['trace']:.6g}"}
+
+
 def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
     """The checks the record relies on, each with its outcome (for the report's appendix).
 
@@ -309,7 +354,7 @@ def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
     if ub:
         cert = ub.get("certificate") or {}
         checks.append({"check": "upper-bound certificate X ≻ g_p(X), X ≻ 0 (exact re-check)",
-                       "passed": bool(ub.get("certified")),
+                       "passed": True if ub.get("certified") else None,
                        "detail": cert.get("verified_by") or cert.get("kind") or ub.get("status")})
     cb = sec.get("covariance_bounds") or {}
     if cb:
@@ -319,6 +364,9 @@ def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
     sim = sec.get("simulation") or {}
     for c in sim.get("checks") or []:
         checks.append(c)
+    between = _simulated_mean_between_bounds(cb, sim.get("operating_point") or {})
+    if between is not None:
+        checks.append(between)
     pcv = (sec.get("critical_value") or {}).get("value")
     lb = (sec.get("lower_bound") or {}).get("value")
     up = ub.get("value") if ub else None

@@ -50,8 +50,64 @@ def summary(rec: dict[str, Any]) -> str:
             b = op["bracket"]
             lines.append(f"  bracket               [{_num(b[0])}, {_num(b[1])}]")
         lines.append(f"  verdict               {op.get('verdict', '—').upper()}")
+        if op.get("basis"):
+            lines.append(f"      basis: {op['basis']}")
         if op.get("note"):
             lines.append(f"      note: {op['note']}")
+    lines.extend(_bounds_lines(rec))
+    lines.extend(_simulation_lines(rec))
+    lines.extend(_link_lines(rec))
+    checks = rec.get("verification") or []
+    if checks:
+        passed = sum(c.get("passed") is True for c in checks)
+        failed = [c["check"] for c in checks if c.get("passed") is False]
+        lines.append(f"  verification          {passed} of {len(checks)} checks passed"
+                     + (f"; FAILED: {'; '.join(failed)}" if failed else ""))
     for w in rec.get("warnings") or []:
         lines.append(f"  warning: {w}")
     return "\n".join(lines)
+
+
+def _bounds_lines(rec: dict[str, Any]) -> list[str]:
+    cb = rec.get("covariance_bounds")
+    if not cb:
+        return []
+    lo, up = cb.get("lower") or {}, cb.get("upper") or {}
+    return [f"  lim E[P] bounds at p   tr S̄ = {_num(lo.get('trace')) if lo.get('exists') else '∞'}"
+            f" ≤ tr lim E[P] ≤ tr V̄ = {_num(up.get('trace')) if up.get('exists') else '∞'}"]
+
+
+def _simulation_lines(rec: dict[str, Any]) -> list[str]:
+    sim = (rec.get("simulation") or {}).get("operating_point")
+    if not sim:
+        return []
+    mt = sim.get("mean_trace") or {}
+    out = []
+    if mt.get("mean"):
+        out.append(f"  simulated E[tr P_t]   {_num(mt['mean'][-1])} at t = {sim.get('steps')} "
+                   f"({sim.get('paths')} paths, seed {sim.get('seed')})")
+    ex = sim.get("exceedance")
+    if ex:
+        out.append(f"  P(tr P > {_num(ex.get('level'))})      {_num(ex.get('probability'))}")
+    div = sim.get("divergence") or {}
+    if div.get("diverged_paths"):
+        out.append(f"  diverged paths        {div['diverged_paths']} of {sim.get('paths')}")
+    return out
+
+
+def _link_lines(rec: dict[str, Any]) -> list[str]:
+    lb = rec.get("link_budget")
+    if not lb or not lb.get("applicable", True):
+        return []
+    out = []
+    for key, label, unit in (("required_sinr_db", "required SINR", " dB"),
+                             ("required_rx_power_dbm", "required rx power", " dBm"),
+                             ("link_margin_db", "link margin", " dB"),
+                             ("max_distance_m", "max distance", " m")):
+        if lb.get(key) is not None:
+            out.append(f"  {label:<21} {_num(lb[key])}{unit}")
+    cond = lb.get("condition")
+    if isinstance(cond, dict) and cond.get("expression"):
+        out.append(f"  bursty link           {cond['expression']}: {_num(cond.get('value'))} "
+                   f"({'holds' if cond.get('holds') else 'fails'}; {cond.get('status')})")
+    return out
