@@ -50,7 +50,7 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                 traceback.print_exc()
             fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            fail("interrupted", 130)
+            fail("interrupted; nothing was written", 130)
         except (click.exceptions.Exit, click.ClickException, SystemExit):
             raise
         except MemoryError:
@@ -73,6 +73,21 @@ max_states_option = click.option("--max-states", type=click.IntRange(1, 100_000)
 @click.version_option(__version__, prog_name="kfcrit")
 def main() -> None:
     """kfcrit: critical packet-arrival probability of a Kalman filter over a lossy link."""
+    install_sigterm_handler()
+
+
+def install_sigterm_handler() -> None:
+    """Turn SIGTERM into ``KeyboardInterrupt`` so that ``finally`` blocks remove temporary files
+    (atomic writes then leave the previous output or nothing, never a partial file)."""
+    import signal
+
+    def _raise(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        signal.signal(signal.SIGTERM, _raise)
+    except ValueError:  # not the main thread (e.g. under a test runner's worker thread)
+        pass
 
 
 @main.command(epilog=EXAMPLES)
