@@ -24,7 +24,7 @@ from typing import Any
 
 from . import __version__
 from .record import jsonable
-from .system import System
+from .system import System, conditioning_warnings
 from .systemfile import SystemSpec
 
 CONTRACT_KEYS = ("name", "classification", "critical_value", "robust_critical_value",
@@ -191,7 +191,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sec["description"] = spec.description
     sec["system"] = system_section(spec)
     sec["requirements"] = spec.requirements.to_dict()
-    warnings: list[str] = []
+    warnings: list[str] = conditioning_warnings(s)
 
     _critical_sections(spec, opts, sec, warnings)
     _upper_sections(spec, opts, sec, warnings)

@@ -235,3 +235,34 @@ class System:
         return {nm: [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
                 for nm, M in (("A", self.A), ("C", self.C), ("Q", self.Q), ("R", self.R),
                               ("Sigma0", self.Sigma0))}
+
+
+ILL_CONDITIONED = 1e8
+"""Ratio above which a spread of scales is reported as ill-conditioned."""
+
+
+def conditioning_warnings(system: System) -> list[str]:
+    """Warnings about data that float64 numerics handle badly (the exact decisions are unaffected).
+
+    Checked: the spread of eigenvalue moduli of A (max/min over non-zero moduli), the condition
+    number of R, and of the observability Gramian-like matrix [C; CA; …] restricted to the
+    modes with |λ| ≥ 1 (a nearly unobservable unstable mode).
+    """
+    out: list[str] = []
+    mod = np.abs(np.linalg.eigvals(system.a))
+    nz = mod[mod > 0]
+    if nz.size and nz.max() / nz.min() > ILL_CONDITIONED:
+        out.append(f"ill-conditioned A: eigenvalue moduli span {nz.min():.3g} to {nz.max():.3g}; "
+                   "the numerical bounds and simulations may lose accuracy")
+    cond_r = np.linalg.cond(system.r)
+    if not np.isfinite(cond_r) or cond_r > ILL_CONDITIONED:
+        out.append(f"nearly singular R: condition number {cond_r:.3g}; the Kalman update divides "
+                   "by C P C' + R")
+    w, v = np.linalg.eig(system.a)
+    for lam, vec in zip(w, v.T):
+        if abs(lam) >= 1:
+            seen = np.linalg.norm(system.c @ vec) / max(np.linalg.norm(system.c), 1e-300)
+            if 0 < seen < 1e-6:
+                out.append(f"nearly unobservable mode: eigenvalue {complex(lam):.6g} is seen "
+                           f"through C with relative gain {seen:.3g}")
+    return out

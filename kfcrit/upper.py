@@ -324,8 +324,10 @@ def _newton_method(system: System, tol: float) -> UpperBound:
     r1, X1, it = cone_radius(Au, Cu, 1.0)
     stats["power_iterations"] += it
     if not (r1 < 1.0):
-        warnings.append("(A, C) looks undetectable: the noise-free Riccati map has cone spectral "
-                        f"radius {r1:.6g} >= 1 at p = 1, so no arrival probability < 1 works")
+        warnings.append("upper bound undetermined: in float64 the noise-free Riccati map has cone "
+                        f"spectral radius {r1:.6g} >= 1 even at p = 1, so no p_up < 1 was found; "
+                        "(A, C) is either not detectable or too ill-conditioned for this method "
+                        "(the exact structure analysis decides detectability)")
         return done(None, (p_low, 1.0), False, "undetermined", None, _evidence_p_low(p_low))
     Xh, Xl = X1, None
     while hi - lo > 1.0 / 64:
