@@ -1,0 +1,107 @@
+"""Numerical trouble: solver failures are *undetermined* (exit 3, bracket so far), ill-conditioned
+data raise warnings, divergence is reported — and no NaN or inf reaches JSON or HTML."""
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import cvxpy as cp
+import pytest
+from click.testing import CliRunner
+
+from kfcrit import System
+from kfcrit.cli import main
+from kfcrit.upper import upper_bound
+
+SYSTEMS = {
+    "spread": ("A: [[1e8, 0, 0], [0, 1.5, 0], [0, 0, 1e-8]]\nC: [[1, 1, 1]]\nQ: 1\nR: 1\n",
+               "ill-conditioned A"),
+    "near-singular-R": ("A: [[1.2, 1], [0, 1.1]]\nC: [[1, 0], [0, 1]]\nQ: 1\n"
+                        "R: [[1, 0.99999999], [0.99999999, 1]]\n", "nearly singular R"),
+    "nearly-unobservable": ("A: [[1.3, 0], [0, 1.1]]\nC: [[1, 1e-9]]\nQ: 1\nR: 1\n",
+                            "nearly unobservable mode"),
+}
+CHANNEL = "channel: {model: bernoulli, arrival_probability: 0.5}\n"
+
+
+def run(tmp_path: Path, body: str, *args: str) -> tuple[int, str, str]:
+    p = tmp_path / "s.yaml"
+    p.write_text("name: numerics\n" + body + CHANNEL)
+    r = CliRunner().invoke(main, ["analyze", str(p), "--json", *args])
+    return r.exit_code, r.stdout, r.stderr
+
+
+def assert_finite(text: str) -> dict:
+    rec = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+
+    def walk(o: object) -> None:
+        if isinstance(o, float):
+            assert math.isfinite(o)
+        elif isinstance(o, dict):
+            for v in o.values():
+                walk(v)
+        elif isinstance(o, list):
+            for v in o:
+                walk(v)
+    walk(rec)
+    return rec
+
+
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+def test_ill_conditioned_systems_warn_and_stay_finite(name: str, tmp_path: Path) -> None:
+    body, phrase = SYSTEMS[name]
+    code, out, err = run(tmp_path, body, "--quick")
+    assert code in (0, 3), err
+    rec = assert_finite(out)
+    assert any(phrase in w for w in rec["warnings"]), rec["warnings"]
+    if code == 3:  # inconclusive: the record says so and gives the bracket obtained so far
+        ub = rec["upper_bound"]
+        assert ub["status"] == "undetermined"
+        lo, hi = ub["interval"]
+        assert 0 <= lo <= hi <= 1
+
+
+def test_far_below_pc_divergence_is_reported_not_overflowed(tmp_path: Path) -> None:
+    # p_c = 1 - 1/9 (Mo–Sinopoli Thm 4, λ = 3, 2 distinct moduli); p = 0.2 is far below it
+    p = tmp_path / "s.yaml"
+    p.write_text("name: below\nA: [[3, 1], [0, 2]]\nC: [[1, 0]]\nQ: 1\nR: 1\n"
+                 "channel: {model: bernoulli, arrival_probability: 0.2}\n")
+    r = CliRunner().invoke(main, ["analyze", str(p), "--json", "--quick"])
+    rec = assert_finite(r.stdout)
+    assert rec["operating_point"]["verdict"] == "mean-unstable"
+    div = rec["simulation"]["operating_point"]["divergence"]
+    assert div["diverged_paths"] > 0 and div["mean_is_lower_bound"] is True
+    assert any("diverged" in w for w in rec["warnings"])
+
+
+def test_solver_errors_are_undetermined_never_feasible(monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(self, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003
+        raise cp.error.SolverError("injected failure")
+
+    monkeypatch.setattr(cp.Problem, "solve", broken)
+    s = System([[1.25, 0], [1, 1.1]], [[1, 1]], 20, 2.5)
+    ub = upper_bound(s, tol=1e-6, method="lmi").to_dict()
+    assert ub["status"] == "undetermined"
+    assert ub["certified"] is False
+    lo, hi = ub["interval"]
+    assert lo <= 57 / 121 <= hi  # the true p_up (expected.json) stays inside the bracket
+
+
+def test_inconclusive_exit_code_is_3(tmp_path: Path) -> None:
+    code, out, _ = run(tmp_path, SYSTEMS["nearly-unobservable"][0], "--no-simulate")
+    rec = assert_finite(out)
+    assert (code == 3) == (rec["upper_bound"]["status"] == "undetermined")
+
+
+def test_report_of_an_ill_conditioned_system_has_no_nan(tmp_path: Path) -> None:
+    p = tmp_path / "s.yaml"
+    p.write_text("name: numerics\n" + SYSTEMS["spread"][0] + CHANNEL)
+    out = tmp_path / "r.html"
+    r = CliRunner().invoke(main, ["report", str(p), "-o", str(out), "--quick"])
+    assert r.exit_code in (0, 3), r.stderr
+    html = out.read_text()
+    text = re.sub(r"<[^>]+>", " ", re.sub(r"<svg.*?</svg>", " ", html, flags=re.S))
+    assert not re.search(r"\b(nan|NaN|inf|Infinity)\b", text)
+    assert "ill-conditioned A" in text
