@@ -176,7 +176,8 @@ class _Walker:
             return self.binop(node, depth)
         if isinstance(node, ast.Call):
             return self.call(node, depth)
-        raise self.fail(f"{_DESCRIPTIONS.get(type(node).__name__, type(node).__name__)} is not allowed")
+        kind = type(node).__name__
+        raise self.fail(f"{_DESCRIPTIONS.get(kind, kind)} is not allowed")
 
     def constant(self, node: ast.Constant) -> sp.Expr:
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):

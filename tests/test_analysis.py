@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import pytest
@@ -14,6 +13,7 @@ from kfcrit.analysis import CONTRACT_KEYS
 from kfcrit.cli import main
 
 from .conftest import REPORTS, SHARED_CASES
+from .util import assert_all_finite
 
 EXPECTED = (json.loads((SHARED_CASES / "expected.json").read_text())
             if (SHARED_CASES / "expected.json").exists() else {})
@@ -136,14 +136,5 @@ def test_terminal_summary_shows_verdict() -> None:
 
 
 def test_record_numbers_are_finite_everywhere(records: dict) -> None:
-    def walk(o: object) -> None:
-        if isinstance(o, float):
-            assert math.isfinite(o)
-        elif isinstance(o, dict):
-            for v in o.values():
-                walk(v)
-        elif isinstance(o, list):
-            for v in o:
-                walk(v)
     for _, rec, _ in records.values():
-        walk(rec)
+        assert_all_finite(rec)

@@ -3,7 +3,6 @@ data raise warnings, divergence is reported — and no NaN or inf reaches JSON o
 from __future__ import annotations
 
 import json
-import math
 import re
 from pathlib import Path
 
@@ -14,6 +13,8 @@ from click.testing import CliRunner
 from kfcrit import System
 from kfcrit.cli import main
 from kfcrit.upper import upper_bound
+
+from .util import assert_all_finite
 
 SYSTEMS = {
     "spread": ("A: [[1e8, 0, 0], [0, 1.5, 0], [0, 0, 1e-8]]\nC: [[1, 1, 1]]\nQ: 1\nR: 1\n",
@@ -35,17 +36,7 @@ def run(tmp_path: Path, body: str, *args: str) -> tuple[int, str, str]:
 
 def assert_finite(text: str) -> dict:
     rec = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
-
-    def walk(o: object) -> None:
-        if isinstance(o, float):
-            assert math.isfinite(o)
-        elif isinstance(o, dict):
-            for v in o.values():
-                walk(v)
-        elif isinstance(o, list):
-            for v in o:
-                walk(v)
-    walk(rec)
+    assert_all_finite(rec)
     return rec
 
 

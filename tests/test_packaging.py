@@ -61,3 +61,12 @@ def test_wheel_contains_package_and_templates(tmp_path: Path) -> None:
     assert repo_templates, "templates/ is empty"
     assert [Path(n).name for n in templates] == repo_templates
     assert any(n.endswith("entry_points.txt") for n in names)
+
+
+def test_ruff_clean() -> None:
+    ruff = shutil.which("ruff")
+    if ruff is None:
+        pytest.skip("ruff is not installed (it is in the 'test' extra)")
+    proc = subprocess.run([ruff, "check", str(ROOT)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stdout[-3000:]
