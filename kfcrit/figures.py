@@ -137,8 +137,9 @@ def phase_transition_svg(record: dict[str, Any]) -> str | None:
         _mark(ax, marks["operating"], "operating", "operating p", "-.")
         ax.set_xlabel("arrival probability p")
         ax.set_ylabel("trace of the bound")
-        ax.set_xlim(min(p), max(p))
-        ax.legend(loc="upper right", frameon=False, ncols=2)
+        xs = [v for v in (min(p), marks["p_low"]) if v is not None]
+        ax.set_xlim(min(xs) - 0.01 * (max(p) - min(xs)), max(p))
+        fig.legend(loc="outside lower center", frameon=False, ncols=6)
         return _to_svg(fig, "Phase transition: trace of the lower and upper covariance bounds "
                             "against the arrival probability")
 
@@ -200,7 +201,7 @@ def operating_svg(record: dict[str, Any]) -> str | None:
         ax.set_yscale("log")
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")
-        ax.legend(loc="best", frameon=False, ncols=2)
+        fig.legend(loc="outside lower center", frameon=False, ncols=4)
         return _to_svg(fig, "Simulated mean error covariance trace at the operating point "
                             "against the covariance bounds")
 

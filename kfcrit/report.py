@@ -105,7 +105,7 @@ THEOREMS: tuple[tuple[str, str, str, str], ...] = (
      "value is the Sinopoli lower bound of the largest eigenvalue modulus."),
     ("second-order", "Mo–Sinopoli, Theorem 5 (Theorems 9 and 10)",
      r"p_c = \max\,(1 - |\lambda_1|^{-2/(1 - D_M(\varphi/2\pi))},\ 0)",
-     "A degenerate second-order equi-block with λ₂ = λ₁·e^{jφ}; D_M(x) = 1/q when x = r/q in "
+     "A degenerate second-order equi-block with λ₂ = λ₁·exp(jφ); D_M(x) = 1/q when x = r/q in "
      "lowest terms and 0 when x is irrational."),
     ("degenerate", "Mo–Sinopoli, Theorem 3, with Sinopoli et al., Theorem 5",
      r"\max_I\ p_c(A_I, C_I)\ \leq\ p_c\ \leq\ p_{up}",
@@ -289,7 +289,11 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
     moments = [{"q": _dict(m).get("q"), "value": _num(_dict(m).get("value")),
                 "expression": _dict(m).get("expression"), "applies": _dict(m).get("applies")}
                for m in _list(th.get("moment_thresholds"))]
+    sg = rec.get("static_gain")
     return {"rows": rows, "moments": moments,
+            "static_gain": {"available": isinstance(sg, dict),
+                            "rows": kv_rows({k: v for k, v in _dict(sg).items()
+                                             if not _is_series(v)})},
             "moments_available": bool(moments),
             "moments_missing": _missing("higher-moment thresholds")}
 
@@ -418,7 +422,11 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
     cb = _dict(rec.get("covariance_bounds"))
     prov = _dict(rec.get("provenance"))
     sim = _dict(rec.get("simulation"))
-    checks = [
+    recorded = [{"name": str(_dict(c).get("check") or ""), "status": _dict(c).get("passed"),
+                 "detail": filters.text(_dict(c).get("detail"))
+                 if _dict(c).get("detail") is not None else ""}
+                for c in _list(rec.get("verification"))]
+    derived = [
         {"name": "critical value decided exactly", "status": cv.get("exact"),
          "detail": cv.get("reason") or ""},
         {"name": "upper bound certificate re-checked", "status": ub.get("certified"),
@@ -433,6 +441,9 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
         {"name": "lower covariance bound S̄ exists (Lyapunov)",
          "status": _dict(cb.get("lower")).get("exists"), "detail": ""},
     ]
+    # The record's own verification list when the analysis provides one; else what the
+    # sections' flags say (read, not recomputed).
+    checks = recorded + derived[:1] if recorded else derived
     opts = _dict(prov.get("options"))
     tolerances = {"robust tolerance": rob.get("tolerance", opts.get("tolerance")),
                   "upper-bound tolerance": opts.get("upper_tol"),

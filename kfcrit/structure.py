@@ -52,6 +52,8 @@ from .system import System
 
 EXACT_MAX_STATES = 6
 """Largest n for the exact path (beyond it the number-field arithmetic grows too fast)."""
+EXACT_MAX_STATES_BINARY_FLOAT = 3
+"""Largest n for the exact path when the input holds binary floats (NumPy arrays)."""
 EXACT_TIME_BUDGET = 8.0
 """Seconds the exact path may use (checked between steps; beyond it the numeric path runs).
 
@@ -1013,6 +1015,12 @@ def eigen_structure(system: System, force_numeric: bool = False) -> Structure:
     start = time.monotonic()
     if force_numeric:
         return _numeric_structure(system, start, "numeric path requested")
+    if not system.exact and system.n > EXACT_MAX_STATES_BINARY_FLOAT:
+        # binary floats (NumPy input) are rationals with 2^52 denominators: beyond small n the
+        # exact algebra on them takes tens of seconds (measured: n = 4, 30–40 s)
+        return _numeric_structure(system, start, "numeric float64 path: binary floating-point "
+                                  f"input with n > {EXACT_MAX_STATES_BINARY_FLOAT}; decisions use "
+                                  "the stated tolerances")
     try:
         return _exact_structure(system, start)
     except _Fallback as exc:

@@ -26,8 +26,6 @@ from scipy.linalg import solve_discrete_lyapunov
 
 from kfcrit.channels import GilbertElliott, Trace
 from kfcrit.errors import InputError
-from kfcrit.record import dumps
-from kfcrit.riccati import f_arrival, f_loss, g
 from kfcrit.montecarlo import (
     LANES,
     _lambda_max_lanes,
@@ -38,6 +36,8 @@ from kfcrit.montecarlo import (
     simulate_command,
     simulation_section,
 )
+from kfcrit.record import dumps
+from kfcrit.riccati import f_arrival, f_loss, g
 from kfcrit.system import System
 from kfcrit.systemfile import Requirements, SystemSpec, load_spec
 
