@@ -37,6 +37,25 @@ def fail(message: str, code: int) -> None:
     sys.exit(int(code))
 
 
+def interrupted_exit() -> None:
+    """Report an interruption in one line and leave at once with exit code 130.
+
+    By the time the ``KeyboardInterrupt`` reaches here every ``finally`` block has run (temporary
+    files are removed), so the process ends with ``os._exit``: an interrupt may land inside a
+    JIT compilation, whose half-built objects would otherwise print "Exception ignored"
+    tracebacks from their finalizers at interpreter shutdown.
+    """
+    import os
+
+    click.echo("kfcrit: error: interrupted; nothing was written", err=True)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(130)
+
+
 def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     """Turn kfcrit errors into one stderr line and the documented exit code."""
 
@@ -50,7 +69,7 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                 traceback.print_exc()
             fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            fail("interrupted; nothing was written", 130)
+            interrupted_exit()
         except (click.exceptions.Exit, click.ClickException, SystemExit):
             raise
         except MemoryError:

@@ -147,6 +147,8 @@ def phase_transition_svg(record: dict[str, Any]) -> str | None:
 def traces_svg(record: dict[str, Any]) -> str | None:
     """Simulated mean tr P_t for arrival probabilities just below and above the critical value."""
     demo = _section(record, "simulation", "phase_demo")
+    if isinstance(demo, dict):
+        demo = demo.get("curves")
     if not isinstance(demo, list) or not demo:
         return None
     with matplotlib.rc_context(FIG_RC):
@@ -156,11 +158,12 @@ def traces_svg(record: dict[str, Any]) -> str | None:
         for i, run in enumerate(demo):
             if not isinstance(run, dict):
                 continue
-            t, y = _floats(run.get("t")), _floats(run.get("mean_trace"))
+            t, y, _, _ = series_of(run)
             if t is None or y is None or len(t) != len(y) or not _positive(y):
                 continue
-            p = _number(run.get("p"))
-            label = str(run.get("label") or "")
+            p = _number(run.get("p") if run.get("p") is not None
+                        else run.get("arrival_probability"))
+            label = str(run.get("label") or run.get("side") or "")
             text = f"p = {p:.4g}" if p is not None else "p = ?"
             ax.plot(t, y, color=palette[i % len(palette)], linewidth=1.2,
                     label=f"{text} ({label})" if label else text)
@@ -175,15 +178,48 @@ def traces_svg(record: dict[str, Any]) -> str | None:
                             "value")
 
 
+def series_of(run: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
+    """(t, mean, band low, band high) of a simulated run, in either record shape:
+    ``t/mean_trace/band_low/band_high`` lists, or ``times`` with ``mean_trace`` a list or a
+    mapping ``{mean, lower, upper}`` (``lower``/``upper`` lists beside it also accepted)."""
+    t = _floats(run.get("t") if run.get("t") is not None else run.get("times"))
+    mt = run.get("mean_trace")
+    if isinstance(mt, dict):
+        return t, _floats(mt.get("mean")), _floats(mt.get("lower")), _floats(mt.get("upper"))
+    lo = run.get("band_low") if run.get("band_low") is not None else run.get("lower")
+    hi = run.get("band_high") if run.get("band_high") is not None else run.get("upper")
+    return t, _floats(mt), _floats(lo), _floats(hi)
+
+
+def cdf_of(record: dict[str, Any]) -> tuple[Any, Any]:
+    """(x, F) of the simulated distribution of tr P at the operating point (either shape)."""
+    op = _section(record, "simulation", "operating_point") or {}
+    cdf = op.get("cdf") if isinstance(op.get("cdf"), dict) else \
+        _section(op, "horizon", "cdf")
+    if not isinstance(cdf, dict):
+        return None, None
+    x = cdf.get("x") if cdf.get("x") is not None else cdf.get("trace")
+    f = cdf.get("F") if cdf.get("F") is not None else cdf.get("probability")
+    return _floats(x), _floats(f)
+
+
+def tail_of(record: dict[str, Any]) -> float | None:
+    """Simulated P(tr P > limit) at the operating point (``tail_probability`` or
+    ``exceedance.estimate``)."""
+    op = _section(record, "simulation", "operating_point") or {}
+    if _number(op.get("tail_probability")) is not None:
+        return _number(op.get("tail_probability"))
+    return _number(_section(op, "exceedance", "estimate"))
+
+
 def operating_svg(record: dict[str, Any]) -> str | None:
     """Mean tr P_t at the operating point (with its band) against tr S̄ and tr V̄."""
     op = _section(record, "simulation", "operating_point")
     if not isinstance(op, dict):
         return None
-    t, y = _floats(op.get("t")), _floats(op.get("mean_trace"))
+    t, y, lo, hi = series_of(op)
     if t is None or y is None or len(t) != len(y) or not _positive(y):
         return None
-    lo, hi = _floats(op.get("band_low")), _floats(op.get("band_high"))
     s_tr = _number(_section(record, "covariance_bounds", "lower", "trace"))
     v_tr = _number(_section(record, "covariance_bounds", "upper", "trace"))
     with matplotlib.rc_context(FIG_RC):
@@ -208,14 +244,11 @@ def operating_svg(record: dict[str, Any]) -> str | None:
 
 def cdf_svg(record: dict[str, Any]) -> str | None:
     """Empirical CDF of tr P at the operating point, with the requirement's limit if given."""
-    cdf = _section(record, "simulation", "operating_point", "cdf")
-    if not isinstance(cdf, dict):
-        return None
-    x, f = _floats(cdf.get("x")), _floats(cdf.get("F"))
+    x, f = cdf_of(record)
     if x is None or f is None or len(x) != len(f) or not _positive(x):
         return None
     limit = _number(_section(record, "requirements", "max_error_trace"))
-    tail = _number(_section(record, "simulation", "operating_point", "tail_probability"))
+    tail = tail_of(record)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = _new_figure()
         ax.step(x, f, where="post", color=COLORS["sim"], linewidth=1.3,
@@ -233,15 +266,33 @@ def cdf_svg(record: dict[str, Any]) -> str | None:
         return _to_svg(fig, "Distribution of the error covariance trace at the operating point")
 
 
+def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
+    """Empty intervals of the invariant support: ``gaps``, ``gap_levels`` [{lower, upper}],
+    ``holes`` and ``support_points.largest_gaps`` (pairs), de-duplicated and sorted."""
+    raw: list[Any] = list(inv.get("gaps") or []) + list(inv.get("holes") or [])
+    raw += [[_dict_get(g, "lower"), _dict_get(g, "upper")] for g in inv.get("gap_levels") or []]
+    sp = inv.get("support_points")
+    if isinstance(sp, dict):
+        raw += list(sp.get("largest_gaps") or [])
+    out = {(float(g[0]), float(g[1])) for g in raw
+           if isinstance(g, (list, tuple)) and len(g) == 2
+           and _number(g[0]) is not None and _number(g[1]) is not None and g[1] > g[0]}
+    return [list(g) for g in sorted(out)]
+
+
+def _dict_get(d: Any, key: str) -> Any:
+    return d.get(key) if isinstance(d, dict) else None
+
+
 def invariant_svg(record: dict[str, Any]) -> str | None:
     """Support of the invariant distribution of a scalar system: points and empty gaps."""
     inv = record.get("invariant")
     if not isinstance(inv, dict):
         return None
     points = _floats(inv.get("support_points")) or []
-    gaps = [g for g in (inv.get("gaps") or []) if isinstance(g, (list, tuple)) and len(g) == 2
-            and _number(g[0]) is not None and _number(g[1]) is not None]
-    fixed = _number(inv.get("fixed_point"))
+    gaps = invariant_gaps(inv)
+    fp = inv.get("fixed_point")
+    fixed = _number(fp.get("value") if isinstance(fp, dict) else fp)
     if not _positive(points) and not gaps:
         return None
     with matplotlib.rc_context(FIG_RC):

@@ -34,9 +34,10 @@ def clean_svg(svg: str, *, label: str | None = None, css_class: str = "") -> str
     """Make matplotlib's SVG document embeddable in HTML.
 
     Drops the XML declaration, DOCTYPE, metadata, comments and the global ``<style>`` (its
-    ``*{...}`` rule would leak into the page; ``report.css`` has the equivalent scoped rule); prefixes every ``id`` (and each
-    reference to it) with a fresh ``kN-`` so ids are unique in the page; adds ``role="img"``,
-    an ``aria-label`` and a ``<title>`` (escaped) when ``label`` is given.
+    ``*{...}`` rule would leak into the page; ``report.css`` has the equivalent scoped rule);
+    prefixes every ``id`` (and each reference to it) with a fresh ``kN-`` so ids are unique in
+    the page; adds ``role="img"``, an ``aria-label`` and a ``<title>`` (escaped) when
+    ``label`` is given.
     """
     svg = _STRIP_RE.sub("", svg).strip()
     prefix = f"k{next(_PREFIX)}-"

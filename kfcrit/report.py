@@ -152,8 +152,10 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "p": _num(_dict(op).get("arrival_probability")),
         "p_expression": channel.get("arrival_probability_expression"),
         "channel_model": channel.get("model"),
-        "channel_rows": kv_rows(channel, skip=("model", "arrival_probability",
-                                               "arrival_probability_expression")),
+        "channel_rows": kv_rows({k: v for k, v in channel.items()
+                                 if not isinstance(v, (dict, list))},
+                                skip=("model", "arrival_probability",
+                                      "arrival_probability_expression")),
         "critical_value": _num(cv.get("value")),
         "critical_expression": cv.get("expression"),
         "critical_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=13,
@@ -180,8 +182,9 @@ def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
     req = _dict(rec.get("requirements"))
     limit = _num(req.get("max_error_trace"))
     max_tail = _num(req.get("max_tail_probability"))
-    sim_op = _dict(_dict(rec.get("simulation")).get("operating_point"))
-    tail = _num(sim_op.get("tail_probability"))
+    from .figures import tail_of
+
+    tail = tail_of(rec)
     met = None
     if limit is not None and max_tail is not None and tail is not None:
         met = tail <= max_tail
@@ -370,13 +373,16 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     """Summary numbers of the simulation (arrays are drawn, not tabulated)."""
     sim = rec.get("simulation")
     d = _dict(sim)
+    from .figures import tail_of
+
     op = _dict(d.get("operating_point"))
     scalars = {k: v for k, v in op.items()
                if not isinstance(v, (list, dict)) and k != "tail_probability"}
     top = {k: v for k, v in d.items()
-           if k not in ("operating_point", "phase_demo") and not _is_series(v)}
+           if k not in ("operating_point", "phase_demo", "checks", "warnings")
+           and not _is_series(v)}
     return {"available": isinstance(sim, dict), "missing": _missing("simulation"),
-            "tail_probability": _num(op.get("tail_probability")),
+            "tail_probability": tail_of(rec),
             "rows": kv_rows(top) + kv_rows(scalars)}
 
 
@@ -406,12 +412,14 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
     n = _dict(rec.get("system")).get("n")
     inv = rec.get("invariant")
     d = _dict(inv)
-    gaps = [g for g in _list(d.get("gaps")) if isinstance(g, list) and len(g) == 2]
+    from .figures import invariant_gaps
+
+    gaps = invariant_gaps(d)
     return {"applies": n == 1, "available": isinstance(inv, dict),
             "missing": _missing("invariant distribution support"),
             "gaps": gaps[:8], "more_gaps": max(0, len(gaps) - 8),
             "rows": kv_rows({k: v for k, v in d.items() if not _is_series(v)},
-                            skip=("gaps", "support_points"))}
+                            skip=("gaps", "support_points", "gap_levels", "holes"))}
 
 
 def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
