@@ -24,10 +24,9 @@ so (``mean_is_lower_bound``) — never a silent inf or NaN.
 """
 from __future__ import annotations
 
+import io
 import math
-import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -37,6 +36,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from .atomic import write_atomic
 from .channels import ArrivalProcess, Bernoulli, Channel, exact_probability
 from .errors import InputError
 from .system import System
@@ -1448,13 +1448,8 @@ def write_plot(result: SimulationResult, path: str) -> None:
         ax2.set_xlabel(f"tr P at t = {result.steps}")
         ax2.set_ylabel("CDF")
         fig.tight_layout()
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".kfcrit-", suffix=target.suffix)
-        os.close(fd)
-        try:
-            fig.savefig(tmp, format=target.suffix.lower().lstrip("."))
-            os.replace(tmp, target)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format=target.suffix.lower().lstrip("."))
+        write_atomic(target, buffer.getvalue())
     finally:
         plt.close(fig)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import sys
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ import jinja2
 from markupsafe import Markup
 
 from . import __version__, filters, mathsvg
+from .atomic import write_atomic
 from .errors import InputError
 
 FORMATS = {".html": "html", ".htm": "html", ".pdf": "pdf"}
@@ -565,40 +565,6 @@ def check_output_path(system_file: str | Path, output: str | Path) -> Path:
     if not out.resolve().parent.is_dir():
         raise InputError(f"folder {str(out.parent)[:80]!r} does not exist", field="output")
     return out
-
-
-def write_atomic(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically: temporary file in the same folder, fsync, rename.
-
-    A reader sees the old file or the complete new one, never a partial file; on any error the
-    temporary file is removed and the old file is untouched.
-    """
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp",
-                               dir=str(target.resolve().parent))
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    try:  # make the rename itself durable (best effort; not every filesystem allows it)
-        dfd = os.open(str(target.resolve().parent), os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
-    except OSError:
-        pass
 
 
 def _progress(message: str) -> None:

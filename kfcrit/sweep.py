@@ -44,7 +44,6 @@ import math
 import os
 import re
 import sys
-import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from decimal import Decimal
@@ -55,6 +54,7 @@ from typing import Any
 import sympy as sp
 
 from . import __version__
+from .atomic import write_atomic
 from .errors import ExitCode, InputError, KfcritError
 from .record import jsonable
 
@@ -649,23 +649,6 @@ def run_dask(spec: SweepSpec, items: Items, max_states: int, scheduler: str,
 # Outputs
 # ---------------------------------------------------------------------------------------------
 
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically: temporary file in the folder, fsync, rename."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
 def _param_value(text: str) -> Any:
     """A parameter's value for the table: a float when the text is a number, else the text."""
     from .exprparse import parse_expression
@@ -846,12 +829,12 @@ def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
     files = {"csv": out / "sweep.csv", "json": out / "sweep.json",
              "svg": out / "margin.svg", "png": out / "margin.png",
              "run": out / "run.json"}
-    atomic_write(files["csv"], table_csv(spec, rows).encode())
-    atomic_write(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
+    write_atomic(files["csv"], table_csv(spec, rows).encode())
+    write_atomic(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
                                            ensure_ascii=False).encode())
-    atomic_write(files["run"], json.dumps(run, indent=1).encode())
+    write_atomic(files["run"], json.dumps(run, indent=1).encode())
     for fmt, data in plot_margin(spec, rows).items():
-        atomic_write(files[fmt], data)
+        write_atomic(files[fmt], data)
     return {k: str(v) for k, v in files.items()}
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 
 from kfcrit import figures, filters, mathsvg, report
+from kfcrit.atomic import write_atomic
 from kfcrit.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -433,9 +434,19 @@ def test_refuses_missing_folder_and_directory(tmp_path):
 def test_write_atomic_replaces_and_leaves_no_temporary(tmp_path):
     target = tmp_path / "r.html"
     target.write_text("old")
-    report.write_atomic(target, b"new")
+    write_atomic(target, b"new")
     assert target.read_bytes() == b"new"
     assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+
+
+def test_write_atomic_gives_usual_permissions(tmp_path):
+    """``mkstemp`` creates 0600 files; outputs must get 0666 & ~umask like any new file."""
+    old = os.umask(0o022)
+    try:
+        write_atomic(tmp_path / "out.csv", b"x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "out.csv").stat().st_mode & 0o777 == 0o644
 
 
 def test_write_atomic_failure_keeps_old_file(tmp_path, monkeypatch):
@@ -447,7 +458,7 @@ def test_write_atomic_failure_keeps_old_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(os, "replace", boom)
     with pytest.raises(OSError):
-        report.write_atomic(target, b"new")
+        write_atomic(target, b"new")
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
 
