@@ -296,7 +296,36 @@ def _link_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -
         robust_value=(sec.get("robust_critical_value") or {}).get("value"),
         bracket=tuple(op.get("bracket") or (None, None)),
         upper_bound=(sec.get("upper_bound") or {}).get("value"))
+    if isinstance(sec["link_budget"], dict):
+        sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
     warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
+
+
+def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
+    """The configured link against its own margin policy (read from the link-budget section).
+
+    ``margin_policy_met``: the link margin at the configured distance is at least the policy's
+    effective margin max(margin_db, σ·Φ⁻¹(1 − max_outage)) (equivalently, the distance is within
+    ``max_distance_m``); ``outage_within_policy``: the per-link shadowing outage below the design
+    requirement is at most ``max_outage``. Either is ``None`` when its inputs are missing.
+    """
+    if not lb.get("applicable"):
+        return None
+    policy = lb.get("margin_policy") or {}
+    link = lb.get("link") or {}
+    shadow = lb.get("shadowing") or {}
+    margin, needed = lb.get("link_margin_db"), policy.get("effective_margin_db")
+    design = (lb.get("required_arrival_probability") or {}).get("design_value")
+    rows = [r for r in lb.get("thresholds") or []
+            if r.get("arrival_probability") == design and r.get("outage_probability") is not None]
+    outage = rows[0]["outage_probability"] if rows else shadow.get("outage_below_critical")
+    max_outage = policy.get("max_outage")
+    return {"link_margin_db": margin, "required_margin_db": needed,
+            "margin_policy_met": (margin >= needed) if None not in (margin, needed) else None,
+            "distance_m": link.get("distance_m"), "max_distance_m": lb.get("max_distance_m"),
+            "outage_probability": outage, "max_outage": max_outage,
+            "outage_within_policy": (outage <= max_outage)
+            if None not in (outage, max_outage) else None}
 
 
 def bursty_verdict(sec: dict[str, Any]) -> None:

@@ -187,10 +187,24 @@ def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
                               plot=plot, max_states=max_states))
 
 
-@main.command(epilog=EXAMPLES)
+SWEEP_EXAMPLES = """\b
+Examples:
+  kfcrit sweep reports/sweep-link-distance.yaml -o results/
+  kfcrit sweep reports/sweep-link-distance.yaml -o results/ --scheduler tcp://10.0.0.5:8786
+
+\b
+Outputs in the folder: sweep.csv, sweep.json, margin.svg, margin.png, run.json and the journal
+sweep.journal.jsonl; rerunning the same command after an interruption computes only the
+missing points. Exit codes: 0 done, 2 bad sweep file or option (or a point with bad input),
+3 a point was numerically inconclusive, 130 interrupted (finished points are kept).
+"""
+
+
+@main.command(epilog=SWEEP_EXAMPLES)
 @click.argument("sweep_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", default=None, type=click.Path(file_okay=False),
-              help="Output folder for the CSV, JSON and plots (default: next to the sweep file).")
+@click.option("-o", "--output", default=None, type=click.Path(),
+              help="Output folder for the CSV, JSON and plots (default: next to the sweep file; "
+                   "its parent folder must exist).")
 @click.option("--scheduler", default=None,
               help="Address of an existing Dask scheduler (tcp://HOST:PORT); default local.")
 @click.option("--workers", type=click.IntRange(1, 256), default=None,

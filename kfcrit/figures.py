@@ -12,6 +12,7 @@ Figures (keys of :func:`build_figures`):
 * ``traces``: simulated mean tr P_t just below and just above the critical value;
 * ``operating``: simulated mean tr P_t at the operating point with its band, against tr S̄, tr V̄;
 * ``cdf``: empirical CDF of tr P at the operating point, with the requirement's limit;
+* ``almost_sure``: block maxima and minima of tr P_t along one long path (MATH §6);
 * ``invariant``: support of the invariant distribution of a scalar system (Kar et al. Thm 10).
 """
 from __future__ import annotations
@@ -29,7 +30,7 @@ from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
 from .mathsvg import clean_svg  # noqa: E402
 
-FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "invariant")
+FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant")
 COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",
           "p_up": "#7c3aed", "operating": "#15803d", "sim": "#111827", "band": "#9ca3af"}
 FIG_RC = {"font.size": 8.5, "axes.titlesize": 9, "axes.labelsize": 8.5, "legend.fontsize": 7.5,
@@ -95,6 +96,42 @@ def _mark(ax: Any, x: float | None, key: str, label: str, style: str = "--") -> 
         ax.axvline(x, color=COLORS[key], linestyle=style, linewidth=1.1, label=label)
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _decade_label(value: float, _pos: Any = None) -> str:
+    """``10⁵`` for a power of ten (plain text with superscript digits: no mathtext to parse)."""
+    if value <= 0:
+        return ""
+    exp = math.log10(value)
+    if abs(exp - round(exp)) > 1e-9:
+        return ""
+    k = int(round(exp))
+    return {0: "1", 1: "10"}.get(k, "10" + str(k).translate(_SUPERSCRIPT))
+
+
+def _plain_log_labels(ax: Any, which: str = "x") -> None:
+    """Readable tick labels on a log axis, set as plain text (no mathtext: faster, same look).
+
+    Few decades: 2, 5, 20, 100; wide or large ranges: 1, 10, 10², 10³ on the decades only.
+    """
+    from matplotlib import ticker
+
+    lo, hi = ax.get_xlim() if which == "x" else ax.get_ylim()
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    if lo <= 0 or hi <= 0 or hi / lo > 1e4 or hi >= 1e5 or lo < 1e-3:
+        axis.set_major_formatter(ticker.FuncFormatter(_decade_label))
+        axis.set_minor_formatter(ticker.NullFormatter())
+        return
+    axis.set_major_formatter(ticker.LogFormatter())
+    axis.set_minor_formatter(ticker.LogFormatter(labelOnlyBase=False,
+                                                 minor_thresholds=(1.2, 0.5)))
+
+
+def _fmt(value: float | None) -> str:
+    return "?" if value is None else f"{value:.4g}"
+
+
 def markers_of(record: dict[str, Any]) -> dict[str, float | None]:
     """p_low, p_c, p_up and the operating p: the phase-transition markers, else the contract."""
     marks = _section(record, "phase_transition", "markers") or {}
@@ -131,15 +168,17 @@ def phase_transition_svg(record: dict[str, Any]) -> str | None:
         if not drawn:
             return None
         ax.set_yscale("log")
-        _mark(ax, marks["p_low"], "p_low", r"$p_{low}$", ":")
-        _mark(ax, marks["p_c"], "p_c", r"$p_c$", "-")
-        _mark(ax, marks["p_up"], "p_up", r"$p_{up}$", "--")
-        _mark(ax, marks["operating"], "operating", "operating p", "-.")
+        _plain_log_labels(ax, "y")
+        _mark(ax, marks["p_low"], "p_low", rf"$p_{{low}}$ = {_fmt(marks['p_low'])}", ":")
+        _mark(ax, marks["p_c"], "p_c", rf"$p_c$ = {_fmt(marks['p_c'])}", "-")
+        _mark(ax, marks["p_up"], "p_up", rf"$p_{{up}}$ = {_fmt(marks['p_up'])}", "--")
+        _mark(ax, marks["operating"], "operating", f"operating p = {_fmt(marks['operating'])}",
+              "-.")
         ax.set_xlabel("arrival probability p")
         ax.set_ylabel("trace of the bound")
         xs = [v for v in (min(p), marks["p_low"]) if v is not None]
         ax.set_xlim(min(xs) - 0.01 * (max(p) - min(xs)), max(p))
-        fig.legend(loc="outside lower center", frameon=False, ncols=6)
+        fig.legend(loc="outside lower center", frameon=False, ncols=3)
         return _to_svg(fig, "Phase transition: trace of the lower and upper covariance bounds "
                             "against the arrival probability")
 
@@ -165,15 +204,18 @@ def traces_svg(record: dict[str, Any]) -> str | None:
                         else run.get("arrival_probability"))
             label = str(run.get("label") or run.get("side") or "")
             text = f"p = {p:.4g}" if p is not None else "p = ?"
+            if run.get("mean_is_lower_bound"):
+                label = (label + ", " if label else "") + "paths diverged: a lower bound"
             ax.plot(t, y, color=palette[i % len(palette)], linewidth=1.2,
                     label=f"{text} ({label})" if label else text)
             drawn += 1
         if not drawn:
             return None
         ax.set_yscale("log")
+        _plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("mean tr $P_t$ over paths")
-        ax.legend(loc="upper left", frameon=False)
+        fig.legend(loc="outside lower center", frameon=False, ncols=2)
         return _to_svg(fig, "Simulated mean error covariance trace below and above the critical "
                             "value")
 
@@ -222,11 +264,16 @@ def operating_svg(record: dict[str, Any]) -> str | None:
         return None
     s_tr = _number(_section(record, "covariance_bounds", "lower", "trace"))
     v_tr = _number(_section(record, "covariance_bounds", "upper", "trace"))
+    positive = [v for v in list(y) + [s_tr or 0.0, v_tr or 0.0] if math.isfinite(v) and v > 0]
+    floor = 0.5 * min(positive)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = _new_figure()
         if lo is not None and hi is not None and len(lo) == len(t) == len(hi):
-            ax.fill_between(t, lo, hi, color=COLORS["band"], alpha=0.35, linewidth=0,
-                            label="band of the simulated mean")
+            # A lower band end at or below zero cannot be drawn on a log axis: it is drawn to
+            # the bottom of the plot (the band extends below it).
+            lo_c = [max(v, floor) if math.isfinite(v) else v for v in lo]
+            ax.fill_between(t, lo_c, hi, color=COLORS["band"], alpha=0.35, linewidth=0,
+                            label="95 % band of the simulated mean")
         ax.plot(t, y, color=COLORS["sim"], linewidth=1.3, label="simulated mean tr $P_t$")
         if s_tr is not None and s_tr > 0:
             ax.axhline(s_tr, color=COLORS["lower"], linestyle="--", linewidth=1.2,
@@ -235,6 +282,8 @@ def operating_svg(record: dict[str, Any]) -> str | None:
             ax.axhline(v_tr, color=COLORS["upper"], linestyle="--", linewidth=1.2,
                        label=r"tr $\bar V$")
         ax.set_yscale("log")
+        ax.set_ylim(bottom=floor)
+        _plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")
         fig.legend(loc="outside lower center", frameon=False, ncols=4)
@@ -259,8 +308,9 @@ def cdf_svg(record: dict[str, Any]) -> str | None:
                 text += f"; P(tr P > M) = {tail:.3g}"
             ax.axvline(limit, color=COLORS["p_c"], linestyle="--", linewidth=1.1, label=text)
         ax.set_xscale("log")
+        _plain_log_labels(ax, "x")
         ax.set_ylim(0, 1.02)
-        ax.set_xlabel("tr P")
+        ax.set_xlabel("tr P at the simulation horizon")
         ax.set_ylabel("P(tr P ≤ x)")
         ax.legend(loc="lower right", frameon=False)
         return _to_svg(fig, "Distribution of the error covariance trace at the operating point")
@@ -268,16 +318,27 @@ def cdf_svg(record: dict[str, Any]) -> str | None:
 
 def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
     """Empty intervals of the invariant support: ``gaps``, ``gap_levels`` [{lower, upper}],
-    ``holes`` and ``support_points.largest_gaps`` (pairs), de-duplicated and sorted."""
+    ``holes`` and ``support_points.largest_gaps`` (pairs), sorted.
+
+    Intervals found twice (an exact hole and its numerical estimate from finitely many support
+    points share the upper end) are kept once, as the narrower one: the numerical estimate
+    starts at the largest support point found, below the true end of the support piece.
+    """
     raw: list[Any] = list(inv.get("gaps") or []) + list(inv.get("holes") or [])
     raw += [[_dict_get(g, "lower"), _dict_get(g, "upper")] for g in inv.get("gap_levels") or []]
     sp = inv.get("support_points")
     if isinstance(sp, dict):
         raw += list(sp.get("largest_gaps") or [])
-    out = {(float(g[0]), float(g[1])) for g in raw
-           if isinstance(g, (list, tuple)) and len(g) == 2
-           and _number(g[0]) is not None and _number(g[1]) is not None and g[1] > g[0]}
-    return [list(g) for g in sorted(out)]
+    pairs = sorted({(float(g[0]), float(g[1])) for g in raw
+                    if isinstance(g, (list, tuple)) and len(g) == 2
+                    and _number(g[0]) is not None and _number(g[1]) is not None
+                    and g[1] > g[0]})
+    by_upper: dict[float, tuple[float, float]] = {}
+    for lo, hi in pairs:
+        key = round(hi, 9)
+        if key not in by_upper or lo > by_upper[key][0]:
+            by_upper[key] = (lo, hi)
+    return [list(g) for g in sorted(by_upper.values())]
 
 
 def _dict_get(d: Any, key: str) -> Any:
@@ -285,7 +346,8 @@ def _dict_get(d: Any, key: str) -> Any:
 
 
 def invariant_svg(record: dict[str, Any]) -> str | None:
-    """Support of the invariant distribution of a scalar system: points and empty gaps."""
+    """Support of the invariant distribution of a scalar system: the support from P* on, with
+    its empty intervals cut out (and support points, when the record lists them)."""
     inv = record.get("invariant")
     if not isinstance(inv, dict):
         return None
@@ -295,28 +357,65 @@ def invariant_svg(record: dict[str, Any]) -> str | None:
     fixed = _number(fp.get("value") if isinstance(fp, dict) else fp)
     if not _positive(points) and not gaps:
         return None
+    ends = [v for g in gaps for v in g] + [v for v in points if math.isfinite(v) and v > 0]
+    left = fixed if fixed is not None and fixed > 0 else min(ends)
+    right = max(ends) * 1.15
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure(height=1.7)
+        fig, ax = _new_figure(height=1.55)
+        ax.axvspan(left, right, ymin=0.25, ymax=0.75, color=COLORS["lower"], alpha=0.75,
+                   linewidth=0, label="no gap found (support lies here)")
+        for i, (a, b) in enumerate(gaps):
+            ax.axvspan(float(a), float(b), ymin=0.2, ymax=0.8, color="#fde7cf", linewidth=0,
+                       label="empty interval (no mass)" if i == 0 else None)
         pts = [v for v in points if math.isfinite(v) and v > 0]
         if pts:
-            ax.vlines(pts, 0, 1, color=COLORS["lower"], linewidth=0.5, alpha=0.8,
+            ax.vlines(pts, 0.1, 0.9, color=COLORS["sim"], linewidth=0.6,
                       label="support points (finite compositions)")
-        for i, (a, b) in enumerate(gaps):
-            ax.axvspan(float(a), float(b), color=COLORS["upper"], alpha=0.25, linewidth=0,
-                       label="empty interval (no mass)" if i == 0 else None)
         if fixed is not None:
-            ax.axvline(fixed, color=COLORS["p_c"], linewidth=1.2, label="P* (Riccati fixed point)")
+            ax.axvline(fixed, color=COLORS["p_c"], linewidth=1.4,
+                       label=f"P* = {fixed:.4g} (Riccati fixed point)")
         ax.set_xscale("log")
+        ax.set_xlim(left / 1.08, right)
+        _plain_log_labels(ax, "x")
+        ax.set_ylim(0, 1)
         ax.set_yticks([])
         ax.grid(False, axis="y")
+        ax.spines["left"].set_visible(False)
         ax.set_xlabel("P (scalar error covariance)")
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.45), frameon=False, ncols=3)
+        fig.legend(loc="outside lower center", frameon=False, ncols=3)
         return _to_svg(fig, "Support of the invariant distribution")
+
+
+def almost_sure_svg(record: dict[str, Any]) -> str | None:
+    """Block maxima and minima of tr P_t over dyadic time blocks of one long path (MATH §6)."""
+    blk = _section(record, "simulation", "operating_point", "almost_sure")
+    if not isinstance(blk, dict):
+        return None
+    start = _floats(blk.get("block_start"))
+    bmax = _floats(blk.get("block_max"))
+    bmin = _floats(blk.get("block_min"))
+    if start is None or bmax is None or len(start) != len(bmax) or not _positive(bmax):
+        return None
+    with matplotlib.rc_context(FIG_RC):
+        fig, ax = _new_figure(height=2.4)
+        ax.plot(start, bmax, marker="^", markersize=3.5, color=COLORS["p_c"], linewidth=1.2,
+                label="max of tr $P_t$ over the block")
+        if bmin is not None and len(bmin) == len(start) and _positive(bmin):
+            ax.plot(start, bmin, marker="v", markersize=3.5, color=COLORS["lower"],
+                    linewidth=1.2, label="min of tr $P_t$ over the block")
+        ax.set_xscale("log", base=2)
+        ax.set_yscale("log")
+        _plain_log_labels(ax, "y")
+        ax.set_xlabel("block start $2^k$ (time step)")
+        ax.set_ylabel("tr $P_t$")
+        fig.legend(loc="outside lower center", frameon=False, ncols=2)
+        return _to_svg(fig, "Block maxima and minima of the error covariance trace along one "
+                            "path")
 
 
 BUILDERS: dict[str, Callable[[dict[str, Any]], str | None]] = {
     "phase_transition": phase_transition_svg, "traces": traces_svg, "operating": operating_svg,
-    "cdf": cdf_svg, "invariant": invariant_svg}
+    "cdf": cdf_svg, "almost_sure": almost_sure_svg, "invariant": invariant_svg}
 
 
 def build_figures(record: dict[str, Any]) -> dict[str, str | None]:

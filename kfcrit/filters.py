@@ -118,10 +118,116 @@ def key_label(value: Any) -> str:
     return str(value).replace("_", " ")
 
 
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)
+
+
+def fixed(value: Any, decimals: int = 2) -> str:
+    """A number with a fixed count of decimals (``1.77516`` → ``1.78``); minus sign as −."""
+    if not _finite(value):
+        return DASH
+    return f"{value:.{decimals}f}".replace("-", "−")
+
+
+def sci(value: Any, digits: int = 3) -> str:
+    """A small or large number in readable scientific form (``4.26e-16`` → ``4.26 × 10⁻¹⁶``);
+    numbers between 10⁻³ and 10⁶ print plainly."""
+    if not _finite(value):
+        return DASH
+    if value == 0 or 1e-3 <= abs(value) < 1e6:
+        return num(float(value), digits).replace("-", "−")
+    mant, exp = f"{value:.{digits - 1}e}".split("e")
+    mant = mant.rstrip("0").rstrip(".") if "." in mant else mant
+    sup = str(int(exp)).translate(_SUPERSCRIPT)
+    return f"{mant} × 10{sup}".replace("-", "−")
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+# Units of the link budget and how many decimals a reviewer needs for each.
+UNITS: dict[str, tuple[str, int]] = {
+    "dB": ("dB", 2), "dBm": ("dBm", 2), "m": ("m", 1), "Hz": ("Hz", 0), "K": ("K", 0),
+    "bytes": ("bytes", 0), "s": ("s", 2),
+}
+
+
+def unit(value: Any, name: str, decimals: int | None = None) -> str:
+    """A physical quantity with its unit: ``1.775 | unit("dB")`` → ``1.78 dB``.
+
+    Decimals default per unit (dB and dBm 2, metres 1, kelvin 0); hertz print with an SI
+    prefix (``2e6`` → ``2 MHz``). ``None`` or non-finite → em dash.
+    """
+    if not _finite(value):
+        return DASH
+    label, default = UNITS.get(name, (name, 3))
+    if name == "Hz":
+        for scale, prefix in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+            if abs(value) >= scale:
+                return f"{num(value / scale, 6)} {prefix}Hz"
+        return f"{num(float(value), 6)} Hz"
+    places = default if decimals is None else decimals
+    return f"{fixed(value, places)} {label}"
+
+
+def prob(value: Any, digits: int = 4) -> str:
+    """A probability: ``0.3286`` (4 significant digits) and, below 10⁻³, scientific."""
+    if not _finite(value):
+        return DASH
+    if value != 0 and abs(value) < 1e-3:
+        return sci(value, 3)
+    return num(float(value), digits)
+
+
+def count(value: Any) -> str:
+    """An integer count with thin-space thousands separators (``50000`` → ``50 000``)."""
+    if not _finite(value):
+        return DASH
+    return f"{int(value):,}".replace(",", "\u202f")
+
+
+def vector(value: Any, digits: int = 4) -> str:
+    """A vector or matrix of numbers as text: ``[−0.801, −0.997]`` (rows separated by ``;``)."""
+    if not isinstance(value, (list, tuple)) or not value:
+        return DASH
+    if all(isinstance(v, (list, tuple)) and len(v) == 1 for v in value):
+        value = [v[0] for v in value]
+    if all(isinstance(v, (list, tuple)) for v in value):
+        return "[" + "; ".join(", ".join(signed_plain(x, digits) for x in row)
+                               for row in value) + "]"
+    return "[" + ", ".join(signed_plain(x, digits) for x in value) + "]"
+
+
+def signed_plain(value: Any, digits: int = 4) -> str:
+    """A number with the typographic minus sign and ``digits`` significant digits."""
+    if not _finite(value):
+        return DASH
+    return "0" if value == 0 else num(value, digits).replace("-", "−")
+
+
+def quantity(value: Any, kind: str | None = None) -> str:
+    """Format ``value`` by its kind, for the labelled tables of the view model.
+
+    ``kind`` is a unit of :data:`UNITS` (``dB``, ``dBm``, ``m``, ``Hz``, ``K``, ``bytes``, ``s``)
+    or one of ``prob``, ``pct``, ``count``, ``num``, ``sci``, ``yesno``, ``vector``, ``expr``,
+    ``interval``, ``signed``, ``text`` (default: :func:`text`). ``None`` prints an em dash
+    (``yesno``: "not computed").
+    """
+    if kind in UNITS:
+        return unit(value, kind)
+    simple: dict[str, Callable[[Any], str]] = {
+        "prob": prob, "pct": pct, "count": count, "num": num, "sci": sci, "yesno": yesno,
+        "vector": vector, "expr": pretty_expr, "interval": interval, "signed": signed,
+        "text": text}
+    return simple.get(kind or "text", text)(value)
+
+
 FILTERS: dict[str, Callable[..., str]] = {
     "num": num, "signed": signed, "interval": interval, "yesno": yesno,
     "pretty_expr": pretty_expr, "verdict_label": verdict_label, "pct": pct,
     "indices": indices, "short_hash": short_hash, "text": text, "key_label": key_label,
+    "fixed": fixed, "sci": sci, "unit": unit, "prob": prob, "count": count, "vector": vector,
+    "signed_plain": signed_plain, "quantity": quantity,
 }
 
 

@@ -24,6 +24,8 @@ matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
 _PREFIX = itertools.count()
+_IMAG_RE = re.compile(r"\bI\b")
+_EULER_RE = re.compile(r"\b[eE]\b")
 _ID_RE = re.compile(r'\bid="([^"]+)"')
 _STRIP_RE = re.compile(r"<\?xml.*?\?>|<!DOCTYPE.*?>|<metadata>.*?</metadata>|<!--.*?-->"
                        r"|<style[^>]*>.*?</style>", re.DOTALL)
@@ -104,11 +106,20 @@ def expression_latex(text: str) -> str | None:
 
     if not text or not isinstance(text, str):
         return None
+    # Eigenvalues come as sympy text with the imaginary unit ``I``, a name the safe parser does
+    # not know. When the text uses neither Euler's number nor exp/log (sympy writes exp(x) as
+    # E**x), read ``I`` as ``E`` and swap the constant back afterwards (the parser stays the only
+    # reader of record text).
+    imaginary = bool(_IMAG_RE.search(text)) and not _EULER_RE.search(text) \
+        and "exp" not in text and "log" not in text
+    source = _IMAG_RE.sub("E", text) if imaginary else text
     try:
-        value = parse_expression(text, "report")
+        value = parse_expression(source, "report")
+        if imaginary:
+            value = sp.expand(value.subs(sp.E, sp.I))
     except (KfcritError, ValueError, TypeError, RecursionError):
         return None
-    return _mathtext_safe(sp.latex(value))
+    return _mathtext_safe(sp.latex(value, imaginary_unit="i"))
 
 
 def _mathtext_safe(latex: str) -> str:

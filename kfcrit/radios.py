@@ -13,6 +13,7 @@ Numerics: ``PER`` and ``arrival`` are computed as ``−expm1(8L·log1p(−BER))`
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -62,7 +63,17 @@ class Radio:
         return -np.expm1(self.log_arrival(sinr_db, packet_bytes))
 
     def required_sinr_db(self, arrival_probability: float, packet_bytes: int) -> float | None:
-        """Least SINR (dB) with 1 − PER ≥ ``arrival_probability``.
+        """Least SINR (dB) with 1 − PER ≥ ``arrival_probability`` (memoised, see below).
+
+        The result depends only on (radio, p, L) — not on distance, power or noise — so a
+        sweep over those asks the same question many times; the answers are memoised per
+        process (:func:`functools.lru_cache`; errors are not cached, and a cached answer is
+        the same float the computation gives).
+        """
+        return _required_sinr_cached(self, float(arrival_probability), int(packet_bytes))
+
+    def _required_sinr_db(self, arrival_probability: float, packet_bytes: int) -> float | None:
+        """Least SINR (dB) with 1 − PER ≥ ``arrival_probability`` (the computation).
 
         Returns None when no SINR is needed (``arrival_probability`` ≤ the arrival probability at
         the bottom of :data:`SINR_SEARCH_DB`, e.g. 0). Raises :class:`ValueError` for 1 or more
@@ -91,6 +102,11 @@ class Radio:
         if unreachable:
             raise ValueError(f"arrival probability {p!r} needs more than {hi} dB SINR")
         return float(brentq(fn, lo, hi, xtol=1e-12, rtol=4 * np.finfo(float).eps, maxiter=200))
+
+
+@functools.lru_cache(maxsize=4096)
+def _required_sinr_cached(radio: Radio, p: float, packet_bytes: int) -> float | None:
+    return radio._required_sinr_db(p, packet_bytes)
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,15 @@ system-file parser, like any system file; nothing is ever evaluated.
 
 Each point gives one row: the critical value (or the best bound available), the arrival
 probability and the margin p − p_req, and for link budgets the SINR, the required SINR, the
-link margin in dB and the largest distance. Output folder: ``sweep.csv``, ``sweep.json``,
-``margin.svg`` and ``margin.png``, each written atomically (temporary file, fsync, rename).
+link margin in dB and the largest distance. Output folder (created if missing; its parent must
+exist): ``sweep.csv``, ``sweep.json``, ``margin.svg``, ``margin.png`` and ``run.json`` (runner,
+workers, computed/reused counts: the only file that depends on how the sweep ran), each written
+atomically (temporary file, fsync, rename).
+
+Validation before anything is written: the sweep file (parameters, values that must be numbers,
+keys the channel model does not know, the size cap of :data:`MAX_POINTS`), the output folder and
+the ``--scheduler`` address (connected to first). A swept value a point's model refuses (say a
+negative distance) is an error *row* of that point, not of the sweep.
 
 Invariant (resumability): every finished row is appended to ``sweep.journal.jsonl`` and fsynced
 before it is counted; a row is keyed by the SHA-256 of (format, kfcrit version, base system,
@@ -67,7 +74,10 @@ MATRICES = ("A", "C", "Q", "R", "Sigma0")
 SYMMETRIC = ("Q", "R", "Sigma0")
 _MATRIX_PATH = re.compile(r"^(A|C|Q|R|Sigma0)\[(\d{1,6})\]\[(\d{1,6})\]$")
 _CHANNEL_PATH = re.compile(r"^channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
-_SCHEDULER = re.compile(r"^(tcp|tls)://[A-Za-z0-9.\-\[\]:]{1,200}$")
+_SCHEDULER = re.compile(r"^(tcp|tls)://([A-Za-z0-9.\-]{1,200}|\[[0-9A-Fa-f:.]{2,60}\]):"
+                        r"(\d{1,5})$")
+DASK_CONNECT_TIMEOUT = "15s"
+"""How long ``--scheduler`` waits for the scheduler before giving up (one-line error)."""
 
 RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
                   "critical_expression", "robust_critical_value", "upper_bound", "requirement",
@@ -115,9 +125,9 @@ def _plain(obj: Any) -> Any:
     return obj
 
 
-def _exact_text(value: sp.Rational) -> str:
+def _exact_text(value: sp.Rational | Fraction) -> str:
     """Readable exact text of a rational: a finite decimal when there is one, else ``p/q``."""
-    frac = Fraction(int(value.p), int(value.q))
+    frac = value if isinstance(value, Fraction) else Fraction(int(value.p), int(value.q))
     q = frac.denominator
     for prime in (2, 5):
         while q % prime == 0:
@@ -151,8 +161,13 @@ def _exact(value: Any, where: str) -> sp.Expr:
     return exact_number(_scalar_text(value, where), where)
 
 
-def _range_values(spec: dict, where: str) -> list[str]:
-    """``{start, stop, num}`` (inclusive linspace), ``{start, stop, step}`` or ``scale: log``."""
+def _range_values(spec: dict, where: str, *, count_only: bool = False) -> list[str] | int:
+    """``{start, stop, num}`` (inclusive linspace), ``{start, stop, step}`` or ``scale: log``.
+
+    With ``count_only`` the range is validated and only its length returned (so that an
+    enormous grid is refused before any value is generated). Values are exact: rational
+    arithmetic (:class:`fractions.Fraction`) for linear ranges.
+    """
     from .channels import check_keys
 
     check_keys(spec, {"start", "stop", "num", "step", "scale"}, {"start", "stop"}, where)
@@ -170,6 +185,8 @@ def _range_values(spec: dict, where: str) -> list[str]:
         if not num.is_Integer or not 1 <= int(num) <= MAX_NUM:
             raise InputError(f"must be an integer from 1 to {MAX_NUM}", field=f"{where}.num")
         n = int(num)
+        if count_only:
+            return n
         if scale == "log":
             if start <= 0 or stop <= 0:
                 raise InputError("a log scale needs positive start and stop",
@@ -180,7 +197,8 @@ def _range_values(spec: dict, where: str) -> list[str]:
                 else [_exact_text(start)]
         if n == 1:
             return [_exact_text(start)]
-        return [_exact_text(start + (stop - start) * sp.Rational(k, n - 1)) for k in range(n)]
+        a, b = Fraction(int(start.p), int(start.q)), Fraction(int(stop.p), int(stop.q))
+        return [_exact_text(a + (b - a) * Fraction(k, n - 1)) for k in range(n)]
     if scale == "log":
         raise InputError("a log scale needs num, not step", field=f"{where}.scale")
     step = _exact(spec["step"], f"{where}.step")
@@ -190,7 +208,10 @@ def _range_values(spec: dict, where: str) -> list[str]:
     count = int(sp.floor((stop - start) / step)) + 1
     if count > MAX_NUM:
         raise InputError(f"gives more than {MAX_NUM} values", field=f"{where}.step")
-    return [_exact_text(start + k * step) for k in range(count)]
+    if count_only:
+        return count
+    a, h = Fraction(int(start.p), int(start.q)), Fraction(int(step.p), int(step.q))
+    return [_exact_text(a + k * h) for k in range(count)]
 
 
 def _values(spec: Any, where: str) -> list[str]:
@@ -305,11 +326,17 @@ def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
         raise InputError("must be in [0, 0.1]", field="sweep.tolerance")
     if "grid" in doc:
         parameters, points = _grid(doc["grid"], base_doc)
+        where = [f"sweep.grid.{p}" for p in parameters]
     else:
         parameters, points = _points(doc["points"], base_doc)
+        where = [f"sweep.points[0].{p}" for p in parameters]
     if not parameters:
         raise InputError("needs at least one parameter", field="sweep.grid")
-    plot_x = parameters[0]
+    _check_values(doc, parameters, points, base_doc)
+    _check_unknown_keys(parameters, points[0], where, base_doc, base_dir)
+    cache: dict[str, bool] = {}
+    plot_x = next((p for col, p in enumerate(parameters)  # default: the first numeric one
+                   if all(_is_number_text(pt[col], cache) for pt in points)), parameters[0])
     if doc.get("plot") is not None:
         plot = doc["plot"]
         if not isinstance(plot, dict):
@@ -332,6 +359,86 @@ def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
                      base_path=base_path, keys=keys)
 
 
+def _base_value(base_doc: dict, path: str) -> Any:
+    """The base document's value at a parameter path (None when absent)."""
+    m = _MATRIX_PATH.match(path)
+    if m:
+        return None
+    node: Any = base_doc.get("channel")
+    for key in path.split(".")[1:]:
+        if not isinstance(node, dict):
+            return None
+        node = node.get(key)
+    return node
+
+
+def _is_number_text(text: str, cache: dict[str, bool]) -> bool:
+    from .exprparse import parse_expression
+
+    if text not in cache:
+        try:
+            cache[text] = bool(parse_expression(text, "value").is_number)
+        except KfcritError:
+            cache[text] = False
+    return cache[text]
+
+
+def _check_values(doc: dict, parameters: list[str], points: list[tuple[str, ...]],
+                  base_doc: dict) -> None:
+    """Every swept value must be a number, except for a field whose base value is a word.
+
+    A channel field such as ``radio`` or ``path_loss.shadowing`` holds a name in the base system
+    (``bpsk``, ``per-link``): sweeping names there is allowed, and a wrong name is an error of
+    that point. Anywhere else a value that is not a number is an error of the sweep file.
+    """
+    cache: dict[str, bool] = {}
+    for col, path in enumerate(parameters):
+        base = _base_value(base_doc, path)
+        if isinstance(base, str) and not _is_number_text(base, cache):
+            continue
+        seen: set[str] = set()
+        for index, point in enumerate(points):
+            text = point[col]
+            if text in seen:
+                continue
+            seen.add(text)
+            if not _is_number_text(text, cache):
+                where = (f"sweep.points[{index}].{path}" if "points" in doc else
+                         f"sweep.grid.{path}[{_grid_position(doc['grid'][path], text)}]")
+                raise InputError(f"must be a number, got {text[:40]!r}", field=where)
+
+
+def _grid_position(spec: Any, text: str) -> int:
+    """Position of ``text`` in a grid's value list (0 for a single value)."""
+    if isinstance(spec, list):
+        for i, v in enumerate(spec):
+            if isinstance(v, str) and str(v) == text:
+                return i
+    return 0
+
+
+def _check_unknown_keys(parameters: list[str], first: tuple[str, ...], where: list[str],
+                        base_doc: dict, base_dir: Path) -> None:
+    """A channel parameter absent from the base system must be a key its model accepts.
+
+    Each such parameter is set alone (to its first value) in the base system; if the channel
+    model then refuses the key itself (``unknown key``), the sweep file names an unknown
+    parameter. Other errors (a value out of range) stay errors of the points that have them.
+    """
+    from .channels import channel_from_mapping
+
+    for path, text, where_ in zip(parameters, first, where):
+        if _MATRIX_PATH.match(path) or _base_value(base_doc, path) is not None:
+            continue
+        doc = apply_point(base_doc, [(path, text)])
+        try:
+            channel_from_mapping(doc["channel"], "channel", base_dir)
+        except InputError as exc:
+            if exc.field == path and "unknown key" in str(exc):
+                raise InputError(f"unknown parameter: {str(exc)[len(path) + 2:]}",
+                                 field=where_) from None
+
+
 def _validate_base(base_doc: dict, base_dir: Path, max_states: int) -> None:
     from .systemfile import spec_from_mapping
 
@@ -344,16 +451,16 @@ def _validate_base(base_doc: dict, base_dir: Path, max_states: int) -> None:
 def _grid(grid: Any, base_doc: dict) -> tuple[list[str], list[tuple[str, ...]]]:
     if not isinstance(grid, dict) or not grid:
         raise InputError("must be a non-empty mapping of parameter: values", field="sweep.grid")
-    params, lists = [], []
+    params = []
     total = 1
-    for path, spec in grid.items():
+    for path, spec in grid.items():  # first validate and count: refuse before generating
         where = f"sweep.grid.{path}"
         params.append(check_parameter(path, base_doc, where))
-        values = _values(spec, where)
-        total *= len(values)
+        total *= (_range_values(spec, where, count_only=True) if isinstance(spec, dict)
+                  else len(_values(spec, where)))
         if total > MAX_POINTS:
             raise InputError(f"the grid has more than {MAX_POINTS} points", field="sweep.grid")
-        lists.append(values)
+    lists = [_values(spec, f"sweep.grid.{path}") for path, spec in grid.items()]
     return params, [tuple(p) for p in itertools.product(*lists)]
 
 
@@ -601,42 +708,57 @@ def run_processes(spec: SweepSpec, items: Items, max_states: int, workers: int,
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    try:
         futures = [pool.submit(evaluate_chunk, spec.base_doc, str(spec.base_dir),
                                spec.tolerance, max_states, chunk)
                    for chunk in _chunks(items, workers)]
-        try:
-            for fut in as_completed(futures):
-                yield fut.result()
-        except BaseException:
-            for fut in futures:
-                fut.cancel()
-            raise
+        for fut in as_completed(futures):
+            yield fut.result()
+    except BaseException:  # interrupted (or closed early): drop queued chunks, do not wait
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
-def run_dask(spec: SweepSpec, items: Items, max_states: int, scheduler: str,
-             ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate on an existing Dask distributed cluster (``tcp://HOST:PORT``)."""
-    if not _SCHEDULER.match(scheduler):
-        raise InputError("must look like tcp://HOST:PORT (or tls://)", field="--scheduler")
+def check_scheduler(scheduler: str) -> None:
+    """The ``--scheduler`` address must be ``tcp://HOST:PORT`` (or ``tls://``), port ≤ 65535."""
+    m = _SCHEDULER.match(scheduler)
+    if not m or not 0 < int(m.group(3)) < 65536:
+        raise InputError(f"must look like tcp://HOST:PORT (or tls://), got "
+                         f"{scheduler[:60]!r}", field="--scheduler")
+
+
+def connect_dask(scheduler: str) -> Any:
+    """A ``distributed.Client`` on an existing scheduler (every failure is one InputError)."""
+    check_scheduler(scheduler)
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         raise InputError("needs dask[distributed] (pip install 'kfcrit[dask]')",
                          field="--scheduler") from None
     try:
-        client = Client(scheduler, timeout="15s", set_as_default=False)
-    except (OSError, TimeoutError) as exc:
-        raise InputError(f"cannot connect to the Dask scheduler ({type(exc).__name__})",
+        return Client(scheduler, timeout=DASK_CONNECT_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"cannot connect to the Dask scheduler at {scheduler[:60]} "
+                         f"({type(exc).__name__} after at most {DASK_CONNECT_TIMEOUT})",
                          field="--scheduler") from None
+
+
+def run_dask(spec: SweepSpec, items: Items, max_states: int, client: Any,
+             ) -> Iterator[list[tuple[int, str, dict]]]:
+    """Evaluate on an existing Dask distributed cluster through ``client`` (closed at the end)."""
+    from distributed import as_completed
+
     try:
         workers = max(1, len(client.scheduler_info().get("workers", {})))
-        base = client.scatter(spec.base_doc, broadcast=True)
+        base = client.scatter([spec.base_doc], broadcast=True)[0]
         futures = [client.submit(evaluate_chunk, base, str(spec.base_dir), spec.tolerance,
                                  max_states, chunk, pure=False)
                    for chunk in _chunks(items, workers)]
         try:
-            for fut in as_completed(futures):
+            # the client is not the default one (set_as_default=False): name its loop
+            for fut in as_completed(futures, loop=client.loop):
                 yield fut.result()
         except BaseException:
             client.cancel(futures)
@@ -718,7 +840,7 @@ def plot_margin(spec: SweepSpec, rows: list[dict[str, Any]]) -> dict[str, bytes]
             ax.set_ylabel(title)
             ax.grid(True, linewidth=0.3)
         axes[-1, 0].set_xlabel(x_name)
-        if len(series) > 1:
+        if len(series) > 1 and axes[0, 0].get_legend_handles_labels()[0]:
             axes[0, 0].legend(fontsize=7)
         if len(series) > MAX_SERIES:
             axes[0, 0].set_title(f"first {MAX_SERIES} of {len(series)} series", fontsize=8)
@@ -760,9 +882,16 @@ def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[]
     if not sys.stderr.isatty() or total == 0:
         return (lambda n: None), (lambda: None)
     from rich.console import Console
-    from rich.progress import Progress
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
 
-    prog = Progress(console=Console(stderr=True), transient=True)
+    prog = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("points"),
+                    TimeRemainingColumn(), console=Console(stderr=True), transient=True)
     task = prog.add_task("sweep", total=total, completed=done)
     prog.start()
     return (lambda n: prog.advance(task, n)), prog.stop
@@ -772,13 +901,28 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
               workers: int | None = None, max_states: int = 400) -> SweepResult:
     """Run (or resume) a sweep and write its outputs to the folder ``output``."""
     out = Path(output)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{str(out)[:80]!r} exists and is not a folder", field="--output")
+    if not out.exists() and not out.resolve().parent.is_dir():
+        raise InputError(f"the folder {str(out.resolve().parent)[:80]!r} that should hold the "
+                         "output folder does not exist", field="--output")
+    client = connect_dask(scheduler) if scheduler else None
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(exist_ok=True)
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise PermissionError
     except OSError:
-        raise InputError(f"cannot create the output folder {str(out)[:80]!r}",
-                         field="output") from None
+        if client is not None:
+            client.close()
+        raise InputError(f"cannot create or write the output folder {str(out)[:80]!r}",
+                         field="--output") from None
     journal = Journal(out / "sweep.journal.jsonl")
-    known = journal.load()
+    try:
+        known = journal.load()
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
     pending: Items = []
     seen: set[str] = set()
     for index, key in enumerate(spec.keys):
@@ -787,8 +931,8 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
             pending.append((index, key, spec.assignments(index)))
     reused = len(spec.keys) - len(pending)
     workers = workers or os.cpu_count() or 1
-    if scheduler:
-        batches = run_dask(spec, pending, max_states, scheduler)
+    if client is not None:
+        batches = run_dask(spec, pending, max_states, client)
     elif workers == 1 or len(pending) <= 8:
         batches = run_serial(spec, pending, max_states)
     else:
@@ -802,6 +946,7 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
             advance(len(batch))
     finally:
         stop()
+        batches.close()  # release workers / the Dask client at once, also on an interrupt
     rows = assemble_rows(spec, known)
     errors = [r for r in rows if r["status"] != "ok"]
     codes = [known[k].get("error_code") or int(ExitCode.BAD_INPUT)
@@ -838,6 +983,28 @@ def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
     return {k: str(v) for k, v in files.items()}
 
 
+def _interrupted(journal: Path) -> None:
+    """One line on stderr, then leave with exit code 130 (as ``cli.interrupted_exit`` does).
+
+    Unlike the other commands, an interrupted sweep keeps what it finished: the journal.
+    """
+    done = 0
+    try:
+        with open(journal, "rb") as fh:
+            done = sum(1 for line in fh if line.endswith(b"\n"))
+    except OSError:
+        pass
+    print(f"kfcrit: error: interrupted; {done} finished points are kept in {journal} (run the "
+          "same command again to resume); the table and plots were not updated",
+          file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(130)
+
+
 def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
                   workers: int | None, max_states: int) -> int:
     """Run the ``kfcrit sweep`` subcommand; return the exit code.
@@ -849,8 +1016,11 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
     spec = load_sweep(sweep_file, max_states=max_states)
     if output is None:
         output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
-    result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
-                       max_states=max_states)
+    try:
+        result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
+                           max_states=max_states)
+    except KeyboardInterrupt:
+        _interrupted(Path(output) / "sweep.journal.jsonl")
     print(f"kfcrit: sweep {spec.name!r}: {len(result.rows)} points ({result.computed} computed, "
           f"{result.reused} from the journal), {result.errors} errors; outputs in "
           f"{result.output}", file=sys.stderr)

@@ -29,7 +29,7 @@ from kfcrit.errors import InputError
 ROOT = Path(__file__).resolve().parents[1]
 REPORTS = ROOT / "reports"
 SECTION_ORDER = ["verdict", "system", "bounds", "phase-transition", "simulation", "distribution",
-                 "statements", "appendix"]
+                 "statements", "channel", "appendix"]
 
 
 def fixture_record() -> dict:
@@ -97,7 +97,11 @@ def fixture_record() -> dict:
                 "band_high": [3.6 + 2 * math.exp(-k / 30) for k in t],
                 "cdf": {"x": [2 + 0.5 * i for i in range(40)],
                         "F": [1 - math.exp(-0.25 * i) for i in range(40)]},
-                "tail_probability": 0.018},
+                "tail_probability": 0.018,
+                # synthetic shape: block maxima grow, block minima stay bounded (MATH §6)
+                "almost_sure": {"block_start": [2 ** k for k in range(10)],
+                                "block_max": [4.0 * 1.6 ** k for k in range(10)],
+                                "block_min": [3.3] * 10}},
             "phase_demo": [
                 {"p": 0.85, "label": "below p_c", "t": t,
                  "mean_trace": [3 * 1.03 ** k for k in t]},
@@ -485,6 +489,78 @@ def test_render_every_example_html(path, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "wrote" in err and str(out) in err
     assert capsys.readouterr().out == ""            # stdout carries no progress
+    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
+    for fig_id in ("fig-phase-transition", "fig-traces", "fig-operating", "fig-cdf",
+                   "fig-almost-sure"):              # every example has a channel
+        chunk = html.split(f'id="{fig_id}"')[1].split("</figure>")[0]
+        assert "<svg" in chunk, fig_id
+    if path.stem == "link-oqpsk-sensor":
+        check_link_budget_report(html)
+
+
+class _Text(HTMLParser):
+    """The text a reader sees (no SVG, style or title content)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.parts: list[str] = []
+        self.hidden = 0
+
+    def handle_starttag(self, tag: str, attrs: list) -> None:
+        self.hidden += tag in ("svg", "style", "title")
+
+    def handle_endtag(self, tag: str) -> None:
+        self.hidden -= tag in ("svg", "style", "title")
+
+    def handle_data(self, data: str) -> None:
+        if not self.hidden:
+            self.parts.append(data)
+
+
+def visible_text(html: str) -> str:
+    t = _Text()
+    t.feed(html)
+    return " ".join(" ".join(t.parts).split())
+
+
+# Raw record leaking into the page: a dict repr, a "snake_key: value" dump, Python literals.
+RAW_DUMP = re.compile(r"\{'|'[a-z_]+': |\b[a-z]+_[a-z_]+: |\bNone\b|\bTrue\b|\bFalse\b|\bnan\b")
+
+
+def raw_dumps(text: str) -> list[str]:
+    return [m.group(0) for m in RAW_DUMP.finditer(text)]
+
+
+def qty_rows(html: str, section_id: str) -> dict[str, str]:
+    """``{label: value}`` of the labelled quantity tables inside one section."""
+    body = html.split(f'id="{section_id}"')[1].split("</section>")[0]
+    rows = {}
+    for tr in re.findall(r"<tr[^>]*>(.*?)</tr>", body, re.DOTALL):
+        th = re.search(r'<th scope="row">(.*?)</th>', tr, re.DOTALL)
+        td = re.search(r'<td class="(?:num|val)">(.*?)</td>', tr, re.DOTALL)
+        if th and td:
+            rows[visible_text(th.group(1))] = visible_text(td.group(1))
+    return rows
+
+
+def check_link_budget_report(html: str) -> None:
+    """The link-budget example: design outputs as labelled rows with units, and the verdict
+    box says the 2 dB / 10 % margin policy is not met at 105 m (max distance ≈ 81 m)."""
+    rows = qty_rows(html, "channel")
+    expect_units = {"required SINR": " dB", "required received power": " dBm",
+                    "link margin at the configured distance": " dB",
+                    "maximum distance at the margin policy": " m",
+                    "transmit power": " dBm", "path loss (median)": " dB",
+                    "noise bandwidth": " MHz", "noise temperature": " K",
+                    "shadowing outage P(p_link ≤ design requirement)": " %"}
+    for label, unit in expect_units.items():
+        assert label in rows, (label, sorted(rows))
+        assert rows[label].endswith(unit), (label, rows[label])
+    assert rows["required arrival probability"] == "0.36"           # p_c = 9/25
+    assert re.fullmatch(r"\d+\.\d m", rows["maximum distance at the margin policy"])
+    assert 'id="link-design"' in html
+    verdict = html.split('id="verdict"')[1].split("</section>")[0]
+    assert "margin policy NOT met" in verdict and "policy needs" in verdict
 
 
 def test_cli_report_pdf_and_unknown_extension(tmp_path):
@@ -515,3 +591,138 @@ def test_wheel_ships_templates(tmp_path):
     for name in ("kfcrit/templates/report.html.j2", "kfcrit/templates/report.css",
                  "kfcrit/templates/_verdict.html.j2", "kfcrit/report.py"):
         assert name in names, name
+
+
+# ----------------------------------------------------------------------------- labelled tables
+
+def test_unit_and_number_filters():
+    assert filters.unit(-100.9648, "dBm") == "−100.96 dBm"
+    assert filters.unit(81.187, "m") == "81.2 m"
+    assert filters.unit(2.0e6, "Hz") == "2 MHz"
+    assert filters.unit(None, "dB") == "—"
+    assert filters.sci(4.261669270870999e-16) == "4.26 × 10⁻¹⁶"
+    assert filters.sci(0.5) == "0.5"
+    assert filters.prob(0.32859750788) == "0.3286"
+    assert filters.prob(1.2e-4) == "1.2 × 10⁻⁴"
+    assert filters.count(50000) == "50\u202f000"
+    assert filters.vector([[-0.80098], [-0.99706]]) == "[−0.801, −0.9971]"
+    assert filters.quantity(1.7752, "dB") == "1.78 dB"
+    assert filters.quantity(0.3286, "pct") == "32.9 %"
+    assert filters.quantity(None, "yesno") == "not computed"
+
+
+def test_eigenvalues_with_imaginary_unit_are_typeset():
+    assert mathsvg.expression_latex("1 + sqrt(3)*I") == r"1 + \sqrt{3} i"
+    assert mathsvg.expression_svg("1 - sqrt(3)*I") is not None
+    assert mathsvg.expression_latex("exp(I*pi/3)") is None      # not misread as E**(E*pi/3)
+
+
+def test_invariant_gaps_keep_exact_hole_over_numerical_estimate():
+    inv = {"holes": [[2.5, 2.7071067811865475], [3.0, 5.82842712474619]],
+           "support_points": {"largest_gaps": [[2.4999284826384978, 2.7071067811865475],
+                                               [2.9997139714660026, 5.82842712474619]]}}
+    assert figures.invariant_gaps(inv) == [[2.5, 2.7071067811865475],
+                                           [3.0, 5.82842712474619]]
+
+
+def test_fixture_report_has_no_raw_dumps(full_html):
+    assert not raw_dumps(visible_text(full_html)), raw_dumps(visible_text(full_html))
+
+
+def link_record() -> dict:
+    """FIXTURE: the link-budget section shape of ``linkbudget.design_section`` (numbers of the
+    link-oqpsk-sensor example, rounded), with the analysis' ``design_check``."""
+    from kfcrit.analysis import design_check
+
+    rec = fixture_record()
+    channel = {"model": "link-budget", "radio": {"model": "ieee802154-oqpsk-2450"},
+               "tx_power_dbm": 0.0, "distance_m": 105.0, "packet_bytes": 40,
+               "path_loss": {"model": "log-distance", "shadowing_sigma_db": 4.0,
+                             "shadowing": "per-link"},
+               "margin_db": 2.0, "max_outage": 0.1, "sinr_db": 0.1292,
+               "arrival_probability": 0.96214, "arrival_probability_expression": "0.96214"}
+    rec["operating_point"]["channel"] = channel
+    lb = {"applicable": True, "radio": {"model": "ieee802154-oqpsk-2450", "formula": "BER"},
+          "link": {"tx_power_dbm": 0.0, "distance_m": 105.0, "path_loss_db": 100.836,
+                   "rx_power_dbm": -100.836, "bandwidth_hz": 2e6, "interference_dbm": None,
+                   "sinr_db": 0.1292, "packet_error_rate": 0.0379, "arrival_probability": 0.962},
+          "margin_policy": {"margin_db": 2.0, "max_outage": 0.1, "effective_margin_db": 5.126,
+                            "rule": "keep max(margin_db, sigma * Phi^-1(1 - max_outage)) dB"},
+          "required_arrival_probability": {"design_value": 0.875, "basis": "critical value p_c"},
+          "required_sinr_db": -1.646, "required_rx_power_dbm": -102.611,
+          "link_margin_db": 1.7752, "max_distance_m": 81.187, "max_distance_unbounded": False,
+          "mean_stable_at_distance": True,
+          "shadowing": {"sigma_db": 4.0, "mode": "per-link", "mean_arrival_probability": 0.64,
+                        "outage_below_critical": 0.3286, "outage_below_upper": 0.3473},
+          "thresholds": [{"label": "critical_value", "arrival_probability": 0.875,
+                          "required_sinr_db": -1.646, "required_rx_power_dbm": -102.611,
+                          "link_margin_db": 1.7752, "max_distance_m": 81.187,
+                          "max_distance_unbounded": False, "outage_probability": 0.3286,
+                          "reachable": True}],
+          "notes": ["per-link shadowing: FIXTURE note"]}
+    lb["design_check"] = design_check(lb)
+    rec["link_budget"] = lb
+    return rec
+
+
+def test_design_check_compares_the_link_with_its_policy():
+    dc = link_record()["link_budget"]["design_check"]
+    assert dc["margin_policy_met"] is False            # 1.7752 dB < 5.126 dB
+    assert dc["outage_within_policy"] is False         # 32.9 % > 10 %
+    assert dc["max_distance_m"] == 81.187 and dc["distance_m"] == 105.0
+
+
+def test_link_budget_section_is_a_labelled_table_with_units():
+    rec = link_record()
+    html = report.render_html(rec, {})
+    rows = qty_rows(html, "channel")
+    assert rows["required SINR"] == "−1.65 dB"
+    assert rows["required received power"] == "−102.61 dBm"
+    assert rows["link margin at the configured distance"] == "1.78 dB"
+    assert rows["maximum distance at the margin policy"] == "81.2 m"
+    assert rows["noise bandwidth"] == "2 MHz"
+    assert rows["shadowing outage P(p_link ≤ design requirement)"] == "32.9 %"
+    assert rows["interference"] == "none"
+    assert "margin policy NOT met" in html
+    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
+
+
+def test_gilbert_elliott_report_has_bursty_section(tmp_path):
+    src = tmp_path / "ge.yaml"
+    src.write_text("name: bursty\nA: [[-1.25]]\nC: [[1]]\nQ: [[1]]\nR: [[2.5]]\n"
+                   "channel: {model: gilbert-elliott, failure_rate: 0.2, recovery_rate: 0.4}\n"
+                   "requirements: {max_error_trace: 20, max_tail_probability: 0.05}\n",
+                   encoding="utf-8")
+    out = tmp_path / "ge.html"
+    assert report.report_command(str(src), str(out), fmt=None, quick=True, seed=0,
+                                 max_states=50) in (0, 3)
+    html = out.read_text(encoding="utf-8")
+    assert 'id="bursty-link"' in html and "verdict basis" in html
+    rows = qty_rows(html, "channel")
+    assert rows["recovery rate r"] == "0.4" and rows["mean loss-burst length 1/r"] == "2.5"
+    assert rows["required recovery rate 1 − 1/a²"] == "0.36"           # 1 − (4/5)² (MATH §7)
+    assert "P(tr P &gt; 20)" in html and "95 % interval" in html        # requirement + CI
+    assert 'id="fig-invariant"' in html                                 # scalar: support drawn
+    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
+
+
+def test_missing_figures_say_why():
+    rec = fixture_record()
+    rec["operating_point"] = None
+    rec["system"]["channel"] = None
+    rec["simulation"]["operating_point"] = None
+    html = report.render_html(rec, figures.build_figures(rec))
+    chunk = html.split('id="fig-cdf"')[1].split("</figure>")[0]
+    assert "not computed (the system file has no channel section" in chunk
+    assert "channel: not computed (the system file has no channel section" in html
+    rec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
+    html = report.render_html(rec, figures.build_figures(rec))
+    assert "simulation: not computed (simulation disabled (--no-simulate))" in html
+
+
+def test_simulation_summary_is_labelled():
+    rec = fixture_record()
+    rows = qty_rows(report.render_html(rec, {}), "simulation")
+    assert rows["mean tr P_t at the horizon"] == filters.num(3.3 + 2 * math.exp(-195 / 30), 6)
+    html = report.render_html(rec, {})
+    assert "400 paths × 200 steps" in html
