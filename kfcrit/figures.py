@@ -143,6 +143,27 @@ def markers_of(record: dict[str, Any]) -> dict[str, float | None]:
             for k, v in fallback.items()}
 
 
+def phase_window(p: Sequence[float], lower: Sequence[float] | None,
+                 upper: Sequence[float] | None,
+                 marks: dict[str, float | None]) -> tuple[float, float]:
+    """The p-range of the phase-transition figure: where a bound exists, plus a margin.
+
+    Both bounds are infinite below p_low, so the window starts a tenth of the remaining range
+    below the first finite point (and includes the operating point and the p markers).
+    """
+    finite = [x for i, x in enumerate(p)
+              if any(seq is not None and i < len(seq) and math.isfinite(seq[i])
+                     for seq in (lower, upper))]
+    first = min(finite) if finite else min(p)
+    right = max(p)
+    shown = [first] + [v for v in marks.values() if v is not None and min(p) <= v <= right]
+    left = min(shown)
+    left = max(min(p), left - 0.1 * (right - left))
+    if right - left < 1e-9:
+        left = max(min(p), right - 0.05)
+    return left, right
+
+
 def phase_transition_svg(record: dict[str, Any]) -> str | None:
     """tr S̄(p) and tr V̄(p) on a log axis with p_low, p_c, p_up and the operating point."""
     pt = record.get("phase_transition")
@@ -176,8 +197,7 @@ def phase_transition_svg(record: dict[str, Any]) -> str | None:
               "-.")
         ax.set_xlabel("arrival probability p")
         ax.set_ylabel("trace of the bound")
-        xs = [v for v in (min(p), marks["p_low"]) if v is not None]
-        ax.set_xlim(min(xs) - 0.01 * (max(p) - min(xs)), max(p))
+        ax.set_xlim(*phase_window(p, lower, upper, marks))
         fig.legend(loc="outside lower center", frameon=False, ncols=3)
         return _to_svg(fig, "Phase transition: trace of the lower and upper covariance bounds "
                             "against the arrival probability")

@@ -547,8 +547,9 @@ FIGURE_CAPTIONS = {
                          "covariance diverges."),
     "traces": ("Simulated error traces around the critical value",
                "Mean trace of P_t over simulated loss sequences for p just below and just above "
-               "the critical value (log scale). Below p_c the mean keeps growing; above it "
-               "settles."),
+               "the critical value (log scale). Below p_c the expected covariance diverges; a "
+               "mean over finitely many paths shows it as growth or as ever larger spikes from "
+               "long loss bursts (it underestimates the expectation). Above p_c it settles."),
     "operating": ("Simulated mean covariance at the operating point",
                   "Mean trace of P_t over simulated paths at the operating p, with its 95 % "
                   "confidence band, against tr S̄ and tr V̄ (Sinopoli et al., Theorems 4 and 6: "

@@ -16,7 +16,9 @@ from hypothesis import HealthCheck, settings
 
 ROOT = Path(__file__).resolve().parents[1]
 REPORTS = ROOT / "reports"
-SHARED_CASES = ROOT.parent / "shared" / "cases"
+SHARED_CASES = next((p for p in (ROOT.parent / "shared" / "cases", Path("/work/shared/cases"))
+                     if p.is_dir()), ROOT.parent / "shared" / "cases")
+"""The papers' example systems and expected values (beside the repository, or /work/shared)."""
 
 settings.register_profile("ci", derandomize=True, deadline=None, max_examples=40,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])

@@ -726,3 +726,23 @@ def test_simulation_summary_is_labelled():
     assert rows["mean tr P_t at the horizon"] == filters.num(3.3 + 2 * math.exp(-195 / 30), 6)
     html = report.render_html(rec, {})
     assert "400 paths × 200 steps" in html
+
+
+def test_phase_window_starts_where_the_bounds_exist() -> None:
+    """Below p_low both bounds are infinite: the window starts just below the first finite point
+    (a tenth of the remaining range), and widens to show an operating point further left."""
+    from kfcrit.figures import phase_window
+
+    p = [0.0, 0.25, 0.5, 0.75, 0.8, 0.9, 1.0]
+    nan = float("nan")
+    lower = [nan, nan, nan, nan, 40.0, 8.0, 2.0]
+    upper = [nan, nan, nan, nan, nan, 30.0, 3.0]
+    marks = {"p_low": 0.75, "p_c": 0.9375, "p_up": 0.9375, "operating": 0.95}
+    left, right = phase_window(p, lower, upper, marks)
+    assert right == 1.0
+    assert left == pytest.approx(0.75 - 0.1 * 0.25)
+    left, _ = phase_window(p, lower, upper, {**marks, "operating": 0.5})
+    assert left == pytest.approx(0.5 - 0.1 * 0.5)
+    # nothing finite at all: fall back to the whole grid
+    left, right = phase_window(p, [nan] * 7, None, {})
+    assert (left, right) == (0.0, 1.0)
