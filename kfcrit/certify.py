@@ -20,6 +20,7 @@ a proof, whatever the rounding in L.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -137,7 +138,8 @@ def _with_precision(fn):
 
 @_with_precision
 def verify_upper(system: System, p: float, X: np.ndarray, K: np.ndarray,
-                 basis: np.ndarray | None = None) -> CheckResult:
+                 basis: np.ndarray | None = None,
+                 output_map: np.ndarray | None = None) -> CheckResult:
     """Prove p_up ≤ p from (X, K): X ≻ 0 and X − L_{K,p}(X) ≻ 0, in balls.
 
     L_{K,p}(X) = (1−p) A X A' + p (A + K C) X (A + K C)'   (Sinopoli Thm 5 with Q, R scaled
@@ -145,6 +147,12 @@ def verify_upper(system: System, p: float, X: np.ndarray, K: np.ndarray,
 
     With ``basis`` Z the certificate is given in that basis: the matrices checked are Z X Z'
     and Z K, formed exactly in balls (no rounding), and X ≻ 0 is proven as Z'Z ≻ 0, X ≻ 0.
+
+    With ``output_map`` M (r × m) the gain is given for the compressed output M C: the gain
+    checked for C is K M, formed in balls (the float product K·M would be rounded, and with an
+    ill-conditioned C that rounding, amplified by ‖C‖·‖M‖, can exceed the certificate's
+    margin). ``K`` is then n × r. The system matrices A, C are always the exact ones: no
+    tolerance, no rescaling of the system enters the decision.
     """
     kind = "upper: X > 0 and X - L_{K,p}(X) > 0"
     n, m = system.n, system.m
@@ -152,7 +160,14 @@ def verify_upper(system: System, p: float, X: np.ndarray, K: np.ndarray,
         A = arb_from_sympy(system.A)
         C = arb_from_sympy(system.C)
         Xa = arb_from_float(np.asarray(X, dtype=float))
-        Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, m))
+        if output_map is None:
+            Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, m))
+        else:
+            Mo = np.atleast_2d(np.asarray(output_map, dtype=float))
+            if Mo.shape[1] != m:
+                raise ValueError(f"output map has {Mo.shape[1]} columns, C has {m} rows")
+            Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, Mo.shape[0])) \
+                * arb_from_float(Mo)
         pa = _arb_float_exact(p)
         Za = None if basis is None else arb_from_float(np.asarray(basis, dtype=float))
     except (ValueError, TypeError) as exc:
@@ -209,3 +224,74 @@ def verify_lower(system: System, p: float, X: np.ndarray) -> CheckResult:
         return CheckResult(False, kind, float(p), mx, None,
                            "G_p(X) - X is not proven positive definite")
     return CheckResult(True, kind, float(p), mx, mm, "proven")
+
+
+# ---------------------------------------------------------------------------------------------
+# directed rounding of exact values to floats
+# ---------------------------------------------------------------------------------------------
+
+
+def float_down(x: Fraction) -> float:
+    """The largest float ≤ the exact rational ``x``."""
+    f = float(x)
+    return f if Fraction(f) <= x else math.nextafter(f, -math.inf)
+
+
+def float_up(x: Fraction) -> float:
+    """The smallest float ≥ the exact rational ``x``."""
+    f = float(x)
+    return f if Fraction(f) >= x else math.nextafter(f, math.inf)
+
+
+def _arb_exact(x: flint.arb) -> Fraction:
+    """The exact value of an exact (zero-radius) arb as a Fraction."""
+    man, exp = x.mid().man_exp()
+    man, exp = int(man), int(exp)
+    return Fraction(man) * (Fraction(2) ** exp)
+
+
+def round_expr(expr: sp.Expr) -> tuple[float, float]:
+    """(down, up): floats with down ≤ expr ≤ up for the exact real sympy number ``expr``.
+
+    Rationals are rounded exactly (1/2 gives (0.5, 0.5)); other numbers are evaluated to 60
+    significant digits (mpmath evalf, which tracks its accuracy) and widened by 1e-50 relative
+    before the directed rounding.
+    """
+    expr = sp.nsimplify(expr) if isinstance(expr, sp.Float) else expr
+    if expr.is_Rational:
+        x = Fraction(int(expr.p), int(expr.q))
+        return float_down(x), float_up(x)
+    v = sp.N(expr, 60)
+    if not v.is_real:
+        raise ValueError("not a real number")
+    x = Fraction(str(v))
+    pad = abs(x) * Fraction(1, 10 ** 50) + Fraction(1, 10 ** 300)
+    return float_down(x - pad), float_up(x + pad)
+
+
+@_with_precision
+def spectral_radius2_bounds(system: System) -> tuple[Fraction, Fraction] | None:
+    """Rigorous bounds lo ≤ ρ(A)² ≤ hi from ball eigenvalues of the exact A (None if the
+    enclosure fails; multiple eigenvalues are enclosed as clusters, python-flint acb_mat.eig
+    with ``multiple=True``)."""
+    try:
+        A = flint.acb_mat(arb_from_sympy(system.A))
+        eigs = A.eig(multiple=True)
+    except (ValueError, ZeroDivisionError, TypeError):
+        return None
+    lo, hi = Fraction(0), Fraction(0)
+    for z in eigs:
+        m2 = z.real * z.real + z.imag * z.imag
+        if not m2.is_finite():
+            return None
+        a, b = _arb_exact(m2.lower()), _arb_exact(m2.upper())
+        lo, hi = max(lo, max(a, Fraction(0))), max(hi, b)
+    return lo, hi
+
+
+@_with_precision
+def exact_product(M: np.ndarray, B: sp.MatrixBase) -> np.ndarray:
+    """M·B for a float matrix M and an exact matrix B, formed in balls and rounded once to
+    float64 (no cancellation error from the float product)."""
+    P = arb_from_float(M) * arb_from_sympy(B)
+    return np.array([[float(e.mid()) for e in row] for row in P.tolist()])

@@ -48,6 +48,7 @@ from .structure import (
 from .system import System
 
 _LONG_LITERAL = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
+_LONG_NUMBER = re.compile(r"\d{13,}")
 
 CLASSIFICATIONS = ("stable", "non-degenerate", "degenerate-second-order", "degenerate",
                    "non-diagonalizable", "not-detectable")
@@ -180,7 +181,7 @@ class CriticalValue:
         if self.value is not None:
             reason = self.reason
             if exact and self.value.expr is None:
-                reason += (" (every decision exact; |λ_1|² is an algebraic number of degree ≥ 3, "
+                reason += (" (every decision exact; |λ₁|² is an algebraic number of degree ≥ 3, "
                            "so the value is given in double precision)")
             cv = {"value": self.value.value, "exact": exact and self.value.expr is not None,
                   "expression": self.value.expression, "latex": self.value.latex,
@@ -200,26 +201,54 @@ class CriticalValue:
 
 # --------------------------------------------------------------------------- bounds
 
+_SUPERSCRIPT = str.maketrans("0123456789-−", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻⁻")
+
+
+def _sup(k: int) -> str:
+    """An integer as Unicode superscript digits (h² for the second iterate)."""
+    return str(k).translate(_SUPERSCRIPT)
+
+
 def _short(text: str | None, approx: str) -> str:
     """Exact text when it is short enough to read, else the float approximation."""
     return text if text is not None and len(text) <= 48 else approx
 
 
 def _float_text(z: complex) -> str:
+    """A computed complex number in full (shortest round-trip repr of each part): a float
+    result is never shown rounded to a value it does not have (1.9999999999999998, not 2)."""
     if z.imag == 0:
-        return f"{z.real:.12g}"
-    return f"{z.real:.12g}{'+' if z.imag > 0 else '-'}{abs(z.imag):.12g}j"
+        return repr(float(z.real))
+    return f"{float(z.real)!r}{'+' if z.imag > 0 else '-'}{abs(float(z.imag))!r}j"
 
 
 def _eig_text(st: Structure, i: int) -> str:
     e = st.eigen[i]
-    return _short(sp.sstr(e.expr) if e.expr is not None else None, _float_text(e.value))
+    text = sp.sstr(e.expr) if e.expr is not None else None
+    if text is not None and _LONG_NUMBER.search(text):
+        return "≈ " + _float_text(e.value)     # e.g. binary-float input: 2^51 denominators
+    return _short(text, _float_text(e.value))
 
 
 def _mod_text(st: Structure, i: int) -> str:
+    """|λ_i|: the exact expression when short, else the computed float marked "≈" (exact
+    path: the float of the exact value) or as computed (numeric path)."""
     e = st.eigen[i]
-    return _short(sp.sstr(sp.sqrt(e.mod2_expr)) if e.mod2_expr is not None else None,
-                  f"{e.modulus:.12g}")
+    if e.mod2_expr is not None:
+        return _short(sp.sstr(sp.sqrt(e.mod2_expr)), f"≈ {e.modulus!r}")
+    return repr(e.modulus)
+
+
+def _decided_text(system: System, st: Structure, what: str) -> str:
+    """How a discrete decision (``what``) was made, for reason texts on float input."""
+    if st.path == "numeric":
+        tol = st.tolerances.get("modulus_relative", NUMERIC_TOLERANCES["modulus_relative"])
+        return (f" ({what} decided in floating point: equal within relative tolerance "
+                f"{tol:g}; the numbers shown are the computed float64 values)")
+    if not system.exact:
+        return (f" ({what} decided exactly on the binary-float input taken as the rationals "
+                "it represents; numbers marked ≈ are float64 roundings of exact values)")
+    return ""
 
 
 def _lower(st: Structure) -> Num:
@@ -277,11 +306,11 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
         bad = ", ".join(_eig_text(st, i) for i in st.undetectable)
         return ("not-detectable", None,
                 f"(C, A) is not detectable: eigenvalue(s) {bad} with |λ| ≥ 1 have an eigenvector "
-                "with C v = 0, so E[P_t] (indeed P_t itself) diverges for every arrival "
+                "with C v = 0, so E[Pₜ] (indeed Pₜ itself) diverges for every arrival "
                 "probability, even with no losses (PBH test)")
     if st.stable:
         return ("stable", Num(0.0, sp.Integer(0)),
-                f"ρ(A) = {_mod_text(st, 0)} < 1: E[P_t] is bounded for every p, p_c = 0")
+                f"ρ(A) = {_mod_text(st, 0)} < 1: E[Pₜ] is bounded for every p, p_c = 0")
     if not st.diagonalizable:
         if _c_invertible(system, st):
             return ("non-diagonalizable", low,
@@ -291,7 +320,7 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
             return ("non-diagonalizable", low,
                     f"A is not diagonalizable (outside Mo–Sinopoli), but it has a single unstable "
                     f"eigenvalue {_eig_text(st, 0)}: Sinopoli et al. §IV, bounds coincide, "
-                    "p_c = 1 − 1/|λ_1|²")
+                    "p_c = 1 − 1/|λ₁|²")
         return ("non-diagonalizable", None,
                 "A is not diagonalizable: Mo–Sinopoli (H2) fails and the papers give no closed "
                 "form; p_c lies in [block lower bound, LMI upper bound]")
@@ -303,7 +332,8 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
             for b in rel_blocks)
         return ("non-degenerate", low,
                 f"Mo–Sinopoli Thm 4: every equi-block with |λ| ≥ 1 is one-step observable "
-                f"({facts}); p_c = max(1 − |λ_1|^-2, 0) with |λ_1| = {_mod_text(st, 0)}")
+                f"({facts}); p_c = max(1 − |λ₁|⁻², 0) with |λ₁| = {_mod_text(st, 0)}"
+                + _decided_text(system, st, "equi-blocks and ranks"))
     blk = degenerate[0]
     second_order = (len(rel_blocks) == 1 and len(blk.members) == 2 and blk.size == 2)
     if second_order:
@@ -318,7 +348,7 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
         return ("degenerate-second-order", val,
                 f"Mo–Sinopoli Thm 5{extra}: equal moduli |{_eig_text(st, a)}| = "
                 f"|{_eig_text(st, b)}| = {_mod_text(st, a)}, rank C_I = {pair.rank} < 2, "
-                f"{qtext}")
+                f"{qtext}" + _decided_text(system, st, "equal moduli, rank and φ/2π"))
     return ("degenerate", None,
             f"degenerate equi-block of size {blk.size} with rank C_I = {blk.rank} at |λ| = "
             f"{_mod_text(st, blk.members[0])}"
@@ -428,17 +458,17 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
     pc_text = pc.expression if pc is not None else "p_c (not known in closed form)"
     if st.detectable:
         sb = ("Kar–Sinopoli–Moura Thm 9: for every arrival probability p > 0 the random Riccati "
-              "sequence P_t is stochastically bounded and converges weakly to a unique invariant "
+              "sequence Pₜ is stochastically bounded and converges weakly to a unique invariant "
               f"distribution from every P_0; that distribution has a finite mean iff p > "
               f"{pc_text}.")
         if not st.controllable_Q:
-            sb += (" (Their hypothesis (A, Q^1/2) stabilizable is assumed here: kfcrit checked "
+            sb += (" (Their hypothesis (A, Q^(1/2)) stabilizable is assumed here: kfcrit checked "
                    "controllability, which failed.)")
     else:
         sb = ("Kar–Sinopoli–Moura Thm 9 needs (C, A) detectable, which fails: no statement.")
     return {"moment_thresholds": moments,
-            "moment_thresholds_note": ("Mo–Sinopoli Cor. 2: sup_k E[P_k^q] < ∞ iff "
-                                       "p > 1 − |λ_1|^(−2q); applies to non-degenerate systems "
+            "moment_thresholds_note": ("Mo–Sinopoli Cor. 2: supₖ E[Pₖ^q] < ∞ iff "
+                                       "p > 1 − |λ₁|^(−2q); applies to non-degenerate systems "
                                        "whose eigenvalues are all unstable"),
             "stochastic_boundedness": sb,
             "almost_sure": _almost_sure(st, channel),
@@ -450,20 +480,20 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
     label = ("Consequence (Borel–Cantelli argument on Wu–Shi–Anderson–Johansson Lemma 4, "
              "MATH §6), not a theorem of the papers: ")
     if not st.detectable:
-        return ["(C, A) is not detectable: tr P_k diverges almost surely on every channel."]
+        return ["(C, A) is not detectable: tr Pₖ diverges almost surely on every channel."]
     if st.stable:
-        return ["A is stable: tr P_k stays bounded by a deterministic constant for every arrival "
+        return ["A is stable: tr Pₖ stays bounded by a deterministic constant for every arrival "
                 "sequence (absolutely upper and lower almost-surely stable)."]
     io = st.observability_index
     if io is not None:
-        m_text = f"liminf tr P_k ≤ tr M with M = h^{io}(M_0) (I_o = {io})"
+        m_text = f"liminf tr Pₖ ≤ tr M with M = h{_sup(io)}(M₀) (Iₒ = {io})"
     elif st.observable:
-        m_text = ("liminf tr P_k ≤ tr M with M = h^{I_o}(M_0) ((C, A) is observable by the PBH "
-                  "test; I_o itself is not determined in floating point at this size)")
+        m_text = ("liminf tr Pₖ ≤ tr M with M = h^(Iₒ)(M₀) ((C, A) is observable by the PBH "
+                  "test; Iₒ itself is not determined in floating point at this size)")
     else:
         m_text = "a liminf bound (Lemma 4 needs (C, A) observable, which fails here)"
     general = (label + "for unstable A and an arrival process in which every finite loss burst "
-               "and every run of I_o arrivals recur infinitely often, limsup tr P_k = ∞ almost "
+               "and every run of Iₒ arrivals recur infinitely often, limsup tr Pₖ = ∞ almost "
                f"surely (upper a.s. unstable) while {m_text} (absolutely lower a.s. stable). "
                "Mean stability is a different, stronger notion.")
     if channel is None:
@@ -472,11 +502,11 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
     if model == "bernoulli":
         p = channel.arrival_probability
         if p == 1:
-            return ["Every packet arrives (p = 1): the standard Kalman filter; P_k converges "
-                    "to the Riccati fixed point (detectable system), so tr P_k is bounded."]
+            return ["Every packet arrives (p = 1): the standard Kalman filter; Pₖ converges "
+                    "to the Riccati fixed point (detectable system), so tr Pₖ is bounded."]
         if p == 0:
             return ["No packet arrives (p = 0): open-loop prediction of an unstable system; "
-                    "tr P_k → ∞ surely."]
+                    "tr Pₖ → ∞ surely."]
         return [f"i.i.d. losses with 0 < p = {sp.sstr(p)} < 1 satisfy the recurrence condition. "
                 + general]
     if model == "gilbert-elliott":
@@ -502,7 +532,7 @@ def _hypothesis_warnings(system: System, st: Structure) -> list[str]:
     if st.path == "numeric":
         out.append(f"eigen-structure decided in floating point ({st.path_reason})")
     if not st.controllable_Q:
-        out.append("(A, Q^1/2) is not controllable: Sinopoli's existence theorem for p_c "
+        out.append("(A, Q^(1/2)) is not controllable: Sinopoli's existence theorem for p_c "
                    "assumes it")
     qf = np.linalg.eigvalsh(0.5 * (system.q + system.q.T))
     if qf.min() <= 1e-12 * max(1.0, float(np.abs(qf).max())):
@@ -536,6 +566,7 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
     st = structure_of(system)
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)
+    reason = reason.replace("= ≈", "≈").replace("|≈ ", "|")
     warnings = _hypothesis_warnings(system, st)
     if classification == "not-detectable":
         blow, bwhy = None, "not detectable: no finite critical value"

@@ -56,10 +56,11 @@ CLARABEL_SETTINGS = {"tol_gap_abs": 1e-9, "tol_gap_rel": 1e-9, "tol_feas": 1e-9,
 class PsiProblem:
     """The margin LMI built once for (A, C); :meth:`solve` classifies one value of p."""
 
-    def __init__(self, A: np.ndarray, C: np.ndarray) -> None:
+    def __init__(self, A: np.ndarray, C: np.ndarray, output_map: np.ndarray | None = None) -> None:
         import cvxpy as cp
 
         self.cp = cp
+        self.M = output_map
         _, (scale, _perm) = sla.matrix_balance(A, permute=False, separate=True)
         self.T = np.diag(scale)
         Ab = (A * scale[None, :]) / scale[:, None]          # T^{-1} A T, exact (powers of two)
@@ -87,6 +88,10 @@ class PsiProblem:
         assert self.unit.is_dcp(dpp=True)
         self.solves = 0
         self.seconds = 0.0
+
+    def _gain(self, K: np.ndarray) -> np.ndarray:
+        """The gain for the original C (rounded copy K M when the output is compressed)."""
+        return K if self.M is None else K @ self.M
 
     def psi(self, Y: np.ndarray, Z: np.ndarray, p: float) -> np.ndarray:
         """Ψ_p(Y, Z) in the balanced coordinates (NumPy, for the a-posteriori check)."""
@@ -141,10 +146,10 @@ class PsiProblem:
             Xb = 0.5 * (Xb + Xb.T)
             Kb = Xb @ Z
             Z, Xz, Kz = lift(self.T @ Xb @ self.T, self.T @ Kb, p)
-            check = certify.verify_upper(system, p, Xz, Kz, basis=Z)
+            check = certify.verify_upper(system, p, Xz, Kz, basis=Z, output_map=self.M)
             if check.ok:
                 return {**out, "decision": "feasible", "check": check,
-                        "X": Z @ Xz @ Z.T, "K": Z @ Kz, "basis": Z, "X_basis": Xz,
+                        "X": Z @ Xz @ Z.T, "K": self._gain(Z @ Kz), "basis": Z, "X_basis": Xz,
                         "K_basis": Kz}
             return {**out, "decision": "undetermined",
                     "reason": f"positive margin not confirmed: {check.reason}"}
@@ -179,11 +184,12 @@ class PsiProblem:
                 Xb = np.linalg.inv(Y)
                 Xb = 0.5 * (Xb + Xb.T)
                 Zb, Xz, Kz = lift(self.T @ Xb @ self.T, self.T @ (Xb @ Z), p)
-                check = certify.verify_upper(system, p, Xz, Kz, basis=Zb)
+                check = certify.verify_upper(system, p, Xz, Kz, basis=Zb,
+                                             output_map=self.M)
                 if check.ok:
                     return {**out, "decision": "feasible", "check": check,
-                            "X": Zb @ Xz @ Zb.T, "K": Zb @ Kz, "basis": Zb, "X_basis": Xz,
-                            "K_basis": Kz}
+                            "X": Zb @ Xz @ Zb.T, "K": self._gain(Zb @ Kz), "basis": Zb,
+                            "X_basis": Xz, "K_basis": Kz}
         return {**out, "decision": "undetermined",
                 "reason": f"margin {out['margin']:.3g} ~ 0 but Psi >= I gives status {status}"}
 
@@ -193,12 +199,19 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
 
     Returns an :class:`kfcrit.upper.UpperBound` with method "lmi".
     """
-    from .upper import UpperBound, _evidence_p_low, lift_certificate, p_low_of, reduce_unstable
+    from .upper import (
+        UpperBound,
+        _compression_note,
+        _evidence_p_low,
+        lift_certificate,
+        p_low_of,
+        reduce_system,
+    )
 
     t0 = time.perf_counter()
     A, C = system.a, system.c
     p_low = p_low_of(A)
-    red = reduce_unstable(A, C)
+    red = reduce_system(system)      # output compressed when C Z_u is ill-conditioned
     if red.k == 0:
         from .upper import _newton_method
         return _newton_method(system, tol)
@@ -206,7 +219,7 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
     def lift(Xu, Ku, p):
         return lift_certificate(red, C, Xu, Ku, p)
 
-    problem = PsiProblem(red.Au, red.Cu)
+    problem = PsiProblem(red.Au, red.Cu, red.M)
     lo, hi = p_low, 1.0
     best = None
     last_infeasible = None
@@ -234,6 +247,8 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
               "solver_seconds": problem.seconds, "solver": "CLARABEL via cvxpy (DPP)",
               "reduced_states": red.k,
               "balancing": "diagonal similarity (scipy matrix_balance) of the unstable block"}
+    if red.M is not None:
+        solver["output_compression"] = _compression_note(red)
     cert = None
     if best is not None:
         check = best["check"]
@@ -249,6 +264,8 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
             if not direct.ok:
                 for name in ("basis", "X_basis", "K_basis"):
                     cert[name] = [[float(v) for v in row] for row in best[name]]
+                if red.M is not None:
+                    cert["output_map"] = [[float(v) for v in row] for row in red.M]
     if last_infeasible is None:
         lower = _evidence_p_low(p_low)
     else:

@@ -28,6 +28,7 @@ falls back to the LMI when Newton cannot produce a certified bracket.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -72,7 +73,9 @@ class UpperBound:
                 "certified": self.certified, "status": self.status, "method": self.method,
                 "certificate": self.certificate, "lower_evidence": self.lower_evidence,
                 "solver": self.solver, "warnings": list(self.warnings),
-                "tolerance": self.tolerance}
+                "tolerance": self.tolerance,
+                "applicable": not self.extras.get("not_applicable"),
+                "not_applicable_reason": self.extras.get("not_applicable")}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -89,13 +92,58 @@ class Reduced:
     k: int
     Au: np.ndarray
     Cu: np.ndarray
+    Cw: np.ndarray | None = None
+    """The output matrix the reduction was computed with (M C when compressed, else C)."""
+    M: np.ndarray | None = None
+    """Output compression: certificates carry gains K_w for M C; the gain for C is K_w M."""
 
 
-def reduce_unstable(A: np.ndarray, C: np.ndarray, tol: float = UNSTABLE_TOL) -> Reduced:
-    """Real Schur form with the modes |λ| ≥ 1 − tol first; (T_uu, C Z_u) is the reduced system."""
+def reduce_unstable(A: np.ndarray, C: np.ndarray, tol: float = UNSTABLE_TOL,
+                    output_map: np.ndarray | None = None) -> Reduced:
+    """Real Schur form with the modes |λ| ≥ 1 − tol first; (T_uu, C Z_u) is the reduced system.
+
+    ``C`` is the output matrix to work with (already compressed when ``output_map`` is given).
+    """
     T, Z, k = sla.schur(A, output="real",
                         sort=lambda re, im: re * re + im * im >= (1.0 - tol) ** 2)
-    return Reduced(T, Z, int(k), T[:k, :k], C @ Z[:, :k])
+    return Reduced(T, Z, int(k), T[:k, :k], C @ Z[:, :k], C, output_map)
+
+
+OUTPUT_CONDITION_LIMIT = 1e4
+"""Conditioning rule for the reduced output C Z_u: beyond this ratio σ_max/σ_min (or with
+dependent rows) the methods work with the compressed output M C (see :func:`reduce_system`)."""
+
+
+def reduce_system(system: System, tol: float = UNSTABLE_TOL) -> Reduced:
+    """:func:`reduce_unstable` of (A, C), with the output compressed when C Z_u is
+    ill-conditioned.
+
+    p_up depends on the row space of the reduced output C Z_u only (K C = (K M⁻¹)(M C)), but
+    the methods do not: a tiny singular value of C Z_u is swamped by their homogeneous
+    regulariser (1e-15·tr X added to C X C') and by the LMI solver's tolerances, so an
+    ill-conditioned output behaves as if it had fewer rows — the audit case A = [[0,−2],[2,0]],
+    C = diag(1, 1e-12) gave a "determined" bracket around 0.9375 for p_up = 0.75.
+    Conditioning rule: when σ_max/σ_min of C Z_u exceeds ``OUTPUT_CONDITION_LIMIT``, or its
+    rows are dependent (numerical rank r < m by NumPy's rule σ_i > max(m, k)·eps·σ_max), the
+    methods use M C with M = diag(1/σ_1..1/σ_r) U_r' (then M C Z_u has orthonormal rows).
+    M C is formed exactly in balls from the exact C and rounded once, and every certificate
+    is checked with the gain K_w M on the exact C (:func:`kfcrit.certify.verify_upper`,
+    ``output_map``), so the compression never enters a proof.
+    """
+    A, C = system.a, system.c
+    red = reduce_unstable(A, C, tol)
+    if red.k == 0 or not np.all(np.isfinite(red.Cu)):
+        return red
+    m, k = red.Cu.shape
+    U, sv, _ = np.linalg.svd(red.Cu, full_matrices=False)
+    if sv.size == 0 or sv[0] == 0:
+        return red
+    r = int(np.sum(sv > max(m, k) * np.finfo(float).eps * sv[0]))
+    if r == m and sv[r - 1] * OUTPUT_CONDITION_LIMIT >= sv[0]:
+        return red
+    M = (U[:, :r] / sv[:r]).T
+    Cw = certify.exact_product(M, system.C)
+    return Reduced(red.T, red.Z, red.k, red.Au, Cw @ red.Z[:, :red.k], Cw, M)
 
 
 def regularised_g(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float,
@@ -250,6 +298,7 @@ def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray
     (Scaling the unstable block up, not the stable block down, keeps X well inside the cone.)
     """
     n, k = red.T.shape[0], red.k
+    C = red.Cw if red.Cw is not None else C
     Fu = red.Au + Ku @ red.Cu
     Mu = symmetrize(Xu - (1 - p) * red.Au @ Xu @ red.Au.T - p * Fu @ Xu @ Fu.T)
     if k == n:
@@ -267,7 +316,7 @@ def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray
         Xz = np.zeros((n, n))
         Xz[:k, :k] = c * Xu
         Xz[k:, k:] = Ys
-        Kz = np.zeros((n, C.shape[0]))
+        Kz = np.zeros((n, Ku.shape[1]))
         Kz[:k] = Ku
     return red.Z, symmetrize(Xz), Kz
 
@@ -289,6 +338,180 @@ def p_low_of(A: np.ndarray) -> float:
     return max(0.0, 1.0 - 1.0 / rho**2) if rho > 1 else 0.0
 
 
+@dataclass(frozen=True)
+class PLow:
+    """p_low = max(1 − 1/ρ(A)², 0) with directed float roundings down ≤ p_low ≤ up."""
+
+    down: float
+    up: float
+    expression: str | None
+    how: str
+    rigorous: bool
+
+
+def p_low_bounds(system: System) -> PLow:
+    """Enclose the exact p_low of ``system`` between two floats (Sinopoli Thm 3).
+
+    In order of preference: the exact |λ_1|² of the structure analysis when it has already run
+    (exact path; e.g. A = √2 gives p_low = 1/2 exactly, where floats give 0.5000000000000001);
+    exact eigenvalues for n ≤ 2 (sympy); the exact characteristic polynomial of a rational A
+    (python-flint, rigorous root isolation, multiplicities handled); ball eigenvalues of the
+    exact A (python-flint acb_mat.eig); float64 eigenvalues widened by 1e-12 relative (labelled
+    not rigorous) when n > 60 or everything else fails.
+    """
+    key = id(system)
+    hit = _PLOW_CACHE.get(key)
+    if hit is not None and hit[0] is system:
+        return hit[1]
+    out = _p_low_bounds(system)
+    _PLOW_CACHE[key] = (system, out)
+    while len(_PLOW_CACHE) > 32:
+        _PLOW_CACHE.pop(next(iter(_PLOW_CACHE)))
+    return out
+
+
+_PLOW_CACHE: dict[int, tuple[System, PLow]] = {}
+
+
+def _p_low_from_mod2(mod2: sp.Expr, how: str) -> PLow:
+    mod2 = sp.nsimplify(mod2) if isinstance(mod2, sp.Float) else mod2
+    if not sp.N(mod2 - 1, 50) > 0:
+        # |λ_1|² ≤ 1 to 50 digits; equality is decided exactly below when possible
+        if mod2.is_Rational or sp.N(mod2 - 1, 50) < 0 or sp.simplify(mod2 - 1) == 0:
+            return PLow(0.0, 0.0, "0", how, True)
+        raise ValueError("|λ_1|² too close to 1 to decide")
+    expr = sp.radsimp(1 - 1 / mod2)
+    down, up = certify.round_expr(expr)
+    return PLow(max(down, 0.0), up, sp.sstr(expr), how, True)
+
+
+def _p_low_bounds(system: System) -> PLow:
+    from . import critical
+    st = critical._CACHE.get(system)
+    if st is not None and st.path == "exact" and st.eigen and st.eigen[0].mod2_expr is not None:
+        top = st.eigen[0]
+        if top.unit_cmp is not None and top.unit_cmp <= 0:
+            return PLow(0.0, 0.0, "0", "exact (structure analysis: ρ(A) ≤ 1)", True)
+        try:
+            return _p_low_from_mod2(top.mod2_expr, "exact (structure analysis)")
+        except (ValueError, TypeError):
+            pass
+    n = system.n
+    if n <= 2:
+        try:
+            eigs = list(sp.Matrix(system.A).eigenvals())
+            mods = [sp.radsimp(sp.expand(sp.re(z) ** 2 + sp.im(z) ** 2)) for z in eigs]
+            mod2 = max(mods, key=lambda v: float(sp.N(v, 30)))
+            return _p_low_from_mod2(mod2, "exact (eigenvalues by sympy)")
+        except (ValueError, TypeError, ArithmeticError):
+            pass
+    bounds = None
+    if n <= 60:
+        if all(e.is_Rational for e in system.A):
+            bounds = _rational_rho2(system)
+        if bounds is None:
+            bounds = certify.spectral_radius2_bounds(system)
+    if bounds is not None:
+        lo2, hi2 = bounds
+        down = certify.float_down(1 - 1 / lo2) if lo2 > 1 else 0.0
+        up = certify.float_up(1 - 1 / hi2) if hi2 > 1 else 0.0
+        if up - down <= 1e-12:
+            return PLow(max(down, 0.0), up, None, "ball enclosure of ρ(A)² (python-flint)", True)
+    p = p_low_of(system.a)
+    pad = 1e-12 * max(p, 1e-300)
+    return PLow(max(0.0, p - pad), p + pad if p > 0 else 0.0, None,
+                "float64 eigenvalues, widened by 1e-12 relative (not rigorous)", False)
+
+
+def _rational_rho2(system: System):
+    """Rigorous bounds on ρ(A)² from the exact characteristic polynomial of a rational A."""
+    from fractions import Fraction as Fr
+
+    import flint
+    try:
+        old = flint.ctx.prec
+        flint.ctx.prec = 200
+        try:
+            rows = [[flint.fmpq(int(e.p), int(e.q)) for e in system.A.row(i)]
+                    for i in range(system.n)]
+            P = flint.fmpq_mat(rows).charpoly()
+            num = flint.fmpz_poly([int(c * P.denom()) for c in P.coeffs()])
+            lo, hi = Fr(0), Fr(0)
+            for root, _mult in num.complex_roots():
+                m2 = root.real * root.real + root.imag * root.imag
+                a, b = certify._arb_exact(m2.lower()), certify._arb_exact(m2.upper())
+                lo, hi = max(lo, max(a, Fr(0))), max(hi, b)
+            return lo, hi
+        finally:
+            flint.ctx.prec = old
+    except (ValueError, TypeError, ZeroDivisionError, AttributeError):
+        return None
+
+
+def c_invertible(system: System) -> tuple[bool | None, str]:
+    """Is C square and invertible? (decision, how it was decided).
+
+    Exact where the entries are exact numbers: rational C (every binary float is one) by the
+    rank over Q (python-flint fmpq_mat); algebraic C by a ball determinant that excludes 0
+    (proves invertible), else sympy's exact determinant (proves singular when it simplifies to
+    0). Otherwise None (undecided; the general method runs).
+    """
+    n, m = system.n, system.m
+    if m != n:
+        return False, "C is not square"
+    import flint
+    if all(e.is_Rational for e in system.C):
+        rows = [[flint.fmpq(int(e.p), int(e.q)) for e in system.C.row(i)] for i in range(n)]
+        rank = flint.fmpq_mat(rows).rank()
+        return rank == n, f"rank C = {rank} over Q, exact rational arithmetic (python-flint)"
+    try:
+        old = flint.ctx.prec
+        flint.ctx.prec = certify.PRECISION_BITS
+        try:
+            det = certify.arb_from_sympy(system.C).det()
+        finally:
+            flint.ctx.prec = old
+        if not det.contains(0):
+            return True, f"det C ≠ 0 proven by ball arithmetic (det C ∈ {det.str(5)})"
+    except (ValueError, TypeError, ZeroDivisionError):
+        pass
+    if n <= 6 and sp.simplify(sp.Matrix(system.C).det()) == 0:
+        return False, "det C = 0, exact (sympy)"
+    return None, "undecided"
+
+
+def _c_invertible_bound(system: System, how: str) -> UpperBound:
+    """p_up = p_c = p_low exactly when C is invertible (Sinopoli et al. 2004 §IV)."""
+    t0 = time.perf_counter()
+    pl = p_low_bounds(system)
+    kappa = float(np.linalg.cond(system.c))
+    statement = ("C is square and invertible (" + how + "): the gain K = −A C⁻¹ gives "
+                 "F = A + K C = 0, so X ≻ L_{K,p}(X) = (1−p) A X A' has a solution X ≻ 0 iff "
+                 "(1−p) ρ(A)² < 1, i.e. iff p > p_low; hence p_up = p_low = max(1 − 1/ρ(A)², 0) "
+                 "exactly and p_c = p_up = p_low (Sinopoli et al. 2004 §IV). The infimum is "
+                 "not attained: every p > p_low is certified by this K.")
+    warn: list[str] = []
+    if not system.exact and kappa > 1e8:
+        warn.append(f"C is invertible as given (its binary floats taken exactly) but "
+                    f"ill-conditioned: cond₂(C) ≈ {kappa:.3g}, so a relative change of about "
+                    f"{1 / kappa:.1g} in C can make it singular and raise p_up")
+    interval = (pl.down, pl.up)
+    cert = {"kind": "theorem: C invertible, F = A + K C = 0 with K = −A C⁻¹",
+            "origin": "exact decision, no numerical certificate needed", "ok": pl.rigorous,
+            "p": pl.up, "statement": statement, "reason": "proven" if pl.rigorous else
+            "p_low from float eigenvalues (not rigorous)",
+            "verified_by": f"{how}; p_low: {pl.how}", "condition_number_C": kappa}
+    lower = {"kind": "theorem", "value": pl.down, "certified": pl.rigorous,
+             "expression": pl.expression,
+             "statement": "p_up >= p_c >= p_low = 1 - 1/rho(A)^2 (Sinopoli Thm 3); here "
+                          "p_up = p_low exactly (C invertible)"}
+    solver = {"seconds": time.perf_counter() - t0, "solves": 0, "special_case": "C invertible",
+              "p_low": pl.how}
+    return UpperBound(pl.up, interval, pl.rigorous, "determined" if pl.rigorous else
+                      "undetermined", "exact", cert, lower, solver, tuple(warn),
+                      {"p_low_expression": pl.expression})
+
+
 def _evidence_p_low(p_low: float) -> dict[str, Any]:
     return {"kind": "theorem", "value": p_low, "certified": True,
             "statement": "p_up >= p_c >= p_low = 1 - 1/rho(A)^2 (Sinopoli Thm 3)"}
@@ -300,8 +523,10 @@ def _newton_method(system: System, tol: float) -> UpperBound:
     stats: dict[str, Any] = {"power_iterations": 0, "newton_iterations": 0, "certificate_checks": 0}
     warnings: list[str] = []
     p_low = p_low_of(A)
-    red = reduce_unstable(A, C)
+    red = reduce_system(system)
     stats["reduced_states"] = red.k
+    if red.M is not None:
+        stats["output_compression"] = _compression_note(red)
 
     def done(value, interval, certified, status, cert, lower, extras=None):
         stats["seconds"] = time.perf_counter() - t0
@@ -328,7 +553,10 @@ def _newton_method(system: System, tol: float) -> UpperBound:
                         f"spectral radius {r1:.6g} >= 1 even at p = 1, so no p_up < 1 was found; "
                         "(A, C) is either not detectable or too ill-conditioned for this method "
                         "(the exact structure analysis decides detectability)")
-        return done(None, (p_low, 1.0), False, "undetermined", None, _evidence_p_low(p_low))
+        return done(None, (p_low, 1.0), False, "undetermined", None, _evidence_p_low(p_low),
+                    {"not_applicable": "the noise-free Riccati map does not contract even at "
+                                       "p = 1: (A, C) is not detectable (or numerically so); "
+                                       "no p < 1 makes E[P_t] bounded, p_up is not defined"})
     Xh, Xl = X1, None
     while hi - lo > 1.0 / 64:
         mid = 0.5 * (lo + hi)
@@ -383,15 +611,22 @@ def _newton_method(system: System, tol: float) -> UpperBound:
                          "Collatz-Wielandt bound of the power iterate)", "p_low_theorem": p_low}
         return done(None, (lo_seen, hi), False, "undetermined", None, lower)
     hi_p, (Z, Xz, Kz), check, eps_used = best
-    X, K = symmetrize(Z @ Xz @ Z.T), Z @ Kz
+    X, K = symmetrize(Z @ Xz @ Z.T), _full_gain(red, Z @ Kz)
     stats["regularisation"] = eps_used
     origin = ("cone eigenvector of the regularised noise-free MARE map (epsilon = "
               f"{eps_used:.3g}), lifted from the unstable Schur block; checked as Z X_z Z', Z K_z "
-              "with the float Schur basis Z (X, K below are rounded copies)")
-    cert = _certificate_summary(system, check, X, K, origin, (Z, Xz, Kz))
+              + ("M (M the output compression) " if red.M is not None else "")
+              + "with the float Schur basis Z (X, K below are rounded copies)")
+    cert = _certificate_summary(system, check, X, K, origin, (Z, Xz, Kz), red.M)
     lo_p = _lower_end(hi_p, tol, p_low)
     if p_star is None:
         warnings.append("plain Newton root not found; the lower end rests on p_low only")
+        lo_p = p_low
+    elif p_star - p_low <= NEAR_P_LOW:
+        # a root this close to p_low is not numerical evidence of p_up > p_low: the
+        # eigenvector there is (near) singular — e.g. one unstable mode plus modes with
+        # |λ| = 1, A = diag(1, −1, 3), C = [1 1 1], whose Newton root 0.88888890690 lay above
+        # p_up = p_low = 8/9. The lower end is the theorem p_low (rounded down below).
         lo_p = p_low
     elif p_star < lo_p:
         warnings.append(f"the certificate holds only at hi = {hi_p:.12g}, more than tol above "
@@ -405,7 +640,8 @@ def _newton_method(system: System, tol: float) -> UpperBound:
         lower = _evidence_p_low(p_low)
     status = "determined" if hi_p - lo_p <= tol else "undetermined"
     return done(hi_p, (lo_p, hi_p), check.ok, status, cert, lower,
-                {"X": X, "K": K, "basis": Z, "X_basis": Xz, "K_basis": Kz, "p_star": p_star})
+                {"X": X, "K": K, "basis": Z, "X_basis": Xz, "K_basis": Kz, "p_star": p_star,
+                 "output_map": red.M})
 
 
 def collatz_wielandt(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float
@@ -462,7 +698,7 @@ def _power_bisection(system: System, red: Reduced, lo: float, hi: float, Xh: np.
                     continue
                 K = optimal_gain_noise_free(red.Au, red.Cu, Xe, eps)
                 Z, Xz, Kz = lift_certificate(red, system.c, Xe, K, mid)
-                check = certify.verify_upper(system, mid, Xz, Kz, basis=Z)
+                check = certify.verify_upper(system, mid, Xz, Kz, basis=Z, output_map=red.M)
                 stats["certificate_checks"] += 1
                 if check.ok:
                     found = (mid, (Z, Xz, Kz), check)
@@ -483,12 +719,24 @@ def _power_bisection(system: System, red: Reduced, lo: float, hi: float, Xh: np.
     if best is None:
         return done(None, (lo, 1.0), False, "undetermined", None, lower)
     hi_p, (Z, Xz, Kz), check = best
-    cert = _certificate_summary(system, check, Z @ Xz @ Z.T, Z @ Kz,
+    cert = _certificate_summary(system, check, Z @ Xz @ Z.T, _full_gain(red, Z @ Kz),
                                 "power-iteration cone eigenvector, lifted from the unstable block",
-                                (Z, Xz, Kz))
+                                (Z, Xz, Kz), red.M)
     status = "determined" if hi_p - lo <= tol else "undetermined"
     return done(hi_p, (lo, hi_p), True, status, cert, lower,
-                {"X": Z @ Xz @ Z.T, "K": Z @ Kz, "basis": Z, "X_basis": Xz, "K_basis": Kz})
+                {"X": Z @ Xz @ Z.T, "K": _full_gain(red, Z @ Kz), "basis": Z, "X_basis": Xz,
+                 "K_basis": Kz, "output_map": red.M})
+
+
+def _compression_note(red: Reduced) -> str:
+    return (f"output compressed: C replaced by M C (rank {red.M.shape[0]}; C Z_u has condition "
+            f"number > {OUTPUT_CONDITION_LIMIT:g} or dependent rows); gains checked as K M on "
+            "the exact C")
+
+
+def _full_gain(red: Reduced, K: np.ndarray) -> np.ndarray:
+    """The gain for the original C (a rounded copy K M when the output was compressed)."""
+    return K if red.M is None else K @ red.M
 
 
 def optimal_gain_noise_free(A: np.ndarray, C: np.ndarray, X: np.ndarray,
@@ -524,7 +772,7 @@ def _regularised_certificate(system: System, red: Reduced, plain: NewtonResult |
         for eps_used, reg in reversed(good[-3:]):
             hi = float(np.nextafter(max(reg.p, p_low), 2.0))
             Z, Xz, Kz = lift_certificate(red, system.c, reg.X, reg.K, hi)
-            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z)
+            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z, output_map=red.M)
             stats["certificate_checks"] += 1
             if check.ok:
                 stats["regularisation"] = eps_used
@@ -549,7 +797,7 @@ def fixed_p_certificate(system: System, red: Reduced, base: float, X0: np.ndarra
             if not (ok and r < 1 and float(np.linalg.eigvalsh(X).min()) > 0):
                 continue
             Z, Xz, Kz = lift_certificate(red, system.c, X, K, hi)
-            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z)
+            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z, output_map=red.M)
             stats["certificate_checks"] += 1
             if check.ok:
                 stats["regularisation"] = eps
@@ -626,8 +874,8 @@ def _lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float
 
 
 def _certificate_summary(system: System, check: certify.CheckResult, X: np.ndarray,
-                         K: np.ndarray, origin: str, basis: tuple | None = None
-                         ) -> dict[str, Any]:
+                         K: np.ndarray, origin: str, basis: tuple | None = None,
+                         output_map: np.ndarray | None = None) -> dict[str, Any]:
     """The record's certificate: what was proven, how, and (small systems) the matrices.
 
     A certificate checked in a basis (X = Z X_z Z') is reported with its float copies X, K; for
@@ -644,6 +892,8 @@ def _certificate_summary(system: System, check: certify.CheckResult, X: np.ndarr
         if not direct.ok and basis is not None:
             for name, M in zip(("basis", "X_basis", "K_basis"), basis):
                 out[name] = [[float(v) for v in row] for row in M]
+            if output_map is not None:
+                out["output_map"] = [[float(v) for v in row] for row in output_map]
     return out
 
 
@@ -693,10 +943,44 @@ only, and the covariance-bound and static-gain sections ask for it again."""
 
 
 def _upper_bound(system: System, tol: float, method: str) -> UpperBound:
+    result = _upper_bound_raw(system, tol, method)
+    # the LMI works to max(tol, 1e-7): judge its width by the tolerance it used
+    used = max(tol, 1e-7) if result.method == "lmi" else tol
+    return _exact_lower_end(system, result, used)
+
+
+def _exact_lower_end(system: System, result: UpperBound, tol: float) -> UpperBound:
+    """Invariant: a lower end that rests on Sinopoli's p_low (evidence kind "theorem") is the
+    exact p_low rounded down, and the interval always contains p_up (the upper end, when it
+    is p_low itself, is rounded up)."""
+    if result.lower_evidence.get("kind") != "theorem" or result.method == "exact":
+        return result
+    pl = p_low_bounds(system)
+    lo, hi = result.interval
+    hi = max(hi, pl.up)
+    lower = {**result.lower_evidence, "value": pl.down, "certified": pl.rigorous,
+             "p_low_enclosure": [pl.down, pl.up], "p_low_how": pl.how}
+    if pl.expression is not None:
+        lower["expression"] = pl.expression
+    status = result.status
+    # the rounding moves the lower end by a few ulps at most: allowed beyond tol
+    if status == "determined" and hi - pl.down > tol + 8 * math.ulp(max(hi, 1e-300)) \
+            and hi - pl.down > hi - lo:
+        status = "undetermined"
+    return replace(result, interval=(pl.down, hi), lower_evidence=lower, status=status)
+
+
+def _upper_bound_raw(system: System, tol: float, method: str) -> UpperBound:
+    if method != "lmi":
+        inv, how = c_invertible(system)
+        if inv:
+            return _c_invertible_bound(system, how)
     if method == "lmi":
         from .lmi import lmi_upper_bound
         return lmi_upper_bound(system, tol=max(tol, 1e-7))
     result = _newton_method(system, tol)
+    if result.extras.get("not_applicable"):
+        return result            # not detectable: no LMI fallback (it cannot succeed either)
     if method == "auto" and not result.certified and system.n <= 30:
         from .lmi import lmi_upper_bound
         alt = lmi_upper_bound(system, tol=max(tol, 1e-7))
@@ -714,6 +998,6 @@ def upper_section(system: System, tol: float = 1e-9) -> dict[str, Any]:
     try:
         return upper_bound(system, tol=tol).to_dict()
     except (np.linalg.LinAlgError, ValueError, ArithmeticError, RuntimeError) as exc:
-        p_low = p_low_of(system.a)
+        p_low = p_low_bounds(system).down
         return UpperBound(None, (p_low, 1.0), False, "undetermined", "newton", None,
                           _evidence_p_low(p_low), {}, (f"numerical failure: {exc}",)).to_dict()

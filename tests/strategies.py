@@ -275,6 +275,31 @@ def unimodular_matrices(draw: st.DrawFn, n: int, shears: int = 3) -> sp.Matrix:
     return T.extract(list(perm), list(range(n)))
 
 
+@st.composite
+def similarity_transforms(draw: st.DrawFn, n: int, max_condition: float = 60.0) -> sp.Matrix:
+    """A non-trivial invertible integer T of size n (n ≥ 2): at least one shear, then a
+    permutation, with cond₂(T) ≤ ``max_condition`` (well-conditioned, so that float views of
+    T A T⁻¹ stay accurate). For n = 1, a nonzero integer scale 2 or −3 (a scalar similarity is
+    trivial on A but still rescales C)."""
+    if n == 1:
+        return sp.Matrix([[draw(st.sampled_from([2, -3]))]])
+    T = sp.eye(n)
+    for _ in range(draw(st.integers(1, 3))):
+        i, j = draw(st.sampled_from([(i, j) for i in range(n) for j in range(n) if i != j]))
+        E = sp.eye(n)
+        E[i, j] = draw(st.sampled_from([-2, -1, 1, 2]))
+        T = T * E
+    if T == sp.eye(n):             # the shears cancelled: keep T non-trivial
+        T[0, 1] = 1
+    perm = draw(st.permutations(range(n)))
+    T = T.extract(list(perm), list(range(n)))
+    cond = float(np.linalg.cond(np.array(T.tolist(), dtype=float)))
+    if cond > max_condition:       # fall back to the permuted unit bidiagonal (cond ≤ 2n)
+        B = sp.eye(n) + sp.Matrix(n, n, lambda i, j: 1 if j == i + 1 else 0)
+        T = B.extract(list(perm), list(range(n)))
+    return T
+
+
 @dataclass(frozen=True, eq=False)
 class ExactCase:
     """An exact system: A = T D T^{-1} with known real block form D and integer T (det ±1)."""

@@ -122,10 +122,31 @@ def test_record_certificate_reverifies_from_the_record(A, C):
     if cert["matrices_verified"]:
         assert certify.verify_upper(s, hi, np.array(cert["X"]), np.array(cert["K"])).ok
     else:
+        om = np.array(cert["output_map"]) if "output_map" in cert else None
         assert certify.verify_upper(s, hi, np.array(cert["X_basis"]), np.array(cert["K_basis"]),
-                                    basis=np.array(cert["basis"])).ok
+                                    basis=np.array(cert["basis"]), output_map=om).ok
     # and the same matrices do not certify a p clearly below the interval
     lo = d["interval"][0]
     if lo > 0.01:
         assert not certify.verify_upper(s, lo - 0.01, np.array(cert["X"]),
                                         np.array(cert["K"])).ok
+
+
+def test_output_map_gain_is_formed_exactly():
+    # A = 2·I, C = [[1, 1], [0, 1e-12]] (exact). Hand certificate at p = 0.8: K = −A C⁻¹
+    # makes F = 0, so X = I gives X − (1−p)·4·I = 0.2 I ≻ 0. As floats, K = −2 C⁻¹ has entries
+    # ~2e12; given instead as K_w = −2 I for the compressed output M C ≈ I (M the float
+    # inverse of C, so M C = I only up to rounding) the check must form K_w M C in balls on
+    # the exact C and accept only what truly holds.
+    from fractions import Fraction
+
+    eye = [[1, 0], [0, 1]]
+    s = System([[2, 0], [0, 2]], [[1, 1], [0, Fraction(1, 10 ** 12)]], eye, eye)
+    M = np.linalg.inv(s.c)                      # float inverse: M C = I only approximately
+    ok = certify.verify_upper(s, 0.8, np.eye(2), -2.0 * np.eye(2), output_map=M)
+    assert ok.ok                                # F = 2I − 2 M C ≈ 0: margin ≈ 0.2
+    # below p_low = 3/4 no (X, K) can pass: (1 − p)·4 > 1
+    assert not certify.verify_upper(s, 0.7, np.eye(2), -2.0 * np.eye(2), output_map=M).ok
+    # the shape of the map is checked
+    assert not certify.verify_upper(s, 0.8, np.eye(2), -2.0 * np.eye(2),
+                                    output_map=np.eye(3)).ok

@@ -355,3 +355,39 @@ def test_sextic_conjugate_pairs_with_rational_angle():
     assert [p["q"] for p in d["structure"]["equal_modulus_pairs"]] == [3, 3]
     s_max = max(abs(np.roots([1, 0, -3, -1])))
     assert abs(d["block_lower_bound"]["value"] - (1 - (2 * s_max) ** -3)) <= 1e-12
+
+
+# --------------------------------------------------------------------------- reason texts
+
+def test_float_third_turn_reason_shows_computed_modulus():
+    # √3 as the binary float 1.7320508075688772: |λ|² = 1 + 1.7320508075688772² is not 4, so
+    # |λ| is not 2 — the reason must not print "= 2" (it did), but the float as computed
+    r3 = 1.7320508075688772
+    s = System(np.array([[1.0, -r3], [r3, 1.0]]), np.array([[1.0, 0.0]]), np.eye(2), np.eye(1))
+    reason = critical.critical_section(s)["critical_value"]["reason"]
+    assert "= 2," not in reason and "= 2 " not in reason
+    assert "1.9999999999999998" in reason
+    assert "binary-float input" in reason          # how the decision was made is stated
+    # numeric path: the decision tolerance is stated
+    from kfcrit.structure import eigen_structure
+    st_num = eigen_structure(s, force_numeric=True)
+    critical._CACHE[s] = st_num
+    try:
+        reason = critical.critical_section(s)["critical_value"]["reason"]
+    finally:
+        critical._CACHE.pop(s, None)
+    assert "relative tolerance 1e-10" in reason and "= 2," not in reason
+
+
+def test_reason_texts_use_unicode_math():
+    # the rotation by π/3 with C = [1 0]: observability index 2 (C and C A span R²), so the
+    # almost-sure text names h²(M₀); the moment note reads |λ₁|^(−2q)
+    d = critical.critical_section(_sys([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]]),
+                                  channel=Bernoulli(sp.Rational(9, 10)))
+    th = d["theory"]
+    text = " ".join(th["almost_sure"]) + th["moment_thresholds_note"]
+    assert "h²(M₀)" in text and "|λ₁|^(−2q)" in text and "Iₒ = 2" in text
+    for ascii_math in ("h^2", "M_0", "λ_1", "P_k", "I_o"):
+        assert ascii_math not in text, ascii_math
+    d = critical.critical_section(_sys([[2, 0], [0, 3]], [[1, 0], [0, 1]]))
+    assert "|λ₁|⁻²" in d["critical_value"]["reason"]

@@ -35,8 +35,8 @@ from .strategies import (
     degenerate_pairs,
     exact_pd_matrices,
     exact_systems,
+    similarity_transforms,
     systems,
-    unimodular_matrices,
 )
 from .test_lemmas import PropertyViolation
 
@@ -247,11 +247,47 @@ def test_thm2_paper_cases() -> None:
             (c["Q"], c["R"], None), (7 * sp.eye(n), sp.Rational(1, 3) * sp.eye(m), 5 * sp.eye(n))])
 
 
-@given(case=exact_systems(), T=st.integers(1, 4).flatmap(lambda n: unimodular_matrices(n)))
-def test_similarity_invariance(case: ExactCase, T: sp.Matrix) -> None:
+@st.composite
+def systems_with_similarity(draw: st.DrawFn) -> tuple[ExactCase, sp.Matrix]:
+    """An exact system and a non-trivial, well-conditioned integer T of *its* size n (the old
+    strategy drew T's size independently of n and fell back to the identity when they
+    differed — three times in four)."""
+    case = draw(exact_systems())
+    return case, draw(similarity_transforms(case.A.shape[0]))
+
+
+UPPER_TOL = 1e-9
+"""Bracket width asked of p_up in the similarity property."""
+
+
+def check_upper_similarity(A: sp.Matrix, C: sp.Matrix, T: sp.Matrix) -> None:
+    """p_up(T A T⁻¹, C T⁻¹) = p_up(A, C): both brackets contain the same p_up, so they
+    overlap; when both are determined (width ≤ tol) their ends agree within 2·tol."""
+    from kfcrit.upper import upper_bound
+    Ti = T.inv()
+    a = upper_bound(exact_system(A, C), tol=UPPER_TOL)
+    b = upper_bound(exact_system(T * A * Ti, C * Ti), tol=UPPER_TOL)
+    (la, ha), (lb, hb) = a.interval, b.interval
+    slack = 4 * UPPER_TOL
+    if not (la <= hb + slack and lb <= ha + slack):
+        raise PropertyViolation(f"p_up brackets disjoint under similarity: {a.interval} vs "
+                                f"{b.interval}")
+    if a.status == b.status == "determined" and abs(ha - hb) > 2 * UPPER_TOL + slack:
+        raise PropertyViolation(f"p_up changed under similarity: {ha} vs {hb}")
+
+
+@given(pair=systems_with_similarity())
+@example(pair=(ExactCase(sp.Matrix([[2, 0], [0, -2]]), sp.Matrix([[1, 1]]), sp.eye(2), sp.eye(1),
+                         sp.Matrix([[2, 0], [0, -2]]), sp.eye(2)),
+               sp.Matrix([[1, 1], [0, 1]])))
+def test_similarity_invariance(pair: tuple[ExactCase, sp.Matrix]) -> None:
+    case, T = pair
     n = case.A.shape[0]
-    T = T if T.shape[0] == n else sp.eye(n)
+    assert T.shape == (n, n) and T.det() != 0
+    if n > 1:
+        assert T != sp.eye(n)
     check_similarity_invariance(case.A, case.C, T)
+    check_upper_similarity(case.A, case.C, T)
 
 
 @given(case=exact_systems(max_n=4), blocks=st.sets(st.integers(0, 3), min_size=1, max_size=3))
@@ -583,6 +619,51 @@ def test_upper_methods_agree_paper_cases(name: str) -> None:
 @pytest.mark.parametrize(("n", "m", "seed"), [(3, 1, 0), (3, 2, 1), (4, 2, 2), (5, 1, 3)])
 def test_upper_methods_agree_seeded_systems(n: int, m: int, seed: int) -> None:
     assert check_upper_methods_agree(_seeded_float_system(n, m, seed)) >= 1
+
+
+def mare_decides(system: System, p: float, steps: int = 200_000) -> bool:
+    """MARE iteration V ← g_p(V) from 0 with Q = R = I (numpy only): True when it settles,
+    False when it explodes; undecided after ``steps`` is a test failure, not a pass."""
+    from kfcrit import riccati
+
+    A, C = system.a, system.c
+    Q, R = np.eye(system.n), np.eye(system.m)
+    V = np.zeros_like(A)
+    for _ in range(steps):
+        W = riccati.g(A, C, Q, R, V, p)
+        if not np.all(np.isfinite(W)) or np.trace(W) > 1e14:
+            return False
+        if np.max(np.abs(W - V)) <= 1e-12 * max(1.0, np.max(np.abs(W))):
+            return True
+        V = W
+    raise AssertionError(f"MARE iteration undecided at p = {p} after {steps} steps")
+
+
+MULTI_OUTPUT = [(3, 2, 1), (3, 2, 5), (4, 2, 2), (4, 2, 7), (4, 3, 4), (5, 2, 6), (5, 3, 8)]
+
+
+@pytest.mark.parametrize(("n", "m", "seed"), MULTI_OUTPUT)
+def test_multi_output_upper_bound_three_methods(n: int, m: int, seed: int) -> None:
+    """Multi-output p_up (no closed form): the Newton bracket must be determined and certified,
+    the LMI's certified upper end must agree with it within the LMI tolerance, p_low ≤ p_up,
+    and the MARE iteration (a third, independent characterisation: bounded iff p > p_up) must
+    settle just above the bracket and explode just below it — an undecided MARE run fails."""
+    system = _seeded_float_system(n, m, seed)
+    rho = float(max(abs(np.linalg.eigvals(system.a))))
+    p_low = 1 - 1 / rho ** 2
+    fast = upper_record(system, "newton")
+    lmi = upper_record(system, "lmi")
+    assert fast["status"] == "determined" and fast["certified"], fast["interval"]
+    lo, hi = fast["interval"]
+    assert hi - lo <= UPPER_TOL + 1e-15
+    assert lo >= p_low - 1e-12 and hi >= p_low            # p_low ≤ p_up (Sinopoli Thm 3)
+    assert lmi["certified"], lmi["warnings"]
+    assert abs(lmi["interval"][1] - hi) <= 1e-6, (lmi["interval"], fast["interval"])
+    assert lmi["interval"][0] <= hi + 1e-6 and lo <= lmi["interval"][1] + 1e-12
+    delta = 5e-3
+    assert mare_decides(system, min(hi + delta, 1.0)) is True
+    if lo - delta > 0:
+        assert mare_decides(system, lo - delta) is False
 
 
 # --------------------------------------------------------------------------------------------

@@ -84,7 +84,9 @@ def test_random_20_6_matches_mare_observations():
     p_low = 1 - 1 / max(abs(np.linalg.eigvals(A))) ** 2
     assert abs(p_low - 0.40828) < 1e-5
     assert ub.certified and ub.interval[1] <= 0.409
-    assert ub.interval[0] >= p_low - 1e-15
+    # p_low here is from float64 eigenvalues (a few ulps off); the record's lower end is the
+    # exact p_low rounded down, so compare within float eigenvalue accuracy
+    assert ub.interval[0] >= p_low - 1e-13
     # the MARE iteration from 0 is bounded at 0.409 (above p_up) and not at 0.405 (< p_low)
     V, _ = bounds.mare_iteration(A, C, Q, R, 0.409, rtol=1e-9)
     assert V is not None
@@ -170,7 +172,8 @@ def test_upper_section_never_raises(monkeypatch):
 
     monkeypatch.setattr(upper, "_newton_method", boom)
     monkeypatch.setattr(upper, "_CACHE", {})
-    d = upper_section(make([[2.0]], [[1.0]]))
+    # C not square (the exact C-invertible case does not reach the Newton method)
+    d = upper_section(make([[2.0, 0.0], [0.0, 0.5]], [[1.0, 1.0]]))
     assert d["status"] == "undetermined" and d["interval"] == [0.75, 1.0]
     json.dumps(d, allow_nan=False)
 
@@ -178,7 +181,8 @@ def test_upper_section_never_raises(monkeypatch):
 def test_record_keys():
     d = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])).to_dict()
     assert set(d) == {"value", "interval", "certified", "status", "method", "certificate",
-                      "lower_evidence", "solver", "warnings", "tolerance"}
+                      "lower_evidence", "solver", "warnings", "tolerance", "applicable",
+                      "not_applicable_reason"}
     assert d["value"] == d["interval"][1]
     assert {"kind", "ok", "margin_lower", "verified_by"} <= set(d["certificate"])
     assert "X" in d["certificate"]               # small system: the matrix is included
@@ -253,3 +257,106 @@ def test_width_1e9_on_random_50_10_is_reachable():
     assert ub.certified and ub.status == "determined"
     assert ub.interval[1] - ub.interval[0] <= 1e-9
     assert math.isfinite(ub.value)
+
+
+# ---------------------------------------------------------------------------------------------
+# audit cases: ill-conditioned C, modes with |λ| = 1, exact rounding of p_low
+# ---------------------------------------------------------------------------------------------
+
+
+def exact_make(A, C) -> System:
+    n, m = len(A), len(C)
+    return System(A, C, [[int(i == j) for j in range(n)] for i in range(n)],
+                  [[int(i == j) for j in range(m)] for i in range(m)])
+
+
+def contains_exactly(interval, value: Fraction) -> bool:
+    """lo ≤ value ≤ hi compared as exact rationals (no float slack)."""
+    return Fraction(interval[0]) <= value <= Fraction(interval[1])
+
+
+@pytest.mark.parametrize("A, C", [
+    ([[0, -2], [2, 0]], [[1, 0], [0, Fraction(1, 10 ** 12)]]),          # the audit's case
+    (np.array([[2.0, 1.0], [0.0, -1.9]]), np.array([[1.0, 0.5], [0.0, 1e-12]])),   # floats
+    (np.diag([2.0, -2.0]), np.diag([1.0, 1e-12])),
+])
+def test_invertible_ill_conditioned_c_is_exact(A, C):
+    # hand derivation: ρ(A) = 2 in all three; C invertible, K = −A C⁻¹ makes F = 0, so
+    # p_up = p_c = p_low = 1 − 1/2² = 3/4 exactly (was: "certified" [0.93749999920, 0.9375])
+    s = exact_make(A, C) if isinstance(A, list) else make(A, C)
+    for method in ("auto", "newton"):
+        ub = upper_bound(s, tol=1e-9, method=method)
+        assert ub.interval == (0.75, 0.75) and ub.certified and ub.status == "determined"
+        assert ub.method == "exact" and "K = −A C⁻¹" in ub.certificate["statement"]
+
+
+def test_lmi_with_ill_conditioned_c_contains_true_value():
+    s = make(np.array([[2.0, 1.0], [0.0, -1.9]]), np.array([[1.0, 0.5], [0.0, 1e-12]]))
+    ub = upper_bound(s, tol=1e-7, method="lmi")        # was [0.75183711, 0.75183718]
+    assert ub.certified and contains_exactly(ub.interval, Fraction(3, 4))
+
+
+@pytest.mark.parametrize("method", ["newton", "lmi"])
+def test_ill_conditioned_output_on_the_unstable_block(method):
+    # A = rotation by 90° scaled by 2 (+ a stable mode 1/2); C restricted to the unstable
+    # block is diag(1, 1e-12): invertible there, so p_up = p_low = 3/4 (was 0.9375 "determined")
+    A = [[0, -2, 0], [2, 0, 0], [0, 0, Fraction(1, 2)]]
+    C = [[1, 0, 1], [0, Fraction(1, 10 ** 12), 1]]
+    ub = upper_bound(exact_make(A, C), tol=1e-9 if method == "newton" else 1e-7, method=method)
+    assert ub.certified and contains_exactly(ub.interval, Fraction(3, 4))
+    assert ub.interval[1] - 0.75 <= (1e-9 if method == "newton" else 2e-7)
+
+
+def test_marginal_modes_bracket_contains_p_low():
+    # A = diag(1, −1, 3), C = [1 1 1]: p_low = 1 − 1/9 = 8/9 and (single output, one unstable
+    # mode) p_c = p_up = 8/9; the old bracket [0.88888891, 0.88888891] excluded it
+    ub = upper_bound(exact_make([[1, 0, 0], [0, -1, 0], [0, 0, 3]], [[1, 1, 1]]), tol=1e-9)
+    assert ub.certified and contains_exactly(ub.interval, Fraction(8, 9))
+    assert Fraction(ub.interval[0]) <= Fraction(8, 9)
+    assert ub.interval[1] - 8 / 9 < 1e-6
+
+
+def test_jordan_block_on_the_unit_circle():
+    # A = [[1, 1], [0, 1]], C = [1 0]: ρ = 1, p_low = 0; the MARE settles for every p > 0, so
+    # p_up = 0: the bracket must start at 0 exactly and its certified upper end be small
+    s = exact_make([[1, 1], [0, 1]], [[1, 0]])
+    ub = upper_bound(s, tol=1e-9)
+    assert ub.certified and ub.interval[0] == 0.0 and ub.interval[1] <= 1e-4
+    V, _ = bounds.mare_iteration(s.a, s.c, np.eye(2), np.eye(1), 0.01, rtol=1e-9)
+    assert V is not None
+
+
+def test_kar_scalar_lower_end_is_exact():
+    # A = √2: p_low = 1 − 1/2 = 1/2 exactly; floats give 1 − 1/√2² = 0.5000000000000001
+    import sympy as sp
+    ub = upper_bound(exact_make([[sp.sqrt(2)]], [[1]]), tol=1e-9)
+    assert contains_exactly(ub.interval, Fraction(1, 2)) and ub.interval[0] == 0.5
+    # the same p_low through the Newton path (C not square): lower end rounded down
+    ub = upper_bound(exact_make([[sp.sqrt(2), 0], [0, Fraction(1, 2)]], [[1, 1]]), tol=1e-9)
+    assert ub.interval[0] == 0.5 and ub.interval[1] - 0.5 <= 1e-9 and ub.certified
+
+
+def test_p_low_bounds_enclose_independent_values():
+    import mpmath
+    import sympy as sp
+
+    from kfcrit.upper import p_low_bounds
+    A = [[1, 2, 0], [0, 3, 1], [1, 0, -1]]
+    mpmath.mp.dps = 50
+    roots = mpmath.polyroots([float(c) for c in sp.Matrix(A).charpoly().all_coeffs()],
+                             maxsteps=200, extraprec=200)
+    rho2 = max(abs(r) ** 2 for r in roots)
+    exact = Fraction(str(mpmath.nstr(1 - 1 / rho2, 40)))
+    pl = p_low_bounds(exact_make(A, [[1, 0, 0]]))
+    assert pl.rigorous and Fraction(pl.down) <= exact + Fraction(1, 10 ** 35)
+    assert exact - Fraction(1, 10 ** 35) <= Fraction(pl.up) and pl.up - pl.down < 1e-14
+
+
+def test_undetectable_is_fast_and_not_applicable():
+    import time
+    t = time.perf_counter()
+    d = upper_section(exact_make([[2, 0, 0], [0, 3, 0], [0, 0, Fraction(1, 2)]],
+                                 [[1, 0, 1]]))
+    assert time.perf_counter() - t < 10
+    assert d["applicable"] is False and d["value"] is None and d["not_applicable_reason"]
+    assert d["interval"][1] == 1.0
