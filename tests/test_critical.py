@@ -21,9 +21,10 @@ from kfcrit.exprparse import parse_expression
 from kfcrit.system import System
 from kfcrit.systemfile import load_spec
 
+from .conftest import SHARED_CASES
+
 ROOT = Path(__file__).resolve().parents[1]
 REPORTS = ROOT / "reports"
-SHARED_CASES = ROOT.parent / "shared" / "cases"
 EXPECTED = json.loads((SHARED_CASES / "expected.json").read_text())
 CASES = sorted(k for k in EXPECTED if not k.startswith("_"))
 CONTRACT = {"classification", "critical_value", "robust_critical_value", "lower_bound",
