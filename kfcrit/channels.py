@@ -36,7 +36,7 @@ def channel_models() -> list[str]:
 
 def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.Rational:
     """Read a probability exactly and check it lies in [0, 1] (or (0, 1] if ``low_open``)."""
-    from .exprparse import number_from_text, parse_expression
+    from .exprparse import compare, number_from_text, parse_expression
 
     if isinstance(value, bool) or value is None:
         raise InputError("must be a number", field=field)
@@ -52,11 +52,27 @@ def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.R
         p = parse_expression(value, field)
     else:
         raise InputError(f"must be a number, got {type(value).__name__}", field=field)
-    lo_ok = bool(p > 0) if low_open else bool(p >= 0)
-    if not (lo_ok and bool(p <= 1)):
-        raise InputError(f"must be in {'(0' if low_open else '[0'}, 1], got {sp.sstr(p)}",
+    # decided exactly for rationals, else numerically with certain digits (never bool() of a
+    # sympy relational); a value provably equal to an end point becomes that end point
+    if not p.is_number:
+        raise InputError("must be a number", field=field)
+    low = compare(p, 0, field, f"{sp.sstr(p)[:40]} - 0")
+    high = compare(p, 1, field, f"{sp.sstr(p)[:40]} - 1")
+    if not ((low > 0 or (low == 0 and not low_open)) and high <= 0):
+        raise InputError(f"must be in {'(0' if low_open else '[0'}, 1], got {sp.sstr(p)[:60]}",
                          field=field)
+    if low == 0:
+        return sp.Integer(0)
+    if high == 0:
+        return sp.Integer(1)
     return p
+
+
+def key_name(key: Any) -> str:
+    """A mapping key as it appears in error messages (``<null key>`` for a YAML null key)."""
+    if key is None:
+        return "<null key>"
+    return str(key)[:40]
 
 
 def check_keys(data: dict, allowed: set[str], required: set[str], prefix: str) -> None:
@@ -64,7 +80,7 @@ def check_keys(data: dict, allowed: set[str], required: set[str], prefix: str) -
     for key in data:
         if key not in allowed:
             raise InputError(f"unknown key (allowed: {', '.join(sorted(allowed))})",
-                             field=f"{prefix}.{key}")
+                             field=f"{prefix}.{key_name(key)}")
     for key in sorted(required):
         if key not in data:
             raise InputError("is required", field=f"{prefix}.{key}")
@@ -221,7 +237,13 @@ class GilbertElliott(Channel):
 
     @property
     def iid(self) -> bool:
-        return bool(self.failure_rate + self.recovery_rate == 1)
+        from .errors import ExpressionError
+        from .exprparse import compare
+
+        try:  # f + r = 1 makes the chain memoryless; decided without bool() on a relational
+            return compare(self.failure_rate + self.recovery_rate, 1, "channel") == 0
+        except ExpressionError:
+            return False
 
     def to_dict(self) -> dict[str, Any]:
         return {"model": self.model, "failure_rate": float(self.failure_rate),

@@ -72,6 +72,14 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
             interrupted_exit()
         except (click.exceptions.Exit, click.ClickException, SystemExit):
             raise
+        except OSError as exc:
+            if exc.filename is None:  # not about a path the user gave: a bug
+                if debug:
+                    traceback.print_exc()
+                fail(f"internal error (OSError: {exc}); rerun with --debug for the traceback", 4)
+            if debug:
+                traceback.print_exc()
+            fail(f"{str(exc.filename)[:120]!r}: {exc.strerror or exc}", ExitCode.BAD_INPUT)
         except MemoryError:
             fail("out of memory (is the problem too large? see --max-states)", ExitCode.BAD_INPUT)
         except Exception as exc:  # noqa: BLE001 - last-resort guard, one line for the user
@@ -83,12 +91,64 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+class KfcritGroup(click.Group):
+    """The command group; usage errors become one line ``kfcrit: error: ...`` and exit code 2.
+
+    Click's standalone mode prints a usage block and ``Error: ...``; here ``main`` runs click in
+    non-standalone mode and reports :class:`click.UsageError` (unknown option, missing argument,
+    bad option value) and other :class:`click.ClickException` in one line. ``--help`` and
+    ``--version`` print as usual.
+    """
+
+    def main(self, args: Any = None, prog_name: str | None = None,  # type: ignore[override]
+             complete_var: str | None = None, standalone_mode: bool = True,
+             **extra: Any) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click.exceptions.NoArgsIsHelpError as exc:  # bare ``kfcrit``: the help text
+            exc.show()
+            sys.exit(ExitCode.BAD_INPUT)
+        except click.UsageError as exc:
+            hint = ""
+            if exc.ctx is not None:
+                hint = f" (see '{exc.ctx.command_path} --help')"
+            fail(f"{exc.format_message().rstrip('.')}{hint}", ExitCode.BAD_INPUT)
+        except click.exceptions.Abort:
+            interrupted_exit()
+        except click.ClickException as exc:
+            fail(exc.format_message(), exc.exit_code)
+        except KeyboardInterrupt:
+            interrupted_exit()
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+class ToleranceType(click.ParamType):
+    """A finite number in [0, 0.1] (``nan`` and ``inf`` are refused, unlike FloatRange)."""
+
+    name = "float"
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> float:
+        import math
+
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"must be a number in [0, 0.1], got {str(value)[:40]!r}", param, ctx)
+        if not math.isfinite(x) or not 0 <= x <= 0.1:
+            self.fail(f"must be a number in [0, 0.1], got {str(value)[:40]!r}", param, ctx)
+        return x
+
+
 debug_option = click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
 max_states_option = click.option("--max-states", type=click.IntRange(1, 100_000), default=400,
                                  show_default=True, help="Refuse systems with more states.")
 
 
-@click.group(epilog=EXAMPLES, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=KfcritGroup, epilog=EXAMPLES,
+             context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="kfcrit")
 def main() -> None:
     """kfcrit: critical packet-arrival probability of a Kalman filter over a lossy link."""
@@ -112,8 +172,8 @@ def install_sigterm_handler() -> None:
 @main.command(epilog=EXAMPLES)
 @click.argument("system_file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the analysis record as JSON.")
-@click.option("--tolerance", type=click.FloatRange(0, 0.1), default=1e-9, show_default=True,
-              help="Relative perturbation size for the robust critical value.")
+@click.option("--tolerance", type=ToleranceType(), default=1e-9, show_default=True,
+              help="Relative perturbation size for the robust critical value, in [0, 0.1].")
 @click.option("--no-simulate", is_flag=True, help="Skip the Monte Carlo simulation.")
 @click.option("--quick", is_flag=True, help="Fewer simulations (a fast draft).")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
@@ -161,8 +221,15 @@ def exit_code_of(record: dict[str, Any]) -> int:
 def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: int,
            max_states: int, debug: bool) -> None:
     """Write a design-review report of SYSTEM_FILE to OUTPUT (HTML or PDF)."""
+    from .atomic import check_writable
     from .report import report_command
+    from .systemfile import load_spec
 
+    # refuse a bad output path or a bad system file before any progress line is printed (the
+    # error is then the only line on stderr); load_spec remembers the file, so the report
+    # does not parse it twice
+    check_writable(output)
+    load_spec(system_file, max_states=max_states)
     sys.exit(report_command(system_file, output, fmt=fmt, quick=quick, seed=seed,
                             max_states=max_states))
 
@@ -181,8 +248,11 @@ def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: in
 def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              plot: str | None, max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
+    from .atomic import check_writable
     from .montecarlo import simulate_command
 
+    if plot is not None:
+        check_writable(plot)
     sys.exit(simulate_command(system_file, paths=paths, steps=steps, seed=seed, as_json=as_json,
                               plot=plot, max_states=max_states))
 

@@ -38,6 +38,13 @@ class InputError(KfcritError):
     exit_code = ExitCode.BAD_INPUT
 
 
+class OutputError(InputError, OSError):
+    """An output file or folder cannot be written (exit code 2, naming the path).
+
+    Also an :class:`OSError`, so callers that handle file-system errors still catch it.
+    """
+
+
 class ExpressionError(InputError):
     """An expression string is not in the allowed grammar or exceeds a limit."""
 

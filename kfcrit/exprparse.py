@@ -13,7 +13,15 @@ allow-list into sympy objects built directly:
 Limits (each violation is an :class:`~kfcrit.errors.ExpressionError`): ``MAX_LENGTH`` characters,
 ``MAX_DEPTH`` nesting levels, ``MAX_DIGITS`` digits in one literal, exponents that are rational
 with ``|numerator| <= MAX_EXPONENT`` and small denominators, and results whose magnitude stays
-within ``MAX_MAGNITUDE`` (so the float view of every entry is finite).
+within ``MAX_MAGNITUDE`` (so the float view of every entry is finite). The same range rule holds
+for literals and for evaluated results: a non-zero value must lie in [1e-300, 1e300] in magnitude.
+
+Decisions about non-rational numbers (is the argument of ``log`` positive? is a probability at
+most 1? is a result zero?) never call ``bool`` on a sympy relational. :func:`sign_of` evaluates
+the number with sympy's adaptive ``evalf`` (``strict``: the sign is certain once a digit is), up
+to ``MAX_WORKING_DIGITS`` digits of working precision; a number that still shows no digit there
+is zero only if a bounded exact test (expansion, with the ``exp`` form of trigonometric
+functions, capped at ``MAX_EXPANSION_TERMS`` terms) proves it, and is refused otherwise.
 """
 from __future__ import annotations
 
@@ -23,6 +31,7 @@ import re
 from fractions import Fraction
 
 import sympy as sp
+from sympy.core.evalf import PrecisionExhausted
 
 from .errors import ExpressionError
 
@@ -33,7 +42,13 @@ MAX_EXPONENT = 64
 MAX_EXPONENT_DENOMINATOR = 64
 MAX_MAGNITUDE = sp.Integer(10) ** 300
 MAX_NODES = 200
+MAX_WORKING_DIGITS = 1200
+"""Working precision (decimal digits) up to which :func:`sign_of` looks for a non-zero digit."""
+MAX_EXPANSION_TERMS = 400
+"""Size guard of the exact zero test: expansions that could exceed this many terms are skipped."""
 _BOUND = 10**300
+_TINY = sp.Float(10, 40) ** -300
+_HUGE = sp.Float(10, 40) ** 300
 
 _FUNCTIONS = {
     "sqrt": sp.sqrt,
@@ -132,21 +147,167 @@ def parse_expression(text: str, field: str | None = None) -> sp.Expr:
 
 
 def _finish(value: sp.Expr, field: str | None, text: str) -> sp.Expr:
-    """Check that ``value`` is a finite real number and return it."""
+    """Check that ``value`` is a finite real number within the range rule and return it.
+
+    The range rule is the literal rule (:func:`_check_magnitude`) applied to the evaluated
+    value, compared in arbitrary precision (never through a float, which would underflow to 0).
+    A value that is zero but not syntactically so comes back as the exact ``0``.
+    """
     if value.has(sp.zoo, sp.oo, -sp.oo, sp.nan) or not value.is_number:
         raise ExpressionError(f"{text[:40]!r} is not a finite number", field=field)
-    try:
-        approx = complex(sp.N(value, 30))
-    except (TypeError, ValueError, OverflowError):
-        raise ExpressionError(f"{text[:40]!r} is not a finite number", field=field) from None
-    if not (math.isfinite(approx.real) and math.isfinite(approx.imag)):
-        raise ExpressionError(f"{text[:40]!r} is not a finite number", field=field)
-    if value.is_real is False or (abs(approx.imag) > 1e-25 * max(1.0, abs(approx.real))):
+    if value.is_Rational:
+        _check_magnitude(value, field, text)
+        return value
+    if value.is_real is False:
         raise ExpressionError(f"{text[:40]!r} is not a real number", field=field)
-    if abs(approx.real) > 1e300 or (approx.real != 0 and abs(approx.real) < 1e-300):
+    re_part, im_part = _evaluate(value, field, text)
+    if im_part is not None and im_part != 0 and (
+            re_part is None or abs(im_part) > sp.Float(10, 40) ** -25 * max(1, abs(re_part))):
+        raise ExpressionError(f"{text[:40]!r} is not a real number", field=field)
+    if re_part is None or re_part == 0:  # no digit found: zero if provably so, else refused
+        if _provably_zero(value):
+            return sp.Integer(0)
+        raise ExpressionError(f"cannot decide whether {text[:40]!r} is zero (it is below "
+                              f"1e-{MAX_WORKING_DIGITS - 100} in magnitude but not provably 0); "
+                              "write it as 0 or in a simpler form", field=field)
+    if abs(re_part) > _HUGE or abs(re_part) < _TINY:
         raise ExpressionError(f"{text[:40]!r} is out of range (|x| must be in [1e-300, 1e300])",
                               field=field)
     return value
+
+
+def _evaluate(value: sp.Expr, field: str | None,
+              text: str) -> tuple[sp.Float | None, sp.Float | None]:
+    """Real and imaginary parts of ``value`` to 30 certain digits (``None``: no digit found)."""
+    try:
+        approx = value.evalf(30, maxn=MAX_WORKING_DIGITS, strict=True)
+    except PrecisionExhausted:
+        return None, None
+    except (TypeError, ValueError, OverflowError, ZeroDivisionError, RecursionError):
+        raise ExpressionError(f"{text[:40]!r} is not a finite number", field=field) from None
+    re_part, im_part = approx.as_real_imag()
+    if not (re_part.is_Number and im_part.is_Number) or re_part.has(sp.nan, sp.zoo, sp.oo) \
+            or im_part.has(sp.nan, sp.zoo, sp.oo):
+        raise ExpressionError(f"{text[:40]!r} is not a finite number", field=field)
+    return re_part, im_part
+
+
+def _term_bound(e: sp.Basic) -> int:
+    """An upper bound on the number of terms of ``sp.expand(e)`` (capped just above the limit)."""
+    cap = MAX_EXPANSION_TERMS + 1
+    if e.is_Add:
+        return min(cap, sum(_term_bound(a) for a in e.args))
+    if e.is_Mul:
+        out = 1
+        for a in e.args:
+            out = min(cap, out * _term_bound(a))
+        return out
+    if e.is_Pow:
+        t = _term_bound(e.base)
+        k = abs(e.exp.p) if e.exp.is_Rational else 1
+        if e.exp.is_Rational and e.exp.q == 1 and t > 1:
+            return min(cap, math.comb(t + k - 1, k)) if k < 10 * cap else cap
+        return t
+    if e.args:
+        return min(cap, max(_term_bound(a) for a in e.args) * 2)
+    return 1
+
+
+def _provably_zero(value: sp.Expr) -> bool:
+    """Bounded exact zero test: expansion (trigonometric functions in their ``exp`` form).
+
+    Returns True only when the value is proven to be exactly zero; False means "not proven"
+    (including when the expansion could exceed ``MAX_EXPANSION_TERMS`` terms).
+    """
+    if value == 0:
+        return True
+    candidates = [value]
+    if value.has(sp.cos, sp.sin, sp.tan):
+        candidates.append(value.rewrite(sp.exp))
+    for cand in candidates:
+        if _term_bound(cand) > MAX_EXPANSION_TERMS:
+            continue
+        try:
+            expanded = sp.expand(cand)
+            if expanded == 0:
+                return True
+            if expanded.is_Add and len(expanded.args) <= 20 and sp.count_ops(expanded) <= 60 \
+                    and sp.expand(sp.radsimp(sp.together(expanded))) == 0:
+                return True
+        except (TypeError, ValueError, RecursionError, PrecisionExhausted):
+            continue
+    return False
+
+
+def sign_of(value: sp.Expr, field: str | None = None, what: str | None = None) -> int:
+    """The sign (-1, 0 or 1) of a real sympy number, decided without ``bool`` on a relational.
+
+    Rationals exactly; otherwise by ``evalf`` with certain digits at up to
+    ``MAX_WORKING_DIGITS`` digits of working precision; a number showing no digit there is 0 when
+    :func:`_provably_zero` proves it. Otherwise the sign is undecidable and an
+    :class:`ExpressionError` naming ``field`` is raised (exit code 2).
+    """
+    value = _as_number(value)
+    if value.is_Rational:
+        return (int(value.p) > 0) - (int(value.p) < 0)
+    if not value.is_number:
+        raise ExpressionError("must be a number", field=field)
+    label = what or sp.sstr(value)[:40]
+    try:
+        approx = value.evalf(30, maxn=MAX_WORKING_DIGITS, strict=True)
+    except PrecisionExhausted:
+        approx = None
+    except (TypeError, ValueError, OverflowError, ZeroDivisionError, RecursionError):
+        raise ExpressionError(f"cannot evaluate {label}", field=field) from None
+    if approx is not None:
+        re_part = approx.as_real_imag()[0]
+        if re_part.is_Number and re_part.is_finite and re_part != 0:
+            return 1 if re_part > 0 else -1
+    if _provably_zero(value):
+        return 0
+    raise ExpressionError(f"cannot decide the sign of {label}: it is zero to "
+                          f"{MAX_WORKING_DIGITS - 100} digits but not provably so; write the "
+                          "value in a simpler form", field=field)
+
+
+def _as_number(value: sp.Expr | int) -> sp.Expr:
+    """A sympy number from a sympy number or a Python int (never from text)."""
+    if isinstance(value, sp.Basic):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool):
+        return sp.Integer(value)
+    raise TypeError(f"expected a sympy number or an int, got {type(value).__name__}")
+
+
+def compare(value: sp.Expr, bound: sp.Expr | int, field: str | None = None,
+            what: str | None = None) -> int:
+    """Sign of ``value - bound`` (see :func:`sign_of`): -1, 0 or 1, or an ExpressionError."""
+    return sign_of(_as_number(value) - _as_number(bound), field,
+                   what or f"{sp.sstr(value)[:40]} - {sp.sstr(bound)[:20]}")
+
+
+_LONG_DIGITS = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
+
+
+def exact_text(expr: sp.Expr) -> str:
+    """Exact text of a sympy number, readable by :func:`parse_expression` where the limits allow.
+
+    ``sp.sstr`` of the number, with every integer literal longer than ``MAX_DIGITS`` digits
+    written in Horner form ``((d0*10**60 + d1)*10**60 + d2)`` of at most 60-digit chunks: still
+    exact, and within the literal limit. (The text may still exceed ``MAX_LENGTH``; it stays
+    exact, never a float.)
+    """
+    out = sp.sstr(expr)
+
+    def horner(match: re.Match[str]) -> str:
+        digits = match.group(0)
+        head = len(digits) % MAX_DIGITS or MAX_DIGITS
+        text = str(int(digits[:head]))
+        for i in range(head, len(digits), MAX_DIGITS):
+            text = f"({text}*10**{MAX_DIGITS} + {int(digits[i:i + MAX_DIGITS])})"
+        return text
+
+    return _LONG_DIGITS.sub(horner, out)
 
 
 class _Walker:
@@ -198,7 +359,7 @@ class _Walker:
         elif isinstance(op, ast.Mult):
             out = left * right
         elif isinstance(op, ast.Div):
-            if right == 0:
+            if right == 0 or sign_of(right, self.field, f"the divisor in {self.text[:40]!r}") == 0:
                 raise self.fail("division by zero")
             out = left / right
         elif isinstance(op, ast.Pow):
@@ -213,7 +374,9 @@ class _Walker:
             raise self.fail("exponents must be rational numbers")
         if abs(exponent.p) > MAX_EXPONENT or exponent.q > MAX_EXPONENT_DENOMINATOR:
             raise self.fail(f"exponent {exponent} exceeds the limit {MAX_EXPONENT}")
-        if base == 0 and exponent <= 0:
+        if exponent <= 0 and (base == 0 or (
+                not base.is_Rational and sign_of(base, self.field,
+                                                 f"a power's base in {self.text[:40]!r}") == 0)):
             raise self.fail("zero to a non-positive power")
         return base**exponent
 
@@ -225,13 +388,25 @@ class _Walker:
         if len(node.args) != 1 or node.keywords:
             raise self.fail(f"{node.func.id} takes exactly one argument")
         arg = self.visit(node.args[0], depth + 1)
-        if node.func.id == "log" and arg.is_number and bool(arg <= 0):
-            raise self.fail("log of a non-positive number")
-        if node.func.id == "sqrt" and arg.is_number and bool(arg < 0):
-            raise self.fail("square root of a negative number")
-        if node.func.id == "exp" and arg.is_number and bool(abs(arg) > 690):
+        name = node.func.id
+        what = f"the argument of {name} in {self.text[:40]!r}"
+        if name in ("log", "sqrt") and arg.is_number:
+            sign = sign_of(arg, self.field, what)
+            if name == "log" and sign <= 0:
+                raise self.fail("log of a non-positive number")
+            if name == "sqrt" and sign < 0:
+                raise self.fail("square root of a negative number")
+            if sign == 0:
+                arg = sp.Integer(0)
+        if name == "exp" and arg.is_number and not arg.is_Rational:
+            # a range guard, not a fine decision: 30 digits settle it (the result's magnitude is
+            # checked exactly afterwards in any case)
+            re_part, _ = _evaluate(arg, self.field, self.text)
+            if re_part is not None and abs(re_part) > 690:
+                raise self.fail("exp argument out of range")
+        elif name == "exp" and arg.is_Rational and abs(arg) > 690:
             raise self.fail("exp argument out of range")
-        out = _FUNCTIONS[node.func.id](arg)
+        out = _FUNCTIONS[name](arg)
         self.check_size(out)
         return out
 

@@ -14,8 +14,10 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
+from sympy.core.evalf import PrecisionExhausted
 
 from .errors import InputError
+from .exprparse import MAX_WORKING_DIGITS
 
 MAX_STATES_DEFAULT = 400
 """Largest state dimension accepted unless the caller raises the guard (``max_states``)."""
@@ -120,13 +122,50 @@ def sym_tolerance(M: np.ndarray) -> float:
     return 64 * n * np.finfo(float).eps * max(np.linalg.norm(M, ord=2), np.finfo(float).tiny)
 
 
-def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: bool) -> None:
-    if exact:
-        diff = M - M.T
-        if any(sp.simplify(d) != 0 for d in diff if d != 0):
-            raise InputError("must be symmetric", field=name)
-    elif np.max(np.abs(Mf - Mf.T), initial=0.0) > sym_tolerance(Mf):
+SYMMETRY_DIGITS = MAX_WORKING_DIGITS - 100
+"""Exact entries M[i][j], M[j][i] that agree to this many digits but are not provably equal
+by the bounded exact test are taken as equal (the upper-triangle entry is used for both)."""
+
+
+def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
+                     exact: bool) -> sp.ImmutableMatrix:
+    """Refuse an asymmetric matrix; return it (exact input: symmetrised where numerically equal).
+
+    The float views are compared first (a clear asymmetry is refused at once). Exact entries are
+    then compared pairwise with bounded effort, never ``simplify``: a rational difference
+    exactly; otherwise :func:`kfcrit.exprparse.sign_of`-style evaluation with certain digits (a
+    digit found means asymmetric), and a difference with no digit up to ``SYMMETRY_DIGITS``
+    digits counts as zero (proven or not), in which case the upper entry is used for both.
+    """
+    if np.max(np.abs(Mf - Mf.T), initial=0.0) > sym_tolerance(Mf):
         raise InputError("must be symmetric", field=name)
+    if not exact:
+        return M
+    n = M.shape[0]
+    rows = None
+    for i in range(n):
+        for j in range(i + 1, n):
+            a, b = M[i, j], M[j, i]
+            if a == b:
+                continue
+            d = a - b
+            if d.is_Rational:
+                if d != 0:
+                    raise InputError(f"must be symmetric ({name}[{i}][{j}] != {name}[{j}][{i}])",
+                                     field=name)
+                continue
+            try:
+                approx = d.evalf(30, maxn=MAX_WORKING_DIGITS, strict=True)
+                nonzero = approx.as_real_imag()[0] != 0 or approx.as_real_imag()[1] != 0
+            except PrecisionExhausted:
+                nonzero = False
+            if nonzero:
+                raise InputError(f"must be symmetric ({name}[{i}][{j}] != {name}[{j}][{i}])",
+                                 field=name)
+            if rows is None:
+                rows = M.tolist()
+            rows[j][i] = a
+    return M if rows is None else sp.ImmutableMatrix(rows)
 
 
 def _check_definite(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: bool,
@@ -197,10 +236,12 @@ class System:
         exact = ea and ec and eq and er and es
         floats = {nm: to_float(M) for nm, M in
                   (("A", A_), ("C", C_), ("Q", Q_), ("R", R_), ("Sigma0", S_))}
+        checked = {}
         for M, nm, ex, strict in ((Q_, "Q", eq, False), (R_, "R", er, True),
                                   (S_, "Sigma0", es, False)):
-            _check_symmetric(M, floats[nm], nm, ex)
-            _check_definite(M, floats[nm], nm, ex, strict)
+            checked[nm] = _check_symmetric(M, floats[nm], nm, ex)
+            _check_definite(checked[nm], floats[nm], nm, ex, strict)
+        Q_, R_, S_ = checked["Q"], checked["R"], checked["Sigma0"]
         set_ = object.__setattr__
         for key, val in (("A", A_), ("C", C_), ("Q", Q_), ("R", R_), ("Sigma0", S_)):
             set_(self, key, val)

@@ -14,12 +14,17 @@ from typing import Any
 
 import yaml
 
-from .channels import Channel, channel_from_mapping, check_keys, exact_probability
+from .channels import Channel, channel_from_mapping, check_keys, exact_probability, key_name
 from .errors import InputError
 from .exprparse import number_from_text
 from .system import MAX_STATES_DEFAULT, System
 
 MAX_FILE_BYTES = 20_000_000
+MAX_NESTING = 64
+"""Deepest nesting of YAML collections accepted (a system file needs 3 levels)."""
+MAX_NODES = 1_000_000
+"""Most YAML values (scalars and collections) in a file read by :func:`read_yaml` by default."""
+MATRIX_KEYS = frozenset({"A", "C", "Q", "R", "Sigma0"})
 TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements"}
 REQUIRED_KEYS = {"name", "A", "C", "Q", "R"}
 REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability"}
@@ -51,6 +56,9 @@ class _ExactLoader(_BaseLoader):  # type: ignore[misc, valid-type]
             return super().construct_mapping(node, deep=deep)
         seen = set()
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                raise InputError(f"YAML merge keys (<<) are not allowed (line "
+                                 f"{key_node.start_mark.line + 1})", field="file")
             if isinstance(key_node, yaml.ScalarNode):
                 if key_node.value in seen:
                     raise InputError(f"duplicate key (line {key_node.start_mark.line + 1})",
@@ -65,6 +73,115 @@ def _number(loader: yaml.SafeLoader, node: yaml.Node) -> YamlNumber:
 
 _ExactLoader.add_constructor("tag:yaml.org,2002:int", _number)
 _ExactLoader.add_constructor("tag:yaml.org,2002:float", _number)
+
+
+_RESOLVER = yaml.resolver.Resolver()
+_NULL_TAG = "tag:yaml.org,2002:null"
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+class _Frame:
+    """One open collection during :func:`scan_yaml`."""
+
+    __slots__ = ("mapping", "path", "keys", "expect_key", "current", "count", "limit", "matrix")
+
+    def __init__(self, mapping: bool, path: str, limit: int | None, matrix: str | None) -> None:
+        self.mapping = mapping
+        self.path = path
+        self.keys: set[str] = set()
+        self.expect_key = True
+        self.current = ""
+        self.count = 0
+        self.limit = limit
+        self.matrix = matrix
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+def scan_yaml(text: str, *, name: str = "the file", max_depth: int = MAX_NESTING,
+              max_nodes: int = MAX_NODES, matrix_keys: frozenset[str] = frozenset(),
+              max_items: int | None = None) -> None:
+    """Check the structure of a YAML text from its event stream, before anything is built.
+
+    LibYAML's event parser is iterative (no recursion, no Python objects but the events), so this
+    pass is safe on any input and stops at the first problem: collections nested deeper than
+    ``max_depth`` (PyYAML's composer recurses, and its C version crashes on some 10^4 levels),
+    more than ``max_nodes`` values, aliases, merge keys ``<<``, null, complex or duplicate keys
+    (named by their full field, ``channel.arrival_probability``), and any list below a top-level
+    key in ``matrix_keys`` with more than ``max_items`` entries (the state-size guard, applied
+    before the file is built, so a huge matrix is refused in the time of reading ``max_items``
+    entries).
+    """
+    stack: list[_Frame] = []
+    nodes = 0
+    events = yaml.parse(text, Loader=_BaseLoader)
+    try:
+        for event in events:
+            if isinstance(event, yaml.AliasEvent):
+                raise InputError(f"YAML aliases are not allowed (line "
+                                 f"{event.start_mark.line + 1})", field="file")
+            if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+                stack.pop()
+                continue
+            if not isinstance(event, (yaml.ScalarEvent, yaml.SequenceStartEvent,
+                                      yaml.MappingStartEvent)):
+                continue
+            nodes += 1
+            line = event.start_mark.line + 1 if event.start_mark is not None else 0
+            if nodes > max_nodes:
+                raise InputError(f"{name} has more than {max_nodes} YAML values (line {line})",
+                                 field="file")
+            parent = stack[-1] if stack else None
+            if parent is not None and parent.mapping and parent.expect_key:
+                _scan_key(event, parent, line)
+                continue
+            path, matrix = "", None
+            if parent is not None and parent.mapping:
+                path, parent.expect_key = _join(parent.path, parent.current), True
+                matrix = parent.current if not parent.path and parent.current in matrix_keys \
+                    else parent.matrix
+            elif parent is not None:
+                parent.count += 1
+                if parent.limit is not None and parent.count > parent.limit:
+                    raise InputError(f"has more than {parent.limit} rows or columns (raise the "
+                                     "limit with --max-states)", field=parent.matrix)
+                path, matrix = f"{parent.path}[{parent.count - 1}]", parent.matrix
+            if isinstance(event, yaml.ScalarEvent):
+                continue
+            if len(stack) >= max_depth:
+                raise InputError(f"{name} nests YAML collections deeper than {max_depth} levels "
+                                 f"(line {line})", field="file")
+            is_map = isinstance(event, yaml.MappingStartEvent)
+            limit = max_items if matrix is not None and not is_map else None
+            stack.append(_Frame(is_map, path, limit, matrix))
+    except yaml.YAMLError:
+        return  # the loader reports the syntax error with its position
+    finally:
+        events.close()
+
+
+def _scan_key(event: yaml.Event, parent: _Frame, line: int) -> None:
+    where = parent.path or "top level"
+    if not isinstance(event, yaml.ScalarEvent):
+        raise InputError(f"mapping keys must be plain names, not collections (line {line})",
+                         field=parent.path or "file")
+    tag = event.tag
+    if tag is None or tag == "!":
+        tag = _RESOLVER.resolve(yaml.ScalarNode, event.value, event.implicit)
+    if tag == _MERGE_TAG:
+        raise InputError(f"YAML merge keys (<<) are not allowed (line {line})",
+                         field=_join(parent.path, "<<"))
+    if tag == _NULL_TAG:
+        raise InputError(f"a null key (~, null or empty) at {where} (line {line})",
+                         field=_join(parent.path, "<null key>"))
+    key = event.value
+    if key in parent.keys:
+        raise InputError(f"duplicate key (line {line})", field=_join(parent.path, key[:40]))
+    parent.keys.add(key)
+    parent.current = key[:40]
+    parent.expect_key = False
 
 
 def _exact_numbers(obj: Any, where: str, depth: int = 0) -> Any:
@@ -105,8 +222,21 @@ class SystemSpec:
     sha256: str | None = None
 
 
-def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> tuple[Any, str]:
-    """Read and parse a YAML file safely; return (document, sha256 of the bytes)."""
+def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: int = MAX_NODES,
+              matrix_keys: frozenset[str] = frozenset(),
+              max_items: int | None = None) -> tuple[Any, str]:
+    """Read and parse a YAML file safely; return (document, sha256 of the bytes).
+
+    The text is checked by :func:`scan_yaml` (nesting, size, aliases, merge, null and duplicate
+    keys, matrix sizes) before the document is built.
+    """
+    text, digest = _read_text(path, max_bytes)
+    return parse_yaml_text(text, name=Path(path).name, max_nodes=max_nodes,
+                           matrix_keys=matrix_keys, max_items=max_items), digest
+
+
+def _read_text(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> tuple[str, str]:
+    """The UTF-8 text of a file (size-capped) and the SHA-256 of its bytes."""
     p = Path(path)
     try:
         if p.is_dir():
@@ -128,6 +258,15 @@ def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> tuple[Any
         raise InputError("is not valid UTF-8 text", field="file") from None
     if not text.strip():
         raise InputError("is empty", field="file")
+    return text, digest
+
+
+def parse_yaml_text(text: str, *, name: str = "file", max_nodes: int = MAX_NODES,
+                    matrix_keys: frozenset[str] = frozenset(),
+                    max_items: int | None = None) -> Any:
+    """Check (:func:`scan_yaml`) and parse a YAML text with the exact, safe loader."""
+    scan_yaml(text, name=repr(name[:60]), max_nodes=max_nodes, matrix_keys=matrix_keys,
+              max_items=max_items)
     try:
         doc = yaml.load(text, Loader=_ExactLoader)  # noqa: S506 - SafeLoader subclass
     except InputError:
@@ -139,7 +278,7 @@ def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> tuple[Any
         raise InputError(f"not valid YAML{where}: {problem}", field="file") from None
     except RecursionError:
         raise InputError("YAML nesting is too deep", field="file") from None
-    return doc, digest
+    return doc
 
 
 def _requirements(data: Any) -> Requirements:
@@ -174,6 +313,42 @@ def _plain(obj: Any) -> Any:
     return obj
 
 
+def _raw_shape(value: Any, name: str, max_states: int) -> tuple[int, int] | None:
+    """Shape of a raw (unconverted) matrix: None for a scalar; errors name the matrix."""
+    if not isinstance(value, (list, tuple)):
+        return None
+    if len(value) == 0:
+        raise InputError("must be a non-empty matrix", field=name)
+    if not all(isinstance(r, (list, tuple)) for r in value):
+        raise InputError("must be a list of rows (e.g. [[1, 0], [0, 1]])", field=name)
+    ncols = len(value[0])
+    if len(value) > max_states or ncols > max_states:
+        raise InputError(f"has more than {max_states} rows or columns (raise the limit with "
+                         "--max-states)", field=name)
+    if ncols == 0:
+        raise InputError("has an empty row", field=name)
+    for i, row in enumerate(value):
+        if len(row) != ncols:
+            raise InputError(f"row {i} has {len(row)} entries, row 0 has {ncols}", field=name)
+    return len(value), ncols
+
+
+def _check_shapes(doc: dict, max_states: int) -> None:
+    """The dimension checks of :class:`System`, on the raw lists (cheap: no entry is read)."""
+    shapes = {k: _raw_shape(doc[k], k, max_states) for k in sorted(MATRIX_KEYS) if k in doc}
+    a = shapes["A"] or (1, 1)
+    n = a[0]
+    if a != (n, n):
+        raise InputError(f"must be square, got {a[0]}x{a[1]}", field="A")
+    c = shapes["C"] or (1, 1)
+    if c[1] != n:
+        raise InputError(f"must have {n} columns (the size of A), got {c[1]}", field="C")
+    for key, size in (("Q", n), ("R", c[0]), ("Sigma0", n)):
+        shape = shapes.get(key)
+        if shape is not None and shape != (size, size):
+            raise InputError(f"must be {size}x{size}, got {shape[0]}x{shape[1]}", field=key)
+
+
 def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                       max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
     """Validate a parsed system document and build the :class:`SystemSpec`."""
@@ -183,7 +358,7 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     for key in doc:
         if not isinstance(key, str) or key not in TOP_KEYS:
             raise InputError(f"unknown key (allowed: {', '.join(sorted(TOP_KEYS))})",
-                             field=str(key)[:40])
+                             field=key_name(key))
     for key in sorted(REQUIRED_KEYS):
         if key not in doc or doc[key] is None:
             raise InputError("is required", field=key)
@@ -193,6 +368,7 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     description = doc.get("description") or ""
     if not isinstance(description, str):
         raise InputError("must be a string", field="description")
+    _check_shapes(doc, max_states)  # on the raw structure, before any exact conversion
     mats = {k: _exact_numbers(doc[k], k) for k in ("A", "C", "Q", "R", "Sigma0") if k in doc}
     system = System(mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
                     name=str(name)[:200], max_states=max_states)
@@ -204,12 +380,37 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                       description=description[:2000])
 
 
+def max_nodes_for(max_states: int) -> int:
+    """The YAML value budget of a system file: five full matrices of the largest size, plus
+    room for the rest (so a file is refused before it is built, not after)."""
+    return 5 * max_states * max_states + 10_000
+
+
+_LAST: dict[tuple[str, str, str, int], SystemSpec] = {}
+
+
 def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
-    """Load a system file: the system, its channel, requirements and provenance (SHA-256)."""
-    doc, digest = read_yaml(path)
+    """Load a system file: the system, its channel, requirements and provenance (SHA-256).
+
+    The structure is checked before the document is built (:func:`scan_yaml` with the
+    state-size guard ``max_states``); then the shapes, then the exact entries. The last spec
+    loaded is remembered by path, content hash and ``max_states`` (unless its channel reads a
+    trace file), so validating a file and then loading it again (``kfcrit report``) parses and
+    checks it once.
+    """
+    text, digest = _read_text(path)
+    key = (str(path), str(Path(path).resolve()), digest, max_states)
+    if key in _LAST:
+        return _LAST[key]
+    doc = parse_yaml_text(text, name=Path(path).name, max_nodes=max_nodes_for(max_states),
+                          matrix_keys=MATRIX_KEYS, max_items=max_states)
     spec = spec_from_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states)
-    return SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
-                      description=spec.description, path=str(path), sha256=digest)
+    out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
+                     description=spec.description, path=str(path), sha256=digest)
+    _LAST.clear()
+    if getattr(spec.channel, "model", None) != "trace":  # a trace file could change meanwhile
+        _LAST[key] = out
+    return out
 
 
 def load_system(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> System:

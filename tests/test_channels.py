@@ -161,3 +161,24 @@ def test_trace_from_arrivals_rejects_other_values():
         Trace.from_arrivals([])
     with pytest.raises(InputError):
         Trace.from_arrivals([[0, 1]])
+
+
+def test_probability_proven_equal_to_an_end_point_is_that_end_point() -> None:
+    from kfcrit.channels import exact_probability
+
+    assert exact_probability("cos(1)**2+sin(1)**2", "p") == 1
+    assert exact_probability("1-cos(1)**2-sin(1)**2", "p") == 0
+    with pytest.raises(InputError, match=r"^f: must be in \(0, 1\]"):
+        exact_probability("1-cos(1)**2-sin(1)**2", "f", low_open=True)
+    with pytest.raises(InputError, match=r"^p: must be in \[0, 1\]"):
+        exact_probability("cos(1)**2+sin(1)**2+exp(-600)", "p")
+    with pytest.raises(InputError, match=r"^channel\.arrival_probability: cannot decide"):
+        exact_probability("(cos(1)**2+sin(1)**2)^64", "channel.arrival_probability")
+
+
+def test_gilbert_elliott_memoryless_when_rates_sum_to_one_exactly() -> None:
+    from kfcrit.channels import channel_from_mapping
+
+    ch = channel_from_mapping({"model": "gilbert-elliott", "failure_rate": "cos(1)**2",
+                               "recovery_rate": "sin(1)**2"})
+    assert ch.iid

@@ -95,3 +95,70 @@ def test_decimal_text_round_trips_exactly(f) -> None:  # noqa: ANN001
 def test_number_from_text_is_exact(mantissa: int, scale: int) -> None:
     text = f"{mantissa}e-{scale}"
     assert number_from_text(text) == sp.Rational(mantissa, 10**scale)
+
+
+# ---- bounded decisions (audit "Hardening: hostile inputs") -----------------------------------
+
+def test_sign_of_decides_without_bool_of_a_relational() -> None:
+    from kfcrit.exprparse import compare, sign_of
+
+    one = sp.cos(1) ** 2 + sp.sin(1) ** 2  # exactly 1, not syntactically
+    assert compare(one, 1) == 0  # proven by the bounded exact test
+    assert sign_of(one - 1 + sp.exp(-2000)) == 1  # certain digits at ~2000 digits of precision
+    assert sign_of(sp.sqrt(2) - sp.Rational(14142135623730951, 10**16)) == -1
+    assert sign_of(sp.Rational(-3, 7)) == -1 and sign_of(sp.Integer(0)) == 0
+    with pytest.raises(ExpressionError, match=r"^p: cannot decide the sign"):
+        compare(one**64, 1, "p")  # zero to 1100 digits, beyond the bounded exact test
+
+
+@pytest.mark.parametrize("text", ["cos(1)**2+sin(1)**2-1", "sqrt(cos(1)**2+sin(1)**2-1)",
+                                  "log(cos(1)**2+sin(1)**2)", "(1+sqrt(2))**2-3-2*sqrt(2)",
+                                  "1/(sqrt(2)-1)-sqrt(2)-1", "tan(1)-sin(1)/cos(1)"])
+def test_provable_zeros_become_exact_zero(text: str) -> None:
+    assert parse_expression(text) == 0
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("1/(cos(1)**2+sin(1)**2-1)", "division by zero"),
+    ("(cos(1)**2+sin(1)**2-1)^-1", "zero to a non-positive power"),
+    ("log(cos(1)**2+sin(1)**2-1)", "log of a non-positive number"),
+    ("(cos(1)**2+sin(1)**2)^64-1", "cannot decide whether"),
+    ("sqrt((cos(1)**2+sin(1)**2)^64-1)", "cannot decide the sign"),
+    ("1e-200*1e-200", "out of range"),
+    ("exp(-690)**2", "out of range"),
+    ("exp(-690)*1e-10", "out of range"),
+    ("1e200*1e200", "out of range"),
+])
+def test_bounded_refusals_name_the_field(text: str, message: str) -> None:
+    import time
+
+    t0 = time.perf_counter()
+    with pytest.raises(ExpressionError, match=r"^A\[0\]\[0\]: ") as info:
+        parse_expression(text, "A[0][0]")
+    assert message in str(info.value) and time.perf_counter() - t0 < 5
+
+
+def test_magnitude_rule_is_the_same_for_literals_and_results() -> None:
+    # the boundary 1e-300 is inside for both; just below is outside for both
+    assert parse_expression("1e-300") == sp.Rational(1, 10**300)
+    assert parse_expression("1e-150*1e-150") == sp.Rational(1, 10**300)
+    for text in ("1e-301", "1e-150*1e-151", "0.1*1e-300"):
+        with pytest.raises(ExpressionError, match="out of range"):
+            parse_expression(text)
+    assert parse_expression("exp(-690)") == sp.exp(-690)  # 2.2e-300
+    assert parse_expression("0*exp(-690)") == 0  # zero is allowed
+
+
+def test_exact_text_keeps_long_numbers_exact_and_parseable() -> None:
+    from kfcrit.exprparse import exact_text
+
+    r = sp.Rational(10**70 + 3, 7 * 10**65 + 1)
+    text = exact_text(r)
+    assert "." not in text and "e" not in text.lower()  # never a float text
+    assert all(len(run) <= 60 for run in __import__("re").findall(r"\d+", text))
+    assert parse_expression(text) == r
+    assert exact_text(sp.sqrt(2) / 3) == "sqrt(2)/3"
+    long = sp.Integer(10) ** 200 + 1
+    assert parse_expression(exact_text(long)) == long
+    huge = sp.Rational(3**1000, 7)  # beyond the length limit: exact text all the same
+    assert "." not in exact_text(huge) and len(exact_text(huge)) > 500

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import sympy as sp
 import yaml
 from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
@@ -21,6 +22,7 @@ from hypothesis import strategies as st
 from kfcrit import System
 from kfcrit.cli import main
 from kfcrit.errors import InputError, KfcritError
+from kfcrit.exprparse import parse_expression
 from kfcrit.systemfile import load_spec, spec_from_mapping
 
 HOSTILE = Path(__file__).parent / "hostile"
@@ -186,3 +188,279 @@ def test_fuzz_through_the_cli(field: str, value: object, tmp_path_factory) -> No
     if code == 2:
         assert len(err.strip().splitlines()) == 1
     assert dt < 30
+
+
+# ---- audit "Hardening: hostile inputs" -------------------------------------------------------
+
+def _one_line_error(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("kfcrit: error: "), err
+    return lines[0]
+
+
+@pytest.mark.parametrize("name", ["deep-flow-30000", "deep-mapping-30000", "deep-block-30000"])
+def test_30000_deep_nesting_exits_2_in_a_real_subprocess(name: str) -> None:
+    # PyYAML's C composer recursed into a segfault (exit 139) on these; the event scan refuses
+    # them before any node is composed
+    proc = subprocess.run([sys.executable, "-m", "kfcrit", "analyze", str(HOSTILE / f"{name}.yaml"),
+                           "--no-simulate"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, (proc.returncode, proc.stderr[-500:])
+    line = _one_line_error(proc.stderr)
+    assert f"{name}.yaml" in line and "deeper than 64 levels" in line and proc.stdout == ""
+
+
+def test_nesting_within_the_limit_is_only_a_schema_error(tmp_path: Path) -> None:
+    p = tmp_path / "ok-depth.yaml"
+    p.write_text("name: d\nA: " + "[" * 60 + "]" * 60 + "\nC: 1\nQ: 1\nR: 1\n")
+    code, out, err, _ = run_cli(["analyze", str(p)])
+    assert_refused(code, out, err)
+    assert "deeper than" not in err and "A" in err
+
+
+def test_nine_million_entry_row_is_refused_within_seconds(tmp_path: Path) -> None:
+    # 18 MB, one row of 9 000 000 entries: ran > 120 s and 2.3 GB before the scan
+    p = tmp_path / "row.yaml"
+    p.write_text("name: row\nA: [[" + "1," * 9_000_000 + "1]]\nC: 1\nQ: 1\nR: 1\n")
+    code, out, err, dt = run_cli(["analyze", str(p)])
+    assert_refused(code, out, err)
+    assert "A: has more than 400 rows or columns" in err and "--max-states" in err
+    assert dt < 3.0, dt
+
+
+def test_1400_by_1400_matrix_is_refused_within_seconds(tmp_path: Path) -> None:
+    # 118 s before the 400-row refusal: now refused while reading the first row
+    row = "[" + ",".join(["0.5"] * 1400) + "]"
+    p = tmp_path / "square.yaml"
+    p.write_text("name: sq\nA: [" + ",".join([row] * 1400) + "]\nC: 1\nQ: 1\nR: 1\n")
+    code, out, err, dt = run_cli(["analyze", str(p)])
+    assert_refused(code, out, err)
+    assert "A: has more than 400 rows" in err and dt < 3.0, dt
+    # the raised limit is honoured by the same guard (the row of 1400 passes, 1400 rows fail)
+    code, out, err, dt = run_cli(["analyze", str(p), "--max-states", "1399"])
+    assert_refused(code, out, err)
+    assert "A: has more than 1399 rows" in err and dt < 3.0, dt
+
+
+def test_tall_block_matrix_is_refused_by_rows(tmp_path: Path) -> None:
+    p = tmp_path / "tall.yaml"
+    p.write_text("name: t\nA:\n" + "- [1, 2, 3]\n" * 500 + "C: 1\nQ: 1\nR: 1\n")
+    code, out, err, dt = run_cli(["analyze", str(p)])
+    assert_refused(code, out, err)
+    assert "A: has more than 400 rows" in err and dt < SECONDS
+
+
+def test_yaml_value_budget_is_refused_within_seconds(tmp_path: Path) -> None:
+    # lists within 400 entries, but 400 x 400 x 40 values: beyond 5*400^2 + 10000 in one file
+    inner = "[" + ",".join(["1"] * 40) + "]"
+    row = "[" + ",".join([inner] * 400) + "]"
+    p = tmp_path / "many.yaml"
+    p.write_text("name: many\nA: [" + ",".join([row] * 400) + "]\nC: 1\nQ: 1\nR: 1\n")
+    code, out, err, dt = run_cli(["analyze", str(p)])
+    assert_refused(code, out, err)
+    assert "file:" in err and "more than 810000 YAML values" in err and dt < 3.0, dt
+
+
+def test_shapes_are_checked_before_any_exact_conversion(monkeypatch: pytest.MonkeyPatch) -> None:
+    import kfcrit.systemfile as sf
+
+    def no_conversion(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an entry was converted before the shapes were checked")
+
+    monkeypatch.setattr(sf, "_exact_numbers", no_conversion)
+    big = [["0.5"] * 1400 for _ in range(1400)]
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match=r"^A: has more than 400 rows"):
+        spec_from_mapping({**VALID, "A": big})
+    with pytest.raises(InputError, match=r"^C: must have 300 columns"):
+        spec_from_mapping({**VALID, "A": [["0.5"] * 300 for _ in range(300)], "C": [[1, 2]]})
+    with pytest.raises(InputError, match=r"^Q: must be 2x2, got 3x3"):
+        spec_from_mapping({**VALID, "A": [[1, 0], [0, 1]], "C": [[1, 1]],
+                           "Q": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]})
+    with pytest.raises(InputError, match=r"^A: row 1 has 1 entries"):
+        spec_from_mapping({**VALID, "A": [[1, 0], [0]]})
+    with pytest.raises(InputError, match=r"^A: has more than 2 rows"):
+        spec_from_mapping({**VALID, "A": [[1] * 3] * 3, "C": [[1] * 3]}, max_states=2)
+    assert time.perf_counter() - t0 < 2.0
+
+
+def test_bounded_symmetry_check_refuses_a_near_miss_at_once() -> None:
+    # sp.simplify of this difference ran for minutes; the entries agree to 58 digits
+    code, out, err, dt = run_cli(["analyze", str(HOSTILE / "asymmetric-radicals.yaml"),
+                                  "--no-simulate"])
+    assert_refused(code, out, err)
+    assert "Q: must be symmetric (Q[0][1] != Q[1][0])" in err and dt < SECONDS
+
+
+def test_symmetry_of_equal_entries_in_different_forms() -> None:
+    t0 = time.perf_counter()
+    # provably equal (expansion), and equal but beyond the bounded exact test: both accepted
+    for q01, q10 in (("(1+sqrt(2))**2", "3+2*sqrt(2)"), ("(cos(1)**2+sin(1)**2)^64", "1")):
+        s = System([[1, 0], [0, 1]], [[1, 1]], [[9, q01], [q10, 9]], 1)
+        assert s.Q[0, 1] == s.Q[1, 0]  # symmetrised where equal but not provably so
+        assert abs(float(s.Q[0, 1]) - float(sp.N(parse_expression(q01), 20))) < 1e-12
+    # a difference far below the float tolerance but certain: refused
+    with pytest.raises(InputError, match=r"^Q: must be symmetric"):
+        System([[1, 0], [0, 1]], [[1, 1]], [[9, "sqrt(2)"], ["sqrt(2)+1e-80", 9]], 1)
+    assert time.perf_counter() - t0 < SECONDS
+
+
+def test_probability_equal_to_one_but_not_syntactically(tmp_path: Path) -> None:
+    # exit 4 (TypeError from bool() of a sympy relational) before the fix
+    p = tmp_path / "one.yaml"
+    p.write_text("name: one\nA: [[2]]\nC: 1\nQ: 1\nR: 1\nchannel: {model: bernoulli, "
+                 "arrival_probability: 'cos(1)**2+sin(1)**2'}\n"
+                 "requirements: {max_error_trace: 10,\n"
+                 "               max_tail_probability: 'sin(1)**2+cos(1)**2'}\n")
+    spec = load_spec(p)
+    assert spec.channel.arrival_probability == 1  # proven equal to the end point: exactly 1
+    assert spec.requirements.max_tail_probability == 1.0
+    code, out, err, _ = run_cli(["analyze", str(p), "--no-simulate", "--json"])
+    assert code in (0, 1, 3) and "Traceback" not in err and "internal error" not in err, err
+
+
+@pytest.mark.parametrize(("name", "field"), [
+    ("undecidable-zero", "A[0][0]:"),
+    ("undecidable-probability", "channel.arrival_probability:"),
+    ("log-of-unprovable-one", "A[0][0]:"),
+    ("tiny-product", "A[0][0]:"),
+    ("tiny-exp", "A[0][0]:"),
+    ("huge-product", "A[0][0]:"),
+])
+def test_undecidable_and_out_of_range_values_name_the_field(name: str, field: str) -> None:
+    code, out, err, dt = run_cli(["analyze", str(HOSTILE / f"{name}.yaml"), "--no-simulate"])
+    assert_refused(code, out, err)
+    assert f"kfcrit: error: {field}" in err and dt < SECONDS
+
+
+def test_tiny_values_follow_the_literal_rule(tmp_path: Path) -> None:
+    # the literal 1e-301 and the expressions 1e-200*1e-200, exp(-690)**2 are all refused;
+    # 1e-300 as a literal and as an expression (1e-150*1e-150) are both accepted
+    for text in ("1e-301", "'1e-200*1e-200'", "'exp(-690)**2'", "'1e-150*1e-151'"):
+        with pytest.raises(InputError, match=r"out of range"):
+            spec_from_mapping({**VALID, "A": [[yaml.safe_load(text) if text[0] == "'"
+                                               else text]]})
+    for text in ("1e-300", "1e-150*1e-150", "exp(-690)"):
+        spec_from_mapping({**VALID, "A": [[text]]})
+
+
+@pytest.mark.parametrize(("name", "field"), [
+    ("merge-inline", "kfcrit: error: channel.<<: YAML merge keys (<<) are not allowed"),
+    ("duplicate-channel-key", "kfcrit: error: channel.arrival_probability: duplicate key"),
+    ("null-key", "kfcrit: error: <null key>: a null key (~, null or empty) at top level"),
+    ("null-key-channel", "kfcrit: error: channel.<null key>: a null key"),
+    ("complex-key", "kfcrit: error: file: mapping keys must be plain names"),
+])
+def test_key_problems_name_the_full_field(name: str, field: str) -> None:
+    code, out, err, _ = run_cli(["analyze", str(HOSTILE / f"{name}.yaml"), "--no-simulate"])
+    assert_refused(code, out, err)
+    assert err.startswith(field), err
+
+
+def test_null_key_through_the_api_is_named() -> None:
+    with pytest.raises(InputError, match=r"^<null key>: unknown key"):
+        spec_from_mapping({**VALID, None: 1})
+    with pytest.raises(InputError, match=r"^channel\.<null key>: unknown key"):
+        spec_from_mapping({**VALID, "channel": {**VALID["channel"], None: 1}})
+
+
+def test_merge_key_in_a_sweep_file_is_refused(tmp_path: Path) -> None:
+    p = tmp_path / "sweep.yaml"
+    p.write_text("system:\n  <<: {name: hidden}\n  name: merged\n  A: [[1.25]]\n  C: 1\n  Q: 1\n"
+                 "  R: 1\n  channel: {model: bernoulli, arrival_probability: 0.5}\n"
+                 "grid:\n  channel.arrival_probability: [0.5, 0.9]\n")
+    code, out, err, _ = run_cli(["sweep", str(p), "-o", str(tmp_path / "out")])
+    assert_refused(code, out, err)
+    assert "system.<<: YAML merge keys" in err
+    assert not (tmp_path / "out").exists()
+
+
+# ---- outputs ---------------------------------------------------------------------------------
+
+def test_unwritable_report_output_is_bad_input(tmp_path: Path) -> None:
+    afile = tmp_path / "plain-file"
+    afile.write_text("x")
+    for target in ("/proc/kfcrit-x.html", str(afile / "x.html"), str(tmp_path / "no" / "x.html")):
+        code, out, err, dt = run_cli(["report", str(HOSTILE.parent.parent / "reports" /
+                                                    "sinopoli-scalar.yaml"), "-o", target,
+                                      "--quick"])
+        assert_refused(code, out, err)
+        assert err.startswith("kfcrit: error: output: cannot write") and target in err, err
+        assert dt < SECONDS  # refused before the analysis runs
+
+
+def test_bad_system_file_gives_only_the_error_line_for_report(tmp_path: Path) -> None:
+    out_file = tmp_path / "x.html"
+    for name in ("deep-flow-30000", "duplicate-channel-key", "tiny-product"):
+        code, out, err, _ = run_cli(["report", str(HOSTILE / f"{name}.yaml"), "-o", str(out_file)])
+        assert_refused(code, out, err)
+        assert "reading" not in err
+    assert not out_file.exists()
+
+
+def test_write_atomic_turns_os_errors_into_output_errors(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+    import os
+
+    from kfcrit.atomic import write_atomic
+    from kfcrit.errors import OutputError
+
+    target = tmp_path / "keep.txt"
+    target.write_bytes(b"old")
+
+    def full_disk(*args: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full_disk)
+    with pytest.raises(OutputError, match=r"^output: cannot write .*No space left") as info:
+        write_atomic(target, b"new")
+    assert info.value.exit_code == 2
+    assert target.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]  # no temporary left
+
+
+def test_os_error_naming_a_path_maps_to_exit_2(monkeypatch: pytest.MonkeyPatch) -> None:
+    import kfcrit.systemfile as sf
+
+    def denied(*args: object, **kwargs: object) -> None:
+        raise PermissionError(13, "Permission denied", "/some/output/folder")
+
+    monkeypatch.setattr(sf, "load_spec", denied)
+    code, out, err, _ = run_cli(["analyze", str(HOSTILE / "nan.yaml")])
+    assert_refused(code, out, err)
+    assert "/some/output/folder" in err and "Permission denied" in err
+
+
+# ---- usage errors ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("args", "expected"), [
+    (["analyze", "x.yaml", "--bogus"], "No such option '--bogus'"),
+    (["analyze"], "Missing argument 'SYSTEM_FILE'"),
+    (["analyze", "x.yaml", "--seed", "minus"], "Invalid value for '--seed'"),
+    (["analyze", "x.yaml", "--tolerance", "nan"], "must be a number in [0, 0.1], got 'nan'"),
+    (["analyze", "x.yaml", "--tolerance", "0.5"], "must be a number in [0, 0.1], got '0.5'"),
+    (["report", "x.yaml"], "Missing option '-o'"),
+    (["frobnicate"], "No such command 'frobnicate'"),
+])
+def test_usage_errors_are_one_line(args: list[str], expected: str) -> None:
+    code, out, err, _ = run_cli(args)
+    assert code == 2, (code, err)
+    line = _one_line_error(err)
+    assert expected in line and "Usage:" not in err and out == ""
+
+
+def test_usage_error_in_a_real_subprocess() -> None:
+    proc = subprocess.run([sys.executable, "-m", "kfcrit", "analyze", "--nope"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert "No such option '--nope'" in _one_line_error(proc.stderr)
+
+
+def test_help_and_version_still_work() -> None:
+    for args in (["--help"], ["analyze", "--help"], ["sweep", "-h"]):
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 0 and r.stdout.startswith("Usage: ") and r.stderr == ""
+    r = CliRunner().invoke(main, ["--version"])
+    assert r.exit_code == 0 and "kfcrit, version" in r.stdout
+    r = CliRunner().invoke(main, ["analyze", "--help"])
+    assert "[0, 0.1]" in r.stdout

@@ -201,3 +201,70 @@ def test_lower_bounds_of_the_examples_match_expected_json() -> None:
         got = rec["lower_bound"]
         assert sp.simplify(sp.sympify(got["expression"]) - want) == 0, (name, got)
         assert abs(got["value"] - float(want)) < 1e-12
+
+
+def test_duplicate_keys_are_named_by_their_full_field(tmp_path: Path) -> None:
+    p = write(tmp_path, GOOD + "channel:\n  model: bernoulli\n  arrival_probability: 0.5\n"
+                               "  arrival_probability: 0.7\n")
+    with pytest.raises(InputError,
+                       match=r"^channel\.arrival_probability: duplicate key \(line 9\)"):
+        load_spec(p)
+    p = write(tmp_path, GOOD + "A: [[2]]\n")
+    with pytest.raises(InputError, match=r"^A: duplicate key \(line 6\)"):
+        load_spec(p)
+    # quoted and plain spellings of one key are the same key
+    p = write(tmp_path, GOOD.replace("name: test", "name: test\n'name': again"))
+    with pytest.raises(InputError, match=r"^name: duplicate key"):
+        load_spec(p)
+
+
+def test_merge_keys_are_refused_with_or_without_aliases(tmp_path: Path) -> None:
+    p = write(tmp_path, GOOD + "channel: {<<: {arrival_probability: 0.9}, model: bernoulli,"
+                               " arrival_probability: 0.5}\n")
+    with pytest.raises(InputError, match=r"^channel\.<<: YAML merge keys \(<<\) are not allowed"):
+        load_spec(p)
+    # a quoted "<<" is an ordinary (unknown) key, not a merge
+    p = write(tmp_path, GOOD + "channel: {'<<': 1, model: bernoulli, arrival_probability: 0.5}\n")
+    with pytest.raises(InputError, match=r"^channel\.<<: unknown key"):
+        load_spec(p)
+
+
+def test_loader_refuses_merge_keys_even_without_the_scan() -> None:
+    import yaml
+
+    from kfcrit.systemfile import _ExactLoader
+
+    with pytest.raises(InputError, match="merge keys"):
+        yaml.load("a: {<<: {b: 1}, c: 2}\n", Loader=_ExactLoader)  # noqa: S506 - safe subclass
+
+
+def test_structure_scan_limits(tmp_path: Path) -> None:
+    from kfcrit.systemfile import scan_yaml
+
+    scan_yaml("a: " + "[" * 63 + "]" * 63)  # 64 levels with the top mapping: at the limit
+    with pytest.raises(InputError, match="deeper than 64 levels"):
+        scan_yaml("a: " + "[" * 64 + "]" * 64)
+    with pytest.raises(InputError, match="more than 10 YAML values"):
+        scan_yaml("[" + ",".join(["1"] * 20) + "]", max_nodes=10)
+    with pytest.raises(InputError, match=r"^A: has more than 3 rows"):
+        scan_yaml("A: [[1, 2], [3, 4], [5, 6], [7, 8]]\nB: [1, 2, 3, 4, 5]\n",
+                  matrix_keys=frozenset({"A"}), max_items=3)
+    scan_yaml("A: [[1, 2]]\nB: [1, 2, 3, 4, 5]\n", matrix_keys=frozenset({"A"}), max_items=3)
+    with pytest.raises(InputError, match="aliases"):
+        scan_yaml("a: &x 1\nb: *x\n")
+    scan_yaml("a: [unclosed\n")  # syntax errors are left to the loader, which gives the line
+
+
+def test_report_loads_the_system_file_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import kfcrit.systemfile as sf
+
+    calls = []
+    original = sf.spec_from_mapping
+    monkeypatch.setattr(sf, "spec_from_mapping",
+                        lambda *a, **k: calls.append(1) or original(*a, **k))
+    p = write(tmp_path, GOOD)
+    first = load_spec(p)
+    assert load_spec(p) is first and len(calls) == 1
+    assert load_spec(p, max_states=3) is not first and len(calls) == 2
+    p.write_text(GOOD.replace("2.5", "3"))  # new content: parsed again
+    assert load_spec(p).system.R[0, 0] == 3 and len(calls) == 3
