@@ -36,7 +36,7 @@ import numpy as np
 import sympy as sp
 
 from .errors import InputError
-from .exprparse import MAX_DIGITS
+from .exprparse import MAX_DIGITS, exact_text
 from .structure import (
     MAX_DENOMINATOR,
     NUMERIC_TOLERANCES,
@@ -80,8 +80,8 @@ class Num:
             return repr(self.value)
         full = sp.sstr(self.expr)
         out = self.text if self.text is not None and len(self.text) < len(full) else full
-        # the safe parser caps literals at MAX_DIGITS digits: give the float beyond that
-        return repr(self.value) if _LONG_LITERAL.search(out) else out
+        # the safe parser caps literals at MAX_DIGITS digits: long integers in Horner form
+        return exact_text(self.expr) if _LONG_LITERAL.search(out) else out
 
     @property
     def latex(self) -> str:
@@ -561,8 +561,8 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
     CriticalValue
         Record; ``.to_dict()`` gives plain JSON data (see :class:`CriticalValue`).
     """
-    if not (isinstance(tolerance, (int, float)) and 0 <= tolerance < 1):
-        raise InputError(f"must be a number in [0, 1), got {tolerance!r}", field="tolerance")
+    if not (isinstance(tolerance, (int, float)) and 0 <= tolerance <= 0.1):
+        raise InputError(f"must be a number in [0, 0.1], got {tolerance!r}", field="tolerance")
     st = structure_of(system)
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)

@@ -392,3 +392,23 @@ def test_reason_texts_use_unicode_math():
         assert ascii_math not in text, ascii_math
     d = critical.critical_section(_sys([[2, 0], [0, 3]], [[1, 0], [0, 1]]))
     assert "|λ₁|⁻²" in d["critical_value"]["reason"]
+
+
+def test_long_exact_numbers_keep_an_exact_expression() -> None:
+    """A rational with 70-digit parts is written exactly (never as a float) and reads back."""
+    from kfcrit.critical import Num
+
+    x = sp.Rational(10**70 + 7, 3 * 10**65 + 1)
+    num = Num(float(x), x)
+    text = num.expression
+    assert "." not in text and "e" not in text.lower()
+    assert parse_expression(text, field="t") == x
+
+
+@pytest.mark.parametrize("bad", [-1e-3, 0.2, float("nan"), "0.01"])
+def test_tolerance_message_names_its_range(bad) -> None:
+    from kfcrit.critical import critical_value
+    from kfcrit.errors import InputError
+
+    with pytest.raises(InputError, match=r"\[0, 0\.1\]"):
+        critical_value(System([[2]], [[1]], Q=1, R=1), tolerance=bad)
