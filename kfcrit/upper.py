@@ -500,10 +500,10 @@ def _c_invertible_bound(system: System, how: str) -> UpperBound:
             "origin": "exact decision, no numerical certificate needed", "ok": pl.rigorous,
             "p": pl.up, "statement": statement, "reason": "proven" if pl.rigorous else
             "p_low from float eigenvalues (not rigorous)",
-            "verified_by": f"{how}; p_low: {pl.how}", "condition_number_C": kappa}
+            "verified_by": f"{how}; p_low by {pl.how}", "condition_number_C": kappa}
     lower = {"kind": "theorem", "value": pl.down, "certified": pl.rigorous,
              "expression": pl.expression,
-             "statement": "p_up >= p_c >= p_low = 1 - 1/rho(A)^2 (Sinopoli Thm 3); here "
+             "statement": "p_up ≥ p_c ≥ p_low = 1 − 1/ρ(A)² (Sinopoli Thm 3); here "
                           "p_up = p_low exactly (C invertible)"}
     solver = {"seconds": time.perf_counter() - t0, "solves": 0, "special_case": "C invertible",
               "p_low": pl.how}
@@ -514,7 +514,7 @@ def _c_invertible_bound(system: System, how: str) -> UpperBound:
 
 def _evidence_p_low(p_low: float) -> dict[str, Any]:
     return {"kind": "theorem", "value": p_low, "certified": True,
-            "statement": "p_up >= p_c >= p_low = 1 - 1/rho(A)^2 (Sinopoli Thm 3)"}
+            "statement": "p_up ≥ p_c ≥ p_low = 1 − 1/ρ(A)² (Sinopoli Thm 3)"}
 
 
 def _newton_method(system: System, tol: float) -> UpperBound:
@@ -540,7 +540,7 @@ def _newton_method(system: System, tol: float) -> UpperBound:
         stats["certificate_checks"] += 1
         cert = _certificate_summary(system, check, X, K, "Lyapunov X = A X A' + I, K = 0")
         lower = {"kind": "trivial", "value": 0.0, "certified": True,
-                 "statement": "p >= 0; rho(A) < 1, so p = 0 is already mean-square stable"}
+                 "statement": "p ≥ 0; ρ(A) < 1, so p = 0 is already mean-square stable"}
         return done(0.0, (0.0, 0.0), check.ok, "determined", cert, lower)
 
     Au, Cu = red.Au, red.Cu
