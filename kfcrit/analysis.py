@@ -130,8 +130,13 @@ def operating_point(spec: SystemSpec, sections: dict[str, Any]) -> dict[str, Any
         return out
     if sections.get("classification") == "not-detectable":
         out.update(margin=None, margin_robust=None, bracket=None, verdict="mean-unstable",
-                   reason="(C, A) is not detectable: the error covariance diverges even with "
-                          "no losses")
+                   diverges_for_all_p=True,
+                   reason="(C, A) is not detectable: a mode with |λ| ≥ 1 is unobservable, so "
+                          "the expected error covariance diverges for every arrival probability, "
+                          "even p = 1 (no losses); there is no critical value, and p_up and the "
+                          "covariance bounds do not apply",
+                   basis="PBH detectability test (MATH §3: the theorems assume (A, C) "
+                         "detectable)")
         return out
     if pc is not None:
         out["margin"] = p - pc
@@ -161,7 +166,32 @@ def operating_point(spec: SystemSpec, sections: dict[str, Any]) -> dict[str, Any
                        "bursty channel the margin compares only the stationary arrival "
                        "probability, and the verdict follows the basis stated")
     out["verdict"] = verdict
+    if spec.channel.model == "trace":
+        trace_verdict(spec, out)
     return out
+
+
+def trace_verdict(spec: SystemSpec, op: dict[str, Any]) -> None:
+    """A measured 0/1 trace decides nothing about mean stability: the theorems (Sinopoli,
+    Mo–Sinopoli, MATH §3–4; Gilbert–Elliott, MATH §7) are about i.i.d. or Markov arrival
+    *models*, and a finite recording is neither. The verdict is ``undetermined``; the empirical
+    arrival rate, what the i.i.d. comparison would say, and a Gilbert–Elliott fit of the trace
+    are kept for information."""
+    from .linkbudget import gilbert_elliott_fit
+
+    fit = gilbert_elliott_fit(spec.channel.arrivals, spec.system)
+    op["iid_comparison_verdict"] = op.get("verdict")
+    op["verdict"] = "undetermined"
+    op["note"] = ("p_c, p_up and the covariance bounds S̄, V̄ assume i.i.d. losses; the margin "
+                  "compares only the empirical arrival rate of the trace with p_c")
+    op["basis"] = ("measured trace: the mean-stability theorems assume i.i.d. (Sinopoli, "
+                   "Mo–Sinopoli) or Gilbert–Elliott (MATH §7) arrivals, which a recorded "
+                   "sequence is not; the empirical arrival rate"
+                   + (" and a Gilbert–Elliott fit are" if fit.get("available") else " is")
+                   + " given for information only")
+    op["trace"] = {"length": int(spec.channel.arrivals.size),
+                   "empirical_arrival_probability": op["arrival_probability"],
+                   "gilbert_elliott_fit": fit}
 
 
 def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
@@ -201,7 +231,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     _simulation_sections(spec, opts, sec, warnings)
     _link_sections(spec, sec, warnings)
     bursty_verdict(sec)
-    sec["verification"] = verification(sec)
+    sec["verification"] = verification(sec, warnings)
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
     sec["provenance"] = provenance(spec, opts)
     return Analysis(sections=sec)
@@ -222,9 +252,24 @@ def _upper_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any]
                     warnings: list[str]) -> None:
     from . import upper
 
+    if sec.get("classification") == "not-detectable":
+        sec["upper_bound"] = not_detectable_upper()
+        return
     ub = upper.upper_section(spec.system, tol=opts.upper_tol)
     sec["upper_bound"] = ub
     warnings.extend(ub.get("warnings") or [])
+
+
+NOT_DETECTABLE = ("not applicable: (C, A) is not detectable, so E[P_t] diverges for every "
+                  "arrival probability (even p = 1)")
+
+
+def not_detectable_upper() -> dict[str, Any]:
+    """The ``upper_bound`` section of an undetectable system: p_up is not defined (Sinopoli's
+    Theorems 3–6 assume (A, C) detectable), so it is labelled instead of computed."""
+    return {"value": None, "interval": None, "certified": False, "status": "not applicable",
+            "method": None, "certificate": None, "tolerance": None, "reason": NOT_DETECTABLE,
+            "warnings": []}
 
 
 def close_bracket(sec: dict[str, Any]) -> None:
@@ -247,6 +292,8 @@ def close_bracket(sec: dict[str, Any]) -> None:
 
 
 def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -> None:
+    import numpy as np
+
     from . import bounds
 
     s = spec.system
@@ -255,12 +302,35 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str])
                "p_up": (sec.get("upper_bound") or {}).get("value"),
                "operating": (float(spec.channel.arrival_probability)
                              if spec.channel is not None else None)}
+    if sec.get("classification") == "not-detectable":
+        p = markers["operating"]
+        if p is not None:
+            S = bounds.lower_covariance(s.a, s.q, p)
+            sec["covariance_bounds"] = {
+                "p": p, "lower": bounds._summary(S),
+                "upper": {**bounds._summary(None), "residual": None, "method": NOT_DETECTABLE,
+                          "iterations": 0},
+                "ordered": None, "applicable": False, "reason": NOT_DETECTABLE}
+            na = {"available": False, "reason": NOT_DETECTABLE}
+            sec["static_gain"] = {"p": p, "kalman": na, "best": dict(na), "p_up": None,
+                                  "p_up_interval": None}
+        grid = bounds.phase_grid(markers["p_low"] or 0.0, None, bounds.phase_points(s.n))
+        lower = [bounds.lower_covariance(s.a, s.q, float(p)) for p in grid]
+        sec["phase_transition"] = {
+            "p": [float(v) for v in grid],
+            "trace_lower": [None if S is None else float(np.trace(S)) for S in lower],
+            "trace_upper": [None] * len(grid), "markers": markers,
+            "warnings": [f"V̄ {NOT_DETECTABLE}"]}
+        return
     if markers["operating"] is not None:
         cb = bounds.covariance_bounds(s, markers["operating"])
         sec["covariance_bounds"] = cb
         warnings.extend(cb.get("warnings") or [])
         sec["static_gain"] = bounds.static_gain(s, markers["operating"])
-    sec["phase_transition"] = bounds.phase_transition(s, markers)
+    pt = bounds.phase_transition(s, markers)
+    sec["phase_transition"] = pt
+    if (pt.get("limits") or {}).get("stopped"):
+        warnings.append(f"phase-transition curve incomplete: {pt['limits']['stopped']}")
 
 
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
@@ -330,29 +400,48 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
 
 def bursty_verdict(sec: dict[str, Any]) -> None:
     """For a non-i.i.d. Gilbert–Elliott channel the i.i.d. comparison p > p_c does not decide
-    mean stability; where the scalar condition (1 − r)a² < 1 (MATH §7) applies as a theorem, it
-    decides the verdict instead, otherwise the verdict is ``undetermined``."""
+    mean stability. The Gilbert–Elliott section (:func:`kfcrit.linkbudget.
+    gilbert_elliott_section`) states for its condition (1 − r)a² < 1 whether it ``decides``:
+    only the scalar case is a theorem (MATH §7; and ρ(A) < 1 trivially). Where it decides, the
+    verdict follows the condition; where it does not (a claim from the literature, or a
+    necessary condition only), the verdict is ``undetermined`` and the basis says which. An
+    undetectable system stays ``mean-unstable`` whatever the channel."""
     op = sec.get("operating_point")
     lb = sec.get("link_budget") or {}
     if not op or op.get("iid") or op["channel"].get("model") != "gilbert-elliott":
         return
+    if sec.get("classification") == "not-detectable":
+        return
     cond = lb.get("condition") if isinstance(lb.get("condition"), dict) else {}
     iid_verdict = op.get("verdict")
-    if cond.get("status", "").startswith("theorem") and cond.get("holds") is not None:
+    if cond.get("decides") is True and cond.get("holds") is not None:
         op["verdict"] = "mean-stable" if cond["holds"] else "mean-unstable"
         op["basis"] = (f"Gilbert–Elliott condition {cond.get('expression')}: value "
-                       f"{cond.get('value'):.6g} (MATH §7, scalar case)")
+                       f"{cond.get('value'):.6g} "
+                       f"{'< 1 holds' if cond['holds'] else '>= 1 fails'} "
+                       f"({cond.get('status')})")
     else:
         op["verdict"] = "undetermined"
+        what = cond.get("status") or "no Gilbert–Elliott condition was evaluated"
+        value = cond.get("value")
         op["basis"] = ("bursty losses: no theorem in the papers decides mean stability for this "
-                       "system; see the literature claims in link_budget")
+                       f"system; the condition {cond.get('expression') or '(1 - r) a^2 < 1'}"
+                       + (f" (value {value:.6g})" if isinstance(value, (int, float)) else "")
+                       + f" is labelled: {what}")
     op["iid_comparison_verdict"] = iid_verdict
 
 
 def _simulated_mean_between_bounds(cb: dict[str, Any],
                                    sim_op: dict[str, Any]) -> dict[str, Any] | None:
     """Sinopoli Thm 4/6 cross-check: the simulated E[tr P_t] at the horizon lies in
-    [tr S̄, tr V̄] up to its confidence band (and a 5 % allowance for the finite horizon)."""
+    [tr S̄, tr V̄] up to its confidence band (and a 5 % allowance for the finite horizon).
+
+    A miss is ``inconclusive`` (``passed`` None, with the reason), not a failure, when the
+    simulation section says the comparison is not valid at this operating point
+    (``reliability``): the variance of tr P is infinite (heavy tails, just above p_c) or the
+    Lyapunov lower bound itself has not settled within the horizon (the limit bounds then do
+    not yet apply to E[tr P_T]).
+    """
     lower, upper = cb.get("lower") or {}, cb.get("upper") or {}
     mt = sim_op.get("mean_trace") or {}
     if not (lower.get("exists") and upper.get("exists") and mt.get("mean")):
@@ -366,21 +455,39 @@ def _simulated_mean_between_bounds(cb: dict[str, Any],
     if None in (mean, lo, hi):
         return None
     ok = hi >= 0.95 * lower["trace"] and lo <= 1.05 * upper["trace"]
-    return {"check": "simulation: E[tr P_t] at the horizon within [tr S̄, tr V̄] (Thm 4, 6)",
-            "passed": bool(ok),
-            "detail": f"{lower['trace']:.6g} ≤ {mean:.6g} (band {lo:.6g}–{hi:.6g}) ≤ "
-                      f"{upper['trace']:.6g}"}
+    out = {"check": "simulation: E[tr P_t] at the horizon within [tr S̄, tr V̄] (Thm 4, 6)",
+           "passed": bool(ok), "status": "passed" if ok else "failed",
+           "detail": f"{lower['trace']:.6g} ≤ {mean:.6g} (band {lo:.6g}–{hi:.6g}) ≤ "
+                     f"{upper['trace']:.6g}"}
+    rel = sim_op.get("reliability") or {}
+    if not ok:
+        reasons = []
+        if rel.get("heavy_tailed"):
+            reasons.append(f"{rel.get('variance_condition')} = {rel.get('variance_value'):.4g}"
+                           " >= 1: the variance of tr P diverges (heavy tails just above p_c), "
+                           "so the sample mean is unreliable")
+        if rel.get("settled") is False:
+            reasons.append(f"the Lyapunov bound has not settled within the horizon (tr S_T = "
+                           f"{rel.get('lyapunov_trace_at_horizon'):.4g} < 0.95 tr S̄ = "
+                           f"{0.95 * rel.get('lyapunov_trace_limit'):.4g})")
+        if reasons:
+            out.update(passed=None, status="inconclusive", reason="; ".join(reasons))
+    return out
 
 
-def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
+def verification(sec: dict[str, Any], warnings: list[str] | None = None
+                 ) -> list[dict[str, Any]]:
     """The checks the record relies on, each with its outcome (for the report's appendix).
 
-    Every entry is ``{check, passed (True/False/None = not applicable), detail}``; nothing here
-    recomputes a result, it reads what the sections measured.
+    Every entry is ``{check, passed (True/False/None), status, detail}`` with ``status`` one of
+    passed / failed / inconclusive (a Monte Carlo cross-check whose tolerance is not valid at
+    this operating point; ``reason`` says why and a warning is added) / not applicable; nothing
+    here recomputes a result, it reads what the sections measured.
     """
+    warnings = warnings if warnings is not None else []
     checks: list[dict[str, Any]] = []
     ub = sec.get("upper_bound") or {}
-    if ub:
+    if ub and ub.get("status") != "not applicable":
         cert = ub.get("certificate") or {}
         checks.append({"check": "upper-bound certificate X ≻ g_p(X), X ≻ 0 (exact re-check)",
                        "passed": True if ub.get("certified") else None,
@@ -396,6 +503,9 @@ def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
     between = _simulated_mean_between_bounds(cb, sim.get("operating_point") or {})
     if between is not None:
         checks.append(between)
+        if between["status"] == "inconclusive":
+            warnings.append(f"Monte Carlo check inconclusive: {between['check']} "
+                            f"({between['reason']})")
     pcv = (sec.get("critical_value") or {}).get("value")
     lb = (sec.get("lower_bound") or {}).get("value")
     up = ub.get("value") if ub else None
@@ -404,7 +514,31 @@ def verification(sec: dict[str, Any]) -> list[dict[str, Any]]:
                                                                      1e-9))
         checks.append({"check": "ordering p_low ≤ p_c ≤ p_up", "passed": bool(ok),
                        "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
-    return checks
+    status = {True: "passed", False: "failed", None: "not applicable"}
+    return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
+
+
+def exit_code(record: dict[str, Any]) -> int:
+    """The documented exit code of an analysis record (README, "Exit codes").
+
+    1 when a verification check failed (``passed`` False; an *inconclusive* Monte Carlo
+    cross-check is a warning, not a failure); 3 when the result is undetermined — the
+    operating-point verdict is ``undetermined`` (a bracket around the operating point, or no
+    theorem for the channel: a measured trace, a bursty channel outside the scalar
+    Gilbert–Elliott theorem), or, with no operating point, the upper bound could not be decided
+    (an undecided p_up bracket that does not contain the operating point does not change a
+    decided verdict; the record still says ``undetermined`` for p_up); else 0, whatever the verdict
+    (``mean-unstable`` is a result, not an error). ``kfcrit.cli.exit_code_of`` should return
+    this.
+    """
+    if any(c.get("passed") is False for c in record.get("verification") or []):
+        return 1
+    op = record.get("operating_point") or {}
+    if op.get("verdict") == "undetermined":
+        return 3
+    if not op.get("verdict") and (record.get("upper_bound") or {}).get("status") == "undetermined":
+        return 3
+    return 0
 
 
 def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:

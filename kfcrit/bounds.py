@@ -17,6 +17,9 @@ p_up, and the best static gain attains p_up (that is the definition of p_up in T
 """
 from __future__ import annotations
 
+import os
+import time
+import warnings as _warnings
 from typing import Any
 
 import numpy as np
@@ -27,6 +30,17 @@ from .system import System
 
 NEWTON_MAX_STATES = 60
 """Newton–Kleinman (a dense solve in n(n+1)/2 unknowns) is used up to this state dimension."""
+PHASE_NEWTON_MAX_STATES = 24
+"""The phase-transition curve uses Newton per grid point up to this n (each solve costs
+O((n²/2)³)); above it, the MARE fixed-point iteration warm-started from the neighbouring grid
+point (V̄ is non-increasing in p, so V̄(p') ⪯ V̄(p) for p' > p and the iteration from V̄(p')
+increases monotonically to V̄(p))."""
+PHASE_TIME_BUDGET = float(os.environ.get("KFCRIT_PHASE_TIME_BUDGET", "20"))
+"""Seconds allowed for the V̄ curve of :func:`phase_transition` (environment variable
+``KFCRIT_PHASE_TIME_BUDGET``); points left when it runs out are ``None`` and the record's
+``warnings`` say where the curve stopped."""
+PHASE_ITERATION_CAP = 5000
+"""Fixed-point iterations per grid point above :data:`PHASE_NEWTON_MAX_STATES`."""
 
 
 def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
@@ -46,11 +60,25 @@ def _summary(M: np.ndarray | None) -> dict[str, Any]:
 
 
 def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | None:
-    """S̄ = (1−p) A S̄ A' + Q, or None when (1−p) ρ(A)² ≥ 1 (no bounded solution)."""
+    """S̄ = (1−p) A S̄ A' + Q, or None when (1−p) ρ(A)² ≥ 1 (no bounded solution).
+
+    scipy's direct (Kronecker) solver is tried first; when it reports an ill-conditioned system
+    (``LinAlgWarning``, e.g. a strongly non-normal A near the boundary) the bilinear
+    (Bartels–Stewart) method is used instead. Nothing is printed.
+    """
     rho = float(max(abs(np.linalg.eigvals(A)))) if A.size else 0.0
     if (1.0 - p) * rho**2 >= 1.0:
         return None
-    return symmetrize(sla.solve_discrete_lyapunov(np.sqrt(1.0 - p) * A, Q))
+    M = np.sqrt(1.0 - p) * A
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error", sla.LinAlgWarning)
+        try:
+            return symmetrize(sla.solve_discrete_lyapunov(M, Q))
+        except sla.LinAlgWarning:
+            pass
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("ignore", sla.LinAlgWarning)
+        return symmetrize(sla.solve_discrete_lyapunov(M, Q, method="bilinear"))
 
 
 def mare_residual(A, C, Q, R, V: np.ndarray, p: float) -> float:
@@ -185,6 +213,35 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
 # ---------------------------------------------------------------------------------------------
 
 
+def _warm_fixed_point(A, C, Q, R, p: float, V0: np.ndarray | None, deadline: float,
+                      rtol: float = 1e-9, blowup: float = 1e14) -> np.ndarray | None:
+    """V̄(p) by V_{t+1} = g_p(V_t) from V0 (0 if None), at most :data:`PHASE_ITERATION_CAP`
+    iterations and never past ``deadline`` (``time.perf_counter()``); None if not reached.
+
+    From V0 = V̄(p') with p' > p the iterates increase monotonically to V̄(p) (Lemma 1(c), (d)).
+    """
+    V = np.zeros_like(Q, dtype=float) if V0 is None else np.array(V0, dtype=float)
+    with np.errstate(all="ignore"):
+        scale = 1.0 + float(np.linalg.norm(g(A, C, Q, R, V, p)))
+        for t in range(PHASE_ITERATION_CAP):
+            Vn = g(A, C, Q, R, V, p)
+            nv = float(np.linalg.norm(Vn))
+            if not np.isfinite(nv) or nv > blowup * scale:
+                return None
+            if float(np.linalg.norm(Vn - V)) <= rtol * nv:
+                return Vn
+            V = Vn
+            if t % 25 == 24 and time.perf_counter() > deadline:
+                return None
+    return None
+
+
+def phase_points(n: int, points: int = 120) -> int:
+    """Grid size of the phase-transition curve for n states: ``points`` up to n = 20, then
+    shrinking like 20/n (at least 30): each point of V̄ costs O(n³) per iteration."""
+    return points if n <= 20 else max(30, int(points * 20 / n))
+
+
 def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarray:
     """A grid on [0, 1] dense near the blow-ups: uniform, plus geometric offsets above
     p_low and p_up (10^-6 … 10^-0.5 of the distance to 1)."""
@@ -198,14 +255,23 @@ def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarra
 
 
 def phase_transition(system: System, markers: dict[str, float | None] | None = None,
-                     points: int = 120) -> dict[str, Any]:
+                     points: int = 120, time_budget: float | None = None) -> dict[str, Any]:
     """tr S̄(p) and tr V̄(p) on a grid resolving the blow-ups at p_low and p_up.
 
     ``markers`` (e.g. p_low, p_c, p_up, operating point) are echoed; p_low and p_up are computed
     when absent. Entries are None where the bound does not exist (or V̄ was not reached).
+
+    Cost control (large n): the grid has :func:`phase_points` points; V̄ is computed from p = 1
+    downwards, by Newton warm-started with the previous gain for n ≤
+    :data:`PHASE_NEWTON_MAX_STATES`, else by the fixed-point iteration warm-started from the
+    previous V̄ (at most :data:`PHASE_ITERATION_CAP` iterations, relative tolerance 1e-9). Once
+    a point is not reached, the points closer to p_up (slower still) are skipped, and the whole
+    V̄ curve stops after ``time_budget`` seconds (:data:`PHASE_TIME_BUDGET`); both are stated
+    in ``warnings`` and ``limits``.
     """
     from .upper import p_low_of, upper_bound
 
+    budget = PHASE_TIME_BUDGET if time_budget is None else float(time_budget)
     markers = dict(markers or {})
     p_low = markers.get("p_low")
     p_low = p_low_of(system.a) if p_low is None else float(p_low)
@@ -213,27 +279,57 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     p_up = markers.get("p_up")
     p_up = (ub.value if p_up is None else float(p_up))
     lo_up = ub.interval[0] if ub.value is not None else 1.0
-    grid = phase_grid(p_low, p_up, points)
+    n_points = phase_points(system.n, points)
+    grid = phase_grid(p_low, p_up, n_points)
     trace_lower = []
     for p in grid:
         S = lower_covariance(system.a, system.q, float(p))
         trace_lower.append(None if S is None else float(np.trace(S)))
     trace_upper: list[float | None] = [None] * len(grid)
     gains = [ub.extras["K"]] if "K" in ub.extras else []
-    warnings = []
-    for i in range(len(grid) - 1, -1, -1):          # from p = 1 down, warm-starting Newton
+    warnings: list[str] = []
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    newton = system.n <= PHASE_NEWTON_MAX_STATES
+    t0 = time.perf_counter()
+    V_prev: np.ndarray | None = None
+    stopped = None
+    for i in range(len(grid) - 1, -1, -1):          # from p = 1 down, warm-starting
         p = float(grid[i])
         if p <= lo_up:
             continue
-        res = upper_covariance(system, p, gains[-1:], rtol=1e-10)   # curves: 1e-10 suffices
-        if res["V"] is None:
+        if time.perf_counter() - t0 > budget:
+            stopped = (f"the V̄ curve stopped at p = {p:.6g} after the time budget of "
+                       f"{budget:g} s (KFCRIT_PHASE_TIME_BUDGET); "
+                       f"{sum(1 for v in grid[:i + 1] if v > lo_up)} points closer to p_up "
+                       "were not computed")
+            break
+        if newton:
+            res = upper_covariance(system, p, gains[-1:], rtol=1e-10)   # curves: 1e-10
+            V = res["V"]
+        else:
+            V = _warm_fixed_point(A, C, Q, R, p, V_prev, t0 + budget)
+            res = {"method": f"fixed-point iteration, cap {PHASE_ITERATION_CAP} iterations "
+                             "or the time budget"}
+        if V is None:
             warnings.append(f"V at p = {p:.6g} not reached ({res['method']})")
+            if not newton:
+                stopped = (f"the V̄ curve stops at p = {p:.6g}: the warm-started fixed-point "
+                           "iteration slows down towards p_up; points closer to p_up were "
+                           "not computed")
+                break
             continue
-        trace_upper[i] = float(np.trace(res["V"]))
-        gains.append(optimal_gain(system.a, system.c, system.r, res["V"]))
+        trace_upper[i] = float(np.trace(V))
+        V_prev = V
+        if newton:
+            gains.append(optimal_gain(A, C, R, V))
+    if stopped:
+        warnings.append(stopped)
     return {"p": [float(v) for v in grid], "trace_lower": trace_lower,
             "trace_upper": trace_upper, "markers": {**markers, "p_low": p_low, "p_up": p_up},
-            "warnings": warnings}
+            "warnings": warnings,
+            "limits": {"points": int(len(grid)), "requested_points": int(points),
+                       "method": "newton-kleinman" if newton else "warm-started fixed point",
+                       "time_budget_seconds": budget, "stopped": stopped}}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -284,6 +380,10 @@ def ms_critical_value(A: np.ndarray, C: np.ndarray, K: np.ndarray) -> dict[str, 
             "crossings": [float(c) for c in real]}
 
 
+STATIC_GAIN_MAX_STATES = 30
+"""Largest n for the fixed-gain section (its vech eigenproblems cost O(n⁶); n = 60 took 46 s)."""
+
+
 def static_gain(system: System, p: float) -> dict[str, Any]:
     """Steady Kalman gain and best static gain: mean-square critical values and covariances.
 
@@ -297,6 +397,13 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
     A, C, Q, R = system.a, system.c, system.q, system.r
     p = float(p)
     out: dict[str, Any] = {"p": p}
+    if system.n > STATIC_GAIN_MAX_STATES:
+        reason = (f"not computed for n = {system.n} > {STATIC_GAIN_MAX_STATES} states: the "
+                  f"mean-square critical value of a fixed gain needs an eigenproblem of size "
+                  f"n(n+1)/2 = {system.n * (system.n + 1) // 2} (O(n⁶) time, O(n⁴) memory)")
+        na = {"available": False, "reason": reason}
+        return {**out, "kalman": na, "best": dict(na), "p_up": None, "p_up_interval": None,
+                "skipped": reason}
     try:
         P = symmetrize(sla.solve_discrete_are(A.T, C.T, Q, R))
         K_kf = optimal_gain(A, C, R, P)

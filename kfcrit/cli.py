@@ -197,14 +197,10 @@ def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool
 
 
 def exit_code_of(record: dict[str, Any]) -> int:
-    """1 when a verification check failed, 3 when a numerical method was inconclusive (an
-    undetermined upper bound), else 0."""
-    if any(c.get("passed") is False for c in record.get("verification") or []):
-        return int(ExitCode.VERIFICATION_FAILED)
-    ub = record.get("upper_bound") or {}
-    if ub.get("status") == "undetermined":
-        return int(ExitCode.INCONCLUSIVE)
-    return int(ExitCode.OK)
+    """The documented exit code of an analysis record: :func:`kfcrit.analysis.exit_code`."""
+    from .analysis import exit_code
+
+    return exit_code(record)
 
 
 @main.command(epilog=EXAMPLES)

@@ -695,6 +695,38 @@ def _ge_status(system: Any, classification: str, c_nonzero: bool) -> tuple[str, 
             False)
 
 
+def gilbert_elliott_fit(arrivals: Any, system: Any = None) -> dict[str, Any]:
+    """Maximum-likelihood two-state Markov (Gilbert–Elliott) fit of a 0/1 arrival sequence.
+
+    f̂ = #(1 → 0) / #(1 → ·) and r̂ = #(0 → 1) / #(0 → ·) over consecutive pairs (the transition
+    counts of the chain). For information only: a fit to a finite recording is an estimate, not
+    the channel, so no theorem is applied to it. With ``system`` the value (1 − r̂)·ρ(A)² of the
+    MATH §7 condition is added (again for information). ``available`` is False when the trace
+    has no received or no lost packet before its last value (a rate is then undefined).
+    """
+    g = np.asarray(arrivals, dtype=bool)
+    prev, nxt = g[:-1], g[1:]
+    n1, n0 = int(prev.sum()), int((~prev).sum())
+    n10, n01 = int((prev & ~nxt).sum()), int((~prev & nxt).sum())
+    out: dict[str, Any] = {"transitions": {"received_to_lost": n10, "received": n1,
+                                           "lost_to_received": n01, "lost": n0},
+                           "method": "maximum likelihood (transition counts)",
+                           "status": "for information: an estimate from the recording, "
+                                     "no theorem is applied to it"}
+    if n1 == 0 or n0 == 0 or n01 == 0:
+        return {"available": False, **out,
+                "reason": "the trace has no loss, no arrival, or no recovery from a loss"}
+    f, r = n10 / n1, n01 / n0
+    out = {"available": True, "failure_rate": f, "recovery_rate": r,
+           "stationary_arrival_probability": r / (f + r) if f + r > 0 else None,
+           "mean_burst_length": 1 / r, **out}
+    if system is not None:
+        a = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
+        out["condition"] = {"expression": "(1 - r) a^2 < 1", "value": (1 - r) * a * a,
+                            "holds": bool((1 - r) * a * a < 1)}
+    return out
+
+
 def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
                             simulate: bool = True) -> dict[str, Any]:
     """Mean stability under Gilbert–Elliott losses (MATH §7).

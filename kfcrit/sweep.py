@@ -533,9 +533,43 @@ def critical_summary(system: Any, tolerance: float) -> dict[str, Any]:
                robust_critical_value=_value(d.get("robust_critical_value")),
                block_lower_bound=_value(d.get("block_lower_bound")),
                upper_bound=_value(d.get("upper_bound")))
+    if out["upper_bound"] is None and out["classification"] != "not-detectable":
+        out["upper_bound"] = upper_bound_value(system)
     if out["block_lower_bound"] is not None and out["lower_bound"] is not None:
         out["lower_bound"] = max(out["lower_bound"], out["block_lower_bound"])
     return out
+
+
+_UPPER: dict[str, float | None] = {}
+SWEEP_UPPER_TOL = 1e-6
+"""Width of the p_up bracket in sweeps (a design table; ``kfcrit analyze`` uses 1e-9): about
+half the cost of 1e-9 per distinct (A, C)."""
+
+
+def upper_bound_value(system: Any) -> float | None:
+    """p_up of the system (Sinopoli Thm 5), None when undetermined.
+
+    p_up depends on (A, C) only (Q and R do not enter Ψ_p, MATH §3), so it is computed once per
+    distinct (A, C) in each process and cached: a sweep over channel or noise parameters pays
+    for it once. Computed to :data:`SWEEP_UPPER_TOL`.
+    """
+    import numpy as np
+
+    key = json.dumps([np.asarray(system.a, dtype=float).tolist(),
+                      np.asarray(system.c, dtype=float).tolist()])
+
+    def build() -> float | None:
+        from .upper import upper_bound
+
+        try:
+            ub = upper_bound(system, tol=SWEEP_UPPER_TOL)
+        except (KfcritError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return None
+        if getattr(ub, "status", None) == "undetermined":
+            return None
+        return _value(ub.value)
+
+    return _cached(_UPPER, key, build)
 
 
 def _requirement(crit: dict[str, Any]) -> tuple[float | None, str | None]:
@@ -708,17 +742,60 @@ def run_processes(spec: SweepSpec, items: Items, max_states: int, workers: int,
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+                               initializer=_worker_init)
     try:
         futures = [pool.submit(evaluate_chunk, spec.base_doc, str(spec.base_dir),
                                spec.tolerance, max_states, chunk)
                    for chunk in _chunks(items, workers)]
         for fut in as_completed(futures):
             yield fut.result()
-    except BaseException:  # interrupted (or closed early): drop queued chunks, do not wait
-        pool.shutdown(wait=False, cancel_futures=True)
+    except BaseException:  # interrupted (or closed early): stop the workers before leaving
+        terminate_pool(pool)
         raise
     pool.shutdown(wait=True)
+
+
+def _worker_init() -> None:
+    """Workers ignore SIGINT: a Ctrl-C reaches the whole process group, and the parent alone
+    decides (it terminates the workers); a worker must not die mid-chunk with a traceback."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def terminate_pool(pool: Any, timeout: float = 5.0) -> None:
+    """Shut a ``ProcessPoolExecutor`` down *now*: cancel queued chunks, terminate the worker
+    processes (SIGTERM, then SIGKILL after ``timeout``), join them and the executor's manager
+    thread, and release the pool's queues.
+
+    The interrupted CLI leaves with ``os._exit`` (no interpreter shutdown, no atexit hooks), so
+    without this the workers would finish their chunk as orphans. Releasing the queues (their
+    semaphores unregister from multiprocessing's resource tracker) lets the tracker end quietly
+    as soon as this process exits, with nothing "leaked" to report.
+    """
+    import gc
+
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for proc in procs:
+        try:
+            proc.terminate()
+        except (OSError, ValueError, AttributeError):
+            pass
+    for proc in procs:
+        try:
+            proc.join(timeout)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(timeout)
+        except (OSError, ValueError, AssertionError, AttributeError):
+            pass
+    try:  # the manager thread sees the dead workers, fails the futures and closes the queues
+        pool.shutdown(wait=True, cancel_futures=True)
+    except Exception:  # noqa: BLE001 - a broken pool must not mask the interrupt
+        pass
+    del pool
+    gc.collect()
 
 
 def check_scheduler(scheduler: str) -> None:

@@ -36,7 +36,9 @@ def summary(rec: dict[str, Any]) -> str:
         lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}  "
                      f"(= {blb.get('expression')})")
     ub = rec.get("upper_bound")
-    if ub:
+    if ub and ub.get("status") == "not applicable":
+        lines.append(f"  upper bound p_up      {ub.get('reason') or 'not applicable'}")
+    elif ub:
         iv = ub.get("interval") or [None, None]
         lines.append(f"  upper bound p_up      {_num(ub.get('value'), 12)}  in "
                      f"[{_num(iv[0], 12)}, {_num(iv[1], 12)}]"
@@ -50,10 +52,16 @@ def summary(rec: dict[str, Any]) -> str:
             b = op["bracket"]
             lines.append(f"  bracket               [{_num(b[0])}, {_num(b[1])}]")
         lines.append(f"  verdict               {op.get('verdict', '—').upper()}")
+        if op.get("reason"):
+            lines.append(f"      reason: {op['reason']}")
+        if op.get("iid_comparison_verdict"):
+            lines.append(f"      (the i.i.d. comparison p vs p_c alone would say "
+                         f"{op['iid_comparison_verdict']})")
         if op.get("basis"):
             lines.append(f"      basis: {op['basis']}")
         if op.get("note"):
             lines.append(f"      note: {op['note']}")
+        lines.extend(_trace_lines(op.get("trace")))
     lines.extend(_bounds_lines(rec))
     lines.extend(_simulation_lines(rec))
     lines.extend(_link_lines(rec))
@@ -61,7 +69,9 @@ def summary(rec: dict[str, Any]) -> str:
     if checks:
         passed = sum(c.get("passed") is True for c in checks)
         failed = [c["check"] for c in checks if c.get("passed") is False]
+        unsure = [c["check"] for c in checks if c.get("status") == "inconclusive"]
         lines.append(f"  verification          {passed} of {len(checks)} checks passed"
+                     + (f"; inconclusive: {'; '.join(unsure)}" if unsure else "")
                      + (f"; FAILED: {'; '.join(failed)}" if failed else ""))
     for w in rec.get("warnings") or []:
         lines.append(f"  warning: {w}")
@@ -73,8 +83,14 @@ def _bounds_lines(rec: dict[str, Any]) -> list[str]:
     if not cb:
         return []
     lo, up = cb.get("lower") or {}, cb.get("upper") or {}
-    return [f"  lim E[P] bounds at p   tr S̄ = {_num(lo.get('trace')) if lo.get('exists') else '∞'}"
-            f" ≤ tr lim E[P] ≤ tr V̄ = {_num(up.get('trace')) if up.get('exists') else '∞'}"]
+    out = [f"  lim E[P] bounds at p   tr S̄ = {_num(lo.get('trace')) if lo.get('exists') else '∞'}"
+           f" ≤ tr lim E[P] ≤ tr V̄ = {_num(up.get('trace')) if up.get('exists') else '∞'}"]
+    if (rec.get("operating_point") or {}).get("iid") is False:
+        out.append("      (i.i.d. bounds at the stationary arrival probability: they do not "
+                   "bound E[P] for this channel)")
+    if cb.get("applicable") is False and cb.get("reason"):
+        out.append(f"      V̄ {cb['reason']}")
+    return out
 
 
 def _simulation_lines(rec: dict[str, Any]) -> list[str]:
@@ -88,24 +104,72 @@ def _simulation_lines(rec: dict[str, Any]) -> list[str]:
                    f"({sim.get('paths')} paths, seed {sim.get('seed')})")
     ex = sim.get("exceedance")
     if ex:
-        out.append(f"  P(tr P > {_num(ex.get('level'))})      {_num(ex.get('probability'))}")
+        label = f"P(tr P > {_num(ex.get('level'))})"
+        band = (f" (95% CI {_num(ex.get('lower'), 4)} .. {_num(ex.get('upper'), 4)})"
+                if ex.get("lower") is not None else "")
+        out.append(f"  {label:<21} {_num(ex.get('estimate'), 4)} at t = {sim.get('steps')}"
+                   + band)
     div = sim.get("divergence") or {}
     if div.get("diverged_paths"):
         out.append(f"  diverged paths        {div['diverged_paths']} of {sim.get('paths')}")
     return out
 
 
+def _trace_lines(tr: dict[str, Any] | None) -> list[str]:
+    if not tr:
+        return []
+    out = [f"  empirical arrival     {_num(tr.get('empirical_arrival_probability'))} over "
+           f"{tr.get('length')} packets (for information)"]
+    fit = tr.get("gilbert_elliott_fit") or {}
+    if fit.get("available"):
+        cond = fit.get("condition") or {}
+        out.append(f"  Gilbert–Elliott fit   f = {_num(fit.get('failure_rate'), 4)}, "
+                   f"r = {_num(fit.get('recovery_rate'), 4)}, mean loss burst "
+                   f"{_num(fit.get('mean_burst_length'), 4)} packets"
+                   + (f"; {cond.get('expression')}: {_num(cond.get('value'), 4)}"
+                      if cond else "") + " (for information)")
+    elif fit:
+        out.append(f"  Gilbert–Elliott fit   not available ({fit.get('reason')})")
+    return out
+
+
+def _yes_no(v: Any, yes: str = "met", no: str = "NOT met") -> str:
+    return "—" if v is None else (yes if v else no)
+
+
 def _link_lines(rec: dict[str, Any]) -> list[str]:
+    """Link-budget design outputs and the bursty-link condition, as the record states them."""
     lb = rec.get("link_budget")
     if not lb or not lb.get("applicable", True):
         return []
     out = []
+    req = lb.get("required_arrival_probability") or {}
+    if req.get("design_value") is not None:
+        out.append(f"  required arrival p    {_num(req['design_value'])}"
+                   + (f"  ({req['basis']})" if req.get("basis") else ""))
     for key, label, unit in (("required_sinr_db", "required SINR", " dB"),
                              ("required_rx_power_dbm", "required rx power", " dBm"),
-                             ("link_margin_db", "link margin", " dB"),
-                             ("max_distance_m", "max distance", " m")):
+                             ("link_margin_db", "link margin", " dB")):
         if lb.get(key) is not None:
             out.append(f"  {label:<21} {_num(lb[key])}{unit}")
+    if lb.get("max_distance_unbounded"):
+        out.append(f"  {'max distance':<21} unbounded at the margin policy")
+    elif lb.get("max_distance_m") is not None:
+        out.append(f"  {'max distance':<21} {_num(lb['max_distance_m'])} m")
+    shadow = lb.get("shadowing") or {}
+    if shadow.get("mean_arrival_probability") is not None:
+        out.append(f"  shadowing-averaged p  {_num(shadow['mean_arrival_probability'])}"
+                   f" (σ = {_num(shadow.get('sigma_db'))} dB, {shadow.get('mode') or '—'})")
+    dc = lb.get("design_check") or {}
+    if dc:
+        out.append(f"  margin policy         {_yes_no(dc.get('margin_policy_met'))}: link margin "
+                   f"{_num(dc.get('link_margin_db'), 4)} dB, policy needs "
+                   f"{_num(dc.get('required_margin_db'), 4)} dB")
+        if dc.get("outage_probability") is not None:
+            out.append(f"  outage probability    {_num(dc['outage_probability'], 4)}"
+                       + (f" (policy allows {_num(dc.get('max_outage'), 4)}: "
+                          f"{_yes_no(dc.get('outage_within_policy'), 'within', 'EXCEEDED')})"
+                          if dc.get("max_outage") is not None else ""))
     cond = lb.get("condition")
     if isinstance(cond, dict) and cond.get("expression"):
         out.append(f"  bursty link           {cond['expression']}: {_num(cond.get('value'))} "

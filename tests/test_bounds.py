@@ -145,3 +145,60 @@ def test_static_gain_best_equals_p_up_and_kalman_is_not_better():
     V = np.array(bounds.covariance_bounds(GENERAL, 0.6)["upper"]["matrix"])
     assert np.linalg.eigvalsh(np.array(best["covariance_matrix"]) - V).min() >= -1e-8
     json.dumps(out, allow_nan=False)
+
+
+def diagonal_mare(a: np.ndarray, p: float) -> np.ndarray:
+    """V̄ of A = diag(a), C = Q = R = I: the MARE decouples into scalar ones, each solved by
+    :func:`mare_scalar` (hand derivation above)."""
+    return np.array([mare_scalar(float(x), 1.0, 1.0, p) for x in a])
+
+
+def test_phase_transition_200_state_diagonal_is_fast_and_right(monkeypatch):
+    # Before: Newton–Kleinman (a dense solve in n(n+1)/2 = 20100 unknowns) at every one of
+    # ~80 grid points: more than 15 minutes. Now: fewer points for large n, warm-started fixed
+    # point, and a time budget stated in the record.
+    import time
+
+    n = 200
+    a = np.linspace(0.5, 1.3, n)
+    s = System(np.diag(a).tolist(), np.eye(n).tolist(), 1, 1, max_states=1000)
+    t0 = time.perf_counter()
+    pt = bounds.phase_transition(s, time_budget=20)
+    elapsed = time.perf_counter() - t0
+    assert elapsed < 90, elapsed          # 20 s budget + grid set-up, on a loaded 2-core machine
+    assert len(pt["p"]) <= 40 and pt["limits"]["points"] == len(pt["p"])
+    p_up = 1 - 1 / 1.3**2                 # C = I: every mode is seen, p_up = p_low (Thm 3)
+    filled = [(p, v) for p, v in zip(pt["p"], pt["trace_upper"], strict=True) if v is not None]
+    assert len(filled) >= 5
+    for p, v in filled:                   # each filled point is V̄(p) of the decoupled MAREs
+        assert p > p_up
+        assert v == pytest.approx(diagonal_mare(a, p).sum(), rel=1e-6)
+    for p, v in zip(pt["p"], pt["trace_lower"], strict=True):   # S̄ = Σ 1/(1 − (1−p)a_i²)
+        if (1 - p) * 1.3**2 < 1:
+            assert v == pytest.approx(np.sum(1 / (1 - (1 - p) * a * a)), rel=1e-8)
+    missing = [p for p, v in zip(pt["p"], pt["trace_upper"], strict=True)
+               if v is None and p > p_up]
+    if missing:                           # points not reached are said, not silently empty
+        assert pt["warnings"] and pt["limits"]["stopped"]
+
+
+def test_phase_transition_time_budget_is_a_warning_not_a_failure():
+    a = np.linspace(0.5, 1.3, 40)
+    s = System(np.diag(a).tolist(), np.eye(40).tolist(), 1, 1)
+    pt = bounds.phase_transition(s, time_budget=0.0)
+    assert all(v is None for v in pt["trace_upper"])
+    assert "time budget" in pt["limits"]["stopped"]
+    assert any("time budget" in w for w in pt["warnings"])
+
+
+def test_static_gain_section_is_skipped_with_a_reason_beyond_its_size_cap() -> None:
+    """n = 31 > 30: no O(n⁶) eigenproblem; both gains say why, with the vech size 31·32/2."""
+    from kfcrit import bounds
+    from kfcrit.system import System
+
+    n = bounds.STATIC_GAIN_MAX_STATES + 1
+    A = np.diag([1.2] + [0.5] * (n - 1))
+    s = System(A, np.ones((1, n)), Q=1, R=1)
+    sg = bounds.static_gain(s, 0.9)
+    for key in ("kalman", "best"):
+        assert sg[key]["available"] is False and "496" in sg[key]["reason"]

@@ -97,3 +97,76 @@ def test_sweep_killed_then_resumed_matches_uninterrupted(tmp_path: Path) -> None
         if f.name in ("sweep.csv", "sweep.json"):  # run.json counts reused points
             assert (cut_dir / f.name).read_bytes() == f.read_bytes(), f.name
     assert hashlib.sha256((work / sweep_file.name).read_bytes()).hexdigest() == digest
+
+
+def _children(pid: int) -> dict[int, str]:
+    """Live child processes of ``pid`` (from /proc): pid → command line."""
+    out = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        fields = stat.rsplit(")", 1)[1].split()
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out[int(entry.name)] = cmd
+    return out
+
+
+def _alive(pid: int, cmd: str) -> bool:
+    """The process exists, is not a zombie, and is still the one recorded (no pid reuse)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+        now = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(
+            errors="replace")
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z" and now == cmd
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_interrupted_sweep_leaves_no_worker_processes(sig: signal.Signals,
+                                                      tmp_path: Path) -> None:
+    # 3000 distinct systems: long enough to be interrupted mid-run with 2 worker processes
+    sweep = tmp_path / "long.yaml"
+    sweep.write_text("name: long\nsystem:\n  name: s\n  A: [[1.2, 1], [0.3, 1.1]]\n"
+                     "  C: [[1, 0]]\n  Q: 1\n  R: 1\n"
+                     "  channel: {model: bernoulli, arrival_probability: 0.9}\n"
+                     "grid:\n  A[0][0]: {start: 1.01, stop: 9.5, num: 3000}\n")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "kfcrit", "sweep", str(sweep), "--workers",
+                             "2", "-o", str(out)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    seen: dict[int, str] = {}
+    journal = out / "sweep.journal.jsonl"
+    deadline = time.monotonic() + 90
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            seen.update(_children(proc.pid))
+            workers = [p for p, c in seen.items() if "spawn_main" in c]
+            if len(workers) >= 2 and journal.exists() and journal.stat().st_size > 0:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
+        seen.update(_children(proc.pid))
+        assert sum("spawn_main" in c for c in seen.values()) >= 2, seen
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err.decode()
+    assert b"Traceback" not in err, err.decode()
+    # every process the sweep started (workers, resource tracker) is gone soon after it exits
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(p, c) for p, c in seen.items()):
+        time.sleep(0.1)
+    survivors = {p: c for p, c in seen.items() if _alive(p, c)}
+    for p in survivors:  # do not leave them running after a failure
+        os.kill(p, signal.SIGKILL)
+    assert not survivors, survivors

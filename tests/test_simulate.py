@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_lyapunov
 
@@ -409,7 +409,8 @@ def test_simulation_section_keys_and_json():
     assert set(d) == {"seed", "quick", "budget", "seeds", "operating_point", "phase_demo",
                       "checks", "runtime_seconds", "warnings"}
     assert d["checks"] and all(c["passed"] for c in d["checks"])
-    assert {"check", "passed", "detail"} == set(d["checks"][0])
+    assert {"check", "passed", "status", "detail"} == set(d["checks"][0])
+    assert d["operating_point"]["reliability"]["variance_condition"] == "(1 - r) rho(A)^4"
     op = d["operating_point"]
     for key in ("channel", "arrival_probability", "iid", "times", "mean_trace",
                 "mean_lambda_max", "horizon", "exceedance", "ergodic", "bursts", "almost_sure",
@@ -482,10 +483,87 @@ def test_simulate_command_needs_a_channel(tmp_path):
                          max_states=400)
 
 
-@settings(max_examples=5)
-@given(st.sampled_from([p for p in sorted(REPORTS.glob("*.yaml"))
-                        if not p.name.startswith("sweep")]))
+EXAMPLE_FILES = [p for p in sorted(REPORTS.glob("*.yaml")) if not p.name.startswith("sweep")]
+
+
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.stem)
 def test_example_files_simulate(path):
+    """Every example simulates to a finite, seeded, self-consistent record: the mean of tr P_t
+    starts at tr Σ0 exactly and never falls below the deterministic lower bound tr S_t of
+    Sinopoli Lemma 1(f) (i.i.d. channels) beyond 5 standard errors, nor above the censoring
+    threshold; quantiles are ordered; diverged paths are counted, not propagated."""
     spec = load_spec(path)
-    res = simulate(spec, 20, 30, 0)
-    json.dumps(res.to_dict(), allow_nan=False)
+    paths, steps = 64, 40
+    res = simulate(spec, paths, steps, 5)
+    d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert d["seed"] == 5 and d["paths"] == paths and d["steps"] == steps
+    assert d["channel"]["model"] == spec.channel.model
+    mean = np.array(d["mean_trace"]["mean"])
+    assert np.all(np.isfinite(mean)) and np.all(mean >= 0)
+    assert mean[0] == pytest.approx(float(np.trace(spec.system.sigma0)))
+    lo, hi = np.array(d["mean_trace"]["lower"]), np.array(d["mean_trace"]["upper"])
+    assert np.all(lo <= mean + 1e-9) and np.all(mean <= hi + 1e-9)
+    assert np.all(mean <= d["divergence"]["threshold"] * (1 + 1e-12))
+    q = [x for x in d["horizon"]["quantiles"] if x is not None]
+    assert q == sorted(q)
+    assert 0 <= d["divergence"]["diverged_paths"] <= paths
+    if spec.channel.iid:                  # independent Lyapunov recursion, S_0 = Σ0
+        p = float(spec.channel.arrival_probability)
+        A, Q = spec.system.a, spec.system.q
+        S, bound = np.array(spec.system.sigma0, dtype=float), []
+        for _ in range(steps + 1):
+            bound.append(float(np.trace(S)))
+            S = (1 - p) * A @ S @ A.T + Q
+        times = np.array(d["times"])
+        se = np.array(d["mean_trace"]["std"]) / math.sqrt(paths)
+        censored = d["divergence"]["diverged_paths"] > 0
+        if not censored:
+            assert np.all(mean >= np.array(bound)[times] - 5 * se - 1e-9 * np.array(bound)[times])
+    # the same seed gives the same numbers
+    again = simulate(spec, paths, steps, 5)
+    assert np.array_equal(again.mean_trace, res.mean_trace)
+
+
+def _doctored(res, factor):
+    """The same simulation with every mean scaled by ``factor`` (an estimator bug)."""
+    import dataclasses
+
+    return dataclasses.replace(res, mean_trace=res.mean_trace * factor)
+
+
+def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
+    from kfcrit.channels import Bernoulli
+    from kfcrit.montecarlo import simulation_checks, tail_regime
+
+    # scalar a = -1.25: p_c = 1 - 1/a^2 = 0.36; the variance of P is finite iff
+    # (1 - p) a^4 < 1, i.e. p > 1 - 1/a^4 = 0.5904 (hand derivation, MATH §3 / Cor. 2)
+    name = "simulation: E[tr P_t] >= Lyapunov lower bound tr S_t (Lemma 1)"
+    for p, heavy in ((sp.Rational(7, 10), False), (sp.Rational(37, 100), True)):
+        ch = Bernoulli(p)
+        res = simulate(SCALAR, 400, 100, 1, ch)
+        erg = ergodic(SCALAR, 2000, 1, ch, replicas=2)
+        reg = tail_regime(SCALAR, ch, 100)
+        assert reg["heavy_tailed"] is heavy
+        assert reg["variance_value"] == pytest.approx((1 - float(p)) * 1.25**4)
+        honest = {c["check"]: c for c in simulation_checks(SCALAR, ch, res, erg)}
+        assert honest[name]["passed"] in (True, None)   # never a false failure
+        broken = {c["check"]: c for c in simulation_checks(SCALAR, ch, _doctored(res, 0.2), erg)}
+        if heavy:   # below the tolerance, but the tolerance is not valid there
+            assert broken[name]["passed"] is None and broken[name]["status"] == "inconclusive"
+            assert "variance" in broken[name]["reason"]
+        else:       # finite variance: a mean 5x too small is a failure
+            assert broken[name]["passed"] is False and broken[name]["status"] == "failed"
+
+
+def test_lyapunov_settling_is_reported():
+    from kfcrit.channels import Bernoulli
+    from kfcrit.montecarlo import tail_regime
+
+    # (1 - p) a^2 = 0.64 * 1.5625 = 1 - 1.5625e-10: S_t grows by ~1 per step for 500 steps while
+    # its limit is 1/(1.5625e-10) ≈ 6.4e9, so the horizon is far from settled
+    reg = tail_regime(SCALAR, Bernoulli(sp.Rational(3600000001, 10**10)), 500)
+    assert reg["settled"] is False
+    assert reg["lyapunov_trace_limit"] == pytest.approx(1 / (1 - 0.6399999999 * 1.5625),
+                                                        rel=1e-4)
+    reg = tail_regime(SCALAR, Bernoulli(sp.Rational(9, 10)), 500)
+    assert reg["settled"] is True and reg["heavy_tailed"] is False

@@ -552,3 +552,43 @@ def test_a_named_field_can_be_swept_and_bad_names_fail_their_points(tmp_path: Pa
     assert rows[2]["arrival_probability"] == pytest.approx(
         arrival(oqpsk_ber(10 ** (s / 10)), 40), rel=1e-9)
     assert "unknown radio" in rows[4]["error"]
+
+
+def test_upper_bound_column_is_filled_once_per_system(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import kfcrit.upper as upper_mod
+
+    calls: list[float] = []
+    real = upper_mod.upper_bound
+
+    def counting(system, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003
+        calls.append(float(system.a[0, 0]))
+        return real(system, *args, **kwargs)
+
+    monkeypatch.setattr(upper_mod, "upper_bound", counting)
+    monkeypatch.setattr(sweep_mod, "_UPPER", {})
+    monkeypatch.setattr(sweep_mod, "_CRITICAL", {})
+    sweep = write_case(tmp_path, "system: system.yaml\ngrid:\n"
+                       "  A[0][0]: [1.25, 2, sqrt(2)]\n"
+                       "  channel.arrival_probability: [0.2, 0.5, 0.9]\n"
+                       "  R[0][0]: [1, 3]\n",
+                       system=BERNOULLI_SYSTEM)
+    code, _, err = run_cli(["sweep", str(sweep), "-o", str(tmp_path / "o"), "--workers", "1"])
+    assert code == 0, err
+    rows = read_csv(tmp_path / "o" / "sweep.csv")
+    assert len(rows) == 18
+    for r in rows:
+        a = float(r["A[0][0]"])
+        # scalar: p_up = p_c = 1 − 1/a² (Sinopoli Thm 3: p_low = p_up when C is invertible)
+        assert float(r["upper_bound"]) == pytest.approx(1 - 1 / a ** 2, abs=2e-6)
+    # p_up depends on (A, C) only: three distinct A, so three computations for 18 points
+    assert sorted(calls) == pytest.approx([1.25, math.sqrt(2), 2.0])
+    assert len(calls) == 3
+
+
+def test_shipped_sweep_fills_upper_bound() -> None:
+    # the Sinopoli general plant: p_up = 1 − 1/(1.25 · 1.1)² = 57/121 (expected.json, MATH §3)
+    from kfcrit.system import System
+
+    value = sweep_mod.upper_bound_value(System([[1.25, 0], [1, 1.1]], [[1, 1]], 20, 2.5))
+    assert value == pytest.approx(57 / 121, abs=2e-6)
