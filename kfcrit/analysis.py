@@ -230,6 +230,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     _bounds_sections(spec, sec, warnings)
     _simulation_sections(spec, opts, sec, warnings)
     _link_sections(spec, sec, warnings)
+    sec["requirements"] = requirement_assessment(sec["requirements"], sec.get("simulation"))
     bursty_verdict(sec)
     sec["verification"] = verification(sec, warnings)
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
@@ -516,6 +517,43 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
                        "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
     status = {True: "passed", False: "failed", None: "not applicable"}
     return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
+
+
+def requirement_assessment(requirements: dict[str, Any] | None,
+                           simulation: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The system file's tail requirement against the simulated exceedance at the horizon.
+
+    With k of N paths above ``max_error_trace`` and the 95 % Wilson interval [lo, hi] of
+    P(tr P > max_error_trace): ``met`` if hi ≤ max_tail_probability, ``not met`` if
+    lo > max_tail_probability, else ``not demonstrated`` (the interval contains the allowed
+    probability: more paths are needed). ``status`` is None when an input is missing.
+    """
+    if not requirements:
+        return requirements
+    out = dict(requirements)
+    limit, allowed = out.get("max_error_trace"), out.get("max_tail_probability")
+    op = (simulation or {}).get("operating_point") or {}
+    exc = op.get("exceedance") or {}
+    status, basis = None, None
+    if limit is None or allowed is None:
+        basis = "needs both max_error_trace and max_tail_probability"
+    elif not exc or exc.get("lower") is None:
+        basis = "no simulation at the operating point"
+    else:
+        lo, hi, est = exc["lower"], exc["upper"], exc.get("estimate")
+        if hi <= allowed:
+            status = "met"
+        elif lo > allowed:
+            status = "not met"
+        else:
+            status = "not demonstrated"
+        basis = (f"P(tr P > {limit:g}) ≈ {est:.4g} at t = {op.get('steps')} "
+                 f"({exc.get('count')} of {exc.get('total')} paths; 95 % interval "
+                 f"[{lo:.3g}, {hi:.3g}]) against the allowed {allowed:g}")
+    out["assessment"] = {"status": status, "basis": basis,
+                         "estimate": exc.get("estimate"), "interval":
+                         [exc.get("lower"), exc.get("upper")] if exc else None}
+    return out
 
 
 def exit_code(record: dict[str, Any]) -> int:

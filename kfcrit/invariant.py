@@ -128,7 +128,11 @@ def support_points(system: System, depth: int) -> SupportPoints:
         allpts.append(level)
     points = np.unique(np.concatenate(allpts))
     lo, hi = maps.f1_limit(), maps.f0(pstar)
-    first = (lo, hi) if bool(lo < hi) else None
+    try:
+        below = bool(lo < hi)
+    except TypeError:               # a sympy relation it cannot decide: compare the values
+        below = float(lo) < float(hi)
+    first = (lo, hi) if below else None
     holes: list[tuple[float, float]] = []
     if first is not None:
         words: list[tuple[float, float]] = [(float(lo), float(hi))]

@@ -759,7 +759,9 @@ def _proportion(k: int, n: int) -> dict[str, Any]:
     z2 = Z95 * Z95
     centre = (ph + z2 / (2 * n)) / (1 + z2 / n)
     half = Z95 * math.sqrt(ph * (1 - ph) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-    return {"estimate": ph, "lower": max(0.0, centre - half), "upper": min(1.0, centre + half),
+    lower = 0.0 if k == 0 else max(0.0, centre - half)   # exact ends (no 1e-19 round-off)
+    upper = 1.0 if k == n else min(1.0, centre + half)
+    return {"estimate": ph, "lower": lower, "upper": upper,
             "count": k, "total": n}
 
 

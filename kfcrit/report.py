@@ -317,15 +317,15 @@ def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
     tail = tail_of(rec)
     exc = _dict(_dict(_dict(rec.get("simulation")).get("operating_point")).get("exceedance"))
     lo, hi = _num(exc.get("lower")), _num(exc.get("upper"))
-    met = None
-    if limit is not None and max_tail is not None and tail is not None:
-        met = tail <= max_tail
-    straddles = None not in (lo, hi, max_tail) and lo <= max_tail < hi
+    status = _dict(req.get("assessment")).get("status")
+    met = {"met": True, "not met": False}.get(status) if isinstance(status, str) else None
     return {"available": limit is not None, "limit": limit, "max_tail": max_tail,
-            "tail": tail, "met": met, "interval": [lo, hi] if None not in (lo, hi) else None,
+            "tail": tail, "met": met, "status": status,
+            "interval": [lo, hi] if None not in (lo, hi) else None,
             "count": exc.get("count"), "total": exc.get("total"),
-            "caution": "the 95 % interval contains the allowed tail probability: run more "
-                       "paths (full mode) before relying on this" if straddles else "",
+            "caution": "not demonstrated: the 95 % interval contains the allowed tail "
+                       "probability; run more paths (full mode) before relying on this"
+                       if status == "not demonstrated" else "",
             "missing": "" if limit is not None else
             "no requirement in the system file (add requirements: max_error_trace, "
             "max_tail_probability)"}

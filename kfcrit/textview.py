@@ -109,6 +109,9 @@ def _simulation_lines(rec: dict[str, Any]) -> list[str]:
                 if ex.get("lower") is not None else "")
         out.append(f"  {label:<21} {_num(ex.get('estimate'), 4)} at t = {sim.get('steps')}"
                    + band)
+    ass = (rec.get("requirements") or {}).get("assessment") or {}
+    if ass.get("status"):
+        out.append(f"  requirement           {str(ass['status']).upper()}: {ass.get('basis')}")
     div = sim.get("divergence") or {}
     if div.get("diverged_paths"):
         out.append(f"  diverged paths        {div['diverged_paths']} of {sim.get('paths')}")

@@ -307,7 +307,12 @@ def test_new_examples_verdicts_follow_the_hand_derivation(name: str, verdict: st
         assert rec["link_budget"]["condition"]["value"] == pytest.approx(1.25)
         assert rec["link_budget"]["condition"]["decides"] is True
     else:
-        assert rec["requirements"] == {"max_error_trace": 20.0, "max_tail_probability": 0.01}
+        req = rec["requirements"]
+        assert {k: req[k] for k in ("max_error_trace", "max_tail_probability")} == {
+            "max_error_trace": 20.0, "max_tail_probability": 0.01}
+        # 300 quick paths cannot show a probability ≈ 0.0025 below 0.01: the Wilson upper end
+        # exceeds 0.01 for k ≤ 2, and k ≥ 8 would be needed to refute it
+        assert req["assessment"]["status"] == "not demonstrated"
         ex = rec["simulation"]["operating_point"]["exceedance"]
         assert ex["level"] == 20.0 and ex["upper"] >= 0.2**4 * 0.5
         assert ex["estimate"] < 0.01
@@ -333,3 +338,25 @@ def test_undecided_p_up_width_does_not_undo_a_decided_verdict(tmp_path: Path) ->
         assert res.exit_code == 3
     else:
         assert res.exit_code == 0
+
+
+def test_requirement_assessment_reads_the_wilson_interval() -> None:
+    """met iff the interval's upper end ≤ allowed; not met iff its lower end > allowed; else
+    not demonstrated. Wilson interval for 0 of 300 at 95 %: [0, z²/(N + z²)] = [0, 0.01264]."""
+    from kfcrit.analysis import requirement_assessment
+    from kfcrit.montecarlo import _proportion
+
+    req = {"max_error_trace": 20.0, "max_tail_probability": 0.01}
+
+    def sim(k, n):
+        return {"operating_point": {"steps": 200, "exceedance": {"level": 20.0,
+                                                                   **_proportion(k, n)}}}
+
+    zero = _proportion(0, 300)
+    z2 = 1.959963984540054 ** 2
+    assert zero["lower"] == 0.0 and zero["upper"] == pytest.approx(z2 / (300 + z2), rel=1e-9)
+    assert requirement_assessment(req, sim(0, 300))["assessment"]["status"] == "not demonstrated"
+    assert requirement_assessment(req, sim(5, 2000))["assessment"]["status"] == "met"
+    assert requirement_assessment(req, sim(60, 2000))["assessment"]["status"] == "not met"
+    assert requirement_assessment(req, None)["assessment"]["status"] is None
+    assert requirement_assessment({}, None) == {}

@@ -335,7 +335,11 @@ def test_undetermined_and_unstable_verdicts():
 def test_requirement_not_met_is_flagged():
     rec = fixture_record()
     rec["simulation"]["operating_point"]["tail_probability"] = 0.2   # above 0.05
+    rec["requirements"]["assessment"] = {"status": "not met", "basis": "0.2 > 0.05"}
     assert "NOT met" in report.render_html(rec, {})
+    rec["requirements"]["assessment"] = {"status": "not demonstrated", "basis": "straddles"}
+    html = report.render_html(rec, {})
+    assert "not demonstrated" in html and "NOT met" not in html
 
 
 def test_quick_draft_banner():
