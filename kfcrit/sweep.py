@@ -790,10 +790,22 @@ def terminate_pool(pool: Any, timeout: float = 5.0) -> None:
                 proc.join(timeout)
         except (OSError, ValueError, AssertionError, AttributeError):
             pass
-    try:  # the manager thread sees the dead workers, fails the futures and closes the queues
-        pool.shutdown(wait=True, cancel_futures=True)
-    except Exception:  # noqa: BLE001 - a broken pool must not mask the interrupt
-        pass
+    # The manager thread sees the dead workers, fails the futures and closes the queues. The
+    # shutdown runs in a daemon thread joined with a timeout: the interrupt may have landed
+    # while this thread held one of the executor's (non-reentrant) locks, and a blocking
+    # shutdown here would then wait for ever; the process leaves with os._exit regardless.
+    import threading
+
+    def _shutdown(executor: Any) -> None:
+        try:
+            executor.shutdown(wait=True, cancel_futures=True)
+        except Exception:  # noqa: BLE001 - a broken pool must not mask the interrupt
+            pass
+
+    closer = threading.Thread(target=_shutdown, args=(pool,), name="kfcrit-pool-shutdown",
+                              daemon=True)
+    closer.start()
+    closer.join(timeout)
     del pool
     gc.collect()
 

@@ -275,7 +275,8 @@ def parse_yaml_text(text: str, *, name: str = "file", max_nodes: int = MAX_NODES
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or "invalid YAML"
-        raise InputError(f"not valid YAML{where}: {problem}", field="file") from None
+        raise InputError(f"{name[:60]!r} is not valid YAML{where}: {problem}",
+                         field="file") from None
     except RecursionError:
         raise InputError("YAML nesting is too deep", field="file") from None
     return doc

@@ -206,7 +206,9 @@ def test_30000_deep_nesting_exits_2_in_a_real_subprocess(name: str) -> None:
                            "--no-simulate"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2, (proc.returncode, proc.stderr[-500:])
     line = _one_line_error(proc.stderr)
-    assert f"{name}.yaml" in line and "deeper than 64 levels" in line and proc.stdout == ""
+    # PyYAML ≥ 6.0.4's scanner may refuse a deep flow collection first, in its own words
+    assert f"{name}.yaml" in line and proc.stdout == ""
+    assert "deeper than 64 levels" in line or "maximum nesting depth" in line, line
 
 
 def test_nesting_within_the_limit_is_only_a_schema_error(tmp_path: Path) -> None:
