@@ -707,6 +707,7 @@ def test_gilbert_elliott_report_has_bursty_section(tmp_path):
     assert rows["required recovery rate 1 − 1/a²"] == "0.36"           # 1 − (4/5)² (MATH §7)
     assert "P(tr P &gt; 20)" in html and "95 % interval" in html        # requirement + CI
     assert 'id="fig-invariant"' in html                                 # scalar: support drawn
+    assert "not the verdict's basis for a bursty channel" in html      # the i.i.d. margin
     assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
 
 
