@@ -29,12 +29,14 @@ def summary(rec: dict[str, Any]) -> str:
     if rob:
         lines.append(f"  robust critical value {_num(rob.get('value'), 12)}  "
                      f"(tolerance {rob.get('tolerance')})")
+    def exact(d: dict[str, Any]) -> str:
+        return f"  (= {d['expression']})" if d.get("expression") else ""
+
     lb = rec.get("lower_bound") or {}
-    lines.append(f"  lower bound p_low     {_num(lb.get('value'), 12)}  (= {lb.get('expression')})")
+    lines.append(f"  lower bound p_low     {_num(lb.get('value'), 12)}{exact(lb)}")
     blb = rec.get("block_lower_bound")
     if blb:
-        lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}  "
-                     f"(= {blb.get('expression')})")
+        lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}{exact(blb)}")
     ub = rec.get("upper_bound")
     if ub and ub.get("status") == "not applicable":
         lines.append(f"  upper bound p_up      {ub.get('reason') or 'not applicable'}")

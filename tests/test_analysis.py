@@ -360,3 +360,14 @@ def test_requirement_assessment_reads_the_wilson_interval() -> None:
     assert requirement_assessment(req, sim(60, 2000))["assessment"]["status"] == "not met"
     assert requirement_assessment(req, None)["assessment"]["status"] is None
     assert requirement_assessment({}, None) == {}
+
+
+def test_undetectable_system_text_view(tmp_path: Path) -> None:
+    """A = diag(2, 1/2), C = [0 1]: the mode 2 is unobserved, so E[P] diverges for every p
+    (PBH); verdict mean-unstable with exit 0, p_up not applicable, no 'None' in the text."""
+    path = write(tmp_path, "name: u\nA: [[2, 0], [0, 0.5]]\nC: [[0, 1]]\nQ: 1\nR: 1\n"
+                           "channel: {model: bernoulli, arrival_probability: 0.9}\n")
+    res = CliRunner().invoke(main, ["analyze", str(path), "--quick", "--no-simulate"])
+    assert res.exit_code == 0
+    assert "not-detectable" in res.stdout and "MEAN-UNSTABLE" in res.stdout
+    assert "not applicable" in res.stdout and "None" not in res.stdout
