@@ -20,19 +20,23 @@ Each solve is classified, never guessed:
 
 * feasible — status optimal, the a-posteriori eigenvalues of Ψ_p(Y, Z) and Y are positive,
   *and* X = T Y^{-1} T, K = T Y^{-1} Z pass :func:`kfcrit.certify.verify_upper` (balls);
-* infeasible (numerical) — status optimal, t* ≤ ``INFEASIBLE_MARGIN`` *and* Clarabel returns
-  status infeasible (a primal infeasibility certificate: W ⪰ 0 with Ψ_p*(W) = 0, tr W > 0, the
-  theorem of alternatives) for the unit form Ψ_p ⪰ I;
+* infeasible — status optimal and t* ≤ ``INFEASIBLE_MARGIN``, *and independently confirmed*:
+  the cone spectral radius r(p) of the noise-free MARE map on the unstable block is ≥ 1
+  (power iteration + Newton, :func:`kfcrit.upper.cone_lower_check`); the confirmation is a proof
+  when X_u ≻ 0 with G_p(X_u) ≻ X_u passes in balls on an exactly invariant subspace, else it is
+  labelled numerical. Clarabel's INFEASIBLE status for the unit form Ψ_p ⪰ I is recorded but
+  never trusted alone (measured: it is wrong near the threshold, see below);
 * undetermined — anything else (solver error, ``*_INACCURATE``, a small positive t* that the
-  checks cannot confirm). Bisection tries two off-centre points, then stops there and reports
-  the bracket reached.
+  checks cannot confirm, t* ≈ 0 without confirmation). Bisection tries two off-centre points,
+  then stops there and reports the bracket reached; its lower end is the last confirmed
+  infeasible point (p_low, the theorem, at worst) and ``solver["ends"]`` says which ends are
+  proven.
 
-Known limitation (measured): when the critical cone eigenvector is singular — e.g. p_up = p_low
-with one critical mode, as for random_system(20, 6, 0) — the feasible set is very thin near
-p_up, the margins there are below the solver's accuracy, and Clarabel may report Ψ_p ⪰ I
-infeasible at a feasible p: the LMI's lower end was 0.4082897 against p_up = p_low = 0.4082840.
-The upper end is always proven; the lower end is labelled "numerical (solver)". The default
-method (:mod:`kfcrit.upper`) does not have this problem.
+Measured: on random_system(20, 6, 0) (p_up = p_low = 0.4082840237, a single critical mode,
+singular critical cone eigenvector) the margins near p_up are below the solver's accuracy and
+Clarabel reports Ψ_p ⪰ I infeasible at feasible p (formerly a "determined" lower end 0.4082897
+above the proven p_up ≤ 0.4082840242). Those points now fail the cone confirmation
+(r(p) ≈ 0.99999 < 1), and the LMI reports the honest, undetermined bracket [p_low, hi].
 """
 from __future__ import annotations
 
@@ -88,6 +92,9 @@ class PsiProblem:
         assert self.unit.is_dcp(dpp=True)
         self.solves = 0
         self.seconds = 0.0
+        self.confirm = None
+        """``confirm(p)`` → :func:`kfcrit.upper.cone_lower_check`-style dict (set by the caller);
+        without it a margin t* ≈ 0 is never read as infeasible."""
 
     def _gain(self, K: np.ndarray) -> np.ndarray:
         """The gain for the original C (rounded copy K M when the output is compressed)."""
@@ -163,21 +170,28 @@ class PsiProblem:
 
     def _confirm_infeasible(self, system: System, p: float, out: dict[str, Any],
                             lift) -> dict[str, Any]:
-        """A margin t* ≈ 0 is read as infeasible only if Clarabel proves Ψ_p ⪰ I infeasible."""
+        """A margin t* ≈ 0 is read as infeasible only with independent confirmation.
+
+        First the unit form Ψ_p ⪰ I is solved: a solution that passes the ball check makes p
+        feasible. Clarabel's INFEASIBLE status for it is *not* trusted (near the threshold it
+        is wrong: random_system(20, 6, 0) gave "infeasible" at 0.4082897 > p_up): "infeasible"
+        needs ``self.confirm(p)`` (:func:`kfcrit.upper.cone_lower_check`), the cone spectral
+        radius r(p) ≥ 1 of the noise-free MARE map on the unstable block — proven in balls when
+        possible, else numerical — and is otherwise undetermined.
+        """
         cp = self.cp
         t0 = time.perf_counter()
         self.solves += 1
+        status = None
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 self.unit.solve(solver="CLARABEL")
+            status = self.unit.status
         except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
-            self.seconds += time.perf_counter() - t0
-            return {**out, "decision": "undetermined", "reason": f"solver error: {exc}"}
+            status = f"solver error: {exc}"
         self.seconds += time.perf_counter() - t0
-        status = self.unit.status
-        if status == cp.INFEASIBLE:
-            return {**out, "decision": "infeasible", "unit_status": status}
+        out = {**out, "unit_status": status}
         if status == cp.OPTIMAL and self.Y.value is not None:
             Y, Z = self.Y.value, self.Z.value
             if float(np.linalg.eigvalsh(self.psi(Y, Z, p)).min()) > 0:
@@ -190,8 +204,22 @@ class PsiProblem:
                     return {**out, "decision": "feasible", "check": check,
                             "X": Zb @ Xz @ Zb.T, "K": self._gain(Zb @ Kz), "basis": Zb,
                             "X_basis": Xz, "K_basis": Kz}
+        if self.confirm is None:
+            return {**out, "decision": "undetermined",
+                    "reason": f"margin {out['margin']:.3g} ~ 0 (Psi >= I: status {status}) and "
+                              "no independent confirmation available"}
+        conf = self.confirm(p)
+        out["cone_radius"] = conf["r"]
+        if conf["certified"]:
+            return {**out, "decision": "infeasible", "evidence": "certificate",
+                    "confirmation": conf}
+        if conf["numerical"]:
+            return {**out, "decision": "infeasible", "evidence": "numerical",
+                    "confirmation": conf}
         return {**out, "decision": "undetermined",
-                "reason": f"margin {out['margin']:.3g} ~ 0 but Psi >= I gives status {status}"}
+                "reason": f"margin {out['margin']:.3g} ~ 0 (Psi >= I: status {status}) but the "
+                          f"cone spectral radius r(p) = {conf['r']} is not confirmed >= 1 "
+                          "(the solver's infeasibility is not trusted alone)"}
 
 
 def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
@@ -201,8 +229,11 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
     """
     from .upper import (
         UpperBound,
+        _certificate_summary,
         _compression_note,
         _evidence_p_low,
+        _matrix_list,
+        cone_lower_check,
         lift_certificate,
         p_low_of,
         reduce_system,
@@ -220,6 +251,16 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
         return lift_certificate(red, C, Xu, Ku, p)
 
     problem = PsiProblem(red.Au, red.Cu, red.M)
+    warm: dict[str, Any] = {"X": None}
+    cone_stats: dict[str, Any] = {}
+
+    def confirm(p):
+        conf = cone_lower_check(system, red, p, warm["X"], cone_stats)
+        if conf["X"] is not None and conf["numerical"]:
+            warm["X"] = conf["X"]
+        return conf
+
+    problem.confirm = confirm
     lo, hi = p_low, 1.0
     best = None
     last_infeasible = None
@@ -249,34 +290,49 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
               "balancing": "diagonal similarity (scipy matrix_balance) of the unstable block"}
     if red.M is not None:
         solver["output_compression"] = _compression_note(red)
+    if cone_stats:
+        solver["cone_checks"] = cone_stats
     cert = None
     if best is not None:
         check = best["check"]
-        cert = {"kind": "X > 0 and X - L_{K,hi}(X) > 0 (Sinopoli Thm 5, Psi_hi(X^-1, X^-1 K) > 0)",
-                "origin": "LMI solution (Y, Z) of the balanced unstable block, X_u = D Y^-1 D, "
-                          "K_u = D Y^-1 Z, lifted to the full state",
-                "lmi_margin": best["margin"], **check.to_dict()}
-        if system.n <= 6:
-            cert["X"] = [[float(v) for v in row] for row in best["X"]]
-            cert["K"] = [[float(v) for v in row] for row in best["K"]]
-            direct = certify.verify_upper(system, hi, best["X"], best["K"])
-            cert["matrices_verified"] = direct.ok
-            if not direct.ok:
-                for name in ("basis", "X_basis", "K_basis"):
-                    cert[name] = [[float(v) for v in row] for row in best[name]]
-                if red.M is not None:
-                    cert["output_map"] = [[float(v) for v in row] for row in red.M]
+        cert = _certificate_summary(
+            system, check, best["X"], best["K"],
+            "LMI solution (Y, Z) of the balanced unstable block, X_u = D Y^-1 D, "
+            "K_u = D Y^-1 Z, lifted to the full state",
+            (best["basis"], best["X_basis"], best["K_basis"]), red.M)
+        cert["lmi_margin"] = best["margin"]
     if last_infeasible is None:
         lower = _evidence_p_low(p_low)
     else:
-        lower = {"kind": "numerical", "value": lo, "certified": False,
+        conf = last_infeasible["confirmation"]
+        proven = last_infeasible["evidence"] == "certificate"
+        lower = {"kind": "certificate" if proven else "numerical", "value": lo,
+                 "certified": proven,
                  "statement": (f"LMI margin t* = {last_infeasible['margin']:.3g} <= "
-                               f"{INFEASIBLE_MARGIN:g} at p = {lo:.12g} and Clarabel's primal "
-                               "infeasibility certificate for Psi_p >= I (W >= 0, Psi_p*(W) = 0, "
-                               "checked by the solver to its tolerance); margin-problem dual "
-                               "residual |Psi_p*(W)|/|W| = "
-                               f"{last_infeasible.get('dual_residual')}"),
+                               f"{INFEASIBLE_MARGIN:g} at p = {lo:.12g} (Clarabel's status for "
+                               f"Psi_p >= I: {last_infeasible.get('unit_status')}, not trusted "
+                               "alone), confirmed independently: cone spectral radius r(p) = "
+                               f"{conf['r']:.15g} >= 1 of the noise-free MARE map on the "
+                               f"unstable block ({conf['how']})"
+                               + ("; X_u > 0 with G_p(X_u) - X_u > 0 proven in ball arithmetic "
+                                  "on an exactly A-invariant subspace" if proven else
+                                  "; numerical, not proven")),
                  "p_low_theorem": p_low}
+        if proven:
+            lower["check"] = conf["check"].to_dict()
+            if system.n <= 60:
+                lower["X_u"] = _matrix_list(conf["X"])
+                lower["basis"] = _matrix_list(red.Z)
+                lower["reduced_states"] = red.k
+    ends = ("upper end proven (ball-checked certificate)" if best is not None else
+            "upper end not proven (no verified feasible point)")
+    ends += "; lower end " + (
+        "proven (ball-checked cone certificate)" if lower["kind"] == "certificate" else
+        "the theorem p_low (no confirmed infeasible point above it)" if lower["kind"] == "theorem"
+        else "numerical (cone spectral radius >= 1, not proven)")
+    solver["ends"] = ends
+    if status != "determined":
+        notes.append("LMI bracket not determined to the requested width: " + ends)
     return UpperBound(hi if best is not None else None, (lo, hi), best is not None, status, "lmi",
                       cert, lower, solver, tuple(notes),
                       {} if best is None else {k: best[k] for k in

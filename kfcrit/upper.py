@@ -21,7 +21,11 @@ The default method ("newton") works in four steps:
 4. *Certify.* Lift (X_ε, K_ε) to the full state and prove X ≻ 0, X − L_{K,hi}(X) ≻ 0 in ball
    arithmetic on the exact matrices (:mod:`kfcrit.certify`). The lower end is p_low (Thm 3,
    proven) when hi − tol ≤ p_low, otherwise the Newton root p* (numerical), upgraded to a
-   proof when a positive definite eigenvector of G_lo with eigenvalue > 1 is verified.
+   proof when a positive definite eigenvector X_u of G_lo on the unstable block with eigenvalue
+   > 1 is verified in balls on an exactly A-invariant subspace (enclosed by Stewart's theorem,
+   :func:`kfcrit.certify.invariant_block`). That is valid with stable modes too: G_p maps the
+   cone of PSD matrices supported on an A-invariant subspace into itself, so its cone radius
+   bounds that of the full map from below (:func:`cone_lower_check`).
 
 ``method="lmi"`` runs Sinopoli's Ψ_p LMI (:mod:`kfcrit.lmi`) instead; "auto" runs "newton" and
 falls back to the LMI when Newton cannot produce a certified bracket.
@@ -48,7 +52,12 @@ NEWTON_MAX_REDUCED = 60
 NEAR_P_LOW = 1e-6
 """A Newton root this close to p_low is first tried as p_up = p_low (certificate at p_low + tol)."""
 SMALL_MATRIX = 6
-"""Certificates of systems with at most this many states are included in the record."""
+"""Up to this many states the LMI's certificate matrices were included in older records (kept
+for compatibility; now :data:`RECORD_MATRIX_MAX` applies to every method)."""
+RECORD_MATRIX_MAX = 60
+"""Certificates of systems with at most this many states are included in the record: the
+matrices exactly as checked (``basis``, ``X_basis``, ``K_basis``, ``output_map``; JSON floats
+round-trip exactly) and the rounded full-state copies ``X``, ``K``."""
 
 
 @dataclass(frozen=True)
@@ -632,7 +641,7 @@ def _newton_method(system: System, tol: float) -> UpperBound:
         warnings.append(f"the certificate holds only at hi = {hi_p:.12g}, more than tol above "
                         f"the Newton root {p_star:.12g}: the bracket is wider than requested")
         lo_p = max(p_low, p_star)
-    lower = _lower_evidence(system, red, plain, lo_p, p_low, stats) if plain_ok else \
+    lower = _lower_evidence(system, red, plain, lo_p, p_low, stats, tol) if plain_ok else \
         _evidence_p_low(p_low)
     if lower.get("inconsistent"):
         warnings.append(lower["inconsistent"])
@@ -833,67 +842,170 @@ def _continuation(red: Reduced, X0: np.ndarray, p0: float, eps: float, p_star: f
     return good
 
 
+def invariant_block_of(system: System, red: Reduced) -> certify.InvariantBlock | None:
+    """Ball enclosure of the exact unstable invariant block for ``red`` (memoised per system)."""
+    key = (id(system), id(red))
+    hit = _BLOCK_CACHE.get(key)
+    if hit is not None and hit[0] is system and hit[1] is red:
+        return hit[2]
+    block = certify.invariant_block(system, red.Z, red.k)
+    _BLOCK_CACHE[key] = (system, red, block)
+    while len(_BLOCK_CACHE) > 8:
+        _BLOCK_CACHE.pop(next(iter(_BLOCK_CACHE)))
+    return block
+
+
+_BLOCK_CACHE: dict[tuple[int, int], tuple[System, Reduced, Any]] = {}
+
+CONE_CONFIRM_MARGIN = 1e-11
+"""A cone eigenvalue r(p) ≥ 1 + this (Newton-converged, PSD eigenvector) confirms p ≤ p_up
+numerically."""
+
+
+def cone_lower_check(system: System, red: Reduced, p: float, X0: np.ndarray | None,
+                     stats: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Independent evidence that p ≤ p_up: the cone eigenpair (X_u, r) of G_p on the unstable
+    block (power iteration, then Newton), and a ball-checked proof when possible.
+
+    Returns {"r", "X", "numerical": r ≥ 1 + CONE_CONFIRM_MARGIN with a converged PSD
+    eigenvector, "certified": the proof passed, "check", "how"}.
+
+    Why the unstable block suffices (and is valid for the full system): the first k Schur
+    vectors span an A-invariant subspace V (exactly so for the enclosed W = Z[I; P] of
+    :func:`kfcrit.certify.invariant_block`); for X = W X_u W' the noise-free map satisfies
+    G_p(X) = W G^u_p(X_u) W', so the cone {W X_u W' : X_u ⪰ 0} is invariant and the cone
+    spectral radius of the full map is at least that of G^u_p. An X_u ≻ 0 with
+    G^u_p(X_u) ≻ X_u therefore gives X ⪰ 0, X ≠ 0 with G_p(X) ⪰ X, and the cone argument
+    (:func:`kfcrit.certify.verify_lower_block`) shows that no Y ≻ 0 has Y ≻ G_p(Y): p ≤ p_up.
+    (The converse direction — that p_up of the full system equals that of the block — is the
+    reduction of the module docstring; the lower bound needs only the invariance.)
+    """
+    stats = stats if stats is not None else {}
+    out: dict[str, Any] = {"r": None, "X": None, "numerical": False, "certified": False,
+                           "check": None, "how": ""}
+    start = X0 if X0 is not None and np.all(np.isfinite(X0)) else None
+    r, Xp, its = cone_radius(red.Au, red.Cu, p, start, iterations=3000, rtol=1e-12)
+    stats["power_iterations"] = stats.get("power_iterations", 0) + its
+    X, r2, _K, ok = perron_newton(red.Au, red.Cu, Xp, p)
+    stats["newton_iterations"] = stats.get("newton_iterations", 0) + 1
+    if not (ok and np.isfinite(r2) and float(np.linalg.eigvalsh(X).min()) > -1e-10):
+        c_lo, _ = collatz_wielandt(red.Au, red.Cu, Xp, p)
+        out.update(r=c_lo, X=Xp, how="Collatz-Wielandt lower bound of the power iterate")
+        X, r2 = Xp, c_lo
+    else:
+        out.update(r=r2, X=X, how="cone eigenpair of G_p by power iteration and Newton")
+    out["numerical"] = bool(r2 >= 1.0 + CONE_CONFIRM_MARGIN)
+    if not out["numerical"]:
+        return out
+    block = invariant_block_of(system, red)
+    if block is None:
+        out["how"] += ("; no ball proof: the invariant subspace could not be enclosed "
+                       f"(k(n-k) = {red.k * (system.n - red.k)}, limit {certify.KRONECKER_MAX})")
+        return out
+    for X_try in (X, X + 1e-9 * np.trace(X) * np.eye(red.k)):
+        check = certify.verify_lower_block(block, p, symmetrize(X_try))
+        stats["certificate_checks"] = stats.get("certificate_checks", 0) + 1
+        if check.ok:
+            out.update(certified=True, check=check, X=X_try)
+            break
+        out["check"] = check
+    return out
+
+
 def _lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float, p_low: float,
-                    stats: dict[str, Any]) -> dict[str, Any]:
+                    stats: dict[str, Any], tol: float | None = None) -> dict[str, Any]:
     """The strongest evidence for p_up ≥ lo that we can check, labelled.
 
-    p_low (theorem) when lo ≤ p_low; else the cone eigenpair (X, r) of G_lo by Newton: r ≥ 1
-    supports lo numerically, and is proven (:func:`certify.verify_lower`) when the reduced
-    system is the whole system and X ≻ 0, G_lo(X) − X ≻ 0 pass in balls. An eigenvalue r < 1
-    contradicts lo: the evidence is then marked ``inconsistent``.
+    p_low (theorem) when lo ≤ p_low; else the cone eigenpair (X, r) of G_lo on the unstable
+    block (:func:`cone_lower_check`): r ≥ 1 supports lo numerically, and is proven when
+    X_u ≻ 0, G^u_lo(X_u) − X_u ≻ 0 pass in balls on an exactly A-invariant subspace enclosed
+    by :func:`kfcrit.certify.invariant_block` (valid for the full system, stable modes
+    included: see :func:`cone_lower_check`). When the proof fails at lo itself (its margin
+    (r − 1)·λ_min(X_u) is below the ball widths), the largest of a few points lo − δ where it
+    passes is reported as ``proven_lower`` (a proven p_up ≥ lo − δ beside the numerical lo).
+    An eigenvalue r < 1 contradicts lo: the evidence is then marked ``inconsistent``.
     """
     if lo <= p_low:
         return _evidence_p_low(p_low)
-    X, r, _K, ok = perron_newton(red.Au, red.Cu, plain.X, lo)
-    stats["newton_iterations"] += 1
+    conf = cone_lower_check(system, red, lo, plain.X, stats)
+    r = conf["r"]
     evidence: dict[str, Any] = {
         "kind": "numerical", "value": lo, "certified": False,
         "statement": ("Newton root p* of the cone spectral radius r(p) = 1 of the noise-free "
                       f"MARE map (p* = {plain.p:.15g}, residual {plain.residual:.2g}); at lo "
-                      f"the cone eigenvalue is r(lo) = {r:.15g} >= 1, so no X > 0 has "
-                      "X > G_lo(X) (numerically)"),
+                      f"the cone eigenvalue of the unstable block is r(lo) = {r:.15g} >= 1, so "
+                      "no X > 0 has X > G_lo(X) (numerically; " + conf["how"] + ")"),
         "p_low_theorem": p_low}
-    if not ok or float(np.linalg.eigvalsh(X).min()) < -1e-10:
+    if r is None or not np.isfinite(r):
         evidence["statement"] = (f"Newton root p* = {plain.p:.15g} of r(p) = 1 (residual "
                                  f"{plain.residual:.2g}); the eigenpair at lo did not converge")
         return evidence
     if r < 1 - 1e-12:
         return {"inconsistent": f"cone eigenvalue r({lo:.12g}) = {r:.15g} < 1 contradicts the "
                                 "Newton root; the lower end falls back to p_low"}
-    if red.k == red.T.shape[0] and r > 1:
-        Xf = symmetrize(red.Z @ X @ red.Z.T)
-        check = certify.verify_lower(system, lo, Xf)
-        stats["certificate_checks"] += 1
-        if check.ok:
-            evidence.update({"kind": "certificate", "certified": True,
-                             "statement": "X > 0 with G_lo(X) - X > 0 (cone eigenvalue "
-                                          f"{r:.15g} > 1 of the noise-free MARE map), "
-                                          "proven in ball arithmetic",
-                             "check": check.to_dict()})
+    if conf["certified"]:
+        check = conf["check"]
+        evidence.update({"kind": "certificate", "certified": True,
+                         "statement": "X_u > 0 with G_lo(X_u) - X_u > 0 (cone eigenvalue "
+                                      f"{r:.15g} > 1 of the noise-free MARE map) on the "
+                                      f"{red.k}-dimensional unstable invariant subspace, proven "
+                                      "in ball arithmetic; valid for the full system because "
+                                      "G_p maps the cone of that subspace into itself",
+                         "check": check.to_dict()})
+        if system.n <= RECORD_MATRIX_MAX:
+            evidence["X_u"] = _matrix_list(conf["X"])
+            evidence["basis"] = _matrix_list(red.Z)
+            evidence["reduced_states"] = red.k
+    elif conf["numerical"] and conf["check"] is not None:
+        step = max(tol if tol is not None else 1e-9, 1e-12)
+        for mult in (1, 10, 100, 1000):
+            p = lo - mult * step
+            if p <= p_low:
+                break
+            c2 = cone_lower_check(system, red, p, conf["X"], stats)
+            if c2["certified"]:
+                evidence["proven_lower"] = {
+                    "value": p, "check": c2["check"].to_dict(),
+                    "statement": f"p_up >= {p!r} proven: X_u > 0 with G_p(X_u) - X_u > 0 on "
+                                 "the unstable invariant subspace, ball arithmetic (at lo "
+                                 "itself the margin was below the ball widths: "
+                                 f"{conf['check'].reason})"}
+                break
     return evidence
+
+
+def _matrix_list(M: np.ndarray) -> list[list[float]]:
+    """A float matrix as nested lists (JSON floats round-trip exactly)."""
+    return [[float(v) for v in row] for row in np.atleast_2d(M)]
 
 
 def _certificate_summary(system: System, check: certify.CheckResult, X: np.ndarray,
                          K: np.ndarray, origin: str, basis: tuple | None = None,
                          output_map: np.ndarray | None = None) -> dict[str, Any]:
-    """The record's certificate: what was proven, how, and (small systems) the matrices.
+    """The record's certificate: what was proven, how, and (n ≤ RECORD_MATRIX_MAX) the matrices.
 
-    A certificate checked in a basis (X = Z X_z Z') is reported with its float copies X, K; for
-    small systems those copies are re-checked directly (``matrices_verified``) and, if they do
-    not pass on their own, the basis form (``basis``, ``X_basis``, ``K_basis``) is included.
+    A certificate checked in a basis (X = Z X_z Z', K = Z K_z, times M with an output map) is
+    included exactly as checked (``basis``, ``X_basis``, ``K_basis``, ``output_map``), so the
+    record alone re-verifies; the rounded full-state copies ``X``, ``K`` are re-checked directly
+    (``matrices_verified``) — they may fail on their own when the margin is below the rounding.
     """
     out = {"kind": "X > 0 and X - L_{K,hi}(X) > 0 (Sinopoli Thm 5, Psi_hi(X^-1, X^-1 K) > 0)",
            "origin": origin, **check.to_dict()}
-    if system.n <= SMALL_MATRIX:
-        out["X"] = [[float(v) for v in row] for row in X]
-        out["K"] = [[float(v) for v in row] for row in K]
+    if system.n <= RECORD_MATRIX_MAX:
+        out["X"] = _matrix_list(X)
+        out["K"] = _matrix_list(K)
         direct = check if basis is None else certify.verify_upper(system, check.p, X, K)
         out["matrices_verified"] = direct.ok
-        if not direct.ok and basis is not None:
+        if basis is not None:
             for name, M in zip(("basis", "X_basis", "K_basis"), basis):
-                out[name] = [[float(v) for v in row] for row in M]
+                out[name] = _matrix_list(M)
             if output_map is not None:
-                out["output_map"] = [[float(v) for v in row] for row in output_map]
+                out["output_map"] = _matrix_list(output_map)
+        out["reverify"] = ("X = basis X_basis basis', K = basis K_basis (output_map): check "
+                           "X > 0 and X - (1-p) A X A' - p F X F' > 0, F = A + K C, p = the "
+                           "certificate's p, exactly" if basis is not None else
+                           "check X > 0 and X - (1-p) A X A' - p F X F' > 0, F = A + K C, "
+                           "p = the certificate's p, exactly")
     return out
 
 
@@ -987,8 +1099,9 @@ def _upper_bound_raw(system: System, tol: float, method: str) -> UpperBound:
         if alt.certified:
             width_ok = alt.interval[1] - alt.interval[0] <= tol
             return replace(alt, status=alt.status if width_ok else "undetermined",
-                           warnings=result.warnings + ("newton method gave no certificate; LMI "
-                                                       "used (its lower end is solver-based)",)
+                           warnings=result.warnings
+                           + ("newton method gave no certificate; LMI used ("
+                              + alt.solver.get("ends", "ends not stated") + ")",)
                            + alt.warnings)
     return result
 

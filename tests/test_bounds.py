@@ -202,3 +202,44 @@ def test_static_gain_section_is_skipped_with_a_reason_beyond_its_size_cap() -> N
     sg = bounds.static_gain(s, 0.9)
     for key in ("kalman", "best"):
         assert sg[key]["available"] is False and "496" in sg[key]["reason"]
+
+
+# ---------------------------------------------------------------------------------------------
+# property: the best static gain's critical value lies in the p_up bracket
+# ---------------------------------------------------------------------------------------------
+
+from hypothesis import HealthCheck, assume, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from .strategies import systems  # noqa: E402
+
+
+@st.composite
+def non_square_unstable_systems(draw):
+    """2- or 3-state unstable systems with fewer outputs than states (C not invertible, so the
+    general method and its gain are used, not the exact C-invertible case)."""
+    n = draw(st.integers(2, 3))
+    return draw(systems(n=n, m=draw(st.integers(1, n - 1)), kind="unstable"))
+
+
+@settings(max_examples=8, suppress_health_check=[HealthCheck.too_slow,
+                                                 HealthCheck.filter_too_much])
+@given(non_square_unstable_systems())
+def test_best_static_gain_critical_value_within_p_up_bracket(case):
+    # Theory (MATH.md §3, journal §V): every static gain K has critical value p_K ≥ p_up, and
+    # the certificate's gain is mean-square stable at hi (X ≻ L_{K,hi}(X)), so p_K ≤ hi; the
+    # critical value is computed independently by the generalised eigenvalues of the pencil.
+    from kfcrit.upper import upper_bound
+
+    s = System(case.A, case.C, case.Q, case.R)
+    ub = upper_bound(s, tol=1e-9)
+    assume(ub.certified and ub.status == "determined" and ub.method == "newton")
+    out = bounds.static_gain(s, min(1.0, ub.interval[1] + 0.05))
+    best = out["best"]
+    assert best["available"]
+    lo, hi = ub.interval
+    width = hi - lo
+    slack = width + 1e-8
+    assert best["critical_value"] is not None
+    assert lo - slack <= best["critical_value"] <= hi + slack, (ub.interval, best)
+    assert best["equals_p_up"]

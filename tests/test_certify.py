@@ -150,3 +150,84 @@ def test_output_map_gain_is_formed_exactly():
     # the shape of the map is checked
     assert not certify.verify_upper(s, 0.8, np.eye(2), -2.0 * np.eye(2),
                                     output_map=np.eye(3)).ok
+
+
+# ---------------------------------------------------------------------------------------------
+# re-verification from the JSON record alone, with an independent exact-rational check
+# ---------------------------------------------------------------------------------------------
+
+
+def _fr_matmul(A, B):
+    from fractions import Fraction
+
+    Bt = list(zip(*B))
+    return [[sum((a * b for a, b in zip(row, col)), Fraction(0)) for col in Bt] for row in A]
+
+
+def _fr_transpose(A):
+    return [list(r) for r in zip(*A)]
+
+
+def _fr_positive_definite(M) -> bool:
+    """Exact LDLᵀ (Gaussian elimination without pivoting): a symmetric rational matrix is
+    positive definite iff every pivot is > 0 (Sylvester's criterion)."""
+    M = [list(r) for r in M]
+    n = len(M)
+    for i in range(n):
+        piv = M[i][i]
+        if piv <= 0:
+            return False
+        for j in range(i + 1, n):
+            f = M[j][i] / piv
+            if f:
+                for k in range(i, n):
+                    M[j][k] -= f * M[i][k]
+    return True
+
+
+def _exact_upper_check(A, C, p, X, K) -> bool:
+    """X ≻ 0 and X − (1−p) A X Aᵀ − p F X Fᵀ ≻ 0, F = A + K C, in exact rationals."""
+    n = len(A)
+    F = [[a + fc for a, fc in zip(ra, rf)] for ra, rf in zip(A, _fr_matmul(K, C))]
+    AXA = _fr_matmul(_fr_matmul(A, X), _fr_transpose(A))
+    FXF = _fr_matmul(_fr_matmul(F, X), _fr_transpose(F))
+    M = [[X[i][j] - (1 - p) * AXA[i][j] - p * FXF[i][j] for j in range(n)] for i in range(n)]
+    M = [[(M[i][j] + M[j][i]) / 2 for j in range(n)] for i in range(n)]
+    Xs = [[(X[i][j] + X[j][i]) / 2 for j in range(n)] for i in range(n)]
+    return _fr_positive_definite(Xs) and _fr_positive_definite(M)
+
+
+def test_record_of_a_larger_system_reverifies_exactly_from_json():
+    import json
+    import sys
+    from fractions import Fraction
+
+    from .conftest import SHARED_CASES
+    sys.path.insert(0, str(SHARED_CASES.parent / "bench"))
+    from systems import random_system
+
+    A, C, Q, R = random_system(10, 3, 1)          # n = 10 > 6: formerly no matrices recorded
+    s = System(A, C, Q, R)
+    d = json.loads(json.dumps(upper_bound(s, tol=1e-9).to_dict(), allow_nan=False))
+    cert = d["certificate"]
+    assert d["certified"] and {"basis", "X_basis", "K_basis", "X", "K"} <= set(cert)
+    # the exact system: binary floats are dyadic rationals, as System keeps them
+    Af = [[Fraction(float(v)) for v in row] for row in A]
+    Cf = [[Fraction(float(v)) for v in row] for row in C]
+
+    def fr(M):
+        return [[Fraction(v) for v in row] for row in M]
+
+    Z, Xz, Kz = fr(cert["basis"]), fr(cert["X_basis"]), fr(cert["K_basis"])
+    X = _fr_matmul(_fr_matmul(Z, Xz), _fr_transpose(Z))
+    K = _fr_matmul(Z, Kz)
+    if "output_map" in cert:
+        K = _fr_matmul(K, fr(cert["output_map"]))
+    p = Fraction(cert["p"])
+    assert cert["p"] == d["interval"][1]
+    assert _exact_upper_check(Af, Cf, p, X, K)
+    # the same checker rejects the certificate claimed well below the bracket
+    assert not _exact_upper_check(Af, Cf, Fraction(d["interval"][0]) - Fraction(1, 100), X, K)
+    # and the rounded full-state copies agree with their own flag
+    if cert["matrices_verified"]:
+        assert _exact_upper_check(Af, Cf, p, fr(cert["X"]), fr(cert["K"]))

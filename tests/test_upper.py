@@ -360,3 +360,120 @@ def test_undetectable_is_fast_and_not_applicable():
     assert time.perf_counter() - t < 10
     assert d["applicable"] is False and d["value"] is None and d["not_applicable_reason"]
     assert d["interval"][1] == 1.0
+
+
+# ---------------------------------------------------------------------------------------------
+# audit: the LMI's "infeasible" must be confirmed independently
+# ---------------------------------------------------------------------------------------------
+
+
+def test_lmi_random_20_6_lower_end_is_not_above_the_proven_p_up():
+    # The audit: the LMI reported the "determined" bracket [0.4082897, 0.4082902] although
+    # p_up <= 0.4082840242 is proven. Expected values, independently: p_low = 1 − 1/1.3² of the
+    # float A (Thm 3, p_up ≥ p_low) and the fast method's certificate, re-checked here in ball
+    # arithmetic (X ≻ 0, X − L_{K,hi}(X) ≻ 0) — so p_up ∈ [p_low, 0.4082840242].
+    from kfcrit import certify
+
+    A, C, _, _ = random_system(20, 6, 0)
+    s = make(A, C)
+    fast = upper_bound(s, tol=1e-9, method="newton")
+    ex = fast.extras
+    hi_proven = fast.interval[1]
+    assert hi_proven <= 0.4082840242
+    assert certify.verify_upper(s, hi_proven, ex["X_basis"], ex["K_basis"], basis=ex["basis"],
+                                output_map=ex["output_map"]).ok
+    lmi = upper_bound(s, tol=1e-6, method="lmi")
+    lo, hi = lmi.interval
+    assert lo <= 0.4082840242 and lo <= hi_proven
+    p_low = 1 - 1 / max(abs(np.linalg.eigvals(A))) ** 2
+    if lmi.certified:                       # its own upper end is proven, hence ≥ p_up ≥ p_low
+        assert hi >= p_low - 1e-12
+    if lmi.status == "determined":          # then [lo, hi] meets [p_low, hi_proven] ∋ p_up
+        assert lo <= hi_proven and hi >= p_low - 1e-12
+    else:                                   # honestly undetermined, and says which ends hold
+        assert "ends" in lmi.solver and lmi.warnings
+    # the lower end is the theorem p_low or an independently confirmed point, never the
+    # solver's word alone
+    assert lmi.lower_evidence["kind"] in ("theorem", "certificate", "numerical")
+    if lmi.lower_evidence["kind"] != "theorem":
+        assert "cone spectral radius" in lmi.lower_evidence["statement"]
+
+
+def test_lmi_infeasible_needs_an_independent_confirmation(monkeypatch):
+    import cvxpy as cp
+
+    from kfcrit.lmi import PsiProblem
+
+    s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
+    prob = PsiProblem(s.a, s.c)
+
+    class Unit:                                # Clarabel says "infeasible" for Ψ ⪰ I
+        status = cp.INFEASIBLE
+
+        def solve(self, **_k):
+            pass
+
+    monkeypatch.setattr(prob, "unit", Unit())
+    out = {"p": 0.6, "margin": 0.0}
+    # no confirmation available: undetermined, whatever the solver says
+    assert prob._confirm_infeasible(s, 0.6, out, None)["decision"] == "undetermined"
+    # the cone radius says r(p) < 1 (feasible side): undetermined, never "infeasible"
+    prob.confirm = lambda p: {"r": 0.99, "numerical": False, "certified": False,
+                              "check": None, "how": "test", "X": None}
+    assert prob._confirm_infeasible(s, 0.6, out, None)["decision"] == "undetermined"
+    # confirmed (numerically): infeasible, labelled as such
+    prob.confirm = lambda p: {"r": 1.01, "numerical": True, "certified": False,
+                              "check": None, "how": "test", "X": None}
+    res = prob._confirm_infeasible(s, 0.6, out, None)
+    assert res["decision"] == "infeasible" and res["evidence"] == "numerical"
+
+
+def test_lmi_lower_end_is_confirmed_on_the_paper_example():
+    # A = [[1.25, 0], [1, 1.1]], C = [1 1]: p_up = 57/121 (MATH.md §3); the LMI's lower end
+    # must be below it, and its evidence is the cone radius (proven in balls here)
+    s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
+    ub = upper_bound(s, tol=1e-6, method="lmi")
+    assert ub.interval[0] <= 57 / 121 <= ub.interval[1]
+    ev = ub.lower_evidence
+    assert ev["kind"] in ("certificate", "theorem", "numerical")
+    if ev["kind"] == "certificate":
+        assert ev["certified"] and ev["check"]["ok"]
+
+
+# ---------------------------------------------------------------------------------------------
+# audit: proven lower ends for systems with stable modes
+# ---------------------------------------------------------------------------------------------
+
+
+def test_lower_end_proven_with_stable_modes():
+    # random_system(5, 1, 0): 3 unstable and 2 stable modes, single output, so
+    # p_up = 1 − 1/Π|λ_u|² ≈ 0.54115 > p_low (closed form, computed here from eigenvalues)
+    from kfcrit import certify
+    from kfcrit.upper import invariant_block_of, reduce_system
+
+    A, C, _, _ = random_system(5, 1, 0)
+    s = make(A, C)
+    mods = np.abs(np.linalg.eigvals(A))
+    assert np.sum(mods < 1) >= 1                       # there are stable modes
+    want = closed_form_single_output(A)
+    p_low = 1 - 1 / mods.max() ** 2
+    ub = upper_bound(s, tol=1e-9)
+    assert_contains(ub, want, slack=1e-10)
+    ev = ub.lower_evidence
+    assert ub.interval[0] > p_low + 1e-3
+    assert ev["kind"] == "certificate" and ev["certified"] and ev["check"]["ok"]
+    assert ev["reduced_states"] < s.n
+    # the same X_u re-verifies on the exactly invariant block, and is rejected above p_up
+    red = reduce_system(s)
+    block = invariant_block_of(s, red)
+    Xu = np.array(ev["X_u"])
+    assert certify.verify_lower_block(block, ub.interval[0], Xu).ok
+    assert not certify.verify_lower_block(block, want + 1e-4, Xu).ok
+    assert not certify.verify_lower_block(block, 0.9, Xu).ok
+    # a basis whose leading columns are not an invariant subspace gives no block
+    Z = np.array(ev["basis"])
+    assert certify.invariant_block(s, Z[:, ::-1], red.k) is None
+    # independent: the MARE iteration from 0 diverges just below the lower end
+    V, _ = bounds.mare_iteration(A, C, np.eye(5), np.eye(1), ub.interval[0] - 1e-3,
+                                 max_iterations=20_000)
+    assert V is None
