@@ -110,10 +110,21 @@ def _decade_label(value: float, _pos: Any = None) -> str:
     return {0: "1", 1: "10"}.get(k, "10" + str(k).translate(_SUPERSCRIPT))
 
 
+def _plain_label(value: float) -> str:
+    """A tick value as plain text: ``0.6``, ``2``, ``20``, ``300`` (typographic minus sign)."""
+    if value == 0 or not math.isfinite(value):
+        return ""
+    text = f"{value:.3g}"
+    if "e" in text:   # outside the plain range: the decade form
+        return _decade_label(value)
+    return text.replace("-", "−")
+
+
 def _plain_log_labels(ax: Any, which: str = "x") -> None:
     """Readable tick labels on a log axis, set as plain text (no mathtext: faster, same look).
 
-    Few decades: 2, 5, 20, 100; wide or large ranges: 1, 10, 10², 10³ on the decades only.
+    Few decades: 0.6, 2, 5, 20, 100 (plain numbers, never ``6e−01``); wide or large ranges:
+    1, 10, 10², 10³ on the decades only.
     """
     from matplotlib import ticker
 
@@ -123,9 +134,20 @@ def _plain_log_labels(ax: Any, which: str = "x") -> None:
         axis.set_major_formatter(ticker.FuncFormatter(_decade_label))
         axis.set_minor_formatter(ticker.NullFormatter())
         return
-    axis.set_major_formatter(ticker.LogFormatter())
-    axis.set_minor_formatter(ticker.LogFormatter(labelOnlyBase=False,
-                                                 minor_thresholds=(1.2, 0.5)))
+    decades = math.log10(hi / lo)
+    # Minor ticks sit at m·10^k, m = 2..9: label all of them over half a decade or less, the
+    # 2s and 5s up to 2 decades, none beyond.
+    mantissas = set(range(2, 10)) if decades <= 0.5 else {2, 5} if decades <= 2 else set()
+
+    def minor(value: float, _pos: Any = None) -> str:
+        if value <= 0:
+            return ""
+        mant = value / 10 ** math.floor(math.log10(value) + 1e-9)
+        return _plain_label(value) if round(mant) in mantissas and \
+            abs(mant - round(mant)) < 1e-6 else ""
+
+    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _p=None: _plain_label(v)))
+    axis.set_minor_formatter(ticker.FuncFormatter(minor))
 
 
 def _fmt(value: float | None) -> str:
@@ -311,6 +333,17 @@ def operating_svg(record: dict[str, Any]) -> str | None:
                             "against the covariance bounds")
 
 
+def cdf_window(x: Sequence[float], limit: float | None) -> tuple[float, float] | None:
+    """The x range of the CDF figure: from below the smallest trace to past both the largest
+    trace and the requirement's limit (so the paths beyond the limit are visible)."""
+    finite = [v for v in x if math.isfinite(v) and v > 0]
+    if limit is not None and limit > 0:
+        finite.append(limit)
+    if not finite:
+        return None
+    return min(finite) / 1.15, max(finite) * 1.6
+
+
 def cdf_svg(record: dict[str, Any]) -> str | None:
     """Empirical CDF of tr P at the operating point, with the requirement's limit if given."""
     x, f = cdf_of(record)
@@ -322,17 +355,24 @@ def cdf_svg(record: dict[str, Any]) -> str | None:
         fig, ax = _new_figure()
         ax.step(x, f, where="post", color=COLORS["sim"], linewidth=1.3,
                 label="empirical CDF of tr P")
-        if limit is not None:
+        if limit is not None and limit > 0:
             text = f"limit M = {limit:.4g}"
             if tail is not None:
                 text += f"; P(tr P > M) = {tail:.3g}"
             ax.axvline(limit, color=COLORS["p_c"], linestyle="--", linewidth=1.1, label=text)
         ax.set_xscale("log")
+        window = cdf_window(x, limit)
+        if window is not None:
+            left, right = window
+            ax.set_xlim(left, right)
+            if math.isfinite(x[-1]) and math.isfinite(f[-1]) and x[-1] < right:
+                ax.plot([x[-1], right], [f[-1], f[-1]], color=COLORS["sim"], linewidth=1.3)
         _plain_log_labels(ax, "x")
         ax.set_ylim(0, 1.02)
         ax.set_xlabel("tr P at the simulation horizon")
         ax.set_ylabel("P(tr P ≤ x)")
-        ax.legend(loc="lower right", frameon=False)
+        # Below the axes, as in the other figures: it can never cover the curve or the limit.
+        fig.legend(loc="outside lower center", frameon=False, ncols=2)
         return _to_svg(fig, "Distribution of the error covariance trace at the operating point")
 
 

@@ -32,8 +32,19 @@ def num(value: Any, digits: int = 6) -> str:
     if isinstance(value, float):
         if not math.isfinite(value):
             return DASH
+        if value != 0 and not SCI_LOW <= abs(value) < SCI_HIGH:
+            return _sci_form(value, digits)
         return f"{value:.{digits}g}"
     return str(value)
+
+
+def span(low: Any, high: Any, digits: int = 6) -> str:
+    """``a – b`` for a range; both ends in one style (scientific when either end needs it)."""
+    ends = [v for v in (low, high) if _finite(v) and v != 0]
+    if any(not SCI_LOW <= abs(v) < SCI_HIGH for v in ends):
+        return " – ".join(_sci_form(v, digits) if _finite(v) and v != 0 else num(v, digits)
+                          for v in (low, high))
+    return f"{num(low, digits)} – {num(high, digits)}"
 
 
 def signed(value: Any, digits: int = 4) -> str:
@@ -68,8 +79,87 @@ def pretty_expr(text: Any) -> str:
         return DASH
     s = str(text)
     s = _POW_RE.sub(lambda m: "^" + m.group(1), s)
+    for _ in range(3):   # innermost square roots first: sqrt(3) → √3, sqrt(x + 1) → √(x + 1)
+        s = _SQRT_RE.sub(_sqrt, s)
     s = s.replace("sqrt", "√").replace("*", "·")
     return s.replace("-", "−")
+
+
+_SUP_MAP = str.maketrans("0123456789+-−()nijk", "⁰¹²³⁴⁵⁶⁷⁸⁹⁺⁻⁻⁽⁾ⁿⁱʲᵏ")
+_SUB_MAP = str.maketrans("0123456789+-−()aehijklmnoprstuvx",
+                         "₀₁₂₃₄₅₆₇₈₉₊₋₋₍₎ₐₑₕᵢⱼₖₗₘₙₒₚᵣₛₜᵤᵥₓ")
+_SUP_OK = set("0123456789+-−()nijk")
+_SUB_OK = set("0123456789+-−()aehijklmnoprstuvx")
+_GREEK = {"lambda": "λ", "mu": "μ", "sigma": "σ", "Phi": "Φ", "phi": "φ", "pi": "π",
+          "rho": "ρ", "Sigma": "Σ", "alpha": "α", "beta": "β", "gamma": "γ", "delta": "δ",
+          "epsilon": "ε", "theta": "θ", "tau": "τ", "omega": "ω"}
+_GREEK_RE = re.compile(r"\b(" + "|".join(_GREEK) + r")(?![A-Za-z0-9])")
+_SQRT_RE = re.compile(r"\bsqrt\(([^()]*)\)")
+_SIMPLE_RE = re.compile(r"[\w.]+")
+_STAR_RE = re.compile(r"(?<=[\w)])\s?\*\s?(?=[\w(√])")
+_POW_TEXT_RE = re.compile(r"\^\(([^()]+)\)|\^(-?\w+)")
+_SUB_TEXT_RE = re.compile(r"(?<=[A-Za-zλμσ])_\(([^()]+)\)|(?<=[A-Za-zλμσ])_(\w)(?!\w)")
+
+
+def _sup(m: re.Match) -> str:
+    body = m.group(1) if m.group(1) is not None else m.group(2)
+    if all(c in _SUP_OK for c in body.replace(" ", "")):
+        return body.replace(" ", "").translate(_SUP_MAP)
+    return m.group(0)
+
+
+def _sub(m: re.Match) -> str:
+    body = m.group(1) if m.group(1) is not None else m.group(2)
+    if all(c in _SUB_OK for c in body.replace(" ", "")):
+        return body.replace(" ", "").translate(_SUB_MAP)
+    return m.group(0)
+
+
+def _sqrt(m: re.Match) -> str:
+    inner = m.group(1).strip()
+    return "√" + inner if _SIMPLE_RE.fullmatch(inner) else f"√({inner})"
+
+
+_EXP_TEXT_RE = re.compile(r"(?<![\w.])-?\d+(?:\.(\d+))?e[-+]?\d+(?![\w.])")
+
+
+def _exp_number(m: re.Match) -> str:
+    digits = min(len(m.group(1) or "") + 1, 3)
+    return sci(float(m.group(0)), digits)
+
+
+def pretty_text(text: Any) -> str:
+    """Prose of the record with its ASCII mathematics in Unicode notation.
+
+    For sentences that embed formulas in ``sympy`` or plain-ASCII spelling (``|1 + sqrt(3)*I|``,
+    ``QQ(sqrt(3))``, ``f0(X) = 2*X + 1``, ``S_(n-1)``, ``p <= p_up``, ``(1 - r) a^2``): √, the
+    imaginary unit i, ℚ, f₀ / f₁, sub- and superscripts (where Unicode has the glyphs), ≤ ≥ ≠,
+    Greek letter names, ∞ for ``inf``, · for products and − for a binary minus. Words joined by
+    hyphens (Kar-Sinopoli-Moura) and identifiers such as ``p_up`` or ``max_outage`` are kept.
+    ``None`` prints as an empty string.
+    """
+    if text is None:
+        return ""
+    s = str(text)
+    s = _EXP_TEXT_RE.sub(_exp_number, s)                    # 3.19e+10 → 3.19 × 10¹⁰
+    s = s.replace("**", "^")
+    for _ in range(3):   # innermost square roots first
+        s = _SQRT_RE.sub(_sqrt, s)
+    # sympy's imaginary unit: sqrt(3)*I → i√3, 2*I → 2i
+    s = re.sub(r"(√\(?[\w./]+\)?)\*I\b", r"i\1", s)
+    s = re.sub(r"(?<=[\w)])\*I\b", "i", s)
+    s = re.sub(r"\bQQ\b", "ℚ", s)
+    s = re.sub(r"\bf([01])(?=[(^\s])", lambda m: "f" + m.group(1).translate(_SUB_MAP), s)
+    s = re.sub(r"(?<=[(\s=])inf(?=[)\s,;]|$)", "∞", s)
+    s = _GREEK_RE.sub(lambda m: _GREEK[m.group(1)], s)
+    s = s.replace("<=", "≤").replace(">=", "≥").replace("!=", "≠")
+    s = re.sub(r"(?<=[\s(\[=≤≥<>])-(?=[\w(√.])", "−", s)     # unary minus
+    s = re.sub(r"(?<=\s)-(?=\s)", "−", s)                      # binary minus
+    s = _SUB_TEXT_RE.sub(_sub, s)
+    s = _POW_TEXT_RE.sub(_sup, s)
+    s = re.sub(r"(?<![/\d.])(\d+)\*(?=[A-Za-z(√])", r"\1", s)   # 2*X → 2X
+    s = _STAR_RE.sub("·", s)
+    return s
 
 
 def verdict_label(value: Any) -> str:
@@ -132,12 +222,23 @@ def fixed(value: Any, decimals: int = 2) -> str:
 
 def sci(value: Any, digits: int = 3) -> str:
     """A small or large number in readable scientific form (``4.26e-16`` → ``4.26 × 10⁻¹⁶``);
-    numbers between 10⁻³ and 10⁶ print plainly."""
+    numbers with 10⁻⁴ ≤ |x| < 10⁵ (and exact zero) print plainly, as in :func:`num`."""
     if not _finite(value):
         return DASH
-    if value == 0 or 1e-3 <= abs(value) < 1e6:
+    if value == 0:
+        return "0"
+    if SCI_LOW <= abs(value) < SCI_HIGH:
         return num(float(value), digits).replace("-", "−")
-    mant, exp = f"{value:.{digits - 1}e}".split("e")
+    return _sci_form(value, digits)
+
+
+# The range printed plainly by num and sci; outside it both use "m × 10ⁿ".
+SCI_LOW, SCI_HIGH = 1e-4, 1e5
+
+
+def _sci_form(value: float, digits: int) -> str:
+    """``m × 10ⁿ`` with ``digits`` significant digits in the mantissa (trailing zeros dropped)."""
+    mant, exp = f"{value:.{max(digits, 1) - 1}e}".split("e")
     mant = mant.rstrip("0").rstrip(".") if "." in mant else mant
     sup = str(int(exp)).translate(_SUPERSCRIPT)
     return f"{mant} × 10{sup}".replace("-", "−")
@@ -175,7 +276,7 @@ def prob(value: Any, digits: int = 4) -> str:
     if not _finite(value):
         return DASH
     if value != 0 and abs(value) < 1e-3:
-        return sci(value, 3)
+        return _sci_form(value, 3)
     return num(float(value), digits)
 
 
@@ -227,7 +328,8 @@ FILTERS: dict[str, Callable[..., str]] = {
     "pretty_expr": pretty_expr, "verdict_label": verdict_label, "pct": pct,
     "indices": indices, "short_hash": short_hash, "text": text, "key_label": key_label,
     "fixed": fixed, "sci": sci, "unit": unit, "prob": prob, "count": count, "vector": vector,
-    "signed_plain": signed_plain, "quantity": quantity,
+    "signed_plain": signed_plain, "quantity": quantity, "pretty_text": pretty_text,
+    "span": span,
 }
 
 

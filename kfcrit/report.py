@@ -89,6 +89,20 @@ def _svg(svg: str | None) -> Markup | None:
     return Markup(svg) if svg else None
 
 
+def _prose(value: Any) -> str:
+    """Record prose with its ASCII mathematics in Unicode (``sqrt(3)`` → √3, ``<=`` → ≤ ...);
+    ``None`` → empty string. See :func:`kfcrit.filters.pretty_text`."""
+    return filters.pretty_text(value) if value is not None else ""
+
+
+def _sentence(value: Any) -> str:
+    """Record prose as a finished sentence: Unicode mathematics and a final full stop."""
+    text = _prose(value).strip()
+    if text and text[-1] not in ".!?":
+        text += "."
+    return text
+
+
 def _missing(section: str, reason: str | None = None) -> str:
     return f"{section}: {NOT_COMPUTED}" + (f" ({reason})" if reason else "")
 
@@ -189,7 +203,7 @@ def channel_rows(channel: dict[str, Any]) -> list[dict[str, Any]]:
         pl = _dict(channel.get("path_loss"))
         # The numbers of the budget itself (powers, SINR, p) are in the budget table.
         rows += [row("radio", radio.get("model"), note=str(radio.get("source") or "")),
-                 row("path-loss model", pl.get("model"), note=str(pl.get("formula") or "")),
+                 row("path-loss model", pl.get("model"), note=_prose(pl.get("formula"))),
                  row("shadowing σ", pl.get("shadowing_sigma_db"), "dB",
                      note=str(pl.get("shadowing") or "")),
                  row("arrival probability p", channel.get("arrival_probability"), "prob",
@@ -237,7 +251,7 @@ def link_design_view(rec: dict[str, Any]) -> dict[str, Any] | None:
                         f"1 − 1/a² = {filters.prob(lb.get('required_recovery_rate'))}, i.e. mean "
                         f"loss bursts of at most "
                         f"{filters.num(_num(lb.get('max_mean_burst_length')), 4)} packets "
-                        f"({cond.get('status') or 'status unknown'})"}
+                        f"({_prose(cond.get('status')) or 'status unknown'})"}
     dc = _dict(lb.get("design_check"))
     parts = [f"link margin {filters.unit(lb.get('link_margin_db'), 'dB')} at "
              f"{filters.unit(dc.get('distance_m'), 'm')}"]
@@ -285,7 +299,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "critical_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=13,
                                 label=cv.get("expression")),
         "critical_exact": cv.get("exact"),
-        "critical_reason": cv.get("reason"),
+        "critical_reason": _prose(cv.get("reason")) or None,
         "margin": _num(opd.get("margin")),
         "margin_robust": _num(opd.get("margin_robust")),
         "robust": {"available": isinstance(rob, dict),
@@ -298,13 +312,34 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "bracket": opd.get("bracket") if isinstance(opd.get("bracket"), list) else None,
         "margin_to_bracket": opd.get("margin_to_bracket")
         if isinstance(opd.get("margin_to_bracket"), list) else None,
-        "reason": opd.get("reason") if isinstance(opd.get("reason"), str) else None,
-        "basis": opd.get("basis") if isinstance(opd.get("basis"), str) else None,
+        "reason": _prose(opd.get("reason")) if isinstance(opd.get("reason"), str) else None,
+        "basis": _prose(opd.get("basis")) if isinstance(opd.get("basis"), str) else None,
         "iid_verdict": iid_verdict if iid_verdict and iid_verdict != verdict else None,
-        "note": opd.get("note"),
+        "note": _sentence(opd.get("note")) if opd.get("note") else None,
+        "legend": verdict_legend(op, verdict, opd),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
     }
+
+
+def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
+    """The last sentence of the legend under the verdict box (after the two verdicts' meaning):
+    why this verdict is not determined, when it is not (no operating point, p inside the bracket
+    of p_c, or the record's reason); empty for a determined verdict."""
+    if not isinstance(op, dict):
+        why = ("Not determined: no operating point is configured (the system file has no "
+               "channel section), so there is no arrival probability p to compare with p_c.")
+    elif verdict == "undetermined":
+        if isinstance(opd.get("bracket"), list):
+            why = "Undetermined: p lies inside the bracket of p_c, so the comparison is open."
+        else:
+            why = "Undetermined: " + (_sentence(opd.get("reason")) or
+                                      "the comparison of p with p_c is not decided.")
+    elif not verdict:
+        why = "Not determined: " + (_sentence(opd.get("reason")) or "the analysis gave no verdict.")
+    else:
+        why = ""
+    return why
 
 
 def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
@@ -364,7 +399,22 @@ def _maybe_svg(expr: Any) -> Markup | None:
 
 STRUCTURE_KNOWN = {"eigenvalues", "equi_blocks", "diagonalizable", "detectable", "controllable_Q",
                    "path", "path_reason", "tolerances", "equal_modulus_pairs",
-                   "observability_index", "observable"}
+                   "observability_index", "observable", "standard_form"}
+
+
+def standard_form_note(form: Any) -> str:
+    """The standard form of (A, C) in words: the basis and C·V of each equi-block."""
+    d = _dict(form)
+    parts = [_prose(d["basis"])] if d.get("basis") else []
+    for b in _list(d.get("equi_blocks")):
+        cols = _list(_dict(b).get("C_columns"))
+        if cols:
+            # one column of C·V per eigenvalue; a column of m > 1 entries reads (a; b)
+            text = ", ".join(
+                filters.pretty_expr(_list(c)[0]) if len(_list(c)) == 1 else
+                "(" + "; ".join(filters.pretty_expr(e) for e in _list(c)) + ")" for c in cols)
+            parts.append(f"C·V on I = {filters.indices(_dict(b).get('indices'))}: [{text}]")
+    return "; ".join(parts)
 
 
 def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
@@ -393,10 +443,13 @@ def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
     flags = [{"label": label, "value": d.get(key)} for key, label in (
         ("diagonalizable", "A diagonalizable"), ("observable", "(A, C) observable"),
         ("detectable", "(A, C) detectable"), ("controllable_Q", "(A, Q^½) controllable"))]
-    rows = [row("analysis path", d.get("path"), note=str(d.get("path_reason") or ""))]
+    rows = [row("analysis path", d.get("path"), note=_prose(d.get("path_reason")))]
     if d.get("observability_index") is not None:
         rows.append(row("observability index I_o", d.get("observability_index"), "num",
-                        note="smallest k with rank [C; CA; …; CA^(k−1)] = n"))
+                        note="smallest k with rank [C; CA; …; CAᵏ⁻¹] = n"))
+    if isinstance(d.get("standard_form"), dict):
+        rows.append(row("standard form (eigenbasis V)", None,
+                        note=standard_form_note(d["standard_form"]) or filters.DASH))
     return {"available": isinstance(st, dict), "missing": _missing("structure analysis"),
             "eigenvalues": eigs, "equi_blocks": blocks, "pairs": pairs,
             "pairs_listed": isinstance(d.get("equal_modulus_pairs"), list),
@@ -410,13 +463,13 @@ def classification_view(rec: dict[str, Any]) -> dict[str, Any]:
     cv = _dict(rec.get("critical_value"))
     name, latex, why = theorem_for(cls if isinstance(cls, str) else None)
     return {"available": isinstance(cls, str) and bool(cls),
-            "missing": _missing("classification", cv.get("reason")),
+            "missing": _missing("classification", _prose(cv.get("reason")) or None),
             "name": cls, "theorem": name, "why": why, "general_latex": latex,
             "general_svg": _svg(mathsvg.latex_svg(latex, fontsize=12)),
             "instance_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=12,
                                     label=cv.get("expression")),
             "instance_expression": cv.get("expression"), "value": _num(cv.get("value")),
-            "reason": cv.get("reason"), "exact": cv.get("exact")}
+            "reason": _prose(cv.get("reason")) or None, "exact": cv.get("exact")}
 
 
 def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
@@ -441,7 +494,7 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
          "detail": "exact (decided symbolically)" if cvd.get("exact") else
          "numerical (bracket closed to the tolerance)" if cvd.get("exact") is False else "",
          "source": theorem_for(cls)[0],
-         "missing": "not computed: " + str(cvd.get("reason")) if cvd.get("reason")
+         "missing": "not computed: " + _prose(cvd.get("reason")) if cvd.get("reason")
          else "not computed"},
         {"symbol": "p_c,robust", "name": "robust critical value",
          "available": isinstance(rob, dict),
@@ -451,7 +504,7 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
          "missing": "not needed: the decision is exact and robust to perturbations"
          if cvd.get("exact") else "not computed"},
         {"symbol": "p_up", "name": "upper bound p_up", "available": isinstance(ub, dict),
-         "value": _num(ubd.get("value")), "expression": None,
+         "value": _num(ubd.get("value")), "expression": upper_expression(ubd),
          "detail": _upper_detail(ubd), "source": "Sinopoli et al., Theorem 5 (LMI)",
          "missing": "not computed"},
     ]
@@ -463,8 +516,9 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
                for m in _list(th.get("moment_thresholds"))]
     note = th.get("moment_thresholds_note")
     return {"rows": rows, "moments": moments,
-            "critical_reason": cvd.get("reason") if cvd.get("value") is not None else None,
-            "moments_note": str(note) if note else
+            "critical_reason": _prose(cvd.get("reason")) or None
+            if cvd.get("value") is not None else None,
+            "moments_note": _sentence(note) if note else
             "Mo–Sinopoli, Corollary 2: for non-degenerate systems whose eigenvalues are all "
             "unstable, the q-th moment is bounded iff p > 1 − |λ₁|^(−2q).",
             "static_gain": static_gain_view(rec),
@@ -500,6 +554,21 @@ def static_gain_view(rec: dict[str, Any]) -> dict[str, Any]:
                                 "no operating point: the system file has no channel")}
 
 
+def upper_expression(ub: dict[str, Any]) -> str | None:
+    """The exact form of p_up when the record has one: its own ``expression``, or, when p_up is
+    decided exactly (method ``exact``), the exact value of the theorem that pins it (the lower
+    evidence, e.g. p_up = p_low = 9/25 for invertible C)."""
+    own = _exact_text(ub.get("expression"))
+    if own:
+        return own
+    ev = _dict(ub.get("lower_evidence"))
+    value, ev_value = _num(ub.get("value")), _num(ev.get("value"))
+    if ub.get("method") == "exact" and ev.get("expression") and value is not None and \
+            ev_value is not None and abs(value - ev_value) <= 1e-12 * max(1.0, abs(value)):
+        return str(ev["expression"])
+    return None
+
+
 def _robust_detail(rob: dict[str, Any]) -> str:
     parts = []
     if _num(rob.get("tolerance")) is not None:
@@ -513,8 +582,13 @@ def _upper_detail(ub: dict[str, Any]) -> str:
     parts = []
     if ub.get("certified") is not None:
         parts.append("certified" if ub["certified"] else "not certified")
-    if isinstance(ub.get("interval"), list):
-        parts.append(f"p_up ∈ {filters.interval(ub['interval'], 10)}")
+    iv = ub.get("interval")
+    if isinstance(iv, list) and ub.get("method") == "exact":
+        ev = _dict(ub.get("lower_evidence"))
+        parts.append("decided exactly" + (f": {_prose(ev['statement'])}"
+                                          if ev.get("statement") else ""))
+    elif isinstance(iv, list):
+        parts.append(f"p_up ∈ {filters.interval(iv, 10)}")
     if ub.get("method"):
         parts.append(f"method: {ub['method']}")
     if ub.get("status") and ub.get("status") not in ("determined", "certified"):
@@ -531,7 +605,7 @@ def covariance_view(rec: dict[str, Any]) -> dict[str, Any]:
         x = _dict(x)
         return {"exists": x.get("exists"), "trace": _num(x.get("trace")),
                 "max_eig": _num(x.get("max_eig")), "residual": _num(x.get("residual")),
-                "method": x.get("method")}
+                "method": _prose(x.get("method")) or None}
 
     why = "no operating point: the system file has no channel section" \
         if rec.get("operating_point") is None else None
@@ -559,7 +633,7 @@ FIGURE_CAPTIONS = {
             "simulation horizon (the law of P_t converges weakly to the invariant distribution, "
             "Kar–Sinopoli–Moura, Theorem 9)."),
     "almost_sure": ("Almost-sure behaviour along one path",
-                    "Largest and smallest tr P_t over the dyadic blocks t ∈ [2^k, 2^(k+1)) of "
+                    "Largest and smallest tr P_t over the dyadic blocks t ∈ [2ᵏ, 2ᵏ⁺¹) of "
                     "one long simulated path at the operating p. Growing maxima show "
                     "limsup tr P_t = ∞ (upper a.s. unstable); bounded minima show "
                     "liminf tr P_t < ∞ (lower a.s. stable)."),
@@ -646,7 +720,7 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     v_tr = _num(_dict(cb.get("upper")).get("trace"))
     horizon = _dict(op.get("horizon"))
     if _last(mean) is not None:
-        band = (f"95 % band {filters.num(_last(lo), 5)} – {filters.num(_last(hi), 5)}"
+        band = (f"95 % band {filters.span(_last(lo), _last(hi), 5)}"
                 if _last(lo) is not None and _last(hi) is not None else "")
         bounds = (f"tr S̄ = {filters.num(s_tr, 5)}" if s_tr is not None else "") + \
             (f", tr V̄ = {filters.num(v_tr, 5)}" if v_tr is not None else
@@ -664,16 +738,13 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     pooled = _dict(_dict(erg.get("time_averages")).get("pooled_mean_trace"))
     if _num(pooled.get("mean")) is not None:
         rows.append(row("time average of tr P_t (one long path per replica)", pooled.get("mean"),
-                        "num", note=f"95 % interval {filters.num(_num(pooled.get('lower')), 5)} – "
-                        f"{filters.num(_num(pooled.get('upper')), 5)}; "
-                        f"{filters.count(erg.get('replicas'))} replicas × "
-                        f"{filters.count(erg.get('steps'))} steps, burn-in "
-                        f"{filters.count(erg.get('burn_in'))}"))
+                        "num", note=ergodic_note(erg, pooled)))
     div = _dict(op.get("divergence"))
     if div.get("diverged_paths") is not None:
         rows.append(row("diverged paths", div.get("diverged_paths"), "count",
                         note=f"of {filters.count(paths)} (tr P above "
-                        f"{filters.sci(_num(div.get('threshold')), 3)}; flagged, not averaged)"))
+                        f"{filters.sci(_num(div.get('threshold')), 3)}; "
+                        f"{divergence_text(div)})"))
     bursts = _dict(op.get("bursts"))
     if _num(bursts.get("mean_length")) is not None:
         rows.append(row("loss bursts", bursts.get("mean_length"), "num",
@@ -702,6 +773,68 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
             "tail_probability": tail_of(rec), "rows": rows}
 
 
+def divergence_text(div: dict[str, Any]) -> str:
+    """What happened to the paths that crossed the divergence threshold, as the record says.
+
+    Paths continued in scaled form (``continued``) keep true values; censored paths (held at
+    the threshold, the older rule) enter the means as the threshold, so the means are lower
+    bounds; ``mean_is_lower_bound`` (censoring or a path frozen after a numerical failure)
+    says so either way.
+    """
+    lower = bool(div.get("mean_is_lower_bound"))
+    if div.get("continued"):
+        text = "such paths are continued in scaled form, so the statistics are true values"
+        return text + ("; some paths were frozen after a numerical failure, so means are "
+                       "lower bounds" if lower else "")
+    if div.get("diverged_paths") or lower:
+        return "censored at the threshold; means are lower bounds"
+    return ("a diverged path would be censored at the threshold, making the means lower "
+            "bounds; none did")
+
+
+ERGODIC_MIN_REPLICAS = 10
+ERGODIC_MAX_SPREAD = 3.0
+
+
+def ergodic_unreliable(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
+    """Why the time-average interval cannot be trusted ("" when nothing is wrong with it).
+
+    tr P_t ≥ 0, so a 95 % interval reaching below zero, or replica means that differ by more
+    than a factor :data:`ERGODIC_MAX_SPREAD` with fewer than :data:`ERGODIC_MIN_REPLICAS`
+    replicas, mean the normal approximation behind it does not hold (few replicas, heavy tail).
+    """
+    reasons = []
+    lower = _num(pooled.get("lower"))
+    if lower is not None and lower < 0:
+        reasons.append("its normal approximation reached below 0 (clamped there: tr P ≥ 0)")
+    means = [v for v in _list(_dict(erg.get("time_averages")).get("replica_mean_trace"))
+             if _num(v) is not None and v > 0]
+    replicas = _num(erg.get("replicas"))
+    spread = max(means) / min(means) if len(means) >= 2 else None
+    if spread is not None and spread > ERGODIC_MAX_SPREAD and \
+            (replicas is None or replicas < ERGODIC_MIN_REPLICAS):
+        reasons.append(f"the {filters.count(replicas) if replicas else len(means)} replica means "
+                       f"range over {filters.num(min(means), 4)} – {filters.num(max(means), 4)} "
+                       "(a heavy tail)")
+    return "; ".join(reasons)
+
+
+def ergodic_note(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
+    """The time-average row's note: its 95 % interval clamped at 0, the replicas, and a caution
+    when the interval is unreliable (:func:`ergodic_unreliable`)."""
+    lower, upper = _num(pooled.get("lower")), _num(pooled.get("upper"))
+    if lower is not None:
+        lower = max(lower, 0.0)
+    note = (f"95 % interval {filters.span(lower, upper, 5)}; "
+            f"{filters.count(erg.get('replicas'))} replicas × "
+            f"{filters.count(erg.get('steps'))} steps, burn-in "
+            f"{filters.count(erg.get('burn_in'))}")
+    why = ergodic_unreliable(erg, pooled)
+    if why:
+        note += f". Interval unreliable: {why}; run more replicas (full mode) before using it"
+    return note
+
+
 def seeds_text(seeds: Any) -> str:
     """The simulation's seeds in words (a mapping of stream names to seeds or seed rules)."""
     if isinstance(seeds, dict):
@@ -728,14 +861,14 @@ def statements_view(rec: dict[str, Any]) -> dict[str, Any]:
     d = _dict(th)
     sb = d.get("stochastic_boundedness")
     asure = d.get("almost_sure")
-    sentences = [str(s) for s in asure] if isinstance(asure, list) else \
-        ([str(asure)] if isinstance(asure, str) and asure else [])
+    sentences = [_prose(s) for s in asure] if isinstance(asure, list) else \
+        ([_prose(asure)] if isinstance(asure, str) and asure else [])
     known = ("stochastic_boundedness", "almost_sure", "moment_thresholds",
              "moment_thresholds_note", "observability_index")
     return {"available": bool(sb) or bool(sentences),
             "missing": _missing("almost-sure and distributional statements"),
-            "stochastic_boundedness": [str(s) for s in sb] if isinstance(sb, list) else
-            ([str(sb)] if sb else []),
+            "stochastic_boundedness": [_prose(s) for s in sb] if isinstance(sb, list) else
+            ([_prose(sb)] if sb else []),
             "almost_sure": sentences,
             "extra": kv_rows(d, skip=known)}
 
@@ -772,15 +905,15 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
     maps = _dict(d.get("maps"))
     if maps:
         rows.append(row("Riccati maps", None, note="; ".join(
-            f"{filters.key_label(k)}: {v}" for k, v in maps.items())))
+            f"{filters.key_label(k)}: {_prose(v)}" for k, v in maps.items())))
     lim, lim_expr = _value_expr(d.get("arrival_limit"))
     if lim is not None:
         rows.append(row("limit f₁(∞) of the arrival map", lim, "num",
                         note=f"= {filters.pretty_expr(lim_expr)}" if lim_expr else ""))
     ss = _dict(d.get("self_similarity"))
     if ss.get("statement"):
-        rows.append(row("self-similarity", ss.get("statement"),
-                        note=str(ss.get("pieces") or "")))
+        rows.append(row("self-similarity", _prose(ss.get("statement")),
+                        note=_prose(ss.get("pieces"))))
     sp = d.get("support_points")
     if isinstance(sp, dict) and sp.get("count") is not None:
         rows.append(row("support points computed", sp.get("count"), "count",
@@ -793,7 +926,7 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
     return {"applies": n == 1, "available": isinstance(inv, dict),
             "missing": _missing("invariant distribution support"),
             "exact_gaps": exact[:10], "gaps": gaps[:10], "more_gaps": max(0, len(gaps) - 10),
-            "rows": rows, "note": str(d.get("note") or ""),
+            "rows": rows, "note": _sentence(d.get("note")),
             "extra": kv_rows({k: v for k, v in d.items() if not _is_series(v)}, skip=skip)}
 
 
@@ -876,10 +1009,29 @@ def link_budget_view(lb: dict[str, Any]) -> dict[str, Any]:
                   for t in _list(lb.get("thresholds"))]
     radio = _dict(lb.get("radio"))
     return {"chain": chain, "design": design, "thresholds": thresholds,
-            "radio": radio.get("model"), "radio_formula": radio.get("formula"),
-            "radio_source": radio.get("source"), "policy_rule": policy.get("rule"),
-            "notes": [str(n) for n in _list(lb.get("notes"))],
-            "warnings": [str(w) for w in _list(lb.get("warnings"))]}
+            "radio": radio.get("model"), "radio_formula": _prose(radio.get("formula")) or None,
+            "radio_svg": radio_formula_svg(radio),
+            "radio_source": radio.get("source"), "policy_rule": _prose(policy.get("rule")),
+            "notes": [_prose(n) for n in _list(lb.get("notes"))],
+            "warnings": [_prose(w) for w in _list(lb.get("warnings"))]}
+
+
+# Typeset forms of the radio models' BER formulas (the record carries them as ASCII text).
+RADIO_LATEX = {
+    "ieee802154-oqpsk-2450": (r"\mathrm{BER} = \frac{8}{15}\cdot\frac{1}{16}\sum_{k=2}^{16}"
+                              r"(-1)^k \binom{16}{k}\,"
+                              r"\exp\left(20\,\mathrm{SINR}\,\left(\frac{1}{k} - 1\right)\right)"),
+    "bpsk": (r"\mathrm{BER} = Q\left(\sqrt{2E_b/N_0}\right) = "
+             r"\frac{1}{2}\,\mathrm{erfc}\left(\sqrt{E_b/N_0}\right),\quad "
+             r"E_b/N_0 = \mathrm{SINR}\cdot 10^{G/10}"),
+}
+
+
+def radio_formula_svg(radio: dict[str, Any]) -> Markup | None:
+    """The radio model's BER formula typeset as SVG (``None``: shown as text instead)."""
+    latex = RADIO_LATEX.get(str(radio.get("model")))
+    return _svg(mathsvg.latex_svg(latex, fontsize=10.5, label=str(radio.get("formula") or "")
+                                  or None)) if latex and radio.get("formula") else None
 
 
 def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
@@ -893,9 +1045,9 @@ def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
             "prob"),
         row("mean loss-burst length 1/r", lb.get("mean_burst_length"), "num", note="packets"),
         row("spectral radius ρ(A) = a", lb.get("spectral_radius"), "num"),
-        row(f"burst condition {filters.pretty_expr(cond.get('expression'))}", cond.get("value"),
+        row(f"burst condition {filters.pretty_text(cond.get('expression'))}", cond.get("value"),
             "num", note=("holds" if cond.get("holds") else "fails" if cond.get("holds") is False
-                         else "not decided") + (f"; {cond.get('status')}"
+                         else "not decided") + (f"; {_prose(cond.get('status'))}"
                                                 if cond.get("status") else ""),
             status=cond.get("holds")),
         row("required recovery rate 1 − 1/a²", lb.get("required_recovery_rate"), "prob",
@@ -914,7 +1066,7 @@ def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
     else:
         rows.append(row("simulation of the bursty channel", None,
                         note="not run: the dedicated simulation covers scalar systems only"))
-    claims = [{"statement": str(_dict(c).get("statement") or ""),
+    claims = [{"statement": _prose(_dict(c).get("statement")),
                "source": str(_dict(c).get("source") or ""),
                "status": str(_dict(c).get("status") or "")} for c in _list(lb.get("claims"))]
     return {"rows": rows, "claims": claims}
@@ -975,6 +1127,19 @@ def _solver_text(solver: Any) -> str:
 
 
 _EXP_FLOAT = re.compile(r"-?\d+\.\d+e[-+]?\d+")
+_ZERO_FLOAT = re.compile(r"(?<![\w.])-?0\.0+(?![\w.])")
+# Check names of the record reworded where their words mislead (diverged paths are censored at
+# the threshold and enter the means, which are then lower bounds: nothing is left out).
+CHECK_WORDING = {"divergence flagged, not propagated":
+                 "diverged paths censored at the threshold, means then lower bounds"}
+
+
+def check_name(name: Any) -> str:
+    """A verification check's name for the appendix (Unicode mathematics, truthful wording)."""
+    text = str(name or "")
+    for old, new in CHECK_WORDING.items():
+        text = text.replace(old, new)
+    return _prose(text)
 
 
 def _detail_text(detail: Any) -> str:
@@ -983,7 +1148,8 @@ def _detail_text(detail: Any) -> str:
     if detail is None:
         return ""
     out = filters.text(detail).replace("None", filters.DASH)
-    return _EXP_FLOAT.sub(lambda m: filters.sci(float(m.group(0)), 3), out)
+    out = _EXP_FLOAT.sub(lambda m: filters.sci(float(m.group(0)), 3), out)
+    return _prose(_ZERO_FLOAT.sub("0", out))
 
 
 def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
@@ -995,13 +1161,13 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
     prov = _dict(rec.get("provenance"))
     sim = _dict(rec.get("simulation"))
     st = _dict(rec.get("structure"))
-    recorded = [{"name": str(_dict(c).get("check") or ""), "status": _dict(c).get("passed"),
+    recorded = [{"name": check_name(_dict(c).get("check")), "status": _dict(c).get("passed"),
                  "none_means": "not applicable",
                  "detail": _detail_text(_dict(c).get("detail"))}
                 for c in _list(rec.get("verification"))]
     derived = [
         {"name": "critical value decided exactly", "status": cv.get("exact"),
-         "none_means": "not computed", "detail": cv.get("reason") or ""},
+         "none_means": "not computed", "detail": _prose(cv.get("reason"))},
         {"name": "upper bound certificate re-checked", "status": ub.get("certified"),
          "none_means": "not computed",
          "detail": _detail_text(_dict(ub.get("certificate")).get("verified_by")
@@ -1042,17 +1208,36 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
     versions = dict(_dict(prov.get("versions")))
     if versions.get("kfcrit") != __version__:
         versions["kfcrit (report)"] = __version__
+    versions.update({name: v for name, v in report_versions().items()
+                     if name not in versions and name.lower() not in versions})
     options = [row(OPTION_LABELS.get(k, (filters.key_label(k), "text"))[0], v,
                    OPTION_LABELS.get(k, ("", "text"))[1],
                    note="default for the mode" if v is None and k in ("paths", "steps") else "")
                for k, v in opts.items()]
     return {"checks": checks, "tolerances": tolerances,
-            "upper_warnings": [str(w) for w in _list(ub.get("warnings"))],
+            "upper_warnings": [_prose(w) for w in _list(ub.get("warnings"))],
             "versions": [row(str(k), v if v is not None else "not installed")
                          for k, v in versions.items()],
             "seeds": seeds_text(seeds),
             "sha256": prov.get("input_sha256"), "input_path": prov.get("input_path"),
             "options": options}
+
+
+REPORT_PACKAGES = ("weasyprint", "PyYAML", "numba", "mpmath")
+
+
+def report_versions() -> dict[str, str | None]:
+    """Versions of the packages behind the report and the analysis that the record's
+    provenance may not list (``None``: not installed), read from the installed metadata."""
+    from importlib import metadata
+
+    out: dict[str, str | None] = {}
+    for name in REPORT_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
 
 
 def view_model(record: dict[str, Any], figures: dict[str, str | None]) -> dict[str, Any]:
@@ -1074,7 +1259,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None]) -> dict[s
                  "quick": bool(_dict(prov.get("options")).get("quick")),
                  "input_path": prov.get("input_path"), "version": __version__},
         "verdict": verdict_view(rec),
-        "warnings": [str(w) for w in _list(rec.get("warnings"))],
+        "warnings": [_prose(w) for w in _list(rec.get("warnings"))],
         "system": system_view(rec),
         "structure": structure_view(rec),
         "classification": classification_view(rec),

@@ -180,7 +180,8 @@ def test_signed_interval_yesno_pct():
 
 def test_pretty_expr_and_indices():
     assert filters.pretty_expr("1 - 2**(-3)") == "1 − 2^−3"
-    assert filters.pretty_expr("-sqrt(3)") == "−√(3)"
+    assert filters.pretty_expr("-sqrt(3)") == "−√3"
+    assert filters.pretty_expr("77/64 + sqrt(16169)/64") == "77/64 + √16169/64"
     assert filters.pretty_expr(None) == "—"
     assert filters.indices([0, 1]) == "{1, 2}"
     assert filters.verdict_label("mean-stable") == "MEAN STABLE"
@@ -574,8 +575,19 @@ def test_cli_report_pdf_and_unknown_extension(tmp_path):
                           "--quick"], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert run.returncode in (0, 3), run.stderr
     assert out.read_bytes().startswith(b"%PDF") and run.stdout == ""
-    _, text = pdf_text(out.read_bytes())
+    pages, text = pdf_text(out.read_bytes())
     assert "Verdict" in text and "critical value" in text
+    # What a reviewer reads in the printed example: the verdict and p_c = 9/25 = 0.36.
+    flat = " ".join(text.split())
+    assert "MEAN STABLE" in flat and "0.36" in flat and "9/25" in flat
+    # --quick: the draft mark is on every page (an @page margin box), not only on page 1.
+    import io
+
+    import pypdf
+
+    reader = pypdf.PdfReader(io.BytesIO(out.read_bytes()))
+    assert pages >= 2
+    assert all("DRAFT" in page.extract_text() for page in reader.pages)
     bad = subprocess.run([sys.executable, "-m", "kfcrit", "report", str(src), "-o",
                           str(tmp_path / "r.txt")], capture_output=True, text=True, cwd=ROOT,
                          timeout=120)
@@ -751,3 +763,155 @@ def test_phase_window_starts_where_the_bounds_exist() -> None:
     # nothing finite at all: fall back to the whole grid
     left, right = phase_window(p, [nan] * 7, None, {})
     assert (left, right) == (0.0, 1.0)
+
+
+# ----------------------------------------------------------------------------- audit regressions
+
+def test_num_and_sci_share_the_scientific_style():
+    assert filters.num(160480.0, 5) == "1.6048 × 10⁵"
+    assert filters.num(2.5e-5, 3) == "2.5 × 10⁻⁵"
+    assert filters.num(12345.6) == "12345.6" and filters.num(0.000123, 3) == "0.000123"
+    assert filters.num(0.0) == "0" and filters.sci(0.0) == "0" and filters.sci(0) == "0"
+    assert filters.sci(4.26e-16) == "4.26 × 10⁻¹⁶" and filters.sci(5e5) == "5 × 10⁵"
+    assert filters.span(87308.2, 112890.0, 5) == "8.7308 × 10⁴ – 1.1289 × 10⁵"
+    assert "e+" not in filters.num(1e12) and "e-" not in filters.num(1e-12)
+
+
+def test_pretty_text_unicode_notation():
+    t = filters.pretty_text
+    assert t("|1 + sqrt(3)*I| = |1 - sqrt(3)*I| = 2") == "|1 + i√3| = |1 − i√3| = 2"
+    assert t("entries in QQ(sqrt(3))") == "entries in ℚ(√3)"
+    assert t("f0(X) = 2*X + 1; f1(X) = 2*X/(X + 1) + 1") == "f₀(X) = 2X + 1; f₁(X) = 2X/(X + 1) + 1"
+    assert t("S_n = 2*S_(n-1) + 1") == "Sₙ = 2Sₙ₋₁ + 1"
+    assert t("supp(mu) within [f0^n(P*), f0^n(f1(inf))]") == "supp(μ) within [f₀ⁿ(P*), f₀ⁿ(f₁(∞))]"
+    assert t("none: p <= p_up (Thm 3)") == "none: p ≤ p_up (Thm 3)"
+    assert t("(>= −5 required)") == "(≥ −5 required)"
+    assert t("(1 - r) a^2 < 1") == "(1 − r) a² < 1"
+    assert t("max(margin_db, sigma * Phi^-1(1 - max_outage))") == \
+        "max(margin_db, σ·Φ⁻¹(1 − max_outage))"
+    # prose survives: hyphenated names, identifiers, the *-mixing property
+    assert t("Kar-Sinopoli-Moura; *-mixing; p_low") == "Kar-Sinopoli-Moura; *-mixing; p_low"
+    assert t("threshold tr P > 3.19e+10 (diverged)") == "threshold tr P > 3.19 × 10¹⁰ (diverged)"
+    assert t(None) == ""
+
+
+def _with_operating_sim(rec: dict, **op) -> dict:
+    rec["simulation"]["operating_point"].update(op)
+    return rec
+
+
+def test_diverged_paths_are_described_as_censored_lower_bounds():
+    rec = _with_operating_sim(fixture_record(), paths=400, steps=200,
+                              divergence={"threshold": 1e10, "diverged_paths": 3,
+                                          "mean_is_lower_bound": True})
+    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
+    note = rows["diverged paths"]["note"]
+    assert "censored at the threshold; means are lower bounds" in note
+    assert "not averaged" not in note and "flagged" not in note
+    # the newer rule: paths continued in scaled form keep true values (no lower-bound claim)
+    rec["simulation"]["operating_point"]["divergence"].update(continued=True,
+                                                               mean_is_lower_bound=False)
+    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
+    assert "true values" in rows["diverged paths"]["note"]
+    assert "lower bounds" not in rows["diverged paths"]["note"]
+    rec["verification"] = [{"check": "simulation: all statistics finite (divergence flagged, "
+                                     "not propagated)", "passed": True, "detail": "0 of 1"}]
+    names = [c["name"] for c in report.appendix_view(rec)["checks"]]
+    assert not any("flagged" in n for n in names)
+    assert any("censored" in n for n in names)
+
+
+def test_cdf_points_keep_the_tail_and_the_maximum():
+    import numpy as np
+
+    from kfcrit.montecarlo import SimulationResult
+
+    def result(traces, threshold=1e10):
+        res = object.__new__(SimulationResult)      # cdf_points reads these two fields only
+        object.__setattr__(res, "horizon_traces", np.asarray(traces, dtype=float))
+        object.__setattr__(res, "divergence_threshold", threshold)
+        return res
+
+    rng = np.random.default_rng(0)
+    x = np.concatenate([rng.uniform(3, 15, 997), [25.0, 40.0, 90.0]])   # 3 paths above M = 20
+    cdf = result(x).cdf_points()
+    assert len(cdf["trace"]) == x.size                       # N ≤ 2000: the exact ECDF
+    assert max(cdf["trace"]) == 90.0 and cdf["probability"][-1] == 1.0
+    above = [f for v, f in zip(cdf["trace"], cdf["probability"]) if v > 20]
+    assert len(above) == 3
+    big = np.concatenate([rng.uniform(3, 15, 49_990), np.linspace(21, 500, 10)])
+    cdf = result(big).cdf_points()
+    assert len(cdf["trace"]) < 2000 and max(cdf["trace"]) == 500.0
+    assert sum(v > 20 for v in cdf["trace"]) == 10            # every exceeding path is drawn
+    assert cdf["trace"] == sorted(cdf["trace"])
+    censored = result([1.0, 2.0, 1e10, 1e10], threshold=1e10).cdf_points()
+    assert censored["trace"] == [1.0, 2.0] and censored["probability"] == [0.25, 0.5]
+
+
+def test_cdf_figure_reaches_past_the_limit():
+    rec = fixture_record()
+    rec["simulation"]["operating_point"]["cdf"] = {"x": [2.0, 3.0, 4.0, 30.0],
+                                                   "F": [0.25, 0.5, 0.75, 1.0]}
+    assert figures.cdf_svg(rec) is not None
+    left, right = figures.cdf_window(rec["simulation"]["operating_point"]["cdf"]["x"], 10.0)
+    assert left < 2.0 and right > 30.0
+    left, right = figures.cdf_window([2.0, 3.0, 4.0], 10.0)   # no path beyond: still past M
+    assert right > 10.0
+
+
+def test_time_average_interval_clamped_and_flagged():
+    erg = {"replicas": 4, "steps": 10_000, "burn_in": 1_000,
+           "time_averages": {"pooled_mean_trace": {"mean": 17643.0, "lower": -4760.7,
+                                                   "upper": 40048.0},
+                             "replica_mean_trace": [210.0, 1248.0, 196.0, 68000.0]}}
+    rec = _with_operating_sim(fixture_record(), ergodic=erg)
+    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
+    note = rows["time average of tr P_t (one long path per replica)"]["note"]
+    assert "95 % interval 0 – 40048" in note and "−4760" not in note and "-4760" not in note
+    assert "unreliable" in note
+    erg["time_averages"] = {"pooled_mean_trace": {"mean": 5.1, "lower": 4.9, "upper": 5.3},
+                            "replica_mean_trace": [5.04, 4.98, 5.3, 5.09]}
+    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
+    assert "unreliable" not in rows["time average of tr P_t (one long path per replica)"]["note"]
+
+
+def test_verdict_legend_without_channel_gives_the_reason():
+    rec = fixture_record()
+    rec["operating_point"] = None
+    html = report.render_html(rec, {})
+    legend = html.split('class="legend"')[1].split("</p>")[0]
+    assert "no operating point" in legend and "bracket" not in legend
+    rec = fixture_record()
+    rec["operating_point"].update(verdict="undetermined", bracket=[0.875, 0.9375])
+    assert "bracket" in report.verdict_view(rec)["legend"]
+    assert report.verdict_view(fixture_record())["legend"] == ""
+
+
+def test_exact_upper_bound_shows_its_expression():
+    rec = fixture_record()
+    rec["upper_bound"] = {"value": 0.36000000000000004, "interval": [0.36, 0.36000000000000004],
+                          "certified": True, "status": "determined", "method": "exact",
+                          "lower_evidence": {"kind": "theorem", "value": 0.36,
+                                             "expression": "9/25",
+                                             "statement": "p_up = p_low exactly (C invertible)"}}
+    row = {r["symbol"]: r for r in report.bounds_view(rec)["rows"]}["p_up"]
+    assert row["expression"] == "9/25" and "decided exactly" in row["detail"]
+
+
+def test_versions_list_report_dependencies():
+    names = [r["label"] for r in report.appendix_view(fixture_record())["versions"]]
+    for name in ("weasyprint", "PyYAML", "numba", "mpmath"):
+        assert name in names
+
+
+def test_notes_end_with_full_stops():
+    rec = fixture_record()
+    rec["theory"]["moment_thresholds_note"] = "applies when all eigenvalues are all unstable"
+    assert report.bounds_view(rec)["moments_note"].endswith("unstable.")
+    rec["operating_point"]["note"] = "the verdict follows the basis stated"
+    assert report.verdict_view(rec)["note"].endswith("stated.")
+
+
+def test_plain_log_tick_labels():
+    assert figures._plain_label(0.6) == "0.6" and figures._plain_label(20.0) == "20"
+    assert "e" not in figures._plain_label(0.002)
