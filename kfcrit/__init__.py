@@ -11,17 +11,18 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-from .analysis import Analysis, AnalysisOptions, analyze  # noqa: E402
 from .errors import ExitCode, KfcritError  # noqa: E402
-from .system import System  # noqa: E402
-from .systemfile import SystemSpec, load_spec, load_system  # noqa: E402
 
-_LAZY = {"critical_value": "critical", "upper_bound": "upper", "simulate": "montecarlo",
-         "covariance_bounds": "bounds"}
+# Everything else is imported on first use: ``kfcrit --help``, input errors and signals
+# answer at once instead of after the ~1 s import of sympy, numpy and scipy.
+_LAZY = {"Analysis": "analysis", "AnalysisOptions": "analysis", "analyze": "analysis",
+         "System": "system", "SystemSpec": "systemfile", "load_spec": "systemfile",
+         "load_system": "systemfile", "critical_value": "critical", "upper_bound": "upper",
+         "simulate": "montecarlo", "covariance_bounds": "bounds"}
 
 
 def __getattr__(name: str) -> Any:
-    """Import :func:`critical_value`, :func:`upper_bound`, :func:`simulate` on first use."""
+    """Import the public API (:func:`analyze`, :class:`System`, …) on first use."""
     if name in _LAZY:
         import importlib
 

@@ -323,12 +323,17 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str])
             "trace_upper": [None] * len(grid), "markers": markers,
             "warnings": [f"V̄ {NOT_DETECTABLE}"]}
         return
-    if markers["operating"] is not None:
-        cb = bounds.covariance_bounds(s, markers["operating"])
-        sec["covariance_bounds"] = cb
-        warnings.extend(cb.get("warnings") or [])
-        sec["static_gain"] = bounds.static_gain(s, markers["operating"])
-    pt = bounds.phase_transition(s, markers)
+    try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
+        if markers["operating"] is not None:
+            cb = bounds.covariance_bounds(s, markers["operating"])
+            sec["covariance_bounds"] = cb
+            warnings.extend(cb.get("warnings") or [])
+            sec["static_gain"] = bounds.static_gain(s, markers["operating"])
+        pt = bounds.phase_transition(s, markers)
+    except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
+        warnings.append("covariance bounds and phase transition not computed: numerical "
+                        f"failure ({type(exc).__name__}: {str(exc)[:120]})")
+        return
     sec["phase_transition"] = pt
     if (pt.get("limits") or {}).get("stopped"):
         warnings.append(f"phase-transition curve incomplete: {pt['limits']['stopped']}")
@@ -339,6 +344,7 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     from . import invariant
 
     sec["invariant"] = invariant.invariant_section(spec.system)
+    warnings.extend((sec["invariant"] or {}).get("warnings") or [])
     if not opts.simulate:
         sec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
         return

@@ -266,7 +266,10 @@ class Trace(Channel):
     """A measured 0/1 arrival sequence read from a text file (whitespace/commas separate values).
 
     The file path is relative to the system file. The stationary arrival probability is the
-    empirical frequency of ones.
+    empirical frequency of ones. The simulations read it cyclically, each path from its own
+    start: the path's 64-bit stream key modulo the trace length (path i of ``simulate``: the
+    key of ``SeedSequence(seed, spawn_key=(0, i))``; ergodic replica j: ``(2, j)``), so a path's
+    arrivals depend on (seed, i) only, never on how many paths are run.
     """
 
     path: str
@@ -313,16 +316,9 @@ class Trace(Channel):
 
 def read_trace(path: Path, field: str) -> np.ndarray:
     """Read a 0/1 packet trace; anything but 0 and 1 separated by spaces/commas is an error."""
-    try:
-        size = path.stat().st_size
-    except OSError:
-        raise InputError(f"cannot read trace file {str(path)[:80]!r}", field=field) from None
-    if size > MAX_TRACE_BYTES:
-        raise InputError(f"trace file larger than {MAX_TRACE_BYTES} bytes", field=field)
-    try:
-        text = path.read_bytes().decode("ascii")
-    except (OSError, UnicodeDecodeError):
-        raise InputError("trace file must be ASCII text of 0 and 1 values", field=field) from None
+    from .safeio import read_text  # a regular file only, at most MAX_TRACE_BYTES, UTF-8
+
+    text, _ = read_text(path, field=field, max_bytes=MAX_TRACE_BYTES, what="trace file")
     tokens = text.replace(",", " ").split()
     bad = next((i for i, t in enumerate(tokens) if t not in ("0", "1")), None)
     if bad is not None:  # the offending text is not echoed: the file may not be a trace at all

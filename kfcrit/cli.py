@@ -53,7 +53,7 @@ def interrupted_exit() -> None:
             stream.flush()
         except (OSError, ValueError):
             pass
-    os._exit(130)
+    os._exit(ExitCode.INTERRUPTED)
 
 
 def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -76,7 +76,8 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
             if exc.filename is None:  # not about a path the user gave: a bug
                 if debug:
                     traceback.print_exc()
-                fail(f"internal error (OSError: {exc}); rerun with --debug for the traceback", 4)
+                fail(f"internal error (OSError: {str(exc)[:200]}); rerun with --debug for the "
+                     "traceback", ExitCode.INTERNAL)
             if debug:
                 traceback.print_exc()
             fail(f"{str(exc.filename)[:120]!r}: {exc.strerror or exc}", ExitCode.BAD_INPUT)
@@ -85,8 +86,8 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
         except Exception as exc:  # noqa: BLE001 - last-resort guard, one line for the user
             if debug:
                 traceback.print_exc()
-            fail(f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for the "
-                 "traceback", 4)
+            fail(f"internal error ({type(exc).__name__}: {str(exc)[:200]}); rerun with --debug "
+                 "for the traceback", ExitCode.INTERNAL)
 
     return wrapper
 
@@ -105,6 +106,7 @@ class KfcritGroup(click.Group):
              **extra: Any) -> Any:
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        install_sigterm_handler()  # first: a SIGTERM from here on exits 130 with one line
         try:
             rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         except click.exceptions.NoArgsIsHelpError as exc:  # bare ``kfcrit``: the help text
@@ -238,11 +240,18 @@ def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: in
 @click.option("--json", "as_json", is_flag=True, help="Print the simulation summary as JSON.")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="Write a figure of the simulated traces (SVG or PNG).")
+@click.option("--ergodic-steps", type=click.IntRange(1, 100_000_000), default=None,
+              help="Also average along 4 long paths of N steps (Kar et al. Prop. 25): time "
+                   "mean of tr P, tail probabilities, loss bursts, almost-sure indicators.")
+@click.option("--tail", "tail", type=float, multiple=True, metavar="M",
+              help="Tail probability P(tr P > M) by time average (repeatable; implies "
+                   "--ergodic-steps max(10*steps, 10000) unless given).")
 @max_states_option
 @debug_option
 @handle_errors
 def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
-             plot: str | None, max_states: int, debug: bool) -> None:
+             plot: str | None, ergodic_steps: int | None, tail: tuple[float, ...],
+             max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
     from .atomic import check_writable
     from .montecarlo import simulate_command
@@ -250,7 +259,8 @@ def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
     if plot is not None:
         check_writable(plot)
     sys.exit(simulate_command(system_file, paths=paths, steps=steps, seed=seed, as_json=as_json,
-                              plot=plot, max_states=max_states))
+                              plot=plot, max_states=max_states, ergodic_steps=ergodic_steps,
+                              tail=tail))
 
 
 SWEEP_EXAMPLES = """\b

@@ -19,6 +19,10 @@ class ExitCode(IntEnum):
     """Bad usage or a bad input file."""
     INCONCLUSIVE = 3
     """A numerical method was inconclusive (solver failure, undetermined result)."""
+    INTERNAL = 4
+    """An internal error (a bug): one line asking to rerun with ``--debug`` and report it."""
+    INTERRUPTED = 130
+    """Interrupted by SIGINT or SIGTERM (128 + SIGINT, the shell's convention for Ctrl-C)."""
 
 
 class KfcritError(Exception):

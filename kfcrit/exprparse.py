@@ -59,9 +59,36 @@ _FUNCTIONS = {
     "log": sp.log,
 }
 _NAMES = {"pi": sp.pi, "E": sp.E, "e": sp.E}
-_DESCRIPTIONS = {"Attribute": "attribute access", "Subscript": "indexing", "Lambda": "lambda",
-                 "ListComp": "a comprehension", "GeneratorExp": "a comprehension",
-                 "Compare": "a comparison", "IfExp": "a conditional"}
+_DESCRIPTIONS = {
+    "Attribute": "attribute access (x.y) is not allowed",
+    "Subscript": "indexing (x[i]) is not allowed",
+    "Slice": "slices are not allowed",
+    "Lambda": "lambda functions are not allowed",
+    "ListComp": "comprehensions are not allowed",
+    "SetComp": "comprehensions are not allowed",
+    "DictComp": "comprehensions are not allowed",
+    "GeneratorExp": "comprehensions are not allowed",
+    "Compare": "comparisons are not allowed",
+    "BoolOp": "'and' and 'or' are not allowed",
+    "IfExp": "conditional expressions (x if c else y) are not allowed",
+    "JoinedStr": "f-strings are not allowed",
+    "FormattedValue": "f-strings are not allowed",
+    "NamedExpr": "assignment expressions (:=) are not allowed",
+    "Starred": "starred arguments (*x) are not allowed",
+    "List": "lists are not allowed",
+    "Tuple": "tuples (commas) are not allowed",
+    "Set": "sets are not allowed",
+    "Dict": "dictionaries are not allowed",
+    "Await": "'await' is not allowed",
+    "Yield": "'yield' is not allowed",
+    "YieldFrom": "'yield' is not allowed",
+    "UnaryOp": "only the unary operators + and - are allowed",
+}
+"""Plain-words messages for syntax outside the grammar (never a Python AST class name)."""
+_NOT_ALLOWED = ("this syntax is not allowed (only numbers, + - * / ** ^, parentheses, pi, E and "
+                "sqrt, cos, sin, tan, exp, log)")
+_OPERATORS = {"Mod": "%", "FloorDiv": "//", "MatMult": "@", "LShift": "<<", "RShift": ">>",
+              "BitOr": "|", "BitAnd": "&", "BitXor": "^"}
 _NUMBER_TEXT = re.compile(r"^[+-]?(\d[\d_]*)?(\.\d*)?([eE][+-]?\d+)?$")
 
 
@@ -337,8 +364,7 @@ class _Walker:
             return self.binop(node, depth)
         if isinstance(node, ast.Call):
             return self.call(node, depth)
-        kind = type(node).__name__
-        raise self.fail(f"{_DESCRIPTIONS.get(kind, kind)} is not allowed")
+        raise self.fail(_DESCRIPTIONS.get(type(node).__name__, _NOT_ALLOWED))
 
     def constant(self, node: ast.Constant) -> sp.Expr:
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
@@ -365,7 +391,9 @@ class _Walker:
         elif isinstance(op, ast.Pow):
             out = self.power(left, right)
         else:
-            raise self.fail(f"operator {type(op).__name__} is not allowed")
+            symbol = _OPERATORS.get(type(op).__name__)
+            raise self.fail(f"the operator {symbol} is not allowed" if symbol else
+                            "only the operators + - * / ** ^ are allowed")
         self.check_size(out)
         return out
 

@@ -25,13 +25,41 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .errors import InputError
+from .errors import ExpressionError, InputError
+from .exprparse import compare
 from .system import System
 
 MAX_DEPTH = 20
 """Largest word length for the numeric support points (2^(depth+1) − 1 compositions)."""
 GAP_LEVELS = 5
 HOLE_DEPTH = 3
+UNDECIDED_GAP = ("cannot decide whether f1(inf) < f0(P*) (the two agree to more digits than the "
+                 "certified comparison evaluates): the holes of the support are not reported")
+OVERFLOW = ("the support of the invariant law reaches beyond the float64 range (about 1.8e308): "
+            "values there are shown exactly only, numeric points beyond it are left out")
+
+
+def gap_is_open(lo: sp.Expr, hi: sp.Expr) -> bool | None:
+    """Whether ``lo < hi`` (f_1(∞) < f_0(P*): the first hole G_0 exists), certified.
+
+    Decided by :func:`kfcrit.exprparse.compare` (exact for rationals, otherwise evalf with
+    certain digits, never ``bool`` of a sympy relational); None when undecidable (the values
+    agree beyond the working precision and are not provably equal).
+    """
+    try:
+        return compare(hi, lo) > 0
+    except ExpressionError:
+        return None
+
+
+def _finite(x: Any) -> float | None:
+    """A float view of an exact value, None beyond the float64 range."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            v = float(x)
+        except (OverflowError, TypeError, ValueError):
+            return None
+    return v if np.isfinite(v) else None
 
 
 @dataclass(frozen=True)
@@ -55,16 +83,19 @@ class ScalarMaps:
                    system.R[0, 0])
 
     def f0(self, X: Any) -> Any:
-        """Loss map a² X + q (sympy or float)."""
-        return self.a2 * X + self.q if isinstance(X, sp.Basic) else \
-            float(self.a2) * X + float(self.q)
+        """Loss map a² X + q (sympy or float; floats beyond the range become inf, silently)."""
+        if isinstance(X, sp.Basic):
+            return self.a2 * X + self.q
+        with np.errstate(over="ignore", invalid="ignore"):
+            return float(self.a2) * X + float(self.q)
 
     def f1(self, X: Any) -> Any:
         """Arrival map a² r X / (c² X + r) + q (sympy or float)."""
         if isinstance(X, sp.Basic):
             return sp.radsimp(self.a2 * self.r * X / (self.c2 * X + self.r) + self.q)
         a2, c2, q, r = (float(v) for v in (self.a2, self.c2, self.q, self.r))
-        return a2 * r * X / (c2 * X + r) + q
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return a2 * r * X / (c2 * X + r) + q
 
     def f1_limit(self) -> sp.Expr:
         """f_1(∞) = a² r / c² + q."""
@@ -86,6 +117,10 @@ class SupportPoints:
     points: np.ndarray = field(repr=False)
     holes: tuple[tuple[float, float], ...] = ()
     first_gap: tuple[sp.Expr, sp.Expr] | None = None
+    gap_decided: bool = True
+    """False when whether G_0 exists could not be decided (no holes are then reported)."""
+    overflow: bool = False
+    """True when some support points lie beyond the float64 range (they are left out)."""
 
     def largest_gaps(self, count: int = 8, upto: float | None = None) -> list[tuple[float, float]]:
         """The ``count`` widest intervals between consecutive support points ≤ ``upto``.
@@ -114,8 +149,10 @@ def support_points(system: System, depth: int) -> SupportPoints:
     Returns
     -------
     SupportPoints
-        ``points`` (unique, sorted floats), ``holes`` f_w(G_0) for |w| < min(depth, 3)
-        (empty when f_1(∞) ≥ f_0(P*), i.e. the images overlap), ``first_gap`` G_0 exactly.
+        ``points`` (unique, sorted, finite floats), ``holes`` f_w(G_0) for |w| < min(depth, 3)
+        (empty when f_1(∞) ≥ f_0(P*), i.e. the images overlap, or when that is undecidable:
+        ``gap_decided`` False), ``first_gap`` G_0 exactly; ``overflow`` when points beyond the
+        float64 range were left out.
     """
     if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_DEPTH:
         raise InputError(f"must be an integer in [0, {MAX_DEPTH}]", field="depth")
@@ -127,11 +164,11 @@ def support_points(system: System, depth: int) -> SupportPoints:
         level = np.unique(np.concatenate([maps.f0(level), maps.f1(level)]))
         allpts.append(level)
     points = np.unique(np.concatenate(allpts))
+    finite = np.isfinite(points)
+    overflow = not bool(finite.all())
+    points = points[finite]
     lo, hi = maps.f1_limit(), maps.f0(pstar)
-    try:
-        below = bool(lo < hi)
-    except TypeError:               # a sympy relation it cannot decide: compare the values
-        below = float(lo) < float(hi)
+    below = gap_is_open(lo, hi)
     first = (lo, hi) if below else None
     holes: list[tuple[float, float]] = []
     if first is not None:
@@ -141,19 +178,26 @@ def support_points(system: System, depth: int) -> SupportPoints:
             words = [(float(f(np.array(a))), float(f(np.array(b)))) for a, b in words
                      for f in (maps.f0, maps.f1)]
             holes.extend(words)
+    kept = [h for h in holes if np.isfinite(h[0]) and np.isfinite(h[1])]
+    overflow = overflow or len(kept) < len(holes)
     return SupportPoints(depth=depth, fixed_point=pstar, points=points,
-                         holes=tuple(sorted(holes)), first_gap=first)
+                         holes=tuple(sorted(kept)), first_gap=first,
+                         gap_decided=below is not None, overflow=overflow)
 
 
 def gap_levels(system: System, levels: int = GAP_LEVELS) -> list[dict[str, Any]]:
-    """The holes G_n = (f_0^n(f_1(∞)), f_0^{n+1}(P*)), n = 0 … levels−1, exactly."""
+    """The holes G_n = (f_0^n(f_1(∞)), f_0^{n+1}(P*)), n = 0 … levels−1, exactly.
+
+    Empty when G_0 does not exist or when that cannot be decided (:func:`gap_is_open`); an
+    end beyond the float64 range has ``lower``/``upper`` None (its expression is exact).
+    """
     maps = ScalarMaps.of(system)
     lo, hi = maps.f1_limit(), maps.f0(maps.fixed_point())
-    if not bool(lo < hi):
+    if not gap_is_open(lo, hi):
         return []
     out = []
     for n in range(levels):
-        out.append({"n": n, "lower": float(lo), "upper": float(hi),
+        out.append({"n": n, "lower": _finite(lo), "upper": _finite(hi),
                     "lower_expression": sp.sstr(sp.nsimplify(lo) if lo.is_Rational else lo),
                     "upper_expression": sp.sstr(hi), "lower_exact": lo, "upper_exact": hi})
         lo, hi = sp.expand(maps.f0(lo)), sp.expand(maps.f0(hi))
@@ -167,7 +211,9 @@ def invariant_section(system: System) -> dict[str, Any] | None:
     {value, expression}, ``first_gap`` {lower, upper, lower_expression, upper_expression,
     width} | None, ``gap_levels`` [{n, lower, upper, lower_expression, upper_expression}],
     ``self_similarity`` {scale, offset, statement}, ``support_points`` {depth, count, min,
-    largest_gaps}, ``holes``, ``note``.
+    largest_gaps}, ``holes``, ``note``, and ``warnings`` (only when there are some: values
+    beyond the float64 range, an undecidable first hole). Numbers beyond the float64 range are
+    None (their expressions stay exact); nothing here prints a NumPy warning.
     """
     if system.n != 1 or system.m != 1 or system.C[0, 0] == 0:
         return None
@@ -180,28 +226,41 @@ def invariant_section(system: System) -> dict[str, Any] | None:
     gap = None
     if sup.first_gap is not None:
         lo, hi = sup.first_gap
-        gap = {"lower": float(lo), "upper": float(hi), "lower_expression": sp.sstr(lo),
-               "upper_expression": sp.sstr(hi), "width": float(hi - lo)}
-    window = float(maps.f0(maps.f0(limit)))  # the pieces S_0, S_1, S_2
+        gap = {"lower": _finite(lo), "upper": _finite(hi), "lower_expression": sp.sstr(lo),
+               "upper_expression": sp.sstr(hi), "width": _finite(hi - lo)}
+    window = _finite(maps.f0(maps.f0(limit)))  # the pieces S_0, S_1, S_2
     levels = [{k: v for k, v in g.items() if not k.endswith("_exact")}
-              for g in gap_levels(system)]
-    return {
-        "fixed_point": {"value": float(pstar), "expression": sp.sstr(pstar)},
+              for g in gap_levels(system)] if sup.gap_decided else []
+    exact_values = (pstar, limit, *(sup.first_gap or ()))
+    overflow = sup.overflow or window is None or any(_finite(v) is None for v in exact_values) \
+        or any(g["lower"] is None or g["upper"] is None for g in levels)
+    warnings = [f"invariant support: {OVERFLOW}"] if overflow else []
+    if not sup.gap_decided:
+        warnings.append(f"invariant support: {UNDECIDED_GAP}")
+    if gap is not None:
+        note = ("support of the invariant law (Kar-Sinopoli-Moura Thm 10): independent of p; "
+                "the holes carry no mass for every 0 < p < 1")
+    elif not sup.gap_decided:
+        note = UNDECIDED_GAP
+    else:
+        note = "the images of f0 and f1 overlap (r/c^2 >= P*): no first-level hole"
+    out = {
+        "fixed_point": {"value": _finite(pstar), "expression": sp.sstr(pstar)},
         "maps": {"loss": f"f0(X) = {sp.sstr(a2 * X + q)}",
                  "arrival": f"f1(X) = {sp.sstr(a2 * r * X / (c2 * X + r) + q)}"},
-        "arrival_limit": {"value": float(limit), "expression": sp.sstr(limit)},
+        "arrival_limit": {"value": _finite(limit), "expression": sp.sstr(limit)},
         "first_gap": gap,
         "gap_levels": levels,
-        "self_similarity": {"scale": float(a2), "offset": float(q),
+        "self_similarity": {"scale": _finite(a2), "offset": _finite(q),
                             "statement": f"S_n = {sp.sstr(a2)}*S_(n-1) + {sp.sstr(q)}",
                             "pieces": "S_n = supp(mu) within [f0^n(P*), f0^n(f1(inf))]"},
         "support_points": {"depth": sup.depth, "count": int(sup.points.size),
-                           "min": float(sup.points[0]),
-                           "window": [float(pstar), window],
+                           "min": float(sup.points[0]) if sup.points.size else None,
+                           "window": [_finite(pstar), window],
                            "largest_gaps": [list(g) for g in sup.largest_gaps(upto=window)]},
         "holes": [list(h) for h in sup.holes],
-        "note": ("support of the invariant law (Kar-Sinopoli-Moura Thm 10): independent of p; "
-                 "the holes carry no mass for every 0 < p < 1"
-                 if gap is not None else
-                 "the images of f0 and f1 overlap (r/c^2 >= P*): no first-level hole"),
+        "note": note,
     }
+    if warnings:  # also copied into the record's warnings by the analysis
+        out["warnings"] = warnings
+    return out

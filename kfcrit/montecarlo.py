@@ -17,10 +17,14 @@ Numerics. The arrival step is written in Joseph form, f_1(X) = F X F' + (AK) R (
 AK = A X C' S^{-1}, S = C X C' + R, F = A − AK C, which equals φ(K_X, X) (Sinopoli Lemma 1(a)):
 a sum of positive semidefinite terms, so the update preserves PSD up to rounding of each term;
 only the upper triangle is computed and mirrored, so every iterate is exactly symmetric.
-Invariant: a path whose trace exceeds ``divergence_threshold`` (default 1e10 × the problem's
-scale, where float64 still carries ~6 significant digits of the Riccati update) is stopped,
-counted as diverged, and enters every later statistic censored at the threshold; the record says
-so (``mean_is_lower_bound``) — never a silent inf or NaN.
+Divergence: a path whose trace crosses ``divergence_threshold`` (finite; default 1e10 × the
+problem's scale) is counted as diverged but not stopped: it continues in the scaled form
+P = e^ℓ X, tr X = 1, with f_0: A X A' + e^{−ℓ}Q and f_1: the Riccati map with e^{−ℓ}Q, e^{−ℓ}R
+(renormalised every step), so every statistic is a true value — a diverged path that comes back
+down after arrivals is followed back down. Means over values beyond float64 come from log-sum-exp
+sums and are reported as log10 (``log10_*``); never a silent inf or NaN. Only blocks holding a
+scaled lane take the scaled branch of the kernel, so the non-divergent hot path is unchanged.
+The long ergodic paths still stop at the threshold (their time averages end there).
 """
 from __future__ import annotations
 
@@ -54,6 +58,8 @@ MAX_TRACE_VALUES = 250_000_000
 LANES = 256
 """Paths advanced together by the kernel (the SIMD axis)."""
 _KIND_CODE = {"iid": 0, "markov": 1, "sequence": 2}
+PROGRESS_WORK = 4_000_000
+"""Lane-steps × n² per kernel call when progress is reported (a call then takes ~0.05 s)."""
 
 
 
@@ -233,8 +239,15 @@ def arrival_sequence(key: np.uint64, kind: int, p: float, f: float, r: float, se
 
 
 @njit(cache=True, error_model="numpy")
-def _riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T):
+def _riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld):
     """out[:, :, b] = f_{γ_b}(X[:, :, b]) for the lanes b < W (γ_b = g[b] ∈ {0.0, 1.0}).
+
+    With ``scaled`` the noise of lane b is multiplied by ``cs[b]`` (Q → c Q, R → c R: the map
+    of the scaled form P = e^ℓ X, c = e^{−ℓ}) and S = C X C' + c R is loaded on its diagonal by
+    ``ld[b]`` · (S_kk + 1e-288) (a relative 1e-12 for scaled lanes, which keeps the Cholesky
+    pivots positive when X is nearly singular; Joseph form: a slightly sub-optimal gain changes
+    P only to second order). Lanes with cs = 1, ld = 0 give bit-identical results to the
+    unscaled branch (multiplications by 1.0 and additions of 0.0 are exact).
 
     Lanes (paths) are the innermost, contiguous axis, so every loop over b is a SIMD loop and
     the matrix loops are paid once per block of paths. One formula serves losses and arrivals:
@@ -255,12 +268,20 @@ def _riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T):
     for k in range(m):
         for l in range(k + 1):
             r = R[k, l]
-            for b in range(W):
-                L[k, l, b] = r
+            if scaled:
+                for b in range(W):
+                    L[k, l, b] = r * cs[b]
+            else:
+                for b in range(W):
+                    L[k, l, b] = r
             for j in range(n):
                 c = C[k, j]
                 for b in range(W):
                     L[k, l, b] += c * XC[j, l, b]
+    if scaled:
+        for k in range(m):
+            for b in range(W):
+                L[k, k, b] += ld[b] * (L[k, k, b] + 1e-288)
     for k in range(m):
         for l in range(k):
             for b in range(W):
@@ -311,6 +332,9 @@ def _riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T):
                 r = R[l, k]
                 for b in range(W):
                     T[i, k, b] += AK[i, l, b] * r
+            if scaled:
+                for b in range(W):
+                    T[i, k, b] *= cs[b]
     for i in range(n):
         for j in range(n):
             for b in range(W):
@@ -321,8 +345,12 @@ def _riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T):
     for i in range(n):
         for j in range(i, n):
             q = Q[i, j]
-            for b in range(W):
-                out[i, j, b] = q
+            if scaled:
+                for b in range(W):
+                    out[i, j, b] = q * cs[b]
+            else:
+                for b in range(W):
+                    out[i, j, b] = q
             for k in range(n):
                 for b in range(W):
                     out[i, j, b] += FX[i, k, b] * F[j, k, b]
@@ -428,16 +456,77 @@ def _set_lane(X: np.ndarray, b: int, P0: np.ndarray) -> float:
     return tr
 
 
+LOAD = 1e-12
+"""Relative diagonal loading of S = C X C' + c R for lanes in scaled form (see _riccati_lanes)."""
+LOG_SAFE = 345.0
+"""ln of ~1e150: above it, means and variances of a sample column come from log-sum-exp sums."""
+
+
+@njit(cache=True)
+def _lane_scale(X: np.ndarray, b: int, s: float) -> None:
+    """X[:, :, b] *= s."""
+    n = X.shape[0]
+    for i in range(n):
+        for j in range(n):
+            X[i, j, b] *= s
+
+
+@njit(cache=True)
+def _lane_trace(X: np.ndarray, b: int) -> float:
+    s = 0.0
+    for i in range(X.shape[0]):
+        s += X[i, i, b]
+    return s
+
+
 @njit(cache=True, error_model="numpy")
-def _rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, sample_t, threshold,
-               want_lmax, lanes, out_tr, out_lm, out_div, out_final, traces):
-    """Advance the paths of a batch for ``steps`` steps; record tr P and λ_max at sample times.
+def _scaled_step(A, C, Q, R, P, b, g, log_scale, ws, out):
+    """One step of lane b of ``P`` (tr P_b = e^``log_scale`` · tr X) in scaled form, into ``out``.
+
+    ``ws`` is a one-lane workspace. Returns the new log scale ℓ' (tr of the new X is 1), or NaN
+    when the step is not finite (a numerical failure).
+    """
+    n = A.shape[0]
+    X1, Y1, F1, FX1, XC1, L1, AK1, T1, g1, c1, d1 = ws
+    tr = _lane_trace(P, b)
+    if not (tr > 0.0 and tr < math.inf):
+        return math.nan
+    for i in range(n):
+        for j in range(n):
+            X1[i, j, 0] = P[i, j, b] / tr
+    ell = log_scale + math.log(tr)
+    g1[0] = g
+    c1[0] = math.exp(-ell)
+    d1[0] = LOAD
+    _riccati_lanes(A, C, Q, R, X1, g1, 1, Y1, F1, FX1, XC1, L1, AK1, T1, True, c1, d1)
+    s = _lane_trace(Y1, 0)
+    if not (s > 0.0 and s < math.inf):
+        return math.nan
+    for i in range(n):
+        for j in range(n):
+            out[i, j, b] = Y1[i, j, 0] / s
+    return ell + math.log(s)
+
+
+@njit(cache=True, error_model="numpy")
+def _rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_t, threshold,
+               want_lmax, lanes, Xall, lg_all, sc_all, state_all, ch_all, out_tr, out_ltr,
+               out_lm, out_llm, out_div, out_fail, traces):
+    """Advance the paths of a batch from step ``t0`` to ``t1``; record tr P, λ_max at sample times.
 
     Paths run in blocks of ``lanes`` lanes (see :func:`_riccati_lanes`); a path's arithmetic
-    does not depend on its block, so results do not depend on ``lanes`` or the batch. ``traces``
-    has shape (k, steps + 1): the full traces of the first k paths of the batch (k may be 0).
-    A path whose trace exceeds ``threshold`` (or is NaN) stops; its later values are censored at
-    the threshold and ``out_div`` holds the time it crossed (−1 if never).
+    does not depend on its block, so results do not depend on ``lanes``, the batch or the
+    chunking in time. The state of every path (X, log scale, scaled flag, random and channel
+    state) is kept in ``Xall`` (n×n×B), ``lg_all``, ``sc_all``, ``state_all``, ``ch_all``
+    between calls (``t0 = 0`` initialises it). ``traces`` (k, steps + 1): full traces of the first
+    k paths (k may be 0); ``out_ltr``/``out_llm`` hold natural logs.
+
+    Divergence: when tr P crosses ``threshold`` the path is *not* stopped; ``out_div`` records
+    the first crossing time (−1 if never) and the path continues in the scaled form
+    P = e^ℓ X, tr X = 1 (f_γ(P) = e^ℓ f_γ^{(e^{−ℓ}Q, e^{−ℓ}R)}(X), then renormalised), so its
+    values stay true values whatever their size; it returns to the plain form when tr P falls
+    back below the threshold. A non-finite step (even in scaled form) is a numerical failure:
+    ``out_fail`` records its time and the path keeps its last finite value from then on.
     """
     n = A.shape[0]
     m = C.shape[0]
@@ -445,74 +534,175 @@ def _rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, sample_
     n_samples = sample_t.shape[0]
     n_traced = traces.shape[0]
     X, Y, F, FX, XC, L, AK, T = _workspace(n, m, lanes)
+    ws = _workspace(n, m, 1) + (np.zeros(1), np.ones(1), np.zeros(1))
     g = np.zeros(lanes)
     state = np.empty(lanes, dtype=np.uint64)
     ch = np.empty(lanes, dtype=np.int64)
     trn = np.empty(lanes)
     lm = np.empty(lanes)
+    lg = np.zeros(lanes)
+    sc = np.zeros(lanes, dtype=np.int64)
+    cs = np.ones(lanes)
+    ld = np.zeros(lanes)
     v1, v2, v3, v4, v5 = (np.empty(lanes), np.empty(lanes), np.empty(lanes), np.empty(lanes),
                           np.empty(lanes))
+    lthr = math.log(threshold)
+    si0 = 0
+    while si0 < n_samples and sample_t[si0] <= t0:
+        si0 += 1
     for start in range(0, B, lanes):
         W = min(lanes, B - start)
-        for b in range(W):
-            state[b] = keys[start + b]
-            ch[b] = _channel_start(kind, f, r, seq.shape[0], offsets[start + b], state, b)
-            trn[b] = _set_lane(X, b, P0)
-            out_div[start + b] = -1
-            if start + b < n_traced:
-                traces[start + b, 0] = trn[b]
-        si = 0
-        if sample_t[0] == 0:
-            if want_lmax:
-                _lambda_max_lanes(X, W, lm, FX, v1, v2, v3, v4, v5)
+        nsc = 0
+        if t0 == 0:
             for b in range(W):
-                out_tr[start + b, 0] = trn[b]
-                out_lm[start + b, 0] = lm[b] if want_lmax else 0.0
-            si = 1
-        for t in range(steps):
+                state[b] = keys[start + b]
+                ch[b] = _channel_start(kind, f, r, seq.shape[0], offsets[start + b], state, b)
+                trn[b] = _set_lane(X, b, P0)
+                lg[b] = 0.0
+                sc[b] = 0
+                out_div[start + b] = -1
+                out_fail[start + b] = -1
+                if start + b < n_traced:
+                    traces[start + b, 0] = trn[b]
+            if sample_t[0] == 0:
+                if want_lmax:
+                    _lambda_max_lanes(X, W, lm, FX, v1, v2, v3, v4, v5)
+                for b in range(W):
+                    out_tr[start + b, 0] = trn[b]
+                    out_ltr[start + b, 0] = math.log(trn[b]) if trn[b] > 0.0 else -math.inf
+                    if want_lmax:
+                        out_lm[start + b, 0] = lm[b]
+                        out_llm[start + b, 0] = math.log(lm[b]) if lm[b] > 0.0 else -math.inf
+        else:
+            for b in range(W):
+                state[b] = state_all[start + b]
+                ch[b] = ch_all[start + b]
+                lg[b] = lg_all[start + b]
+                sc[b] = sc_all[start + b]
+                for i in range(n):
+                    for j in range(n):
+                        X[i, j, b] = Xall[i, j, start + b]
+                trn[b] = _lane_trace(X, b)
+        for b in range(W):
+            cs[b] = math.exp(-lg[b]) if sc[b] else 1.0
+            ld[b] = LOAD if sc[b] else 0.0
+            nsc += sc[b]
+        si = si0
+        for t in range(t0, t1):
             if kind == 0:  # i.i.d.: a branch-free loop the compiler vectorises
                 for b in range(W):
                     g[b] = 1.0 if _next_uniform(state, b) < p else 0.0
             else:
                 for b in range(W):
                     g[b] = 1.0 if _channel_next(kind, p, f, r, seq, ch, state, b) else 0.0
-            _riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T)
-            X, Y = Y, X
+            _riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T, nsc > 0, cs, ld)
+            X, Y = Y, X  # Y now holds the previous state (needed by a rescue step)
             for b in range(W):
                 trn[b] = 0.0
             for i in range(n):
                 for b in range(W):
                     trn[b] += X[i, i, b]
-            crossed = False
-            for b in range(W):
-                crossed |= not trn[b] <= threshold  # also catches NaN
-            if crossed:
+            fix = nsc > 0
+            if not fix:
                 for b in range(W):
-                    if out_div[start + b] < 0 and not trn[b] <= threshold:
-                        out_div[start + b] = t + 1
-                        for k in range(si, n_samples):
-                            out_tr[start + b, k] = threshold
-                            out_lm[start + b, k] = threshold
-                        if start + b < n_traced:
-                            for k in range(t + 1, steps + 1):
-                                traces[start + b, k] = threshold
-                    if not trn[b] <= threshold:
-                        _set_lane(X, b, P0)  # keep the lane finite; it is no longer used
-                        trn[b] = threshold
+                    fix |= not trn[b] <= threshold  # also catches NaN
+            if fix:
+                for b in range(W):
+                    s = trn[b]
+                    if sc[b] == 0 and s <= threshold:
+                        continue
+                    if sc[b] == 1 and s > 0.0 and s < math.inf:
+                        ell = lg[b] + math.log(s)
+                        _lane_scale(X, b, 1.0 / s)
+                    elif sc[b] == 0 and s > threshold and s < math.inf:
+                        ell = math.log(s)
+                        _lane_scale(X, b, 1.0 / s)
+                    else:  # overflow or NaN: redo the step from the previous state, scaled
+                        ell = _scaled_step(A, C, Q, R, Y, b, g[b], lg[b] if sc[b] else 0.0,
+                                           ws, X)
+                        if not ell == ell:  # a numerical failure: keep the last finite value
+                            if out_fail[start + b] < 0:
+                                out_fail[start + b] = t + 1
+                            for i in range(n):
+                                for j in range(n):
+                                    X[i, j, b] = Y[i, j, b]
+                            ell = lg[b] + math.log(_lane_trace(X, b)) if sc[b] else \
+                                math.log(_lane_trace(X, b))
+                            if not sc[b]:  # back to its plain value
+                                trn[b] = _lane_trace(X, b)
+                                continue
+                            _lane_scale(X, b, 1.0 / _lane_trace(X, b))
+                    if ell > lthr:
+                        if out_div[start + b] < 0:
+                            out_div[start + b] = t + 1
+                        if sc[b] == 0:
+                            sc[b] = 1
+                            nsc += 1
+                            ld[b] = LOAD
+                        lg[b] = ell
+                        cs[b] = math.exp(-ell)
+                        trn[b] = math.exp(ell)  # inf when it overflows: logs are recorded too
+                    else:  # back below the threshold: the plain form again
+                        _lane_scale(X, b, math.exp(ell) / _lane_trace(X, b))
+                        if sc[b] == 1:
+                            sc[b] = 0
+                            nsc -= 1
+                        lg[b] = 0.0
+                        cs[b] = 1.0
+                        ld[b] = 0.0
+                        trn[b] = _lane_trace(X, b)
             if start < n_traced:
                 for b in range(min(W, n_traced - start)):
-                    if out_div[start + b] < 0:
-                        traces[start + b, t + 1] = trn[b]
+                    traces[start + b, t + 1] = trn[b]
             if si < n_samples and sample_t[si] == t + 1:
                 if want_lmax:
                     _lambda_max_lanes(X, W, lm, FX, v1, v2, v3, v4, v5)
                 for b in range(W):
-                    if out_div[start + b] < 0:
+                    if sc[b]:
                         out_tr[start + b, si] = trn[b]
-                        out_lm[start + b, si] = lm[b] if want_lmax else 0.0
+                        out_ltr[start + b, si] = lg[b]
+                        if want_lmax:
+                            out_lm[start + b, si] = lm[b] * trn[b]
+                            out_llm[start + b, si] = math.log(lm[b]) + lg[b]
+                    else:
+                        out_tr[start + b, si] = trn[b]
+                        out_ltr[start + b, si] = (math.log(trn[b]) if trn[b] > 0.0
+                                                  else -math.inf)
+                        if want_lmax:
+                            out_lm[start + b, si] = lm[b]
+                            out_llm[start + b, si] = (math.log(lm[b]) if lm[b] > 0.0
+                                                      else -math.inf)
                 si += 1
         for b in range(W):
-            out_final[start + b] = trn[b] if out_div[start + b] < 0 else threshold
+            state_all[start + b] = state[b]
+            ch_all[start + b] = ch[b]
+            lg_all[start + b] = lg[b]
+            sc_all[start + b] = sc[b]
+            for i in range(n):
+                for j in range(n):
+                    Xall[i, j, start + b] = X[i, j, b]
+
+
+@njit(cache=True)
+def _accumulate_log(lvalues, lmax, s1, s2):
+    """Streaming log-sum-exp per column: Σ e^{x − M} and Σ e^{2(x − M)}, M the running max.
+
+    Rows in order (bit-identical for any batch size); −inf entries (a zero trace) add nothing.
+    """
+    for b in range(lvalues.shape[0]):
+        for s in range(lvalues.shape[1]):
+            x = lvalues[b, s]
+            if x == -math.inf:
+                continue
+            if x > lmax[s]:
+                if lmax[s] > -math.inf:
+                    e = math.exp(lmax[s] - x)
+                    s1[s] *= e
+                    s2[s] *= e * e
+                lmax[s] = x
+            d = math.exp(x - lmax[s])
+            s1[s] += d
+            s2[s] += d * d
 
 
 @njit(cache=True)
@@ -529,7 +719,7 @@ def _accumulate(values, count, mean, m2):
 
 
 @njit(cache=True, error_model="numpy")
-def _ergodic_paths(A, C, Q, R, P0, keys, kind, p, f, r, seq, steps, burn_in, levels,
+def _ergodic_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, burn_in, levels,
                    max_burst, n_batches, threshold, sums, exceed, batch_sums, burst_count,
                    burst_trace, block_max, block_min, div, losses, longest):
     """Long independent paths (one per lane): time sums, loss bursts, dyadic block extremes.
@@ -553,7 +743,7 @@ def _ergodic_paths(A, C, Q, R, P0, keys, kind, p, f, r, seq, steps, burn_in, lev
     span = max(steps - burn_in, 1)
     for b in range(W):
         state[b] = keys[b]
-        ch[b] = _channel_start(kind, f, r, seq.shape[0], 0, state, b)
+        ch[b] = _channel_start(kind, f, r, seq.shape[0], offsets[b], state, b)
         tr[b] = _set_lane(X, b, P0)
         div[b] = -1
     for t in range(steps):
@@ -571,7 +761,7 @@ def _ergodic_paths(A, C, Q, R, P0, keys, kind, p, f, r, seq, steps, burn_in, lev
                     run[b] += 1
                     losses[b] += 1
                     longest[b] = max(longest[b], run[b])
-        _riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T)
+        _riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T, False, g, g)
         X, Y = Y, X
         k = int(math.log2(t + 1))
         for b in range(W):
@@ -645,9 +835,13 @@ def _json_array(a: np.ndarray) -> list:
 class SimulationResult:
     """Result of :func:`simulate`: curves at sample times, the horizon distribution, flags.
 
-    ``mean_trace`` etc. are indexed like ``times`` (the sample times, 0 … steps). Values of paths
-    that diverged are censored at ``divergence_threshold`` (``diverged_fraction`` per time); then
-    the means are lower bounds (``mean_is_lower_bound``).
+    ``mean_trace`` etc. are indexed like ``times`` (the sample times, 0 … steps). A path that
+    crosses ``divergence_threshold`` is counted as diverged (``divergence_times``, the fraction
+    ``diverged_fraction`` that has crossed by each time, ``above_threshold_fraction`` that is
+    above it at that time) and continued in scaled form, so every statistic is a true value.
+    Values beyond float64 are ``inf`` in the plain arrays and finite in the ``log10_*`` ones
+    (the record then gives None and the log10). Only a path frozen after a numerical failure
+    (``failure_times``) makes later statistics approximate (``mean_is_lower_bound``).
     """
 
     system_name: str
@@ -671,36 +865,93 @@ class SimulationResult:
     full_state: FullStateResult | None = None
     runtime_seconds: float = 0.0
     warnings: tuple[str, ...] = ()
+    log10_mean_trace: np.ndarray | None = field(repr=False, default=None)
+    log10_std_trace: np.ndarray | None = field(repr=False, default=None)
+    log10_mean_lambda_max: np.ndarray | None = field(repr=False, default=None)
+    log10_std_lambda_max: np.ndarray | None = field(repr=False, default=None)
+    horizon_log10_traces: np.ndarray | None = field(repr=False, default=None)
+    above_threshold_fraction: np.ndarray | None = field(repr=False, default=None)
+    failure_times: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
     @property
     def diverged_paths(self) -> int:
-        """Number of paths stopped at the divergence threshold."""
+        """Number of paths that crossed the divergence threshold (they were continued)."""
         return int(np.count_nonzero(self.divergence_times >= 0))
 
     @property
+    def failed_paths(self) -> int:
+        """Number of paths frozen after a non-finite step (normally 0)."""
+        return int(np.count_nonzero(self.failure_times >= 0))
+
+    @property
     def mean_is_lower_bound(self) -> bool:
-        """True when some path was censored (means are then lower bounds)."""
-        return self.diverged_paths > 0
+        """True only when some path was frozen after a numerical failure.
+
+        Paths that crossed the divergence threshold are continued in scaled form (their values
+        are true values), so crossing alone never makes the means bounds.
+        """
+        return self.failed_paths > 0
+
+    def _log10(self, which: str) -> tuple[np.ndarray, np.ndarray]:
+        mean = self.mean_trace if which == "trace" else self.mean_lambda_max
+        std = self.std_trace if which == "trace" else self.std_lambda_max
+        lm = self.log10_mean_trace if which == "trace" else self.log10_mean_lambda_max
+        ls = self.log10_std_trace if which == "trace" else self.log10_std_lambda_max
+        with quiet_numerics():
+            return (np.log10(mean) if lm is None else lm), (np.log10(std) if ls is None else ls)
 
     def band(self, which: str = "trace") -> tuple[np.ndarray, np.ndarray]:
         """95 % normal confidence band of the mean: mean ± 1.96 · sd / √paths, clipped at 0.
 
         (tr P and λ_max are non-negative, so is their mean.) Near p_c the variance may be
-        infinite and the band is then only indicative.
+        infinite and the band is then only indicative. Ends beyond float64 are inf (see
+        :meth:`log10_band`).
         """
         mean = self.mean_trace if which == "trace" else self.mean_lambda_max
         std = self.std_trace if which == "trace" else self.std_lambda_max
         half = Z95 * std / math.sqrt(max(self.paths, 1))
-        return np.maximum(mean - half, 0.0), mean + half
+        with quiet_numerics():
+            lo, hi = np.maximum(mean - half, 0.0), mean + half
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(half))):
+            llo, lhi = self.log10_band(which)
+            with quiet_numerics():
+                bad = ~np.isfinite(lo) | ~np.isfinite(hi)
+                lo = np.where(bad, 10.0 ** llo, lo)
+                hi = np.where(bad, 10.0 ** lhi, hi)
+        return lo, hi
+
+    def log10_band(self, which: str = "trace") -> tuple[np.ndarray, np.ndarray]:
+        """log10 of the band ends (−inf where the lower end is 0), finite where the mean
+        overflows float64."""
+        lm, ls = self._log10(which)
+        lh = ls + math.log10(Z95 / math.sqrt(max(self.paths, 1)))
+        with quiet_numerics():
+            d = lh - lm                                  # log10(half / mean)
+            hi = lm + np.log10(1.0 + 10.0 ** np.minimum(d, 300.0))
+            hi = np.where(d > 300.0, lh, hi)
+            lo = np.where(d < 0, lm + np.log10(np.maximum(-np.expm1(d * LN10), 0.0)), -np.inf)
+        return lo, hi
 
     def horizon_quantiles(self, levels: tuple[float, ...] = QUANTILE_LEVELS) -> list[float | None]:
-        """Quantiles of tr P_steps; None where the quantile falls among censored paths."""
+        """Quantiles of tr P_steps (true values; None where beyond float64: see
+        :meth:`horizon_log10_quantiles`)."""
         x = np.sort(self.horizon_traces)
         out: list[float | None] = []
         for q in levels:
             v = float(np.quantile(x, q, method="inverted_cdf"))
-            out.append(None if v >= self.divergence_threshold else v)
+            out.append(v if math.isfinite(v) else None)
         return out
+
+    def horizon_log10_quantiles(self, levels: tuple[float, ...] = QUANTILE_LEVELS
+                                ) -> list[float | None]:
+        """log10 of the quantiles of tr P_steps (finite even where tr P overflows float64)."""
+        x = self.horizon_log10_traces
+        if x is None:
+            with quiet_numerics():
+                x = np.log10(self.horizon_traces)
+        x = np.sort(x)
+        return [_finite_or_none(float(np.quantile(x, q, method="inverted_cdf")))
+                for q in levels]
 
     def exceedance(self, level: float) -> dict[str, Any]:
         """P(tr P_steps > level) with a 95 % Wilson interval."""
@@ -708,28 +959,49 @@ class SimulationResult:
         return {"level": float(level), **_proportion(k, self.paths)}
 
     def cdf_points(self, points: int = DEFAULT_SAMPLES) -> dict[str, list]:
-        """The empirical CDF of tr P at the horizon, down-sampled: x_k = quantile(u_k)."""
+        """The empirical CDF of tr P at the horizon: points (x_(k), k/N) of the sorted traces.
+
+        Up to ``max(points, 2000)`` paths it is the exact ECDF (every order statistic). Beyond,
+        ``points`` evenly spaced ranks plus ranks spaced geometrically from both ends, so the
+        minimum, the maximum and the tails (where a requirement's limit sits) keep their
+        resolution. Paths at or above the divergence threshold (or not finite) are left out of
+        the points: the curve then ends below 1, as they lie beyond every x drawn.
+        """
         x = np.sort(self.horizon_traces)
-        u = (np.arange(1, points + 1) - 0.5) / points if x.size > points else \
-            (np.arange(1, x.size + 1) - 0.5) / x.size
-        xs = np.quantile(x, u, method="inverted_cdf")
+        n = x.size
+        if n == 0:
+            return {"trace": [], "probability": []}
+        if n <= max(points, 2000):
+            ranks = np.arange(n)
+        else:
+            geo = np.unique(np.round(np.geomspace(1, n, 2 * points)).astype(np.int64)) - 1
+            ranks = np.unique(np.concatenate([
+                np.round(np.linspace(0, n - 1, points)).astype(np.int64), geo, n - 1 - geo]))
+        xs, u = x[ranks], (ranks + 1) / n
         keep = xs < self.divergence_threshold
         return {"trace": xs[keep].tolist(), "probability": u[keep].tolist()}
 
     def to_dict(self) -> dict[str, Any]:
         lo, hi = self.band("trace")
+        llm, lls = self._log10("trace")
+        llo, lhi = self.log10_band("trace")
         out: dict[str, Any] = {
             "system": self.system_name, "n": self.n, "m": self.m, "paths": self.paths,
             "steps": self.steps, "seed": self.seed, "channel": self.channel,
             "arrival_probability": self.arrival_probability,
             "times": self.times.tolist(),
-            "mean_trace": {"mean": self.mean_trace.tolist(), "lower": lo.tolist(),
-                           "upper": hi.tolist(), "std": self.std_trace.tolist(),
-                           "confidence": 0.95},
+            "mean_trace": {"mean": _json_array(self.mean_trace), "lower": _json_array(lo),
+                           "upper": _json_array(hi), "std": _json_array(self.std_trace),
+                           "confidence": 0.95,
+                           "overflow": bool(not np.all(np.isfinite(self.mean_trace))),
+                           "log10_mean": _json_array(llm), "log10_lower": _json_array(llo),
+                           "log10_upper": _json_array(lhi), "log10_std": _json_array(lls)},
             "mean_lambda_max": None,
             "horizon": {"time": self.steps, "levels": list(QUANTILE_LEVELS),
                         "quantiles": self.horizon_quantiles(),
-                        "mean": float(self.horizon_traces.mean()),
+                        "log10_quantiles": self.horizon_log10_quantiles(),
+                        "mean": _finite_or_none(float(self.mean_trace[-1])),
+                        "log10_mean": _finite_or_none(float(llm[-1])),
                         "cdf": self.cdf_points()},
             "divergence": {"threshold": _finite_or_none(self.divergence_threshold),
                            "diverged_paths": self.diverged_paths,
@@ -737,17 +1009,27 @@ class SimulationResult:
                                self.divergence_times >= 0].min())
                                if self.diverged_paths else None),
                            "diverged_fraction": self.diverged_fraction.tolist(),
+                           "above_threshold_fraction": (
+                               None if self.above_threshold_fraction is None
+                               else self.above_threshold_fraction.tolist()),
+                           "continued": True,
+                           "note": ("diverged = crossed the threshold at least once; such "
+                                    "paths are continued in scaled form P = e^l X, so the "
+                                    "statistics are true values"),
+                           "failed_paths": self.failed_paths,
                            "mean_is_lower_bound": self.mean_is_lower_bound},
-            "traces": None if self.traces is None else self.traces.tolist(),
+            "traces": None if self.traces is None else _json_array(self.traces),
             "full_state": None if self.full_state is None else self.full_state.to_dict(),
             "runtime_seconds": self.runtime_seconds,
             "warnings": list(self.warnings),
         }
         if self.mean_lambda_max is not None:
-            llo, lhi = self.band("lambda_max")
-            out["mean_lambda_max"] = {"mean": self.mean_lambda_max.tolist(), "lower": llo.tolist(),
-                                      "upper": lhi.tolist(), "std": self.std_lambda_max.tolist(),
-                                      "confidence": 0.95}
+            lm_lo, lm_hi = self.band("lambda_max")
+            l10, _ = self._log10("lambda_max")
+            out["mean_lambda_max"] = {"mean": _json_array(self.mean_lambda_max),
+                                      "lower": _json_array(lm_lo), "upper": _json_array(lm_hi),
+                                      "std": _json_array(self.std_lambda_max), "confidence": 0.95,
+                                      "log10_mean": _json_array(l10)}
         return out
 
 
@@ -840,7 +1122,8 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     channel : Channel, optional
         Arrival process (Bernoulli, Gilbert–Elliott, trace, or any model with a stationary
         arrival probability). Trace channels are read cyclically, path i from offset
-        ⌊i·L/paths⌋ (L the trace length).
+        key_i mod L (key_i its 64-bit stream key, L the trace length): a path's arrivals do
+        not depend on how many paths are run.
     arrival_probability : number, optional
         Shorthand for ``Bernoulli(p)``.
     record_traces : bool or int
@@ -852,13 +1135,16 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     initial : array, optional
         P_0 (default Σ0 of the system).
     divergence_threshold : float, optional
-        Stop a path when tr P exceeds it (default 1e10 × max(tr P0, tr Q, tr P*)).
+        Finite and positive (default 1e10 × max(tr P0, tr Q, tr P*)). A path whose trace
+        crosses it is counted as diverged and continued in scaled form (true values).
     track_lambda_max : bool
         Also estimate E[λ_max(P_t)] at the sample times.
     batch_size : int
         Paths per kernel call (results do not depend on it).
     progress : callable, optional
-        Called as ``progress(paths_done, paths)`` after every batch.
+        Called as ``progress(path_steps_done, paths × steps)`` after every chunk of steps
+        (the run is then cut into chunks of ``PROGRESS_WORK`` / n² lane-steps; the results do
+        not change).
 
     Returns
     -------
@@ -881,10 +1167,7 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     A, C, Q, R = (np.ascontiguousarray(x, dtype=float) for x in
                   (system.a, system.c, system.q, system.r))
     P0 = _initial(system, initial)
-    threshold = (THRESHOLD_FACTOR * _scale(system, P0) if divergence_threshold is None
-                 else float(divergence_threshold))
-    if not threshold > 0:
-        raise InputError("must be positive", field="divergence_threshold")
+    threshold = _threshold(system, P0, divergence_threshold)
     times = sample_times(steps, horizon_samples)
     S = times.size
     n_traced = paths if record_traces is True else int(record_traces or 0)
@@ -898,54 +1181,149 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     count_t = 0
     mean_t, m2_t = np.zeros(S), np.zeros(S)
     mean_l, m2_l = np.zeros(S), np.zeros(S)
+    lsum_t = (np.full(S, -np.inf), np.zeros(S), np.zeros(S))   # (max log, Σe^{x−M}, Σe^{2(x−M)})
+    lsum_l = (np.full(S, -np.inf), np.zeros(S), np.zeros(S))
     div_frac = np.zeros(S)
+    above = np.zeros(S)
+    lthr = math.log(threshold)
     horizon = np.empty(paths)
+    horizon_log = np.empty(paths)
     div_times = np.empty(paths, dtype=np.int64)
+    fail_times = np.empty(paths, dtype=np.int64)
     batch_size = max(int(batch_size), 1)
+    total = paths * steps
     for start in range(0, paths, batch_size):
         stop = min(start + batch_size, paths)
         B = stop - start
         keys = path_keys(seed, start, stop)
-        offsets = (np.arange(start, stop, dtype=np.int64) * seq.size) // paths
+        offsets = _trace_offsets(keys, seq.size)
         out_tr, out_lm = np.empty((B, S)), np.empty((B, S))
-        out_div, out_final = np.empty(B, dtype=np.int64), np.empty(B)
+        out_ltr, out_llm = np.empty((B, S)), np.empty((B, S))
+        out_div, out_fail = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
+        Xall, lg_all = np.empty((n, n, B)), np.zeros(B)
+        sc_all, st_all, ch_all = (np.zeros(B, dtype=np.int64), np.zeros(B, dtype=np.uint64),
+                                  np.zeros(B, dtype=np.int64))
         k_tr = max(0, min(n_traced - start, B))
         tr_view = traces[start:start + k_tr] if k_tr else np.empty((0, steps + 1))
-        _rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, times, threshold,
-                   track_lambda_max, LANES, out_tr, out_lm, out_div, out_final, tr_view)
+        # in time chunks when progress is reported (the chunking does not change the numbers)
+        chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
+        for t0 in range(0, steps, chunk):
+            t1 = min(t0 + chunk, steps)
+            _rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, times,
+                       threshold, track_lambda_max, LANES, Xall, lg_all, sc_all, st_all, ch_all,
+                       out_tr, out_ltr, out_lm, out_llm, out_div, out_fail, tr_view)
+            if progress is not None:
+                progress(start * steps + B * t1, total)
         c0 = count_t
         count_t = _accumulate(out_tr, c0, mean_t, m2_t)
+        _accumulate_log(out_ltr, *lsum_t)
         if track_lambda_max:
             _accumulate(out_lm, c0, mean_l, m2_l)
+            _accumulate_log(out_llm, *lsum_l)
         dv = out_div[out_div >= 0]
         for d in dv:
             div_frac[times >= d] += 1
-        horizon[start:stop] = out_final
+        above += np.count_nonzero(out_ltr > lthr, axis=0)
+        horizon[start:stop] = out_tr[:, -1]
+        horizon_log[start:stop] = out_ltr[:, -1]
         div_times[start:stop] = out_div
-        if progress is not None:
-            progress(stop, paths)
-    denom = max(count_t - 1, 1)
+        fail_times[start:stop] = out_fail
+    mean_t, std_t, lmean_t, lstd_t = _column_stats(count_t, mean_t, m2_t, *lsum_t)
+    if track_lambda_max:
+        mean_l, std_l, lmean_l, lstd_l = _column_stats(count_t, mean_l, m2_l, *lsum_l)
     warnings: list[str] = []
     if process.kind == "sequence" and steps > process.sequence.size:
         warnings.append(f"the arrival trace has {process.sequence.size} values, fewer than the "
                         f"{steps} steps: it is read cyclically")
     n_div = int(np.count_nonzero(div_times >= 0))
     if n_div:
-        warnings.append(f"{n_div} of {paths} paths exceeded tr P > {threshold:.3g} and were "
-                        "stopped (diverged); later statistics are censored lower bounds")
+        warnings.append(f"{n_div} of {paths} paths crossed the divergence threshold tr P > "
+                        f"{threshold:.3g} (diverged); they were continued in scaled form, so "
+                        "the statistics are true values"
+                        + ("; means too large for float64 are given as log10" if
+                           not np.all(np.isfinite(mean_t)) else ""))
+    n_fail = int(np.count_nonzero(fail_times >= 0))
+    if n_fail:
+        warnings.append(f"{n_fail} of {paths} paths had a non-finite Riccati step even in scaled "
+                        "form and were frozen at their last finite value; later statistics are "
+                        "approximate")
     full = (_full_state(system, A, C, Q, R, P0, seed, kind, p, f, r, seq, paths, steps,
                         min(int(full_state_paths), paths))
             if full_state_paths and full_state_paths > 0 else None)
     return SimulationResult(
         system_name=system.name, n=n, m=m, paths=paths, steps=steps, seed=int(seed),
         channel=chan.to_dict(), arrival_probability=float(chan.arrival_probability),
-        times=times, mean_trace=mean_t, std_trace=np.sqrt(m2_t / denom),
+        times=times, mean_trace=mean_t, std_trace=std_t,
         mean_lambda_max=mean_l if track_lambda_max else None,
-        std_lambda_max=np.sqrt(m2_l / denom) if track_lambda_max else None,
+        std_lambda_max=std_l if track_lambda_max else None,
         diverged_fraction=div_frac / paths, horizon_traces=horizon,
         divergence_threshold=threshold, divergence_times=div_times,
         traces=traces if n_traced else None, full_state=full,
-        runtime_seconds=time.perf_counter() - t_start, warnings=tuple(warnings))
+        runtime_seconds=time.perf_counter() - t_start, warnings=tuple(warnings),
+        log10_mean_trace=lmean_t, log10_std_trace=lstd_t,
+        log10_mean_lambda_max=lmean_l if track_lambda_max else None,
+        log10_std_lambda_max=lstd_l if track_lambda_max else None,
+        horizon_log10_traces=horizon_log / LN10, above_threshold_fraction=above / paths,
+        failure_times=fail_times)
+
+
+LN10 = math.log(10.0)
+
+
+def _threshold(system: System, P0: np.ndarray, given: Any) -> float:
+    """The divergence threshold: ``given`` (finite, positive) or 1e10 × the problem's scale."""
+    if given is None:
+        value = THRESHOLD_FACTOR * _scale(system, P0)
+    else:
+        if isinstance(given, bool):
+            raise InputError("must be a finite positive number", field="divergence_threshold")
+        try:
+            value = float(given)
+        except (TypeError, ValueError):
+            raise InputError("must be a finite positive number",
+                             field="divergence_threshold") from None
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"must be a finite positive number, got {value!r}",
+                         field="divergence_threshold")
+    return value
+
+
+def _trace_offsets(keys: np.ndarray, length: int) -> np.ndarray:
+    """Start index of each path in a trace of ``length`` values: its 64-bit key mod length.
+
+    Derived from the path's own key, so a path's arrivals depend on (seed, i) only — not on how
+    many paths are run (prefix independence). Unused for other channels.
+    """
+    return (keys % np.uint64(max(int(length), 1))).astype(np.int64)
+
+
+def _column_stats(count: int, mean_w: np.ndarray, m2_w: np.ndarray, lmax: np.ndarray,
+                  s1: np.ndarray, s2: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Mean, sample sd and their log10 per sample time.
+
+    Columns whose largest value stays below e^LOG_SAFE (~1e150) use the Welford sums (the
+    ordinary path, bit-identical for any batch size); larger ones use the log-sum-exp sums:
+    ln mean = M + ln(Σe^{x−M}/N), ln E[x²] = 2M + ln(Σe^{2(x−M)}/N), var = N/(N−1)·(E[x²] − mean²).
+    Values beyond float64 are then inf in the plain arrays and finite in the log10 ones.
+    """
+    N = max(count, 1)
+    denom = max(count - 1, 1)
+    with quiet_numerics():
+        mean = mean_w.copy()
+        std = np.sqrt(m2_w / denom)
+        lmean = np.log10(mean)
+        lstd = np.log10(std)
+        big = lmax > LOG_SAFE
+        if big.any():
+            ln_mean = lmax[big] + np.log(s1[big] / N)
+            ln_m2 = 2 * lmax[big] + np.log(s2[big] / N)
+            gap = np.minimum(2 * ln_mean - ln_m2, 0.0)   # ln(mean²/E[x²]) ≤ 0
+            ln_var = ln_m2 + np.log1p(-np.exp(gap)) + math.log(N / denom)
+            lmean[big] = ln_mean / LN10
+            lstd[big] = 0.5 * ln_var / LN10
+            mean[big] = np.exp(ln_mean)
+            std[big] = np.exp(0.5 * ln_var)
+    return mean, std, lmean, lstd
 
 
 def _initial(system: System, initial: Any) -> np.ndarray:
@@ -970,7 +1348,7 @@ def _full_state(system: System, A, C, Q, R, P0, seed, kind, p, f, r, seq, paths,
     """
     n, m = A.shape[0], C.shape[0]
     keys = path_keys(seed, 0, k)
-    offsets = (np.arange(k, dtype=np.int64) * seq.size) // paths
+    offsets = _trace_offsets(keys, seq.size)
     Lq = _psd_sqrt(Q)
     Lr = _psd_sqrt(R)
     L0 = _psd_sqrt(P0)
@@ -1068,6 +1446,18 @@ class ErgodicResult:
         return {"mean": mean, "lower": _finite_or_none(mean - half),
                 "upper": _finite_or_none(mean + half), "batches": int(bm.size)}
 
+    def tail_probabilities(self) -> list[dict[str, Any]]:
+        """P_μ(tr P > M) for every level, pooled over the replicas that never crossed the
+        divergence threshold (a crossed path's counts stop at the crossing)."""
+        ok = (self.divergence_times < 0) & (self.used_steps > 0)
+        total = int(self.used_steps[ok].sum())
+        out = []
+        for q, lv in enumerate(self.levels):
+            k = int(self.exceed[ok, q].sum())
+            out.append({"level": float(lv), "probability": k / total if total else None,
+                        "count": k, "steps": total, "replicas": int(ok.sum())})
+        return out
+
     def to_dict(self) -> dict[str, Any]:
         used = self.used_steps
         tm = self.time_mean()
@@ -1119,6 +1509,7 @@ class ErgodicResult:
             "seed": self.seed,
             "streams": [[self.seed, STREAM_ERGODIC, j] for j in range(self.replicas)],
             "time_averages": {"path": path0, "pooled_mean_trace": self.pooled(),
+                              "pooled_tail": self.tail_probabilities(),
                               "replica_mean_trace": [None if d else _finite_or_none(x)
                                                      for x, d in zip(tm, diverged, strict=True)],
                               "used_steps": used.astype(int).tolist()},
@@ -1161,8 +1552,7 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     A, C, Q, R = (np.ascontiguousarray(x, dtype=float) for x in
                   (system.a, system.c, system.q, system.r))
     P0 = _initial(system, initial)
-    threshold = (THRESHOLD_FACTOR * _scale(system, P0) if divergence_threshold is None
-                 else float(divergence_threshold))
+    threshold = _threshold(system, P0, divergence_threshold)
     burn = steps // 10 if burn_in is None else int(burn_in)
     if not 0 <= burn < steps:
         raise InputError("must be in [0, steps)", field="burn_in")
@@ -1179,7 +1569,8 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     div = np.empty(replicas, dtype=np.int64)
     losses = np.zeros(replicas, dtype=np.int64)
     longest = np.zeros(replicas, dtype=np.int64)
-    _ergodic_paths(A, C, Q, R, P0, keys, kind, p, f, r, seq, steps, burn, lv, max_burst,
+    _ergodic_paths(A, C, Q, R, P0, keys, _trace_offsets(keys, seq.size), kind, p, f, r, seq,
+                   steps, burn, lv, max_burst,
                    n_batches, threshold, sums, exceed, batch_sums, burst_count, burst_trace,
                    block_max, block_min, div, losses, longest)
     end = np.where(div >= 0, div - 1, steps)
@@ -1404,10 +1795,15 @@ def simulation_checks(system: System, channel: Channel, res: SimulationResult,
     """
     regime = regime if regime is not None else tail_regime(system, channel, res.steps)
     out: list[dict[str, Any]] = []
-    arrays = [res.mean_trace, res.std_trace, res.horizon_traces, erg.sums, erg.burst_trace]
-    out.append(_check("simulation: all statistics finite (divergence flagged, not propagated)",
-                      bool(all(np.isfinite(a).all() for a in arrays)),
-                      f"{res.diverged_paths} of {res.paths} paths diverged"))
+    # plain values may exceed float64 (then inf, with a finite log10 beside them); never NaN
+    plain = [res.mean_trace, res.std_trace, res.horizon_traces]
+    logs = [a for a in (res.log10_mean_trace, res.horizon_log10_traces) if a is not None]
+    ok = (all(not np.isnan(a).any() for a in plain) and all(np.isfinite(a).all() for a in logs)
+          and all(np.isfinite(a).all() for a in (erg.sums, erg.burst_trace)))
+    out.append(_check("simulation: all statistics finite or given as log10 (divergence "
+                      "flagged, not propagated)", bool(ok),
+                      f"{res.diverged_paths} of {res.paths} paths crossed the divergence "
+                      "threshold (continued in scaled form)"))
     bursts = int(erg.burst_count[:, 1:].sum())
     if erg.expected_mean_burst is not None and bursts >= 30:
         q = 1.0 / erg.expected_mean_burst
@@ -1436,9 +1832,9 @@ def simulation_checks(system: System, channel: Channel, res: SimulationResult,
                   "(>= −5 required)")
         if zmin >= -5:
             out.append(_check(name, True, detail))
-        elif regime.get("heavy_tailed") or res.diverged_paths:
-            why = (f"{res.diverged_paths} paths were censored at the divergence threshold, so "
-                   "the simulated means are lower bounds" if res.diverged_paths else
+        elif regime.get("heavy_tailed") or res.failed_paths:
+            why = (f"{res.failed_paths} paths were frozen after a numerical failure, so "
+                   "the simulated means are approximate" if res.failed_paths else
                    f"{regime['variance_condition']} = {regime['variance_value']:.4g} >= 1: the "
                    "variance of tr P diverges (heavy tails just above p_c), so the sample mean "
                    "and its standard error are unreliable at this horizon")
@@ -1479,16 +1875,29 @@ def _phase_demo(system: System, critical_value: float | None, upper_bound: float
 
 
 def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_json: bool,
-                     plot: str | None, max_states: int) -> int:
+                     plot: str | None, max_states: int, ergodic_steps: int | None = None,
+                     tail: tuple[float, ...] | list[float] = ()) -> int:
     """Run the ``kfcrit simulate`` subcommand; return the exit code.
 
     Data (the summary or ``--json``) goes to stdout; a progress bar goes to stderr only when it
-    is a terminal; ``--plot`` writes an SVG or PNG atomically.
+    is a terminal; ``--plot`` writes an SVG or PNG atomically. With ``ergodic_steps`` (or any
+    ``tail`` level, default length max(10 · steps, 10 000)) the time averages along
+    ``ERGODIC_REPLICAS`` long paths (Kar et al. Prop. 25, :func:`ergodic`) are added: time mean
+    of tr P, tail probabilities (1/T) #{t : tr P_t > M} for every level M (and the system
+    file's ``max_error_trace``), loss bursts and the almost-sure indicators; under ``ergodic``
+    in ``--json``.
     """
     from .record import dumps
     from .systemfile import load_spec
 
     _check_sizes(paths, steps, seed)
+    levels = [_tail_level(x) for x in tail]
+    if ergodic_steps is not None:
+        if (isinstance(ergodic_steps, bool) or not isinstance(ergodic_steps, (int, np.integer))
+                or ergodic_steps < 1):
+            raise InputError("must be an integer >= 1", field="--ergodic-steps")
+    elif levels:
+        ergodic_steps = max(10 * steps, 10_000)
     if plot is not None:
         if Path(plot).suffix.lower() not in (".svg", ".png"):
             raise InputError("must end in .svg or .png", field="--plot")
@@ -1504,13 +1913,68 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
         result = _with_progress(spec, paths, steps, seed, keep)
     else:
         result = simulate(spec.system, paths, steps, seed, spec.channel, record_traces=keep)
+    erg = None
+    if ergodic_steps is not None:
+        req = spec.requirements.max_error_trace
+        lv = sorted(set(levels + ([float(req)] if req is not None else [])))
+        erg = ergodic(spec.system, int(ergodic_steps), seed, spec.channel,
+                      replicas=ERGODIC_REPLICAS, levels=lv)
     if as_json:
-        print(dumps(result.to_dict()))
+        record = result.to_dict()
+        record["ergodic"] = None if erg is None else erg.to_dict()
+        print(dumps(record))
     else:
-        print(summary_text(result, spec.requirements.max_error_trace))
+        text = summary_text(result, spec.requirements.max_error_trace)
+        if erg is not None:
+            text += "\n" + ergodic_text(erg)
+        print(text)
     if plot is not None:
         write_plot(result, plot)
     return 0
+
+
+ERGODIC_REPLICAS = 4
+"""Independent long paths of ``kfcrit simulate --ergodic-steps`` (replica 0 is "the" path)."""
+
+
+def _tail_level(x: Any) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise InputError(f"must be a number, got {str(x)[:40]!r}", field="--tail") from None
+    if not (math.isfinite(v) and v > 0):
+        raise InputError(f"must be a finite positive level, got {v!r}", field="--tail")
+    return v
+
+
+def ergodic_text(erg: ErgodicResult) -> str:
+    """Terminal lines for the ergodic time averages (``kfcrit simulate --ergodic-steps``)."""
+    d = erg.to_dict()
+    ta = d["time_averages"]
+    pooled = ta["pooled_mean_trace"]
+    lines = [f"ergodic averages: {erg.replicas} paths x {erg.steps} steps, burn-in "
+             f"{erg.burn_in}, streams SeedSequence({erg.seed}, spawn_key=(2, j))"]
+    if pooled["mean"] is not None:
+        lines.append(f"time average of tr P: {pooled['mean']:.6g} (95% batch-means interval "
+                     f"{_fmt(pooled['lower'])} .. {_fmt(pooled['upper'])})")
+    else:
+        lines.append("time average of tr P: none (every long path crossed the divergence "
+                     "threshold)")
+    for t in erg.tail_probabilities():
+        lines.append(f"P(tr P > {t['level']:g}) by time average: {_fmt(t['probability'])} "
+                     f"({t['count']} of {t['steps']} path-steps of {t['replicas']} long paths "
+                     "that stayed below the divergence threshold; steps are correlated, no "
+                     "interval)")
+    div = d["divergence"]
+    if div["diverged_replicas"]:
+        lines.append(f"warning: {div['diverged_replicas']} of {erg.replicas} long paths crossed "
+                     f"tr P > {erg.divergence_threshold:.3g}; their averages stop there (the "
+                     "mean of the invariant law is infinite below p_c)")
+    b = d["bursts"]
+    if b["mean_length"] is not None:
+        lines.append(f"loss bursts: mean length {b['mean_length']:.4g} (channel "
+                     f"{_fmt(b['expected_mean_length'])}), longest {b['longest']}")
+    return "\n".join(lines)
 
 
 def _with_progress(spec: Any, paths: int, steps: int, seed: int,
@@ -1519,9 +1983,8 @@ def _with_progress(spec: Any, paths: int, steps: int, seed: int,
     from rich.progress import Progress
 
     with Progress(console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task("simulating", total=paths)
+        task = bar.add_task("simulating", total=paths * steps)
         return simulate(spec.system, paths, steps, seed, spec.channel, record_traces=keep,
-                        batch_size=LANES,
                         progress=lambda done, total: bar.update(task, completed=done))
 
 
@@ -1539,21 +2002,128 @@ def summary_text(result: SimulationResult, level: float | None = None) -> str:
         f"{result.arrival_probability:.6g}",
         f"E[tr P_t] at t = {result.steps}: {result.mean_trace[-1]:.6g} "
         f"(95% CI {lo[-1]:.6g} .. {hi[-1]:.6g})"
-        + (" [lower bound: diverged paths censored]" if result.mean_is_lower_bound else ""),
+        + (" [approximate: paths frozen after a numerical failure]"
+           if result.mean_is_lower_bound else ""),
     ]
+    if not math.isfinite(result.mean_trace[-1]):
+        llo, lhi = result.log10_band()
+        low = "0" if not math.isfinite(llo[-1]) else f"10^{llo[-1]:.4g}"
+        lines[-1] = (f"E[tr P_t] at t = {result.steps}: 10^{result.log10_mean_trace[-1]:.6g} "
+                     f"(95% CI {low} .. 10^{lhi[-1]:.4g}; beyond float64, shown as powers of "
+                     "ten)")
     if result.mean_lambda_max is not None:
-        lines.append(f"E[lambda_max P_t] at t = {result.steps}: {result.mean_lambda_max[-1]:.6g}")
+        v = result.mean_lambda_max[-1]
+        text = (f"{v:.6g}" if math.isfinite(v) or result.log10_mean_lambda_max is None
+                else f"10^{result.log10_mean_lambda_max[-1]:.6g}")
+        lines.append(f"E[lambda_max P_t] at t = {result.steps}: {text}")
+    lq = dict(zip(QUANTILE_LEVELS, result.horizon_log10_quantiles(), strict=True))
     lines.append("tr P at the horizon: " + ", ".join(
-        f"q{int(round(100 * k))} {_fmt(q[k])}" for k in (0.05, 0.5, 0.95, 0.99)))
+        f"q{int(round(100 * k))} "
+        + (_fmt(q[k]) if q[k] is not None or lq[k] is None else f"10^{lq[k]:.5g}")
+        for k in (0.05, 0.5, 0.95, 0.99)))
     if level is not None:
         e = result.exceedance(level)
         lines.append(f"P(tr P > {level:g}) at the horizon: {e['estimate']:.4g} "
                      f"(95% CI {e['lower']:.4g} .. {e['upper']:.4g})")
-    lines.append(f"diverged paths: {result.diverged_paths} (threshold "
-                 f"{result.divergence_threshold:.3g})")
+    lines.append(f"diverged paths: {result.diverged_paths} (crossed tr P > "
+                 f"{result.divergence_threshold:.3g}; continued in scaled form)")
     lines.extend(f"warning: {w}" for w in result.warnings)
     lines.append(f"runtime: {result.runtime_seconds:.2f} s")
     return "\n".join(lines)
+
+
+BAND_FLOOR = 0.1
+"""On the log axis the lower band end is floored at this fraction of the smallest positive
+mean (a lower end at 0 — a confidence interval reaching 0 — cannot be drawn on a log axis)."""
+
+
+def plot_series(result: SimulationResult) -> dict[str, Any]:
+    """What :func:`write_plot` draws on its left panel, in plot units.
+
+    ``log10`` False: values on a log axis — mean, band with its lower end floored at
+    ``BAND_FLOOR`` × the smallest positive mean, traces, and y-limits from these data only.
+    ``log10`` True (some value beyond float64): the same in log10 units on a linear axis.
+    """
+    t = result.times.astype(float)
+    mean = result.mean_trace
+    lo, hi = result.band()
+    traces = result.traces
+    finite = bool(np.all(np.isfinite(mean)) and np.all(np.isfinite(hi))
+                  and (traces is None or np.all(np.isfinite(traces))))
+    if finite:
+        pos = mean[mean > 0]
+        floor = BAND_FLOOR * float(pos.min()) if pos.size else 1.0
+        y, y_lo, y_hi = mean.astype(float), np.maximum(lo, floor), np.maximum(hi, floor)
+        tr = None if traces is None else np.where(traces > 0, traces, np.nan)
+        data = [y[y > 0], y_lo, y_hi] + ([] if tr is None else [tr[np.isfinite(tr)]])
+        bottom = min(float(np.min(d)) for d in data if d.size)
+        top = max(float(np.max(d)) for d in data if d.size)
+        bottom, top = bottom / 1.5, top * 1.5
+        thr = result.divergence_threshold
+    else:
+        llo, lhi = result.log10_band()
+        y = result.log10_mean_trace if result.log10_mean_trace is not None else np.log10(mean)
+        ok = np.isfinite(y)
+        low = float(np.min(y[ok])) if ok.any() else 0.0
+        floor = low + math.log10(BAND_FLOOR)
+        y_lo, y_hi = np.maximum(llo, floor), np.maximum(lhi, floor)
+        tr = None
+        if traces is not None:
+            with quiet_numerics():
+                tr = np.where(np.isfinite(traces) & (traces > 0), np.log10(traces), np.nan)
+        data = [y[ok], y_lo[np.isfinite(y_lo)], y_hi[np.isfinite(y_hi)]]
+        if tr is not None:
+            data.append(tr[np.isfinite(tr)])
+        bottom = min(float(np.min(d)) for d in data if d.size)
+        top = max(float(np.max(d)) for d in data if d.size)
+        pad = max(0.05 * (top - bottom), 0.5)
+        bottom, top = bottom - pad, top + pad
+        thr = math.log10(result.divergence_threshold)
+    return {"log10": not finite, "t": t, "mean": y, "lower": y_lo, "upper": y_hi,
+            "traces": tr, "ylim": (bottom, top), "threshold": thr, "floor": floor}
+
+
+def _plot_mean(ax: Any, result: SimulationResult) -> None:
+    d = plot_series(result)
+    if d["traces"] is not None:
+        steps = np.arange(result.steps + 1)
+        for k, row in enumerate(d["traces"]):
+            ax.plot(steps, row, lw=0.6, alpha=0.5, color="0.5",
+                    label="sample paths" if k == 0 else None)
+    ax.fill_between(d["t"], d["lower"], d["upper"], alpha=0.3, label="95% band of the mean")
+    ax.plot(d["t"], d["mean"], lw=1.5, label="E[tr P_t]")
+    bottom, top = d["ylim"]
+    if result.diverged_paths and bottom < d["threshold"] < top:
+        ax.axhline(d["threshold"], ls=":", lw=1, color="#b91c1c",
+                   label=f"divergence threshold ({result.diverged_paths} paths crossed)")
+    if d["log10"]:
+        ax.set_ylabel("log10 tr P_t (values beyond float64)")
+    else:
+        ax.set_yscale("log")
+        ax.set_ylabel("tr P_t")
+    ax.set_ylim(bottom, top)
+    ax.set_xlim(0, max(result.steps, 1))
+    ax.set_xlabel("t")
+    ax.set_title(f"p = {result.arrival_probability:.4g}, {result.paths} paths")
+    ax.legend(loc="best", fontsize=8)
+
+
+def _plot_cdf(ax: Any, result: SimulationResult) -> None:
+    """Empirical CDF of tr P at the horizon over all paths (log10 units if beyond float64)."""
+    x = np.sort(result.horizon_traces)
+    F = np.arange(1, x.size + 1) / x.size
+    if np.all(np.isfinite(x)) and x.size and x[0] > 0:
+        ax.step(x, F, where="post")
+        ax.set_xscale("log")
+        ax.set_xlabel(f"tr P at t = {result.steps}")
+    else:
+        lx = np.sort(result.horizon_log10_traces if result.horizon_log10_traces is not None
+                     else np.log10(result.horizon_traces))
+        ok = np.isfinite(lx)
+        ax.step(lx[ok], F[ok], where="post")
+        ax.set_xlabel(f"log10 tr P at t = {result.steps}")
+    ax.set_ylim(0, 1.02)
+    ax.set_ylabel("CDF")
 
 
 def write_plot(result: SimulationResult, path: str) -> None:
@@ -1569,23 +2139,8 @@ def write_plot(result: SimulationResult, path: str) -> None:
         raise InputError(f"folder {str(folder)[:80]!r} does not exist", field="--plot")
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     try:
-        lo, hi = result.band()
-        if result.traces is not None:
-            t = np.arange(result.steps + 1)
-            for row in result.traces:
-                ax1.plot(t, row, lw=0.6, alpha=0.5, color="0.5")
-        ax1.fill_between(result.times, np.maximum(lo, 1e-300), hi, alpha=0.3, label="95% band")
-        ax1.plot(result.times, result.mean_trace, lw=1.5, label="E[tr P_t]")
-        ax1.set_yscale("log")
-        ax1.set_xlabel("t")
-        ax1.set_ylabel("tr P_t")
-        ax1.set_title(f"p = {result.arrival_probability:.4g}, {result.paths} paths")
-        ax1.legend(loc="best", fontsize=8)
-        cdf = result.cdf_points()
-        ax2.step(cdf["trace"], cdf["probability"], where="post")
-        ax2.set_xscale("log")
-        ax2.set_xlabel(f"tr P at t = {result.steps}")
-        ax2.set_ylabel("CDF")
+        _plot_mean(ax1, result)
+        _plot_cdf(ax2, result)
         fig.tight_layout()
         buffer = io.BytesIO()
         fig.savefig(buffer, format=target.suffix.lower().lstrip("."))

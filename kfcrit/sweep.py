@@ -64,11 +64,14 @@ from . import __version__
 from .atomic import write_atomic
 from .errors import ExitCode, InputError, KfcritError
 from .record import jsonable
+from .safeio import read_text
 
 FORMAT_VERSION = 1
 MAX_POINTS = 1_000_000
 MAX_NUM = 100_000
 MAX_SERIES = 12
+MAX_JOURNAL_BYTES = 4096 * MAX_POINTS
+"""Largest journal read back on resuming (4 KiB per point of the largest sweep)."""
 SWEEP_KEYS = {"name", "description", "system", "tolerance", "grid", "points", "plot"}
 MATRICES = ("A", "C", "Q", "R", "Sigma0")
 SYMMETRIC = ("Q", "R", "Sigma0")
@@ -348,8 +351,9 @@ def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
             plot_x = str(plot["x"])
     name = doc.get("name") or Path(path).stem
     description = doc.get("description") or ""
-    if not isinstance(name, str) or not isinstance(description, str):
-        raise InputError("must be a string", field="sweep.name")
+    for key, value in (("name", name), ("description", description)):
+        if not isinstance(value, str):
+            raise InputError("must be a string", field=f"sweep.{key}")
     keys = tuple(point_key(base_doc, tol_text, max_states, zip(parameters, pt))
                  for pt in points)
     return SweepSpec(name=name[:200], base_doc=base_doc, base_dir=base_dir,
@@ -681,13 +685,12 @@ class Journal:
     def load(self) -> dict[str, dict[str, Any]]:
         """Key → result columns of every complete line."""
         out: dict[str, dict[str, Any]] = {}
-        try:
-            text = self.path.read_text(encoding="utf-8", errors="replace")
-        except FileNotFoundError:
+        if not os.path.lexists(self.path):
             return out
-        except OSError:
-            raise InputError(f"cannot read the journal {str(self.path)[:80]!r}",
-                             field="output") from None
+        # a regular file only (a FIFO or a link to /dev/zero put in its place is refused),
+        # bounded; kfcrit writes it in ASCII, so strict UTF-8 loses nothing
+        text, _ = read_text(self.path, field="output", max_bytes=MAX_JOURNAL_BYTES,
+                            what="the journal")
         for line in text.splitlines():
             try:
                 entry = json.loads(line)
@@ -1091,7 +1094,7 @@ def _interrupted(journal: Path) -> None:
             stream.flush()
         except (OSError, ValueError):
             pass
-    os._exit(130)
+    os._exit(ExitCode.INTERRUPTED)
 
 
 def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,

@@ -168,18 +168,31 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
     return M if rows is None else sp.ImmutableMatrix(rows)
 
 
+EXACT_DEFINITE_MAX = 12
+"""Largest rational matrix whose definiteness is decided exactly (sympy); above, in floats."""
+
+
+def is_definite(M: sp.MatrixBase, Mf: np.ndarray, exact: bool, strict: bool = True) -> bool:
+    """Whether a symmetric matrix is positive definite (``strict``) or semidefinite.
+
+    Exact for exact rational input up to :data:`EXACT_DEFINITE_MAX` states (``1e-250`` is
+    positive, whatever its size); otherwise from the float eigenvalues against the
+    scale-aware tolerance :func:`sym_tolerance` (λ_min > tol, resp. ≥ −tol), so scaling the
+    matrix by any power of ten never changes the answer. Never an absolute threshold.
+    """
+    if exact and M.shape[0] <= EXACT_DEFINITE_MAX and all(e.is_Rational for e in M):
+        return bool(M.is_positive_definite) if strict else bool(M.is_positive_semidefinite)
+    with np.errstate(all="ignore"):
+        w = np.linalg.eigvalsh(0.5 * (Mf + Mf.T))
+    tol = sym_tolerance(Mf)
+    return bool(w.min() > tol) if strict else bool(w.min() >= -tol)
+
+
 def _check_definite(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: bool,
                     strict: bool) -> None:
-    """Positive (semi)definiteness: exact (rational LDL via sympy) for small rational input."""
+    """Positive (semi)definiteness (:func:`is_definite`), or an error naming the matrix."""
     what = "positive definite" if strict else "positive semidefinite"
-    rational = exact and all(e.is_Rational for e in M) and M.shape[0] <= 12
-    if rational:
-        ok = bool(M.is_positive_definite) if strict else bool(M.is_positive_semidefinite)
-    else:
-        w = np.linalg.eigvalsh(0.5 * (Mf + Mf.T))
-        tol = sym_tolerance(Mf)
-        ok = (w.min() > tol) if strict else (w.min() >= -tol)
-    if not ok:
+    if not is_definite(M, Mf, exact, strict):
         raise InputError(f"must be symmetric {what}", field=name)
 
 
@@ -270,6 +283,16 @@ class System:
         if dt is None or dt is False or dt == 0:
             raise InputError("must be a discrete-time StateSpace (dt > 0 or True)", field="sys")
         return cls(np.asarray(sys.A), np.asarray(sys.C), Q, R, Sigma0, name=name)
+
+    def is_positive_definite(self, name: str) -> bool:
+        """Whether ``Q``, ``R`` or ``Sigma0`` is positive definite (:func:`is_definite`: exact
+        for exact rational input, scale-aware for float input; ``Q = 1e-250`` is)."""
+        views = {"Q": (self.Q, self.q), "R": (self.R, self.r),
+                 "Sigma0": (self.Sigma0, self.sigma0)}
+        if name not in views:
+            raise InputError("must be Q, R or Sigma0", field="name")
+        M, Mf = views[name]
+        return is_definite(M, Mf, self.exact, strict=True)
 
     def matrices_text(self) -> dict[str, list[list[str]]]:
         """Exact entries as strings readable by :func:`kfcrit.exprparse.parse_expression`."""

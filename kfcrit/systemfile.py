@@ -17,6 +17,7 @@ import yaml
 from .channels import Channel, channel_from_mapping, check_keys, exact_probability, key_name
 from .errors import InputError
 from .exprparse import number_from_text
+from .safeio import read_text
 from .system import MAX_STATES_DEFAULT, System
 
 MAX_FILE_BYTES = 20_000_000
@@ -236,26 +237,10 @@ def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: i
 
 
 def _read_text(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> tuple[str, str]:
-    """The UTF-8 text of a file (size-capped) and the SHA-256 of its bytes."""
-    p = Path(path)
-    try:
-        if p.is_dir():
-            raise InputError(f"{str(p)[:80]!r} is a directory", field="file")
-        size = p.stat().st_size
-    except OSError:
-        raise InputError(f"cannot read {str(p)[:80]!r} (no such file or not readable)",
-                         field="file") from None
-    if size > max_bytes:
-        raise InputError(f"is larger than {max_bytes} bytes", field="file")
-    try:
-        data = p.read_bytes()
-    except OSError:
-        raise InputError(f"cannot read {str(p)[:80]!r}", field="file") from None
+    """The UTF-8 text of a file (a regular file, size-capped: :func:`kfcrit.safeio.read_text`)
+    and the SHA-256 of its bytes."""
+    text, data = read_text(path, field="file", max_bytes=max_bytes)
     digest = hashlib.sha256(data).hexdigest()
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError("is not valid UTF-8 text", field="file") from None
     if not text.strip():
         raise InputError("is empty", field="file")
     return text, digest

@@ -155,11 +155,23 @@ def reduce_system(system: System, tol: float = UNSTABLE_TOL) -> Reduced:
     return Reduced(red.T, red.Z, red.k, red.Au, Cw @ red.Z[:, :red.k], Cw, M)
 
 
+POWER_REG = 1e-12
+"""Homogeneous regulariser floor (times tr X, added to C X C') of the power iteration, whose
+iterates drift toward singular X."""
+NEWTON_REG = 1e-15
+"""The same floor for the Newton solvers (:func:`threshold_newton`, :func:`perron_newton`): the
+residual and the Jacobian must use one and the same map, or Newton converges to the root of a
+different map than the one it is differentiating (with 1e-12 in the residual and 1e-15 in the
+gain, ``random_system(12, 4, 0)`` had r(p*) = 1 + 2.3e-8 at the threshold root p*, and no
+certificate within tol of p*)."""
+
+
 def regularised_g(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float,
-                  eps: float) -> np.ndarray:
-    """G^ε_p(X) = A X A' + εt I − p A X C'(C X C' + εt I)^{-1} C X A', t = tr X (ε = 0: G_p)."""
+                  eps: float, floor: float = POWER_REG) -> np.ndarray:
+    """G^ε_p(X) = A X A' + εt I − p A X C'(C X C' + max(ε, floor) t I)^{-1} C X A', t = tr X
+    (ε = 0: G_p with the homogeneous regulariser ``floor``·t only)."""
     t = float(np.trace(X))
-    Y = noise_free_g(A, C, X, p, reg=max(eps, 1e-12) * t)
+    Y = noise_free_g(A, C, X, p, reg=max(eps, floor) * t)
     return Y + eps * t * np.eye(A.shape[0]) if eps else Y
 
 
@@ -215,7 +227,7 @@ def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, ep
     res = np.inf
     for it in range(max_iterations + 1):
         t = np.trace(X)
-        S = C @ X @ C.T + max(eps, 1e-15) * t * np.eye(m)   # 1e-15: keep S invertible
+        S = C @ X @ C.T + max(eps, NEWTON_REG) * t * np.eye(m)   # keep S invertible
         AXC = A @ X @ C.T
         try:
             K = -np.linalg.solve(S.T, AXC.T).T
@@ -258,15 +270,15 @@ def perron_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float, eps: f
     iu, ju = np.triu_indices(n)
     diag = (iu == ju).astype(float)
     X = symmetrize(X0) / np.trace(X0)
-    r = float(np.trace(regularised_g(A, C, X, p, eps)))
+    r = float(np.trace(regularised_g(A, C, X, p, eps, NEWTON_REG)))
     K = np.zeros((n, m))
     for _ in range(max_iterations + 1):
         t = float(np.trace(X))
-        S = C @ X @ C.T + max(eps, 1e-15) * t * np.eye(m)   # 1e-15: keep S invertible
+        S = C @ X @ C.T + max(eps, NEWTON_REG) * t * np.eye(m)   # keep S invertible
         AXC = A @ X @ C.T
         try:
             K = -np.linalg.solve(S.T, AXC.T).T
-            G = regularised_g(A, C, X, p, eps)
+            G = regularised_g(A, C, X, p, eps, NEWTON_REG)   # the map K and J belong to
         except np.linalg.LinAlgError:
             return X, r, K, False
         res_v = np.concatenate([vech(G - r * X), [t - 1.0]])
@@ -595,10 +607,15 @@ def _newton_method(system: System, tol: float) -> UpperBound:
             if best is not None:
                 p_star = p_low
                 break
-        if plain_ok and lam > 1e-9 * np.trace(plain.X):
+        if plain_ok and p_star - p_low > NEAR_P_LOW:
+            # the certificate point hi = p* + tol/2 (so that [hi - tol, hi] has the root in its
+            # middle): eigenvector of G_hi, else the Stein certificate of its gain or of K*
+            best = fixed_p_certificate(system, red, p_star, plain.X, tol, stats,
+                                       offsets=(0.5,), gains=(plain.K,))
+        if best is None and plain_ok and lam > 1e-9 * np.trace(plain.X):
             best = _regularised_certificate(system, red, plain, start, 0.5 * (lo + hi), p_star,
                                             p_low, tol, stats)
-        elif plain_ok:        # singular X*: a face root, or a genuine but degenerate one
+        elif best is None and plain_ok:   # singular X*: a face root, or a degenerate one
             best = fixed_p_certificate(system, red, p_star, plain.X, tol, stats)
         if best is not None:
             break
@@ -662,7 +679,7 @@ def collatz_wielandt(A: np.ndarray, C: np.ndarray, X: np.ndarray, p: float
     """
     try:
         L = np.linalg.cholesky(X)
-        G = noise_free_g(A, C, X, p, reg=1e-15 * np.trace(X))
+        G = noise_free_g(A, C, X, p, reg=NEWTON_REG * np.trace(X))
         Li = np.linalg.solve(L, np.eye(L.shape[0]))
         ev = np.linalg.eigvalsh(symmetrize(Li @ G @ Li.T))
     except np.linalg.LinAlgError:
@@ -790,11 +807,20 @@ def _regularised_certificate(system: System, red: Reduced, plain: NewtonResult |
 
 
 def fixed_p_certificate(system: System, red: Reduced, base: float, X0: np.ndarray, tol: float,
-                        stats: dict[str, Any]):
-    """Certificate at p = base + offset (offsets tol/2 … 10^4 tol) from the cone eigenvector of
-    G^ε_p (ε = 0 first): r_ε(p) < 1 with X ≻ 0 gives X − L_{K,p}(X) ⪰ (1 − r) X ≻ 0."""
-    for offset in (0.5 * tol, tol, 10 * tol, 100 * tol, 1e4 * tol):
+                        stats: dict[str, Any],
+                        offsets: tuple[float, ...] = (0.5, 1.0, 10.0, 100.0, 1e4),
+                        gains: tuple[np.ndarray, ...] = ()):
+    """Certificate at p = base + offset·tol (offsets 1/2 … 10^4) from the cone eigenvector of
+    G^ε_p (ε = 0 first): r_ε(p) < 1 with X ≻ 0 gives X − L_{K,p}(X) ⪰ (1 − r) X ≻ 0.
+
+    That margin is (1 − r)·λ_min(X): near the threshold it can sink below the rounding of X (a
+    nearly singular eigenvector, r = 1 − O(tol)). When the eigenvector check fails, the gain K
+    of the eigenvector (and then each of ``gains``) is tried in :func:`stein_certificate`,
+    whose margin is the identity by construction."""
+    for mult in offsets:
+        offset = mult * tol
         hi = float(min(base + offset, 1.0))
+        stein_tried = False
         for eps in (0.0, 1e-2 * offset, 1e-4 * offset):
             X, r, K, ok = perron_newton(red.Au, red.Cu, X0 + eps * np.eye(red.k), hi, eps=eps)
             stats["newton_iterations"] += 1
@@ -803,15 +829,121 @@ def fixed_p_certificate(system: System, red: Reduced, base: float, X0: np.ndarra
                 stats["power_iterations"] += its
                 X, r, K, ok = perron_newton(red.Au, red.Cu, Xs, hi, eps=eps)
                 stats["newton_iterations"] += 1
-            if not (ok and r < 1 and float(np.linalg.eigvalsh(X).min()) > 0):
-                continue
-            Z, Xz, Kz = lift_certificate(red, system.c, X, K, hi)
-            check = certify.verify_upper(system, hi, Xz, Kz, basis=Z, output_map=red.M)
-            stats["certificate_checks"] += 1
-            if check.ok:
-                stats["regularisation"] = eps
-                return hi, (Z, Xz, Kz), check, eps
+            if ok and r < 1 and float(np.linalg.eigvalsh(X).min()) > 0:
+                Z, Xz, Kz = lift_certificate(red, system.c, X, K, hi)
+                check = certify.verify_upper(system, hi, Xz, Kz, basis=Z, output_map=red.M)
+                stats["certificate_checks"] += 1
+                if check.ok:
+                    stats["regularisation"] = eps
+                    return hi, (Z, Xz, Kz), check, eps
+            if not stein_tried and np.all(np.isfinite(K)):
+                stein_tried = True
+                bal = X if (ok and np.all(np.isfinite(X))
+                            and float(np.linalg.eigvalsh(X).min()) > 0) else None
+                for Kc in (K, *gains):
+                    found = stein_certificate(system, red, hi, Kc, stats, balance=bal)
+                    if found is not None:
+                        stats["regularisation"] = eps
+                        return (hi, *found, eps)
     return None
+
+
+STEIN_REFINE_STEPS = 2
+"""Steps of iterative refinement of the Stein solution (residual in float64, LU reused)."""
+
+
+def balanced_reduction(red: Reduced, X: np.ndarray) -> tuple[Reduced, np.ndarray] | None:
+    """The reduction in the coordinates x_u = T y, T T' = X (Cholesky of a positive definite X,
+    normally the cone eigenvector of G_p): A_u → T⁻¹ A_u T, C_u → C_u T, T_us → T⁻¹ T_us, and
+    the basis Z_u → Z_u T (a float product, used exactly by the checker like any basis).
+
+    In these coordinates the eigenvector is the identity, so a certificate built there is as
+    well conditioned as if X* were: the ill-conditioning of the eigenvector (λ_min(X*) = 4e-7
+    for ``random_system(12, 4, 0)``) moves into the basis, where the ball check takes it
+    exactly, instead of into the float certificate, where it meets the rounding. Returns
+    (reduction, T) or None."""
+    k = red.k
+    try:
+        Xs = symmetrize(X) / float(np.trace(X))
+        Tb = np.linalg.cholesky(Xs)
+        Ti = sla.solve_triangular(Tb, np.eye(k), lower=True)
+    except (np.linalg.LinAlgError, ValueError, ZeroDivisionError):
+        return None
+    if not (np.all(np.isfinite(Tb)) and np.all(np.isfinite(Ti))):
+        return None
+    Tn = red.T.copy()
+    Tn[:k, :k] = Ti @ red.T[:k, :k] @ Tb
+    Tn[:k, k:] = Ti @ red.T[:k, k:]
+    Zn = red.Z.copy()
+    Zn[:, :k] = red.Z[:, :k] @ Tb
+    return Reduced(Tn, Zn, k, Tn[:k, :k], red.Cu @ Tb, red.Cw, red.M), Tb
+
+
+def stein_certificate(system: System, red: Reduced, p: float, K: np.ndarray,
+                      stats: dict[str, Any], balance: np.ndarray | None = None):
+    """Certificate at p from the gain K alone: X_u solves X_u = L_{K,p}(X_u) + I on the unstable
+    block, lifted (:func:`lift_certificate`) and ball-checked (:func:`certify.verify_upper`).
+
+    Why this is well conditioned where the eigenvector is not: with ρ(L_{K,p}) = 1 − δ the
+    eigenvector X of G_p has X − L_{K,p}(X) ⪰ δ X, a margin δ·λ_min(X) that near the threshold
+    (δ ~ tol, λ_min(X) ≪ 1) is at the level of the rounding of X. The Stein solution has the
+    margin X_u − L(X_u) = I by construction, and its size ‖X_u‖ ~ 1/δ only scales the float
+    residual, ~ u·‖X_u‖·‖I − L‖: the check has room as long as δ ≫ u (≈ 1e-16). X_u ≻ 0 with
+    X_u − L(X_u) ≻ 0 holds iff ρ(L_{K,p}) < 1 (L is a positive map). The linear solve is only a
+    proposal: the decision is the ball check on the exact matrices, so no solver error can make
+    it pass.
+
+    ‖X_u‖ is 1/δ only when the eigenvector of L_{K,p} is well conditioned; otherwise
+    X_u = Σ L^j(I) can be far larger (1e15 for δ = 5e-10 on ``random_system(12, 4, 0)``). With
+    ``balance`` = that eigenvector X the equation is solved in the coordinates of
+    :func:`balanced_reduction` (there L(I) ≈ r I and X̃_u ≈ I/δ), and the unbalanced solve is
+    the fallback. Returns ((Z, X_z, K_z), check) or None.
+    """
+    if red.k > NEWTON_MAX_REDUCED or not np.all(np.isfinite(K)):
+        return None
+    if balance is not None:
+        bal = balanced_reduction(red, balance)
+        if bal is not None:
+            red_b, Tb = bal
+            Kb = sla.solve_triangular(Tb, K, lower=True)     # F → T⁻¹ F T: K → T⁻¹ K
+            found = stein_certificate(system, red_b, p, Kb, stats)
+            if found is not None:
+                stats["certificate_from"] += " (balanced by the cone eigenvector)"
+                return found
+    k = red.k
+    Au, Cu = red.Au, red.Cu
+    iu = np.triu_indices(k)
+    eye = np.eye(k)
+    try:
+        with np.errstate(all="raise"):
+            Lm = stein_matrix(Au, Cu, K, p)
+            lu = sla.lu_factor(np.eye(Lm.shape[0]) - Lm, check_finite=True)
+            Xu = unvech(sla.lu_solve(lu, vech(eye)), k)
+            F = Au + K @ Cu
+            for _ in range(STEIN_REFINE_STEPS):
+                W = symmetrize(Xu - (1 - p) * Au @ Xu @ Au.T - p * F @ Xu @ F.T)
+                res = eye - W
+                if float(np.abs(res).max()) <= 1e-8:
+                    break
+                Xu = symmetrize(Xu + unvech(sla.lu_solve(lu, res[iu]), k))
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError, ZeroDivisionError):
+        return None
+    stats["newton_iterations"] += 1          # one dense solve of the vech system
+    if not np.all(np.isfinite(Xu)):
+        return None
+    try:
+        if float(np.linalg.eigvalsh(Xu).min()) <= 0:     # ρ(L_{K,p}) ≥ 1: no certificate
+            return None
+    except np.linalg.LinAlgError:
+        return None
+    Xu = Xu / float(np.trace(Xu))            # scale: immaterial to the check, tidy in the record
+    Z, Xz, Kz = lift_certificate(red, system.c, Xu, K, p)
+    check = certify.verify_upper(system, p, Xz, Kz, basis=Z, output_map=red.M)
+    stats["certificate_checks"] += 1
+    if not check.ok:
+        return None
+    stats["certificate_from"] = "stein: X_u = L_{K,p}(X_u) + I"
+    return (Z, Xz, Kz), check
 
 
 def _continuation(red: Reduced, X0: np.ndarray, p0: float, eps: float, p_star: float | None,

@@ -182,3 +182,24 @@ def test_gilbert_elliott_memoryless_when_rates_sum_to_one_exactly() -> None:
     ch = channel_from_mapping({"model": "gilbert-elliott", "failure_rate": "cos(1)**2",
                                "recovery_rate": "sin(1)**2"})
     assert ch.iid
+
+
+def test_trace_start_comes_from_the_path_key_not_the_number_of_paths():
+    """Prefix independence for trace channels: path i starts at key_i mod L, key_i the first
+    64-bit word of NumPy's SeedSequence(seed, spawn_key=(0, i)); running 3 or 300 paths gives
+    the same first paths (the old ⌊i·L/paths⌋ start moved with the number of paths)."""
+    from kfcrit.montecarlo import simulate
+    from kfcrit.system import System
+
+    seq = (np.random.default_rng(11).random(37) < 0.6).tolist()
+    system = System([[1.1]], [[1]], 1, 1)
+    ch = Trace.from_arrivals(seq)
+    few = simulate(system, 3, 50, 9, ch, record_traces=True, full_state_paths=3)
+    many = simulate(system, 300, 50, 9, ch, record_traces=3, full_state_paths=3)
+    np.testing.assert_array_equal(few.traces, many.traces)
+    np.testing.assert_array_equal(few.full_state.arrivals, many.full_state.arrivals)
+    for i in range(3):
+        key = np.random.SeedSequence(9, spawn_key=(0, i)).generate_state(1, np.uint64)[0]
+        k = int(key % np.uint64(37))
+        expected = [seq[(k + t) % 37] for t in range(50)]
+        np.testing.assert_array_equal(few.full_state.arrivals[i], expected)

@@ -162,3 +162,41 @@ def test_exact_text_keeps_long_numbers_exact_and_parseable() -> None:
     assert parse_expression(exact_text(long)) == long
     huge = sp.Rational(3**1000, 7)  # beyond the length limit: exact text all the same
     assert "." not in exact_text(huge) and len(exact_text(huge)) > 500
+
+
+_AST_CLASS_NAMES = ("JoinedStr", "FormattedValue", "NamedExpr", "Starred", "BoolOp", "UnaryOp",
+                    "IfExp", "Tuple", "List", "Dict", "Set", "Await", "Mod", "FloorDiv",
+                    "MatMult", "BitOr", "BitAnd", "LShift", "Compare", "Attribute", "Subscript")
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("f'{1}'", "f-strings are not allowed"),
+    ("(x := 1)", "assignment expressions (:=) are not allowed"),
+    ("sqrt(*[4])", "starred arguments (*x) are not allowed"),
+    ("1 if 1 else 2", "conditional expressions"),
+    ("1 and 2", "'and' and 'or' are not allowed"),
+    ("not 1", "only the unary operators + and - are allowed"),
+    ("~1", "only the unary operators + and - are allowed"),
+    ("1 % 2", "the operator % is not allowed"),
+    ("7 // 2", "the operator // is not allowed"),
+    ("1 @ 2", "the operator @ is not allowed"),
+    ("1 | 2", "the operator | is not allowed"),
+    ("1 << 2", "the operator << is not allowed"),
+    ("(1, 2)", "tuples (commas) are not allowed"),
+    ("[1]", "lists are not allowed"),
+    ("{1: 2}", "dictionaries are not allowed"),
+    ("{1}", "sets are not allowed"),
+    ("1 < 2", "comparisons are not allowed"),
+    ("().__class__", "attribute access (x.y) is not allowed"),
+    ("x[0]", "indexing (x[i]) is not allowed"),
+    ("[x for x in y]", "comprehensions are not allowed"),
+    ("lambda: 1", "lambda functions are not allowed"),
+    ("await x", "'await' is not allowed"),
+])
+def test_syntax_errors_are_in_plain_words(text: str, words: str) -> None:
+    with pytest.raises(ExpressionError) as info:
+        parse_expression(text, "A[0][0]")
+    message = str(info.value)
+    assert message.startswith("A[0][0]: ") and words in message, message
+    for name in _AST_CLASS_NAMES:
+        assert name not in message.split(" in ")[0], message

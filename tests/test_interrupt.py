@@ -170,3 +170,106 @@ def test_interrupted_sweep_leaves_no_worker_processes(sig: signal.Signals,
     for p in survivors:  # do not leave them running after a failure
         os.kill(p, signal.SIGKILL)
     assert not survivors, survivors
+
+
+# ---- exit codes of interruptions and internal errors ---------------------------------------
+
+def test_exit_code_enum_has_internal_and_interrupted() -> None:
+    from kfcrit.errors import ExitCode
+
+    assert ExitCode.INTERNAL == 4 and ExitCode.INTERRUPTED == 130
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert "| 4 |" in readme and "| 130 |" in readme
+
+
+def test_cli_uses_the_enum_not_bare_exit_literals() -> None:
+    import re
+
+    import kfcrit.cli as cli
+
+    source = Path(cli.__file__).read_text()
+    assert not re.search(r"_exit\(\s*\d+\s*\)", source)
+    assert not re.search(r"fail\([^)]*,\s*\d+\s*\)", source, flags=re.S)
+
+
+def test_internal_error_is_one_short_line_exit_4(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from click.testing import CliRunner
+
+    import kfcrit.systemfile as sf
+    from kfcrit.cli import main
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise TypeError("x" * 5000)  # e.g. a sympy relational printed in full
+
+    monkeypatch.setattr(sf, "load_spec", broken)
+    r = CliRunner().invoke(main, ["analyze", str(REPORTS / "sinopoli-scalar.yaml")])
+    assert r.exit_code == 4
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "internal error (TypeError:" in lines[0]
+    assert len(lines[0]) < 400 and "--debug" in lines[0]
+
+
+_SIGTERM_AT = """
+import os, signal, sys
+import click
+import kfcrit.systemfile as sf
+from kfcrit.cli import KfcritGroup, main
+
+def term_now():
+    os.kill(os.getpid(), signal.SIGTERM)  # the handler runs before kill() returns to Python
+
+where = sys.argv[1]
+if where == "parse":   # start-up: before click has parsed the command line
+    real = click.Group.parse_args
+    def parse_args(self, ctx, args):
+        term_now()
+        return real(self, ctx, args)
+    KfcritGroup.parse_args = parse_args
+else:                  # inside the command, while the system file is read
+    real_load = sf.load_spec
+    def load_spec(*a, **k):
+        term_now()
+        return real_load(*a, **k)
+    sf.load_spec = load_spec
+sys.argv = ["kfcrit", "analyze", sys.argv[2], "--no-simulate"]
+main()
+"""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="signals")
+@pytest.mark.parametrize("where", ["parse", "command"])
+def test_sigterm_during_start_up_exits_130_with_one_line(where: str) -> None:
+    # before the fix the handler was installed by the group callback, after parsing: a SIGTERM
+    # before it ended the process with 143 and no message
+    proc = subprocess.run([sys.executable, "-c", _SIGTERM_AT, where,
+                           str(REPORTS / "sinopoli-scalar.yaml")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 130, (proc.returncode, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert lines == ["kfcrit: error: interrupted; nothing was written"], proc.stderr
+    assert proc.stdout == ""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="signals")
+def test_sigterm_once_running_exits_130_and_keeps_the_previous_output(tmp_path: Path) -> None:
+    out = tmp_path / "review.html"
+    out.write_bytes(PREVIOUS)
+    proc = subprocess.Popen([sys.executable, "-m", "kfcrit", "report",
+                             str(REPORTS / "sinopoli-general.yaml"), "-o", str(out), "--quick"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        first = proc.stderr.readline()  # "kfcrit: reading …": start-up is over
+        assert first.startswith(b"kfcrit: reading"), first
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode in (130, 0), err.decode()  # 0 only if it finished first
+    if proc.returncode == 130:
+        assert err.decode().strip().splitlines()[-1] == \
+            "kfcrit: error: interrupted; nothing was written"
+        assert out.read_bytes() == PREVIOUS
+    assert b"Traceback" not in err

@@ -127,3 +127,78 @@ def test_invariant_section_scalar_only_and_overlapping_images():
         support_points(System([[2]], [[1]], 1, 1), 99)
     with pytest.raises(InputError):
         support_points(System([[2]], [[0]], 1, 1), 3)
+
+
+# ---- hostile scales: certified comparison, no NumPy warnings, overflow stated --------------
+
+def test_tiny_scalar_a_is_decided_by_a_certified_comparison() -> None:
+    # exit 4 before: bool(lo < hi) on a sympy Relational it could not decide (TypeError)
+    from kfcrit.invariant import gap_is_open
+
+    s = System([["1e-200"]], 1, 1, 1)
+    sec = invariant_section(s)
+    assert sec is not None and sec["first_gap"] is not None  # hi - lo ≈ 5e-801 > 0, certified
+    assert len(gap_levels(s)) == 5
+    maps = ScalarMaps.of(s)
+    assert gap_is_open(maps.f1_limit(), maps.f0(maps.fixed_point())) is True
+    assert gap_is_open(sp.Integer(1), (sp.cos(1) ** 2 + sp.sin(1) ** 2) ** 64) is None
+    assert gap_is_open(sp.Integer(2), sp.Integer(1)) is False
+
+
+def test_tiny_scalar_a_through_the_cli(tmp_path) -> None:  # noqa: ANN001
+    import json
+
+    from click.testing import CliRunner
+
+    from kfcrit.cli import main
+
+    p = tmp_path / "tiny.yaml"
+    p.write_text("name: tiny\nA: [[1e-200]]\nC: 1\nQ: 1\nR: 1\n")
+    r = CliRunner().invoke(main, ["analyze", str(p), "--no-simulate", "--json"])
+    assert r.exit_code in (0, 3), r.stderr
+    assert "internal error" not in r.stderr and "Traceback" not in r.stderr
+    assert json.loads(r.stdout)["invariant"]["first_gap"] is not None
+
+
+def test_undecidable_first_hole_skips_the_holes_with_a_note(monkeypatch) -> None:  # noqa: ANN001
+    import kfcrit.invariant as inv
+    from kfcrit.errors import ExpressionError
+
+    def undecidable(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise ExpressionError("cannot decide the sign", field="x")
+
+    monkeypatch.setattr(inv, "compare", undecidable)
+    s = System([[SQRT2]], 1, 1, 1)
+    assert gap_levels(s) == []
+    sup = support_points(s, 4)
+    assert sup.first_gap is None and sup.holes == () and not sup.gap_decided
+    sec = invariant_section(s)
+    assert sec["first_gap"] is None and sec["gap_levels"] == [] and sec["holes"] == []
+    assert sec["note"] == inv.UNDECIDED_GAP
+    assert any("cannot decide" in w for w in sec["warnings"])
+
+
+def test_huge_values_warn_in_the_record_and_print_nothing(tmp_path) -> None:  # noqa: ANN001
+    import json
+    import subprocess
+    import sys
+    import warnings
+
+    from kfcrit.invariant import OVERFLOW
+
+    s = System([["2**64"]], 1, 1, "1e250")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a NumPy RuntimeWarning fails the test
+        sec = invariant_section(s)
+    assert any(OVERFLOW in w for w in sec["warnings"])
+    assert np.isfinite(support_points(s, 6).points).all()
+    assert sec["first_gap"]["upper"] is None and sec["first_gap"]["upper_expression"]
+    p = tmp_path / "huge.yaml"
+    p.write_text('name: huge\nA: "2**64"\nC: 1\nQ: 1\nR: 1e250\n')
+    # a real process: under pytest, warnings are collected by pytest instead of printed
+    proc = subprocess.run([sys.executable, "-m", "kfcrit", "analyze", str(p), "--no-simulate",
+                           "--json"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode in (0, 3), proc.stderr
+    assert proc.stderr == "", proc.stderr  # no RuntimeWarning lines
+    rec = json.loads(proc.stdout)
+    assert any(OVERFLOW in w for w in rec["warnings"])

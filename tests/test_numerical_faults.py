@@ -81,9 +81,47 @@ def test_solver_errors_are_undetermined_never_feasible(monkeypatch: pytest.Monke
 
 
 def test_inconclusive_exit_code_is_3(tmp_path: Path) -> None:
-    code, out, _ = run(tmp_path, SYSTEMS["nearly-unobservable"][0], "--no-simulate")
+    # the unstable mode 1.1 is seen through C with gain 1e-9: p_up cannot be bracketed to the
+    # tolerance, so the operating-point verdict at p = 0.5 is undecided — exit 3, definitely
+    code, out, err = run(tmp_path, SYSTEMS["nearly-unobservable"][0], "--no-simulate")
     rec = assert_finite(out)
-    assert (code == 3) == (rec["upper_bound"]["status"] == "undetermined")
+    assert code == 3, err
+    assert rec["upper_bound"]["status"] == "undetermined"
+    assert rec["operating_point"]["verdict"] == "undetermined"
+    lo, hi = rec["upper_bound"]["interval"]
+    assert 0 <= lo < hi <= 1 and rec["upper_bound"]["certified"] is False
+
+
+def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # every p_up method fails (Newton raises, the LMI solver errors): the record is
+    # "undetermined" with the bracket obtained so far [p_low, 1] — never exit 4, never a guess
+    import numpy as np
+
+    import kfcrit.upper as upper
+
+    def newton_fails(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise np.linalg.LinAlgError("injected solver failure")
+
+    def lmi_fails(self, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        raise cp.error.SolverError("injected solver failure")
+
+    monkeypatch.setattr(upper, "threshold_newton", newton_fails)
+    monkeypatch.setattr(cp.Problem, "solve", lmi_fails)
+    monkeypatch.setattr(upper, "_CACHE", {})
+    p = tmp_path / "s.yaml"
+    p.write_text("name: general\nA: [[1.25, 0], [1, 1.1]]\nC: [[1, 1]]\nQ: 20\nR: 2.5\n")
+    r = CliRunner().invoke(main, ["analyze", str(p), "--json", "--no-simulate"])
+    assert r.exit_code == 3, r.stderr
+    assert "internal error" not in r.stderr
+    rec = assert_finite(r.stdout)
+    ub = rec["upper_bound"]
+    assert ub["status"] == "undetermined" and ub["certified"] is False
+    lo, hi = ub["interval"]
+    assert lo == pytest.approx(1 - 1 / 1.25**2) and hi == 1.0
+    assert lo <= 57 / 121 <= hi  # the true p_up (expected.json) stays inside the bracket
+    assert ub["value"] is None or lo <= ub["value"] <= hi
+    assert any("injected solver failure" in w for w in rec["warnings"])
 
 
 def test_report_of_an_ill_conditioned_system_has_no_nan(tmp_path: Path) -> None:
@@ -96,3 +134,37 @@ def test_report_of_an_ill_conditioned_system_has_no_nan(tmp_path: Path) -> None:
     text = re.sub(r"<[^>]+>", " ", re.sub(r"<svg.*?</svg>", " ", html, flags=re.S))
     assert not re.search(r"\b(nan|NaN|inf|Infinity)\b", text)
     assert "ill-conditioned A" in text
+
+
+def test_pdf_of_an_ill_conditioned_system_has_no_nan(tmp_path: Path) -> None:
+    pypdf = pytest.importorskip("pypdf")
+    p = tmp_path / "s.yaml"
+    p.write_text("name: numerics\n" + SYSTEMS["spread"][0] + CHANNEL)
+    out = tmp_path / "r.pdf"
+    r = CliRunner().invoke(main, ["report", str(p), "-o", str(out), "--quick"])
+    if r.exit_code == 2 and "pdf" in r.stderr.lower():
+        pytest.skip(f"PDF output unavailable here: {r.stderr.strip()}")
+    assert r.exit_code in (0, 3), r.stderr
+    reader = pypdf.PdfReader(str(out))
+    text = "\n".join(page.extract_text() or "" for page in reader.pages)
+    assert "ill-conditioned A" in " ".join(text.split())
+    assert not re.search(r"\b(nan|NaN|NAN|inf|Inf|Infinity|None|null)\b", text), \
+        re.search(r".{0,60}\b(nan|NaN|NAN|inf|Inf|Infinity|None|null)\b.{0,60}", text).group(0)
+
+
+@pytest.mark.xfail(reason="needs the bounds.py / critical.py changes described in the hardening "
+                          "report: np.linalg.norm underflows for entries below ~1e-154, so the "
+                          "MARE iteration 'converges' at V = Q after one step (V̄ = 1e-250 < S̄); "
+                          "and critical._hypothesis_warnings uses an absolute 1e-12 threshold",
+                   strict=False)
+def test_tiny_q_is_positive_definite_and_bounds_are_ordered(tmp_path: Path) -> None:
+    p = tmp_path / "s.yaml"
+    p.write_text("name: tiny-q\nA: 3\nC: 1\nQ: 1e-250\nR: 1\n"
+                 "channel: {model: bernoulli, arrival_probability: 0.95}\n")
+    r = CliRunner().invoke(main, ["analyze", str(p), "--json", "--no-simulate"])
+    rec = assert_finite(r.stdout)
+    assert not any("Q is not positive definite" in w for w in rec["warnings"])
+    check = next(c for c in rec["verification"] if "S̄ ⪯ V̄" in c["check"])
+    assert check["status"] == "passed", check
+    assert rec["covariance_bounds"]["upper"]["trace"] > 0.5  # V̄ ≈ 0.936 for A = 3, p = 0.95
+    assert r.exit_code == 0, r.stderr

@@ -178,6 +178,58 @@ def check_scaling_monotonicity(A: sp.Matrix, C: sp.Matrix, alpha: sp.Rational) -
             raise PropertyViolation(f"{key}({alpha}·A) = {vb} < {key}(A) = {va}")
 
 
+def _real_blocks(D: sp.Matrix) -> list[tuple[int, int, sp.Expr]]:
+    """(start, size, |λ|²) of the 1×1 and [[a, −b], [b, a]] blocks of a real block form D."""
+    out, k = [], 0
+    while k < D.shape[0]:
+        size = 2 if k + 1 < D.shape[0] and D[k + 1, k] != 0 else 1
+        mod2 = D[k, k] ** 2 + (D[k + 1, k] ** 2 if size == 2 else 0)
+        out.append((k, size, sp.nsimplify(mod2)))
+        k += size
+    return out
+
+
+def check_unstable_part_scaling(case: ExactCase, alpha: sp.Rational) -> None:
+    """Mo–Sinopoli Thm 8 with its scaling of the unstable part only: for
+    A_α = T diag(α·D_u, D_s) T^{-1} (D_u the blocks with |λ| > 1, D_s the others; the same C),
+    p_c(A_α, C) ≥ p_c(A, C) for α ≥ 1. (The stable part is untouched, so this is not the
+    whole-A scaling of :func:`check_scaling_monotonicity`.)"""
+    D = case.D.copy()
+    for k, size, mod2 in _real_blocks(case.D):
+        if mod2 > 1:
+            D[k:k + size, k:k + size] = alpha * case.D[k:k + size, k:k + size]
+    a = record(exact_system(case.A, case.C))
+    b = record(exact_system(case.T * D * case.T.inv(), case.C))
+    pa, pb = pc_value(a), pc_value(b)
+    if pa is not None and pb is not None and not pb >= pa - EXACT_TOL:
+        raise PropertyViolation(f"p_c with the unstable part scaled by {alpha} = {pb} < "
+                                f"p_c(A) = {pa}")
+
+
+def check_stable_mode_removal(case: ExactCase, alpha: sp.Rational) -> None:
+    """Removing the stable modes does not raise p_c, and p_c is sandwiched as in Mo–Sinopoli
+    Thm 3 and inequality (15): with (A_u, C_u) the blocks with |λ| ≥ 1 of D = T^{-1} A T and
+    the matching columns of C T,
+        p_c(A_u, C_u) ≤ p_c(A, C) ≤ p_c(α A_u, C_u)  for α > 1
+    (the right side is ≥ its limit α → 1⁺ by the monotonicity in α of Thm 8)."""
+    CT = case.C * case.T
+    cols = [i for k, size, mod2 in _real_blocks(case.D) if mod2 >= 1
+            for i in range(k, k + size)]
+    if not cols or len(cols) == case.D.shape[0]:
+        return  # nothing to remove
+    rows = list(range(CT.shape[0]))
+    Du, Cu = case.D.extract(cols, cols), CT.extract(rows, cols)
+    pf = pc_value(record(exact_system(case.A, case.C)))
+    pu = pc_value(record(exact_system(Du, Cu)))
+    pa = pc_value(record(exact_system(alpha * Du, Cu)))
+    if pf is None or pu is None:
+        return
+    if not pu <= pf + EXACT_TOL:
+        raise PropertyViolation(f"removing the stable modes raised p_c: {pf} -> {pu}")
+    if pa is not None and not pf <= pa + EXACT_TOL:
+        raise PropertyViolation(f"(15) violated: p_c(A, C) = {pf} > p_c({alpha}·A_u) = {pa}")
+
+
 def check_bound_ordering(rec: dict, rho: float | None = None,
                          p_up: float | None = None) -> None:
     """p_low ≤ block lower bound ≤ p_c ≤ p_up ≤ 1 (Sinopoli Thm 3, Mo–Sinopoli Thm 3), and
@@ -299,6 +351,41 @@ def test_thm3_block_monotonicity(case: ExactCase, blocks: set[int]) -> None:
                                                     sp.Rational(3, 2), sp.Integer(2)]))
 def test_thm8_monotone_in_scaling(case: ExactCase, alpha: sp.Rational) -> None:
     check_scaling_monotonicity(case.A, case.C, alpha)
+
+
+# diag(2, −2) seen through C = [1 1] is degenerate (q = 2, p_c = 15/16); with a stable mode
+# 1/2 the unstable part is that pair, so scaling it by α gives 1 − (2α)^{−4} ≥ 15/16 and
+# removing the stable mode leaves p_c at 15/16 (Mo–Sinopoli Thm 5/9, hand values)
+_DEG_WITH_STABLE = ExactCase(sp.diag(2, -2, sp.Rational(1, 2)), sp.Matrix([[1, 1, 1]]),
+                             sp.eye(3), sp.eye(1), sp.diag(2, -2, sp.Rational(1, 2)), sp.eye(3))
+
+
+@example(case=_DEG_WITH_STABLE, alpha=sp.Rational(3, 2))
+@given(case=exact_systems(kind="unstable"),
+       alpha=st.sampled_from([sp.Integer(1), sp.Rational(11, 10), sp.Rational(3, 2),
+                              sp.Integer(2)]))
+def test_thm8_monotone_in_scaling_the_unstable_part_only(case: ExactCase,
+                                                          alpha: sp.Rational) -> None:
+    check_unstable_part_scaling(case, alpha)
+
+
+@example(case=_DEG_WITH_STABLE, alpha=sp.Rational(1001, 1000))
+@given(case=exact_systems(kind="unstable"),
+       alpha=st.sampled_from([sp.Rational(1001, 1000), sp.Rational(11, 10)]))
+def test_removing_stable_modes_does_not_raise_pc(case: ExactCase, alpha: sp.Rational) -> None:
+    check_stable_mode_removal(case, alpha)
+
+
+def test_unstable_part_scaling_hand_values() -> None:
+    """The example above by hand: p_c = 15/16 before, 1 − 3^{−4} = 80/81 after scaling the
+    unstable pair by 3/2 (the stable 1/2 untouched), 15/16 without the stable mode."""
+    full = pc_value(record(exact_system(_DEG_WITH_STABLE.A, _DEG_WITH_STABLE.C)))
+    scaled = pc_value(record(exact_system(sp.diag(3, -3, sp.Rational(1, 2)),
+                                          _DEG_WITH_STABLE.C)))
+    removed = pc_value(record(exact_system(sp.diag(2, -2), sp.Matrix([[1, 1]]))))
+    assert full == pytest.approx(15 / 16, abs=1e-12)
+    assert scaled == pytest.approx(80 / 81, abs=1e-12)
+    assert removed == pytest.approx(15 / 16, abs=1e-12)
 
 
 @given(case=degenerate_pairs(), alpha=st.sampled_from([sp.Rational(6, 5), sp.Integer(2)]))

@@ -80,19 +80,30 @@ def mare_fixed_point(A, C, Q, R, p, iters=5000):
 # exactness of the kernel
 
 
+def trace_offset(seed, i, length):
+    """Start of path i in a trace of ``length`` values: its key (NumPy's own SeedSequence)
+    modulo the length (documented in simulate)."""
+    key = np.random.SeedSequence(seed, spawn_key=(0, i)).generate_state(1, np.uint64)[0]
+    return int(key % np.uint64(length))
+
+
 @given(small_systems(), st.lists(st.booleans(), min_size=1, max_size=25))
 def test_kernel_follows_the_standard_riccati_maps(sysmats, arrivals):
-    """Path 0 of a trace channel reads the trace from offset 0: compare with kfcrit.riccati."""
+    """Paths of a trace channel read the trace from offset key_i mod L: compare with
+    kfcrit.riccati on the rotated trace."""
     A, C, Q, R = sysmats
     system = System(A, C, Q, R)
-    res = simulate(system, 1, len(arrivals), 0, Trace.from_arrivals(arrivals),
+    L = len(arrivals)
+    res = simulate(system, 2, L, 0, Trace.from_arrivals(arrivals),
                    record_traces=True, divergence_threshold=1e300)
-    P = system.sigma0.copy()
-    expected = [np.trace(P)]
-    for gam in arrivals:
-        P = f_arrival(A, C, Q, R, P) if gam else f_loss(A, Q, P)
-        expected.append(np.trace(P))
-    np.testing.assert_allclose(res.traces[0], expected, rtol=1e-9, atol=1e-12)
+    for i in range(2):
+        k = trace_offset(0, i, L)
+        P = system.sigma0.copy()
+        expected = [np.trace(P)]
+        for t in range(L):
+            P = f_arrival(A, C, Q, R, P) if arrivals[(k + t) % L] else f_loss(A, Q, P)
+            expected.append(np.trace(P))
+        np.testing.assert_allclose(res.traces[i], expected, rtol=1e-9, atol=1e-12)
 
 
 @given(small_systems(), st.integers(0, 6), floats(0.0, 1.0), st.integers(1, 9))
@@ -109,7 +120,14 @@ def test_lane_step_is_symmetric_psd_and_equals_the_maps(sysmats, rank, scale, la
     ws = [np.empty((n, n, lanes)) for _ in range(2)]
     wm = [np.empty((n, m, lanes)), np.empty((m, m, lanes)), np.empty((n, m, lanes)),
           np.empty((n, m, lanes))]
-    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3])
+    ones, zeros = np.ones(lanes), np.zeros(lanes)
+    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3],
+                   False, ones, zeros)
+    # the scaled branch with c = 1 and no loading is the same arithmetic, bit for bit
+    out_scaled = np.empty_like(Xs)
+    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out_scaled, ws[0], ws[1], wm[0], wm[1], wm[2],
+                   wm[3], True, ones, zeros)
+    assert np.array_equal(out, out_scaled)
     for b in range(lanes):
         Y = out[:, :, b]
         assert np.array_equal(Y, Y.T)
@@ -202,22 +220,139 @@ def test_divergence_is_detected_reported_and_json_safe():
     system = System([[2]], [[1]], 1, 1)
     res = simulate(system, 4, 30, 0, arrival_probability=0, divergence_threshold=1e6,
                    horizon_samples=31)
-    assert res.diverged_paths == 4 and res.mean_is_lower_bound
+    assert res.diverged_paths == 4 and not res.mean_is_lower_bound
     assert list(res.divergence_times) == [10] * 4
     assert np.all(res.diverged_fraction[res.times >= 10] == 1)
     assert np.all(res.diverged_fraction[res.times < 10] == 0)
-    assert res.warnings
+    assert np.all(res.above_threshold_fraction == res.diverged_fraction)  # never comes back
+    exact = np.array([4.0 ** t + (4.0 ** t - 1) / 3 for t in res.times])
+    np.testing.assert_allclose(res.mean_trace, exact, rtol=1e-12)   # continued, not censored
+    assert res.warnings and "scaled form" in res.warnings[0]
     d = res.to_dict()
     json.dumps(d, allow_nan=False)
-    assert d["divergence"]["first_time"] == 10 and d["divergence"]["mean_is_lower_bound"]
-    assert d["horizon"]["quantiles"][-1] is None  # censored quantile
+    assert d["divergence"]["first_time"] == 10 and not d["divergence"]["mean_is_lower_bound"]
+    assert d["horizon"]["quantiles"][-1] == pytest.approx(exact[-1], rel=1e-12)
+
+
+def test_a_path_that_crossed_the_threshold_comes_back_down():
+    """The auditor's repro: a = 1.25, c = q = 1, r = 2.5, p = 0.8, threshold 5. Arrivals pull
+    P back below 5 (the Riccati fixed point is < 5), so stopping a crossed path at 5 overstated
+    the mean. Independent reference: the scalar recursions f0(P) = a²P + q,
+    f1(P) = a²P + q − a²P²/(P + r) in plain Python on the same 0/1 trace (rotated by key mod L),
+    with no threshold at all."""
+    a, q, r = 1.25, 1.0, 2.5
+    system = System([[a]], [[1]], q, r)
+    arrivals = [bool(x) for x in np.random.default_rng(3).random(101) < 0.8]
+    paths, steps = 40, 150
+    res = simulate(system, paths, steps, 4, Trace.from_arrivals(arrivals),
+                   divergence_threshold=5.0, horizon_samples=steps + 1, initial=[[1.0]])
+    ref = np.empty((paths, steps + 1))
+    for i in range(paths):
+        k, P = trace_offset(4, i, len(arrivals)), 1.0
+        ref[i, 0] = P
+        for t in range(steps):
+            P = a * a * P + q - (a * a * P * P / (P + r) if arrivals[(k + t) % 101] else 0.0)
+            ref[i, t + 1] = P
+    assert res.diverged_paths > 0 and not res.mean_is_lower_bound
+    np.testing.assert_allclose(res.mean_trace, ref.mean(axis=0), rtol=1e-10)
+    np.testing.assert_allclose(np.sort(res.horizon_traces), np.sort(ref[:, -1]), rtol=1e-10)
+    # crossing is still reported, and the fraction above the threshold now falls again
+    assert res.diverged_fraction[-1] == np.mean((ref > 5.0).any(axis=1))
+    np.testing.assert_array_equal(res.above_threshold_fraction, (ref > 5.0).mean(axis=0))
+    assert res.above_threshold_fraction[-1] < res.diverged_fraction[-1]
+
+
+def test_values_beyond_float64_are_reported_as_log10():
+    # p = 0, a = 10, c = q = r = 1, P0 = 1: tr P_t = 100^t + (100^t − 1)/99, so at t = 400
+    # log10 tr P = 800 + log10(1 + 1/99) (hand derivation); far beyond float64 (1.8e308)
+    system = System([[10]], [[1]], 1, 1)
+    res = simulate(system, 3, 400, 0, arrival_probability=0, initial=[[1.0]])
+    expected = 800 + math.log10(1 + 1 / 99)
+    assert res.mean_trace[-1] == math.inf and not np.isnan(res.mean_trace).any()
+    assert res.log10_mean_trace[-1] == pytest.approx(expected, abs=1e-9)
+    assert res.log10_mean_lambda_max[-1] == pytest.approx(expected, abs=1e-9)  # n = 1
+    assert res.horizon_log10_quantiles()[4] == pytest.approx(expected, abs=1e-9)
+    t50 = int(np.flatnonzero(res.times >= 50)[0])   # still a float: same value both ways
+    tt = int(res.times[t50])
+    assert res.mean_trace[t50] == pytest.approx(100.0 ** tt * (1 + 1 / 99), rel=1e-12)
+    d = json.loads(dumps(res.to_dict()))
+    assert d["mean_trace"]["overflow"] is True and d["mean_trace"]["mean"][-1] is None
+    assert d["mean_trace"]["log10_mean"][-1] == pytest.approx(expected, abs=1e-9)
+    assert d["horizon"]["log10_mean"] == pytest.approx(expected, abs=1e-9)
+    assert "10^800.004" in simulate_summary(res)
+
+
+def simulate_summary(res):
+    from kfcrit.montecarlo import summary_text
+
+    return summary_text(res)
+
+
+def test_log_sum_exp_moments_by_hand():
+    """Values 1e400 and 1e401 (as logs): mean 5.5e400, sample sd 9e400/√2."""
+    from kfcrit.montecarlo import _accumulate_log, _column_stats
+
+    ln10 = math.log(10)
+    lv = np.array([[400 * ln10], [401 * ln10]])
+    lmax, s1, s2 = np.full(1, -np.inf), np.zeros(1), np.zeros(1)
+    _accumulate_log(lv[:1], lmax, s1, s2)   # in two batches: a new maximum rescales the sums
+    _accumulate_log(lv[1:], lmax, s1, s2)
+    _, _, lmean, lstd = _column_stats(2, np.full(1, np.inf), np.full(1, np.nan), lmax, s1, s2)
+    assert lmean[0] == pytest.approx(400 + math.log10(5.5), abs=1e-12)
+    assert lstd[0] == pytest.approx(400 + math.log10(9 / math.sqrt(2)), abs=1e-12)
+
+
+def test_bit_identical_for_any_batch_size_with_diverging_paths():
+    """Blocks holding scaled (crossed) lanes take the scaled kernel branch; the other lanes of
+    such a block must not change by a bit."""
+    kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4}
+    ref = simulate(GENERAL, 300, 120, 5, **kw)
+    assert 0 < ref.diverged_paths < 300
+    for bs in (1, 7, 1000):
+        other = simulate(GENERAL, 300, 120, 5, batch_size=bs, **kw)
+        for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces",
+                     "log10_mean_trace", "divergence_times"):
+            assert np.array_equal(getattr(ref, name), getattr(other, name)), (bs, name)
+
+
+def test_progress_is_reported_in_step_chunks(monkeypatch):
+    """A run with fewer paths than one batch still reports progress as the steps advance,
+    and the chunking changes no number (diverging lanes carry their scaled state across)."""
+    import kfcrit.montecarlo as mc
+
+    kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4}
+    ref = simulate(GENERAL, 50, 900, 2, record_traces=2, **kw)
+    monkeypatch.setattr(mc, "PROGRESS_WORK", 50 * 4 * 100)   # 100 steps per kernel call
+    calls = []
+    res = simulate(GENERAL, 50, 900, 2, record_traces=2, progress=lambda d, t: calls.append((d, t)),
+                   **kw)
+    assert [d for d, _ in calls] == [50 * s for s in range(100, 1000, 100)]
+    assert all(t == 50 * 900 for _, t in calls)
+    for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces", "traces",
+                 "divergence_times"):
+        assert np.array_equal(getattr(ref, name), getattr(res, name)), name
+
+
+@pytest.mark.parametrize("bad", [math.inf, -math.inf, math.nan, 0.0, -1.0, "x", True])
+def test_divergence_threshold_must_be_finite_and_positive(bad):
+    with pytest.raises(InputError, match="divergence_threshold"):
+        simulate(SCALAR, 5, 10, 0, arrival_probability=0.5, divergence_threshold=bad)
+    with pytest.raises(InputError, match="divergence_threshold"):
+        ergodic(SCALAR, 50, 0, arrival_probability=0.5, divergence_threshold=bad)
 
 
 def test_far_below_critical_long_horizon_stays_finite():
+    # (1 − p) a² = 0.98 · 1.5625 > 1: E[tr P_t] grows without bound; loss runs of a few hundred
+    # steps take single paths far beyond the threshold
     res = simulate(SCALAR, 300, 5000, 2, arrival_probability=0.02)
-    assert np.all(np.isfinite(res.mean_trace)) and np.all(np.isfinite(res.horizon_traces))
-    assert res.diverged_paths > 0  # ((1−p) a²)^t explodes: paths must be stopped and counted
+    assert not np.isnan(res.mean_trace).any() and not np.isnan(res.horizon_traces).any()
+    assert np.all(np.isfinite(res.log10_mean_trace)) and np.all(np.isfinite(
+        res.horizon_log10_traces))
+    assert res.diverged_paths > 0 and res.failed_paths == 0
+    # the crossed paths were continued: the mean is not held at the threshold
+    assert res.mean_trace.max() > res.divergence_threshold
     json.dumps(res.to_dict(), allow_nan=False)
+    json.loads(dumps(res.to_dict()))
 
 
 def test_bad_arguments():
@@ -376,10 +511,17 @@ def test_ergodic_time_average_matches_the_ensemble_mean():
 
 
 def test_tail_levels_count_visits():
-    """The tail estimate is the fraction of times above M: compare with a recorded trace."""
-    res = simulate(SCALAR, 1, 3000, 0, Trace.from_arrivals(
-        [1, 0, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1]), record_traces=True)
-    erg = ergodic(SCALAR, 3000, 0, Trace.from_arrivals([1, 0, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1]),
+    """The tail estimate is the fraction of times above M: compare with a recorded trace.
+
+    Both read the trace from their stream key mod L (ergodic replica j: key of
+    SeedSequence(seed, spawn_key=(2, j))); the simulated path gets the trace rotated so that it
+    starts where the ergodic replica does."""
+    seq = [1, 0, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1]
+    key = np.random.SeedSequence(0, spawn_key=(2, 0)).generate_state(1, np.uint64)[0]
+    start = (int(key % np.uint64(13)) - trace_offset(0, 0, 13)) % 13
+    res = simulate(SCALAR, 1, 3000, 0, Trace.from_arrivals(seq[start:] + seq[:start]),
+                   record_traces=True)
+    erg = ergodic(SCALAR, 3000, 0, Trace.from_arrivals(seq),
                   replicas=1, burn_in=0, levels=(5.0, 10.0))
     tr = res.traces[0, 1:]
     assert erg.exceed[0].tolist() == [float((tr > 5).sum()), float((tr > 10).sum())]
@@ -503,7 +645,7 @@ def test_example_files_simulate(path):
     assert mean[0] == pytest.approx(float(np.trace(spec.system.sigma0)))
     lo, hi = np.array(d["mean_trace"]["lower"]), np.array(d["mean_trace"]["upper"])
     assert np.all(lo <= mean + 1e-9) and np.all(mean <= hi + 1e-9)
-    assert np.all(mean <= d["divergence"]["threshold"] * (1 + 1e-12))
+    assert d["divergence"]["failed_paths"] == 0
     q = [x for x in d["horizon"]["quantiles"] if x is not None]
     assert q == sorted(q)
     assert 0 <= d["divergence"]["diverged_paths"] <= paths
@@ -516,7 +658,7 @@ def test_example_files_simulate(path):
             S = (1 - p) * A @ S @ A.T + Q
         times = np.array(d["times"])
         se = np.array(d["mean_trace"]["std"]) / math.sqrt(paths)
-        censored = d["divergence"]["diverged_paths"] > 0
+        censored = d["divergence"]["failed_paths"] > 0   # crossed paths are continued
         if not censored:
             assert np.all(mean >= np.array(bound)[times] - 5 * se - 1e-9 * np.array(bound)[times])
     # the same seed gives the same numbers

@@ -592,3 +592,55 @@ def test_shipped_sweep_fills_upper_bound() -> None:
 
     value = sweep_mod.upper_bound_value(System([[1.25, 0], [1, 1.1]], [[1, 1]], 20, 2.5))
     assert value == pytest.approx(57 / 121, abs=2e-6)
+
+
+# ---- special files: never read without bound, never block ---------------------------------
+
+def _sweep_subprocess(args: list[str], timeout: float = 90) -> subprocess.CompletedProcess:
+    import resource
+
+    def limit() -> None:  # an unbounded read fails fast instead of eating the machine
+        resource.setrlimit(resource.RLIMIT_AS, (2_000_000_000, 2_000_000_000))
+
+    return subprocess.run([sys.executable, "-m", "kfcrit", "sweep", *args], capture_output=True,
+                          text=True, timeout=timeout, preexec_fn=limit)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
+def test_sweep_file_dev_zero_and_base_system_dev_zero(tmp_path: Path) -> None:
+    proc = _sweep_subprocess(["/dev/zero", "-o", str(tmp_path / "o")])
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "file: " in proc.stderr and "character device" in proc.stderr
+    sweep = write_case(tmp_path, "system: /dev/zero\ngrid: {channel.distance_m: [30, 60]}\n")
+    code, out, err = run_cli(["sweep", str(sweep), "-o", str(tmp_path / "o")])
+    assert_refused(code, out, err, "system: base system file: file: ")
+    assert "character device" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_sweep_file_fifo_and_base_system_fifo_do_not_hang(tmp_path: Path) -> None:
+    os.mkfifo(tmp_path / "sweep-fifo.yaml")
+    proc = _sweep_subprocess([str(tmp_path / "sweep-fifo.yaml"), "-o", str(tmp_path / "o")])
+    assert proc.returncode == 2 and "FIFO" in proc.stderr
+    os.mkfifo(tmp_path / "base.yaml")
+    (tmp_path / "sweep.yaml").write_text("system: base.yaml\ngrid: "
+                                         "{channel.arrival_probability: [0.5, 0.9]}\n")
+    proc = _sweep_subprocess([str(tmp_path / "sweep.yaml"), "-o", str(tmp_path / "o")])
+    assert proc.returncode == 2 and "system: base system file" in proc.stderr
+    assert "FIFO" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_journal_replaced_by_a_fifo_is_refused_without_hanging(tmp_path: Path) -> None:
+    sweep = write_case(tmp_path, "system: system.yaml\ngrid: "
+                                 "{channel.arrival_probability: [0.5, 0.9]}\n",
+                       system=BERNOULLI_SYSTEM)
+    out_dir = tmp_path / "o"
+    out_dir.mkdir()
+    os.mkfifo(out_dir / "sweep.journal.jsonl")
+    proc = _sweep_subprocess([str(sweep), "-o", str(out_dir), "--workers", "1"])
+    assert proc.returncode == 2, proc.stderr
+    assert "output: the journal" in proc.stderr and "FIFO" in proc.stderr
+    assert sorted(p.name for p in out_dir.iterdir()) == ["sweep.journal.jsonl"]

@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+import time
 from fractions import Fraction
 from pathlib import Path
 
@@ -268,3 +270,154 @@ def test_report_loads_the_system_file_once(tmp_path: Path, monkeypatch: pytest.M
     assert load_spec(p, max_states=3) is not first and len(calls) == 2
     p.write_text(GOOD.replace("2.5", "3"))  # new content: parsed again
     assert load_spec(p).system.R[0, 0] == 3 and len(calls) == 3
+
+
+# ---- bounded reading of special files (kfcrit.safeio) -----------------------------------------
+
+def _analyze_in_subprocess(path: Path | str, timeout: float = 60) -> subprocess.CompletedProcess:
+    """``kfcrit analyze`` in a real subprocess under a 2 GB address-space limit (an unbounded
+    read fails fast instead of eating the machine) and a timeout (a hang fails the test)."""
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2_000_000_000, 2_000_000_000))
+
+    return subprocess.run([sys.executable, "-m", "kfcrit", "analyze", str(path), "--no-simulate"],
+                          capture_output=True, text=True, timeout=timeout, preexec_fn=limit)
+
+
+def _one_error_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("kfcrit: error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_dev_zero_is_refused_without_reading_it() -> None:
+    # st_size is 0 for /dev/zero: the old size check passed and read_bytes() ate 24 GB
+    proc = _analyze_in_subprocess("/dev/zero")
+    assert proc.returncode == 2 and proc.stdout == ""
+    line = _one_error_line(proc.stderr)
+    assert line.startswith("kfcrit: error: file: ") and "character device" in line
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_fifo_is_refused_without_hanging(tmp_path: Path) -> None:
+    fifo = tmp_path / "system.yaml"
+    os.mkfifo(fifo)
+    t0 = time.perf_counter()
+    proc = _analyze_in_subprocess(fifo, timeout=60)  # no writer: a blocking open() would hang
+    assert proc.returncode == 2
+    line = _one_error_line(proc.stderr)
+    assert "file: " in line and "FIFO" in line and time.perf_counter() - t0 < 60
+
+
+def test_directory_is_refused_by_the_loader(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match=r"^file: .* is a directory, not a regular file"):
+        load_spec(tmp_path)
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_trace_path_to_dev_zero_is_refused(tmp_path: Path) -> None:
+    p = write(tmp_path, GOOD + "channel: {model: trace, path: /dev/zero}\n")
+    with pytest.raises(InputError, match=r"^channel\.path: trace file '/dev/zero' is a "
+                                         r"character device"):
+        load_spec(p)
+    proc = _analyze_in_subprocess(p)
+    assert proc.returncode == 2
+    assert _one_error_line(proc.stderr).startswith("kfcrit: error: channel.path: ")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_trace_path_to_a_fifo_is_refused_without_hanging(tmp_path: Path) -> None:
+    os.mkfifo(tmp_path / "trace.txt")
+    p = write(tmp_path, GOOD + "channel: {model: trace, path: trace.txt}\n")
+    proc = _analyze_in_subprocess(p)
+    assert proc.returncode == 2 and "FIFO" in _one_error_line(proc.stderr)
+
+
+def test_read_text_limits(tmp_path: Path) -> None:
+    from kfcrit.safeio import read_text
+
+    p = tmp_path / "f.txt"
+    p.write_bytes(b"x" * 100)
+    assert read_text(p, field="f", max_bytes=100) == ("x" * 100, b"x" * 100)
+    with pytest.raises(InputError, match=r"^f: '.*' is larger than 99 bytes$"):
+        read_text(p, field="f", max_bytes=99)
+    p.write_bytes(b"ok \xff\xfe")
+    with pytest.raises(InputError, match=r"^f: .* is not valid UTF-8 text$"):
+        read_text(p, field="f", max_bytes=100)
+    with pytest.raises(InputError, match=r"^trace: cannot read trace file '.*missing'"):
+        read_text(tmp_path / "missing", field="trace", max_bytes=10, what="trace file")
+    with pytest.raises(InputError, match=r"^f: cannot read"):
+        read_text("bad\0path", field="f", max_bytes=10)
+    # a symbolic link is followed, and judged by what it opens
+    link = tmp_path / "link.yaml"
+    if Path("/dev/zero").exists():
+        link.symlink_to("/dev/zero")
+        with pytest.raises(InputError, match="character device"):
+            read_text(link, field="f", max_bytes=10)
+
+
+def test_read_text_decides_on_the_opened_descriptor(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    # a path that is a regular file at the first look but not when opened (a swap in between)
+    # is still refused: the binding check is fstat of the descriptor
+    import stat as stat_mod
+
+    import kfcrit.safeio as safeio
+
+    p = tmp_path / "f.yaml"
+    p.write_text("name: x\n")
+    real_fstat = os.fstat
+
+    class FakeStat:
+        st_mode = stat_mod.S_IFIFO | 0o644
+
+    monkeypatch.setattr(safeio.os, "fstat", lambda fd: FakeStat())
+    with pytest.raises(InputError, match="FIFO"):
+        safeio.read_text(p, field="file", max_bytes=100)
+    monkeypatch.setattr(safeio.os, "fstat", real_fstat)
+    assert safeio.read_text(p, field="file", max_bytes=100)[0] == "name: x\n"
+
+
+def test_read_text_reads_at_most_max_bytes_plus_one(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    import kfcrit.safeio as safeio
+
+    p = tmp_path / "big.txt"
+    p.write_bytes(b"1" * (3 * safeio.CHUNK_BYTES))
+    asked: list[int] = []
+    real_read = os.read
+
+    def counting_read(fd: int, n: int) -> bytes:
+        asked.append(n)
+        return real_read(fd, n)
+
+    monkeypatch.setattr(safeio.os, "read", counting_read)
+    with pytest.raises(InputError, match="larger than"):
+        safeio.read_text(p, field="file", max_bytes=1000)
+    assert sum(asked) == 1001
+
+
+# ---- definiteness: exact for exact input, scale-aware for floats -------------------------------
+
+def test_positive_definiteness_is_exact_or_scale_aware() -> None:
+    from kfcrit.system import is_definite
+
+    tiny = System(3, 1, "1e-250", 1)
+    assert tiny.exact and tiny.is_positive_definite("Q")
+    assert System(3, 1, np.array([[1e-250]]), 1).is_positive_definite("Q")  # float input
+    exact = System([[1, 0], [0, 1]], [[1, 1]], [["1", "0"], ["0", "1e-20"]], 1)
+    assert exact.is_positive_definite("Q")  # exactly PD, however badly scaled
+    assert not System([[1, 0], [0, 1]], [[1, 1]], [[1, 0], [0, 0]], 1).is_positive_definite("Q")
+    # float: the answer does not depend on the scale of the matrix
+    for scale in (1e-250, 1e-100, 1.0, 1e100, 1e250):
+        M = scale * np.array([[2.0, 1.0], [1.0, 2.0]])
+        assert is_definite(sp.ImmutableMatrix(M.tolist()), M, exact=False)
+        S = scale * np.array([[1.0, 1.0], [1.0, 1.0]])  # singular, PSD
+        assert not is_definite(sp.ImmutableMatrix(S.tolist()), S, exact=False)
+        assert is_definite(sp.ImmutableMatrix(S.tolist()), S, exact=False, strict=False)
+    with pytest.raises(InputError, match="^name: must be Q, R or Sigma0"):
+        tiny.is_positive_definite("A")
