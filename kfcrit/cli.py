@@ -56,6 +56,23 @@ def interrupted_exit() -> None:
     os._exit(ExitCode.INTERRUPTED)
 
 
+def broken_pipe_exit() -> None:
+    """The reader of stdout went away (``kfcrit analyze … | head``): leave quietly with 141.
+
+    Nobody is left to read the data, so nothing is printed; 141 = 128 + SIGPIPE is what a shell
+    reports for a program killed by a broken pipe. stdout is pointed at /dev/null first so the
+    interpreter's final flush cannot raise again.
+    """
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    os._exit(ExitCode.BROKEN_PIPE)
+
+
 def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     """Turn kfcrit errors into one stderr line and the documented exit code."""
 
@@ -72,6 +89,8 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
             interrupted_exit()
         except (click.exceptions.Exit, click.ClickException, SystemExit):
             raise
+        except BrokenPipeError:
+            broken_pipe_exit()
         except OSError as exc:
             if exc.filename is None:  # not about a path the user gave: a bug
                 if debug:

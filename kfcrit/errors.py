@@ -23,6 +23,8 @@ class ExitCode(IntEnum):
     """An internal error (a bug): one line asking to rerun with ``--debug`` and report it."""
     INTERRUPTED = 130
     """Interrupted by SIGINT or SIGTERM (128 + SIGINT, the shell's convention for Ctrl-C)."""
+    BROKEN_PIPE = 141
+    """The reader of stdout closed the pipe (128 + SIGPIPE); nothing more is printed."""
 
 
 class KfcritError(Exception):

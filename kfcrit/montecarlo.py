@@ -1724,7 +1724,8 @@ def tail_regime(system: System, channel: Channel, steps: int) -> dict[str, Any]:
     else:
         q, basis = None, None
     with quiet_numerics():
-        value = None if q is None else q * rho ** 4
+        # numpy power: ρ⁴ beyond float64 is inf (the heavy tail is then certain), not an error
+        value = None if q is None else float(q * np.float64(rho) ** 4)
     out: dict[str, Any] = {
         "variance_condition": basis,
         "variance_value": _finite_or_none(value) if value is not None else None,

@@ -12,6 +12,20 @@ def _num(v: Any, digits: int = 6) -> str:
     return str(v)
 
 
+EXACT_TEXT_MAX = 60
+"""Longest exact expression the terminal view prints in full (``--json`` always has it all)."""
+
+
+def _exact(d: dict[str, Any]) -> str:
+    """``  (= expression)`` for a quantity with an exact form; long forms point to ``--json``."""
+    expr = d.get("expression")
+    if not expr:
+        return ""
+    if len(expr) > EXACT_TEXT_MAX:
+        return f"  (exact form of {len(expr)} characters: see --json)"
+    return f"  (= {expr})"
+
+
 def summary(rec: dict[str, Any]) -> str:
     """A readable multi-line summary of an analysis record."""
     lines = [f"kfcrit analysis: {rec['name']}"]
@@ -20,23 +34,18 @@ def summary(rec: dict[str, Any]) -> str:
                  f"input {'exact' if sysd.get('exact_input') else 'floating-point'}")
     lines.append(f"  classification        {rec.get('classification') or '—'}")
     cv = rec.get("critical_value") or {}
-    expr = cv.get("expression")
-    lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}"
-                 + (f"  (= {expr})" if expr else ""))
+    lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}{_exact(cv)}")
     if cv.get("reason"):
         lines.append(f"      {cv['reason']}")
     rob = rec.get("robust_critical_value")
     if rob:
         lines.append(f"  robust critical value {_num(rob.get('value'), 12)}  "
                      f"(tolerance {rob.get('tolerance')})")
-    def exact(d: dict[str, Any]) -> str:
-        return f"  (= {d['expression']})" if d.get("expression") else ""
-
     lb = rec.get("lower_bound") or {}
-    lines.append(f"  lower bound p_low     {_num(lb.get('value'), 12)}{exact(lb)}")
+    lines.append(f"  lower bound p_low     {_num(lb.get('value'), 12)}{_exact(lb)}")
     blb = rec.get("block_lower_bound")
     if blb:
-        lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}{exact(blb)}")
+        lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}{_exact(blb)}")
     ub = rec.get("upper_bound")
     if ub and ub.get("status") == "not applicable":
         lines.append(f"  upper bound p_up      {ub.get('reason') or 'not applicable'}")
@@ -72,7 +81,9 @@ def summary(rec: dict[str, Any]) -> str:
         passed = sum(c.get("passed") is True for c in checks)
         failed = [c["check"] for c in checks if c.get("passed") is False]
         unsure = [c["check"] for c in checks if c.get("status") == "inconclusive"]
-        lines.append(f"  verification          {passed} of {len(checks)} checks passed"
+        idle = sum(c.get("status") == "not applicable" for c in checks)
+        lines.append(f"  verification          {passed} of {len(checks) - idle} checks passed"
+                     + (f" ({idle} not applicable)" if idle else "")
                      + (f"; inconclusive: {'; '.join(unsure)}" if unsure else "")
                      + (f"; FAILED: {'; '.join(failed)}" if failed else ""))
     for w in rec.get("warnings") or []:

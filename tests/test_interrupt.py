@@ -273,3 +273,19 @@ def test_sigterm_once_running_exits_130_and_keeps_the_previous_output(tmp_path: 
             "kfcrit: error: interrupted; nothing was written"
         assert out.read_bytes() == PREVIOUS
     assert b"Traceback" not in err
+
+
+def test_closed_stdout_pipe_exits_141_quietly() -> None:
+    # `kfcrit analyze … --json | head -c 0`: the reader is gone before kfcrit writes; the
+    # documented outcome is exit 141 (128 + SIGPIPE) with nothing on stderr, not an
+    # "internal error".
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "kfcrit", "analyze",
+                               str(REPORTS / "sinopoli-scalar.yaml"), "--json", "--no-simulate"],
+                              stdout=w, stderr=subprocess.PIPE, timeout=300)
+    finally:
+        os.close(w)
+    assert proc.returncode == 141, proc.stderr
+    assert proc.stderr.decode() == ""
