@@ -864,11 +864,15 @@ def run_dask(spec: SweepSpec, items: Items, max_states: int, client: Any,
 # ---------------------------------------------------------------------------------------------
 
 def _param_value(text: str) -> Any:
-    """A parameter's value for the table: a float when the text is a number, else the text."""
+    """A parameter's value for the table: an int for an integer (``packet_bytes: 20`` stays
+    20), a float for any other number, else the text."""
     from .exprparse import parse_expression
 
     try:
-        return float(sp.N(parse_expression(text), 17))
+        value = parse_expression(text)
+        if value.is_Integer:
+            return int(value)
+        return float(sp.N(value, 17))
     except (KfcritError, TypeError, ValueError):
         return text
 
