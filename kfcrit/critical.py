@@ -38,10 +38,13 @@ import sympy as sp
 from .errors import InputError
 from .exprparse import MAX_DIGITS, exact_text
 from .structure import (
+    DEFAULT_TOLERANCE,
     MAX_DENOMINATOR,
+    NUMERIC_FLOOR,
     NUMERIC_TOLERANCES,
     Structure,
     _cmp_exact,
+    _numeric_structure,
     eigen_structure,
     simplest_rational,
 )
@@ -54,13 +57,34 @@ CLASSIFICATIONS = ("stable", "non-degenerate", "degenerate-second-order", "degen
                    "non-diagonalizable", "not-detectable")
 
 _CACHE: weakref.WeakKeyDictionary[System, Structure] = weakref.WeakKeyDictionary()
+"""The structure of each system at the default tolerance (exact path: tolerance-free)."""
+_AT_TOL: weakref.WeakKeyDictionary[System, dict[float, Structure]] = weakref.WeakKeyDictionary()
+"""Numeric-path structures at other decision tolerances (``--tolerance``)."""
 
 
-def structure_of(system: System) -> Structure:
-    """The (cached) eigen-structure of ``system``; see :func:`kfcrit.structure.eigen_structure`."""
+def structure_of(system: System, tolerance: float | None = None) -> Structure:
+    """The (cached) eigen-structure of ``system``; see :func:`kfcrit.structure.eigen_structure`.
+
+    The exact path does not depend on ``tolerance``; a numeric-path structure is recomputed
+    (numerically, same path reason) when ``tolerance`` differs from the one it was decided with.
+    """
     if system not in _CACHE:
-        _CACHE[system] = eigen_structure(system)
-    return _CACHE[system]
+        _CACHE[system] = eigen_structure(system, tolerance=DEFAULT_TOLERANCE)
+    st = _CACHE[system]
+    if st.path != "numeric" or tolerance is None:
+        return st
+    want = max(float(tolerance), NUMERIC_FLOOR)
+    if st.tolerances.get("modulus_relative") == want:
+        return st
+    return _numeric_at(system, st.path_reason, want)
+
+
+def _numeric_at(system: System, reason: str, tol: float) -> Structure:
+    cache = _AT_TOL.setdefault(system, {})
+    if tol not in cache:
+        import time
+        cache[tol] = _numeric_structure(system, time.monotonic(), reason, tol)
+    return cache[tol]
 
 
 # --------------------------------------------------------------------------- numbers
@@ -109,16 +133,22 @@ def _above_one(mod2: float, mod2_expr: sp.Expr | None) -> bool:
 _ZERO = Num(0.0, sp.Integer(0))
 
 
-def _eig_above(e: Any) -> bool:
+def _mtol(st: Structure | None) -> float:
+    """The numeric path's modulus tolerance (relative) of ``st``."""
+    tol = st.tolerances.get("modulus_relative") if st is not None else None
+    return tol if tol is not None else NUMERIC_TOLERANCES["modulus_relative"]
+
+
+def _eig_above(e: Any, st: Structure | None = None) -> bool:
     """|λ| > 1 as decided by the structure (exactly on the exact path; on the numeric path
     |λ| within the modulus tolerance of 1 counts as critically stable)."""
     if e.unit_cmp is not None:
         return e.unit_cmp > 0
-    return e.mod2 > 1 + 2 * NUMERIC_TOLERANCES["modulus_relative"]
+    return e.mod2 > 1 + 2 * _mtol(st)
 
 
-def _on_circle(e: Any) -> bool:
-    return e.unit_cmp == 0 if e.unit_cmp is not None else abs(e.mod2 - 1) <= 1e-10
+def _on_circle(e: Any, st: Structure | None = None) -> bool:
+    return e.unit_cmp == 0 if e.unit_cmp is not None else abs(e.mod2 - 1) <= 2 * _mtol(st)
 
 
 def nondegenerate_value(mod2: float, mod2_expr: sp.Expr | None = None,
@@ -149,7 +179,10 @@ def pair_value(mod2: float, q: int | None, mod2_expr: sp.Expr | None = None,
     if mod2_expr is not None:
         v = _num(1 - mod2_expr ** sp.Rational(-q, q - 1))
         # compact unexpanded form, e.g. 1 - (m)**(-3/2), when it is shorter (long rationals)
-        return Num(v.value, v.expr, f"1 - ({sp.sstr(mod2_expr)})**(-{q}/{q - 1})")
+        exp = f"-{q}" if q == 2 else f"-{q}/{q - 1}"
+        base = sp.sstr(mod2_expr)
+        base = base if mod2_expr.is_Integer and mod2_expr > 0 else f"({base})"
+        return Num(v.value, v.expr, f"1 - {base}**({exp})")
     return Num(1.0 - mod2 ** (-q / (q - 1)))
 
 
@@ -175,6 +208,8 @@ class CriticalValue:
     structure: Structure
     theory: dict[str, Any]
     warnings: tuple[str, ...] = field(default=())
+    basis: str | None = None
+    """For a value from coinciding bounds: "theorem" or "claim" (a [beyond] identity)."""
 
     def to_dict(self) -> dict[str, Any]:
         exact = self.structure.path == "exact"
@@ -186,6 +221,8 @@ class CriticalValue:
             cv = {"value": self.value.value, "exact": exact and self.value.expr is not None,
                   "expression": self.value.expression, "latex": self.value.latex,
                   "reason": reason}
+            if self.basis is not None:
+                cv["basis"] = self.basis
         else:
             cv = {"value": None, "exact": None, "expression": None, "latex": None,
                   "reason": self.reason}
@@ -254,7 +291,7 @@ def _decided_text(system: System, st: Structure, what: str) -> str:
 def _lower(st: Structure) -> Num:
     """Sinopoli Thm 3: p_low = max(1 − 1/ρ(A)², 0) (eigen is sorted by modulus)."""
     top = st.eigen[0]
-    return nondegenerate_value(top.mod2, top.mod2_expr, _eig_above(top))
+    return nondegenerate_value(top.mod2, top.mod2_expr, _eig_above(top, st))
 
 
 def lower_bound(system: System) -> dict[str, Any]:
@@ -264,7 +301,7 @@ def lower_bound(system: System) -> dict[str, Any]:
 
 def _pair_num(st: Structure, pair: Any, q: int | None) -> Num:
     e = st.eigen[pair.a]
-    return pair_value(e.mod2, q, e.mod2_expr, _eig_above(e))
+    return pair_value(e.mod2, q, e.mod2_expr, _eig_above(e, st))
 
 
 def _block_lower(st: Structure, low: Num) -> tuple[Num, str]:
@@ -296,7 +333,7 @@ def _single_unstable(st: Structure) -> bool:
     rel = [i for i in range(len(st.eigen)) if st.relevant(i)]
     if len(rel) != 1 or st.eigen[rel[0]].multiplicity != 1:
         return False
-    return not _on_circle(st.eigen[rel[0]])
+    return not _on_circle(st.eigen[rel[0]], st)
 
 
 # --------------------------------------------------------------------------- decision tree
@@ -321,9 +358,14 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
                     f"A is not diagonalizable (outside Mo–Sinopoli), but it has a single unstable "
                     f"eigenvalue {_eig_text(st, 0)}: Sinopoli et al. §IV, bounds coincide, "
                     "p_c = 1 − 1/|λ₁|²")
+        critical = not any(_eig_above(e, st) for e in st.eigen)
         return ("non-diagonalizable", None,
                 "A is not diagonalizable: Mo–Sinopoli (H2) fails and the papers give no closed "
-                "form; p_c lies in [block lower bound, LMI upper bound]")
+                "form; p_c lies in [block lower bound, LMI upper bound]"
+                + ("; A is critically stable (ρ(A) = 1, no |λ| > 1) with a Jordan block on the "
+                   "unit circle, and the papers state p_c = 0 only for diagonalizable A "
+                   "(Sinopoli Thm 3 / MATH §3), so p_low = 0 is not known to be p_c"
+                   if critical else ""))
     rel_blocks = [b for b in st.blocks if b.relevant]
     degenerate = [b for b in rel_blocks if not b.one_step_observable]
     if not degenerate:
@@ -359,65 +401,185 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
 
 # --------------------------------------------------------------------------- robustness
 
+@dataclass(frozen=True)
+class _Sensitivity:
+    """First-order sensitivity of the spectrum of A to a perturbation E with ‖E‖₂ ≤ tol·‖A‖₂.
+
+    ``kappa[i]`` = ‖P_i‖₂, P_i the spectral projector of the i-th distinct eigenvalue (for a simple
+    eigenvalue ‖P_i‖ = κ(λ_i) = ‖x‖‖y‖/|y^H x| from its right/left eigenvectors x, y); ``delta[i]``
+    the radius of its neighbourhood (see :func:`_sensitivity`); ``eps`` = tol·‖A‖₂.
+    """
+
+    eps: float
+    kappa: tuple[float, ...]
+    delta: tuple[float, ...]
+
+    def subspace(self, st: Structure, ids: list[int]) -> float:
+        """First-order bound on how far the invariant subspace span{V_I} turns (≤ 1):
+        δv_i = Σ_{j≠i} v_j (y_j^H E v_i)/((λ_i − λ_j) y_j^H v_j), so its component outside
+        span{V_I} has norm ≤ ‖E‖ Σ_{j∉I} κ_j / |λ_i − λ_j|."""
+        tot = 0.0
+        for j, ej in enumerate(st.eigen):
+            if j in ids:
+                continue
+            gap = min(abs(st.eigen[i].value - ej.value) for i in ids)
+            if gap == 0 or not math.isfinite(self.kappa[j]):
+                return 1.0
+            tot += self.kappa[j] / gap
+        return min(1.0, self.eps * tot)
+
+
+def _sensitivity(system: System, st: Structure, tol: float) -> _Sensitivity:
+    """Neighbourhood radii δ_i of the eigenvalues of A + E, ‖E‖₂ ≤ tol·‖A‖₂ (Bauer–Fike /
+    first-order perturbation theory, e.g. Stewart–Sun, Matrix Perturbation Theory, Ch. IV–V).
+
+    * semisimple λ_i (geometric = algebraic multiplicity): the eigenvalues of A + E near λ_i lie
+      within δ_i = κ_i·tol·‖A‖₂ + O(tol²), κ_i = ‖P_i‖₂ (spectral projector; κ(λ) for a simple
+      eigenvalue, = 1 for normal A);
+    * defective λ_i (largest possible Jordan block k = algebraic − geometric + 1): the first-order
+      bound does not exist, the eigenvalues move like ‖E‖^{1/k} (Lidskii); we use
+      δ_i = ‖A‖₂·tol^{1/k} (the leading-order scale with unit constant — an estimate, not a bound).
+
+    Moduli |λ| can move by δ_i, arguments arg λ by about δ_i/|λ_i|; δ_i is capped at ‖A‖₂ + 1.
+    """
+    a = np.asarray(system.a, dtype=float)
+    n = a.shape[0]
+    norm = max(st.norm_A, np.finfo(float).tiny)
+    eps = tol * norm
+    big = 1.0 / NUMERIC_FLOOR
+    try:
+        w, V = np.linalg.eig(a)
+        Vinv = np.linalg.inv(V)
+        ok = bool(np.all(np.isfinite(Vinv)))
+    except np.linalg.LinAlgError:
+        w, V, Vinv, ok = np.zeros(n), None, None, False
+    used: set[int] = set()
+    kappa, delta = [], []
+    for e in st.eigen:
+        order = sorted((k for k in range(n) if k not in used),
+                       key=lambda k: abs(w[k] - e.value))[:e.multiplicity]
+        used.update(order)
+        if e.geometric < e.multiplicity:
+            kappa.append(math.inf)
+            k = e.multiplicity - e.geometric + 1
+            delta.append(min(norm * tol ** (1.0 / k), norm + 1.0))
+            continue
+        if not ok:
+            kap = big
+        elif len(order) == 1:
+            kap = float(np.linalg.norm(V[:, order[0]]) * np.linalg.norm(Vinv[order[0], :]))
+        else:
+            kap = float(np.linalg.norm(V[:, order] @ Vinv[order, :], 2))
+        kap = min(max(kap, 1.0), big)
+        kappa.append(kap)
+        delta.append(min(eps * kap, norm + 1.0))
+    return _Sensitivity(eps, tuple(kappa), tuple(delta))
+
+
 def _sigma_min(st: Structure, c: np.ndarray, ids: list[int]) -> float:
-    M = c @ np.hstack([st.eigen[i].basis for i in ids])
-    if M.size == 0 or M.shape[0] < M.shape[1]:
+    """Least singular value of C·Q, Q an orthonormal basis of span{V_I} (the distance of C
+    restricted to the invariant subspace from rank deficiency)."""
+    B = np.hstack([st.eigen[i].basis for i in ids])
+    if B.size == 0 or c.shape[0] < B.shape[1]:
         return 0.0          # fewer outputs than columns: rank deficient for every C
-    return float(np.linalg.svd(M, compute_uv=False).min())
+    Q, _ = np.linalg.qr(B)
+    return float(np.linalg.svd(c @ Q, compute_uv=False).min())
 
 
-def _nearby_q(turn: float, tol: float, q: int | None) -> int | None:
-    """Least denominator q' ≤ MAX_DENOMINATOR of a rational within ``tol`` of φ/2π (or q)."""
-    frac = simplest_rational(Fraction(turn) - Fraction(tol), Fraction(turn) + Fraction(tol))
+def _nearby_q(turn: float, width: float, q: int | None) -> int | None:
+    """Least denominator q' ≤ MAX_DENOMINATOR of a rational within ``width`` of φ/2π (or q)."""
+    width = min(width, 0.5)
+    frac = simplest_rational(Fraction(turn) - Fraction(width), Fraction(turn) + Fraction(width))
     cand = frac.denominator if frac.denominator <= MAX_DENOMINATOR else None
     if q is None:
         return cand
     return q if cand is None else min(q, cand)
 
 
+def _nearby_mod2(e: Any, tol: float) -> tuple[float, sp.Expr | None]:
+    """|λ|² of the nearby case, exactly: the simplest rational within relative 4·tol of |λ|²
+    (a point of the neighbourhood: e.g. |λ|² = 1 + 1.7320508075688772² → 4), else the exact
+    |λ|² when it is short, else the float."""
+    if tol > 0 and e.mod2 > 0:
+        m2, w = Fraction(e.mod2), Fraction(4 * tol)
+        lo, hi = m2 * (1 - w), m2 * (1 + w)
+        frac = simplest_rational(lo, hi)
+        if frac.denominator <= MAX_DENOMINATOR and abs(frac.numerator) <= 10**9:
+            x = sp.Rational(frac.numerator, frac.denominator)
+            return float(x), x
+    if e.mod2_expr is not None and not _LONG_NUMBER.search(sp.sstr(e.mod2_expr)):
+        return e.mod2, e.mod2_expr
+    return e.mod2, None
+
+
+def _nearby_pair_value(e: Any, q: int | None, tol: float) -> Num:
+    mod2, expr = _nearby_mod2(e, tol)
+    above = _cmp_exact(expr, 1) > 0 if expr is not None else mod2 > 1
+    return pair_value(mod2, q, expr, above)
+
+
 def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple[Num, str]],
                                                                      list[str]]:
-    """Worse cases within relative ``tol``: (value, description) and plain warnings."""
+    """Worse cases for some A + E, C + F with ‖E‖ ≤ tol·‖A‖, ‖F‖ ≤ tol·‖C‖: (value, description)
+    and plain warnings. Neighbourhoods from :func:`_sensitivity`: |λ_i| moves by δ_i, arg λ_i by
+    δ_i/|λ_i|, and σ_min of C on an invariant subspace by ‖C‖·(tol + η_I), η_I the first-order
+    turn of that subspace (:meth:`_Sensitivity.subspace`)."""
     c = system.c
-    ctol = tol * max(st.norm_C, np.finfo(float).tiny)
+    sens = _sensitivity(system, st, tol)
+    dl = sens.delta
+    normc = max(st.norm_C, np.finfo(float).tiny)
+
+    def ctol(ids: list[int]) -> float:
+        return normc * (tol + sens.subspace(st, ids))
+
     cases: list[tuple[Num, str]] = []
     notes: list[str] = []
-    near = [i for i, e in enumerate(st.eigen) if e.modulus >= 1 - tol]
+    near = [i for i, e in enumerate(st.eigen) if e.modulus + dl[i] >= 1]
+
+    def rad(i: int) -> str:
+        return (f"δ = {dl[i]:.3g}" + (f", κ = {sens.kappa[i]:.3g}"
+                                      if math.isfinite(sens.kappa[i]) else ", defective"))
     for i in near:
-        if i not in st.undetectable and _sigma_min(st, c, [i]) <= ctol:
+        if i not in st.undetectable and _sigma_min(st, c, [i]) <= ctol([i]):
+            where = ("|λ| ≥ 1" if st.relevant(i) else
+                     f"|λ| = {_mod_text(st, i)} < 1 but within {rad(i)} of the unit circle")
             cases.append((Num(1.0, sp.Integer(1)),
-                          f"eigenvalue {_eig_text(st, i)} (|λ| ≥ 1) is within relative {tol:g} of "
+                          f"eigenvalue {_eig_text(st, i)} ({where}) is within relative {tol:g} of "
                           "being unobservable: a nearby system is not detectable"))
+        elif not st.relevant(i):
+            notes.append(f"eigenvalue {_eig_text(st, i)} (|λ| = {_mod_text(st, i)} < 1) is within "
+                         f"{rad(i)} of the unit circle: a system within relative {tol:g} is "
+                         "critically stable or unstable (p_c moves continuously from 0)")
     pairs = {(p.a, p.b): p for p in st.pairs}
     for ia, i in enumerate(near):
         for j in near[ia + 1:]:
             ei, ej = st.eigen[i], st.eigen[j]
             pair = pairs.get((i, j))
-            if pair is None and abs(ei.modulus - ej.modulus) > tol * max(ei.modulus, ej.modulus):
+            if pair is None and abs(ei.modulus - ej.modulus) > dl[i] + dl[j]:
                 continue
             exact_def = pair is not None and pair.degenerate
             smin = 0.0 if exact_def else _sigma_min(st, c, [i, j])
-            if not (exact_def or smin <= ctol):
+            if not (exact_def or smin <= ctol([i, j])):
                 continue
             turn = pair.turn if pair is not None else _turn_of(ej.value / ei.value)
+            width = (dl[i] / max(ei.modulus, 1e-300) + dl[j] / max(ej.modulus, 1e-300)) \
+                / (2 * math.pi)
             q_now = pair.q if (pair is not None and pair.degenerate) else None
-            qn = _nearby_q(turn, tol, pair.q if pair is not None else None)
-            hi = i if ei.mod2 >= ej.mod2 else j
-            val = pair_value(st.eigen[hi].mod2, qn, st.eigen[hi].mod2_expr,
-                             _eig_above(st.eigen[hi]))
-            now = (pair_value(ei.mod2, q_now, ei.mod2_expr, _eig_above(ei))
-                   if pair is not None and pair.degenerate else None)
-            if now is not None and qn == q_now:
+            qn = _nearby_q(turn, width, pair.q if pair is not None else None)
+            if exact_def and qn == q_now:
                 continue
+            hi = i if ei.mod2 >= ej.mod2 else j
+            val = _nearby_pair_value(st.eigen[hi], qn, tol)
             why = []
             if pair is None:
-                why.append(f"moduli {_mod_text(st, i)} and {_mod_text(st, j)} are within "
-                           f"relative {tol:g} (a nearby system has an equal-modulus pair)")
+                why.append(f"moduli {_mod_text(st, i)} and {_mod_text(st, j)} differ by at most "
+                           f"δ_i + δ_j ({rad(i)}; {rad(j)}) for perturbations of relative size "
+                           f"{tol:g} (a nearby system has an equal-modulus pair)")
             if not exact_def:
                 why.append("the pair's columns of C·V have rank 1" if smin == 0.0 else
                            f"the pair's columns of C·V are within relative {tol:g} of rank 1")
             if qn is not None and qn != q_now:
-                why.append(f"φ/2π ≈ {turn:.12g} is within {tol:g} of a rational with q = {qn}")
+                why.append(f"φ/2π ≈ {turn:.12g} is within {width:.3g} of a rational with q = {qn}")
             desc = (f"eigenvalues {_eig_text(st, i)}, {_eig_text(st, j)}: "
                     + "; ".join(w for w in why if w)
                     + (f" → degenerate pair with q = {qn}, p_c = {val.expression}" if qn != 1
@@ -425,11 +587,45 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
             cases.append((val, desc))
     for b in st.blocks:
         if b.relevant and b.one_step_observable and b.size >= 3 \
-                and _sigma_min(st, c, list(b.members)) <= ctol:
+                and _sigma_min(st, c, list(b.members)) <= ctol(list(b.members)):
             notes.append(f"equi-block at |λ| = {_mod_text(st, b.members[0])} is within relative "
                          f"{tol:g} of a degenerate block of order {b.size}, for which the papers "
                          "give no closed form")
     return cases, notes
+
+
+def _strict_alternative(system: System, st: Structure, tol: float, value: Num | None,
+                        blow: Num | None, classification: str) -> dict[str, Any] | None:
+    """Numeric path: the case on the other side of the tolerance decisions.
+
+    The structure at the user's tolerance merges moduli, rank drops and angles that agree within
+    ``tol``; the same computation with strict float64 decisions (tolerance 64 ulp·max κ, the
+    rounding error of the computed eigenvalues) keeps them apart. If the two disagree, both
+    values are reported."""
+    if st.path != "numeric":
+        return None
+    sens = _sensitivity(system, st, NUMERIC_FLOOR)
+    kmax = max([k for k in sens.kappa if math.isfinite(k)] or [1.0])
+    strict = min(NUMERIC_FLOOR * kmax, 1e-3)
+    if strict >= _mtol(st):
+        return None
+    st2 = _numeric_at(system, st.path_reason, strict)
+    low2 = _lower(st2)
+    cls2, val2, reason2 = _classify(system, st2, low2)
+    if cls2 == "not-detectable":
+        alt: Num | None = Num(1.0, sp.Integer(1))
+    else:
+        alt = val2 if val2 is not None else _block_lower(st2, low2)[0]
+    mine = value if value is not None else blow
+    if cls2 == classification and alt is not None and mine is not None \
+            and abs(alt.value - mine.value) <= 1e-12:
+        return None
+    return {"value": alt.value if alt is not None else None,
+            "expression": alt.expression if alt is not None else None,
+            "classification": cls2,
+            "case": (f"strict float64 decisions (tolerance {strict:.3g} instead of {_mtol(st):g}): "
+                     f"{cls2}" + ("" if val2 is not None or cls2 == "not-detectable"
+                                  else " (block lower bound)") + f"; {reason2}")}
 
 
 def _turn_of(z: complex) -> float:
@@ -443,11 +639,11 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
             channel: Any) -> dict[str, Any]:
     top = st.eigen[0]
     all_unstable = all(st.relevant(i) for i in range(len(st.eigen))) and not any(
-        _on_circle(e) for e in st.eigen)
+        _on_circle(e, st) for e in st.eigen)
     applies = classification == "non-degenerate" and all_unstable
     moments = []
     for q in (1, 2):
-        if not nondegenerate_value(top.mod2, top.mod2_expr, _eig_above(top)).value > 0:
+        if not nondegenerate_value(top.mod2, top.mod2_expr, _eig_above(top, st)).value > 0:
             v = Num(0.0, sp.Integer(0) if top.mod2_expr is not None else None)
         elif top.mod2_expr is not None:
             v = _num(1 - top.mod2_expr ** (-q))
@@ -485,6 +681,7 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
         return ["A is stable: tr Pₖ stays bounded by a deterministic constant for every arrival "
                 "sequence (absolutely upper and lower almost-surely stable)."]
     io = st.observability_index
+    critical = not any(_eig_above(e, st) for e in st.eigen)
     if io is not None:
         m_text = f"liminf tr Pₖ ≤ tr M with M = h{_sup(io)}(M₀) (Iₒ = {io})"
     elif st.observable:
@@ -492,10 +689,17 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
                   "test; Iₒ itself is not determined in floating point at this size)")
     else:
         m_text = "a liminf bound (Lemma 4 needs (C, A) observable, which fails here)"
-    general = (label + "for unstable A and an arrival process in which every finite loss burst "
-               "and every run of Iₒ arrivals recur infinitely often, limsup tr Pₖ = ∞ almost "
-               f"surely (upper a.s. unstable) while {m_text} (absolutely lower a.s. stable). "
-               "Mean stability is a different, stronger notion.")
+    if critical:
+        general = (label + "A is critically stable (ρ(A) = 1, no |λ| > 1), not unstable: the "
+                   "upper a.s. instability consequence of MATH §6 is stated for unstable A and is "
+                   "not claimed here. For an arrival process in which every run of Iₒ arrivals "
+                   f"recurs infinitely often, {m_text} (absolutely lower a.s. stable). Mean "
+                   "stability is a different, stronger notion.")
+    else:
+        general = (label + "for unstable A and an arrival process in which every finite loss "
+                   "burst and every run of Iₒ arrivals recur infinitely often, limsup tr Pₖ = ∞ "
+                   f"almost surely (upper a.s. unstable) while {m_text} (absolutely lower a.s. "
+                   "stable). Mean stability is a different, stronger notion.")
     if channel is None:
         return [general]
     model = getattr(channel, "model", None)
@@ -504,9 +708,12 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
         if p == 1:
             return ["Every packet arrives (p = 1): the standard Kalman filter; Pₖ converges "
                     "to the Riccati fixed point (detectable system), so tr Pₖ is bounded."]
-        if p == 0:
+        if p == 0 and not critical:
             return ["No packet arrives (p = 0): open-loop prediction of an unstable system; "
                     "tr Pₖ → ∞ surely."]
+        if p == 0:
+            return ["No packet arrives (p = 0): open-loop prediction of a critically stable "
+                    "system (ρ(A) = 1); no almost-sure statement of MATH §6 applies."]
         return [f"i.i.d. losses with 0 < p = {sp.sstr(p)} < 1 satisfy the recurrence condition. "
                 + general]
     if model == "gilbert-elliott":
@@ -544,6 +751,45 @@ def _hypothesis_warnings(system: System, st: Structure) -> list[str]:
     return out
 
 
+def _exact_p_up(system: System, st: Structure, low: Num) -> list[tuple[Num, str, bool]]:
+    """Cases where the upper bound p_up is known exactly: (value, why, theorem?).
+
+    * C invertible: p_up = p_low (Sinopoli et al. 2004 §IV, a theorem);
+    * a single output (m = 1, exact path, every |λ|² of the unstable eigenvalues an explicit
+      algebraic number): p_up = 1 − 1/Π_{|λ_i| > 1} |λ_i|² (with multiplicity) — MATH §3
+      **[beyond]**: the dual of Elia's rank-one result, checked numerically on the paper
+      examples and random single-output systems, *not* a theorem of the papers.
+    """
+    out: list[tuple[Num, str, bool]] = []
+    if _c_invertible(system, st):
+        out.append((low, "C invertible: p_up = p_low (Sinopoli et al. 2004 §IV, theorem)", True))
+    if system.m == 1 and st.path == "exact":
+        unstable = [e for e in st.eigen if e.unit_cmp is not None and e.unit_cmp > 0]
+        if all(e.mod2_expr is not None for e in unstable):
+            prod = sp.Integer(1)
+            for e in unstable:
+                prod = prod * e.mod2_expr ** e.multiplicity
+            up = _num(sp.expand(1 - 1 / prod)) if unstable else Num(0.0, sp.Integer(0))
+            out.append((up, (f"single output: p_up = 1 − 1/Π|λ_u|² = {up.expression} over the "
+                             "eigenvalues with |λ| > 1 — a claim (MATH §3 [beyond]: the dual of "
+                             "Elia's rank-one result, checked numerically, not a theorem of the "
+                             "papers)"), False))
+    return out
+
+
+def _coinciding(system: System, st: Structure, low: Num, blow: Num, bwhy: str
+                ) -> tuple[Num, str, bool] | None:
+    """The value when the block lower bound equals an exactly known p_up (exact comparison)."""
+    if blow is None or blow.expr is None:
+        return None
+    for up, why, theorem in _exact_p_up(system, st, low):
+        if up.expr is not None and _cmp_exact(sp.expand(blow.expr - up.expr), 0) == 0:
+            return (blow, f"the bounds coincide: block lower bound {blow.expression} ({bwhy}) = "
+                          f"upper bound p_up = {up.expression} ({why}), so p_c = "
+                          f"{blow.expression}", theorem)
+    return None
+
+
 def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None) -> CriticalValue:
     """Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
 
@@ -552,7 +798,8 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
     system : System
         The system (Q, R, Σ0 only enter the hypothesis checks: Mo–Sinopoli Thm 2).
     tolerance : float
-        Relative perturbation size for the robust critical value (default 1e-9).
+        Relative perturbation size for the robust critical value (default 1e-9); on the numeric
+        path also the decision tolerance of the eigen-structure.
     channel : Channel, optional
         The configured channel, for the almost-sure statements in ``theory``.
 
@@ -563,7 +810,7 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
     """
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance <= 0.1):
         raise InputError(f"must be a number in [0, 0.1], got {tolerance!r}", field="tolerance")
-    st = structure_of(system)
+    st = structure_of(system, tolerance)
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)
     reason = reason.replace("= ≈", "≈").replace("|≈ ", "|")
@@ -574,22 +821,45 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
         blow, bwhy = _block_lower(st, low)
         if value is not None and value.value > blow.value:
             blow, bwhy = value, "equals p_c"
+    basis = None
+    if value is None and classification in ("degenerate", "non-diagonalizable"):
+        hit = _coinciding(system, st, low, blow, bwhy)
+        if hit is not None:
+            value, why, theorem = hit
+            reason += "; " + why
+            basis = "theorem" if theorem else "claim"
+            if not theorem:
+                warnings.append("p_c rests on the single-output identity p_up = 1 − 1/Π|λ_u|², "
+                                "a claim checked numerically (MATH §3 [beyond]), not a theorem")
     robust = None
-    if classification not in ("not-detectable", "stable"):
+    if classification != "not-detectable":
         base = value if value is not None else blow
         cases, notes = _nearby_cases(system, st, tolerance)
         warnings.extend(notes)
         worse = [(v, d) for v, d in cases if v.value > base.value + 1e-15]
         for _v, d in worse:
             warnings.append(f"within tolerance {tolerance:g} of a different case: {d}")
+        alt = _strict_alternative(system, st, tolerance, value, blow, classification)
         if worse:
             v, d = max(worse, key=lambda vd: vd[0].value)
             robust = {"value": v.value, "tolerance": tolerance, "expression": v.expression,
                       "nearby_case": d}
+        if alt is not None:
+            warnings.append(f"numeric decision at tolerance {_mtol(st):g}: {classification} with "
+                            f"{'p_c' if value is not None else 'block lower bound'} = "
+                            f"{base.expression}; on the other side of the tolerance decisions, "
+                            f"{alt['case']} gives {alt['expression']}")
+            if robust is None:
+                top = base if alt["value"] is None or alt["value"] <= base.value else Num(
+                    alt["value"])
+                robust = {"value": top.value, "tolerance": tolerance,
+                          "expression": top.expression if top is base else alt["expression"],
+                          "nearby_case": alt["case"]}
+            robust["alternatives"] = [alt]
     theory = _theory(system, st, classification, value, channel)
     return CriticalValue(classification=classification, value=value, reason=reason, lower=low,
                          block_lower=blow, block_reason=bwhy, robust=robust, structure=st,
-                         theory=theory, warnings=tuple(warnings))
+                         theory=theory, warnings=tuple(warnings), basis=basis)
 
 
 def critical_section(system: System, tolerance: float = 1e-9,

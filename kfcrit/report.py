@@ -922,7 +922,7 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
     elif isinstance(sp, list):
         rows.append(row("support points computed", len(sp), "count"))
     skip = {"gaps", "support_points", "gap_levels", "holes", "fixed_point", "maps",
-            "arrival_limit", "self_similarity", "first_gap", "note"}
+            "arrival_limit", "self_similarity", "first_gap", "note", "warnings"}
     return {"applies": n == 1, "available": isinstance(inv, dict),
             "missing": _missing("invariant distribution support"),
             "exact_gaps": exact[:10], "gaps": gaps[:10], "more_gaps": max(0, len(gaps) - 10),

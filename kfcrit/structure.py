@@ -76,15 +76,31 @@ EXACT_MAX_FIELD_DEGREE = 16
 """Largest degree over Q of the entry field K for the exact path."""
 MAX_DENOMINATOR = 1000
 """Largest q for which a floating-point angle φ/2π is matched to a rational r/q."""
+DEFAULT_TOLERANCE = 1e-9
+"""Default decision tolerance of the numeric path (= the default ``--tolerance``)."""
+NUMERIC_FLOOR = 64 * float(np.finfo(float).eps)
+"""Least numeric decision tolerance: below ~64 ulp a float64 comparison decides nothing."""
 NUMERIC_TOLERANCES = {
-    "modulus_relative": 1e-10,
-    "rank_relative": 1e-10,
-    "turn_absolute": 1e-10,
+    "modulus_relative": DEFAULT_TOLERANCE,
+    "rank_relative": DEFAULT_TOLERANCE,
+    "turn_absolute": DEFAULT_TOLERANCE,
     "eigenvalue_cluster_relative": 1e-6,
     "geometric_multiplicity_relative": 1e-6,
     "max_denominator": MAX_DENOMINATOR,
 }
-"""Decision tolerances of the numeric path (relative to ‖A‖₂ or ‖C‖₂ where it applies)."""
+"""Decision tolerances of the numeric path (relative to ‖A‖₂ or ‖C‖₂ where it applies) at the
+default tolerance; :func:`numeric_tolerances` replaces the first three by the user's tolerance."""
+
+
+def numeric_tolerances(tolerance: float | None = None) -> dict[str, Any]:
+    """The numeric path's decision tolerances for a user ``tolerance`` (``--tolerance``):
+    moduli equal within relative ``tolerance``, rank within ``tolerance``·‖C‖, φ/2π matched to
+    r/q within ``tolerance`` (each at least ``NUMERIC_FLOOR``)."""
+    tol = dict(NUMERIC_TOLERANCES)
+    if tolerance is not None:
+        t = max(float(tolerance), NUMERIC_FLOOR)
+        tol.update(modulus_relative=t, rank_relative=t, turn_absolute=t)
+    return tol
 
 _X = sp.Symbol("x")
 _Y = sp.Symbol("y")
@@ -179,10 +195,13 @@ class Structure:
     norm_A: float
     norm_C: float
     seconds: float
+    standard_form: dict[str, Any] | None = None
+    """Diagonal standard form (Mo–Sinopoli): eigenvalues and the columns of C·V per equi-block
+    (exact strings on the exact path, [re, im] float pairs on the numeric path)."""
 
     def relevant(self, i: int) -> bool:
         """Eigenvalue i is unstable or critically stable (|λ| ≥ 1)."""
-        return _relevant(self.eigen[i], self.path)
+        return _relevant(self.eigen[i], self.tolerances)
 
     @property
     def stable(self) -> bool:
@@ -215,7 +234,7 @@ class Structure:
                 "equal_modulus_pairs": pairs, "diagonalizable": self.diagonalizable,
                 "detectable": self.detectable, "controllable_Q": self.controllable_Q,
                 "observability_index": self.observability_index, "observable": self.observable,
-                "seconds": round(self.seconds, 4)}
+                "seconds": round(self.seconds, 4), "standard_form": self.standard_form}
 
     def _first_index(self, i: int) -> int:
         return sum(e.multiplicity for e in self.eigen[:i])
@@ -232,10 +251,12 @@ def _complex_text(z: complex) -> str:
     return f"{z.real!r} {sign} {abs(z.imag)!r}*I"
 
 
-def _relevant(e: Eigen, path: str) -> bool:
+def _relevant(e: Eigen, tolerances: dict[str, Any] | None = None) -> bool:
+    """|λ| ≥ 1: exact sign on the exact path; within the modulus tolerance on the numeric path."""
     if e.unit_cmp is not None:
         return e.unit_cmp >= 0
-    return e.mod2 >= 1 - NUMERIC_TOLERANCES["modulus_relative"]
+    tol = (tolerances or {}).get("modulus_relative", NUMERIC_TOLERANCES["modulus_relative"])
+    return e.mod2 >= 1 - tol
 
 
 # --------------------------------------------------------------------------- exact helpers
@@ -780,10 +801,10 @@ def _exact_structure(system: System, start: float) -> Structure:
     blocks, pairs = [], []
     undetectable = []
     for i, e in enumerate(eigen):
-        if _relevant(e, "exact") and work.block_rank(xeigs, [i]) < e.geometric:
+        if _relevant(e) and work.block_rank(xeigs, [i]) < e.geometric:
             undetectable.append(i)
     for grp in groups:
-        relevant = _relevant(eigen[grp[0]], "exact")
+        relevant = _relevant(eigen[grp[0]])
         size = sum(eigen[i].geometric for i in grp)
         blocks.append(EquiBlock(members=tuple(grp), indices=_indices(eigen, grp),
                                 mod2=eigen[grp[0]].mod2, mod2_expr=eigen[grp[0]].mod2_expr,
@@ -810,6 +831,18 @@ def _exact_structure(system: System, start: float) -> Structure:
                                   q=q, turn=turn, turn_text=text))
                 work.check_time("equal-modulus pairs")
     controllable = _exact_controllable(system, work)
+    form = {"eigenvalues": [sp.sstr(e.expr) if e.expr is not None else e.text for e in eigen],
+            "basis": "V: exact bases of ker(A − λI) (sympy nullspace), C·V over ℂ",
+            "equi_blocks": []}
+    for grp in groups:
+        _, CV = work.images(xeigs, grp)
+        M = CV.to_Matrix()
+        form["equi_blocks"].append({
+            "indices": list(_indices(eigen, grp)),
+            "eigenvalues": [form["eigenvalues"][i] for i in grp],
+            "C_columns": [[sp.sstr(M[r, k]) for r in range(M.shape[0])]
+                          for k in range(M.shape[1])]})
+    work.check_time("standard form")
     return Structure(
         path="exact",
         path_reason=("exact algebraic arithmetic: entries in " +
@@ -826,7 +859,7 @@ def _exact_structure(system: System, start: float) -> Structure:
         observability_index=_observability_index(system.a, system.c),
         observable=all(work.block_rank(xeigs, [i]) == e.geometric for i, e in enumerate(eigen)),
         norm_A=float(np.linalg.norm(system.a, 2)), norm_C=float(np.linalg.norm(system.c, 2)),
-        seconds=time.monotonic() - start)
+        seconds=time.monotonic() - start, standard_form=form)
 
 
 def _exact_controllable(system: System, work: _ExactWork) -> bool:
@@ -859,10 +892,11 @@ def _float_basis(a: np.ndarray, lam: complex, g: int) -> np.ndarray:
 
 # --------------------------------------------------------------------------- numeric path
 
-def _numeric_structure(system: System, start: float, reason: str) -> Structure:
+def _numeric_structure(system: System, start: float, reason: str,
+                       tolerance: float | None = None) -> Structure:
     a, c = system.a, system.c
     n = a.shape[0]
-    tol = NUMERIC_TOLERANCES
+    tol = numeric_tolerances(tolerance)
     norm_a = float(np.linalg.norm(a, 2))
     norm_c = float(np.linalg.norm(c, 2))
     scale = max(1.0, norm_a)
@@ -914,10 +948,10 @@ def _numeric_structure(system: System, start: float, reason: str) -> Structure:
         else:
             groups.append([i])
     undetectable = [i for i, e in enumerate(eigen)
-                    if _relevant(e, "numeric") and rank_of([i]) < e.geometric]
+                    if _relevant(e, tol) and rank_of([i]) < e.geometric]
     blocks, pairs = [], []
     for grp in groups:
-        relevant = _relevant(eigen[grp[0]], "numeric")
+        relevant = _relevant(eigen[grp[0]], tol)
         size = sum(eigen[i].geometric for i in grp)
         blocks.append(EquiBlock(members=tuple(grp), indices=_indices(eigen, grp),
                                 mod2=eigen[grp[0]].mod2, mod2_expr=None,
@@ -940,8 +974,18 @@ def _numeric_structure(system: System, start: float, reason: str) -> Structure:
                                   turn_text=(str(frac) if q else
                                              f"no r/q with q <= {MAX_DENOMINATOR} within "
                                              f"{tol['turn_absolute']:g}")))
+    form = {"eigenvalues": [[float(e.value.real), float(e.value.imag)] for e in eigen],
+            "basis": "V: orthonormal float bases of ker(A − λI); entries of C·V as [re, im]",
+            "equi_blocks": [{
+                "indices": list(_indices(eigen, grp)),
+                "eigenvalues": [[float(eigen[i].value.real), float(eigen[i].value.imag)]
+                                for i in grp],
+                "C_columns": [[[float(z.real), float(z.imag)] for z in col]
+                              for col in (c @ np.hstack([eigen[i].basis for i in grp])).T]}
+                for grp in groups]}
     return Structure(
-        path="numeric", path_reason=reason, tolerances=dict(tol), eigen=tuple(eigen),
+        standard_form=form, path="numeric", path_reason=reason, tolerances=dict(tol),
+        eigen=tuple(eigen),
         blocks=tuple(blocks), pairs=tuple(pairs), diagonalizable=diagonalizable,
         detectable=not undetectable, undetectable=tuple(undetectable),
         controllable_Q=_numeric_controllable(a, system.q),
@@ -1015,7 +1059,8 @@ def simplest_rational(lo: float | Fraction, hi: float | Fraction) -> Fraction:
 
 # --------------------------------------------------------------------------- entry point
 
-def eigen_structure(system: System, force_numeric: bool = False) -> Structure:
+def eigen_structure(system: System, force_numeric: bool = False,
+                    tolerance: float | None = None) -> Structure:
     """Eigen-structure of (A, C): exact for small algebraic input, else numeric (see module doc).
 
     Parameters
@@ -1024,24 +1069,28 @@ def eigen_structure(system: System, force_numeric: bool = False) -> Structure:
         The system; only A, C and Q (controllability) are read.
     force_numeric : bool
         Skip the exact path (used by the benchmark and to cross-check the two paths).
+    tolerance : float, optional
+        Decision tolerance of the numeric path (``--tolerance``; default ``DEFAULT_TOLERANCE``).
+        The exact path does not use it.
     """
     start = time.monotonic()
     if force_numeric:
-        return _numeric_structure(system, start, "numeric path requested")
+        return _numeric_structure(system, start, "numeric path requested", tolerance)
     if not system.exact and system.n > EXACT_MAX_STATES_BINARY_FLOAT:
         # binary floats (NumPy input) are rationals with 2^52 denominators: beyond small n the
         # exact algebra on them takes tens of seconds (measured: n = 4, 30–40 s)
         return _numeric_structure(system, start, "numeric float64 path: binary floating-point "
                                   f"input with n > {EXACT_MAX_STATES_BINARY_FLOAT}; decisions use "
-                                  "the stated tolerances")
+                                  "the stated tolerances", tolerance)
     try:
         return _exact_structure(system, start)
     except _Fallback as exc:
         return _numeric_structure(system, time.monotonic(),
                                   f"numeric float64 path: {exc}; decisions use the stated "
-                                  "tolerances")
+                                  "tolerances", tolerance)
     except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,
             TypeError, ArithmeticError) as exc:  # sympy failed on the algebra: fall back, say why
         return _numeric_structure(system, time.monotonic(),
                                   f"numeric float64 path: exact algebra failed "
-                                  f"({type(exc).__name__}); decisions use the stated tolerances")
+                                  f"({type(exc).__name__}); decisions use the stated tolerances",
+                                  tolerance)

@@ -173,7 +173,8 @@ def test_third_turn_with_floats(r3):
     assert rob is not None and abs(rob["value"] - 0.875) < 1e-12 and rob["tolerance"] == 1e-9
     assert "q = 3" in rob["nearby_case"]
     assert any("q = 3" in w for w in d["warnings"])
-    parse_expression(rob["expression"], "robust")
+    # the nearby case is |λ| = 2, q = 3 exactly: 1 − 4^{−3/2} = 7/8 (not the entered modulus)
+    assert _same(rob["expression"], "7/8")
     # with a much smaller tolerance the nearby rational is out of reach
     assert critical.critical_section(s, tolerance=1e-20)["robust_critical_value"] is None
 
@@ -377,7 +378,8 @@ def test_float_third_turn_reason_shows_computed_modulus():
         reason = critical.critical_section(s)["critical_value"]["reason"]
     finally:
         critical._CACHE.pop(s, None)
-    assert "relative tolerance 1e-10" in reason and "= 2," not in reason
+    # the numeric path decides with the user's tolerance (default 1e-9)
+    assert "relative tolerance 1e-09" in reason and "= 2," not in reason
 
 
 def test_reason_texts_use_unicode_math():
@@ -412,3 +414,115 @@ def test_tolerance_message_names_its_range(bad) -> None:
 
     with pytest.raises(InputError, match=r"\[0, 0\.1\]"):
         critical_value(System([[2]], [[1]], Q=1, R=1), tolerance=bad)
+
+
+# --------------------------------------------------------------------------- auditor's gaps
+
+def test_eigenvalue_sensitivity_flags_nonnormal_near_pair():
+    # A = [[2, 4000], [0, −1.999999]], C = [1, 0]: moduli 2 ≠ 1.999999, so non-degenerate,
+    # p_c = 1 − 1/4 = 3/4 (Thm 4). But A + E with E = −5e-7·I, ‖E‖/‖A‖ ≈ 5e-7/4000 ≈ 1.25e-10
+    # ≤ 1e-9, has eigenvalues ±1.9999995: an equal-modulus pair, z = −1 (q = 2), rank C_I = 1
+    # (one output), so Thm 9 gives 1 − 1.9999995^{−4} ≈ 15/16; the robust value must see it.
+    A = [[2, 4000], [0, "-1.999999"]]
+    d = critical.critical_section(_sys(A, [[1, 0]]))
+    assert d["classification"] == "non-degenerate" and _same(d["critical_value"]["expression"],
+                                                             "3/4")
+    rob = d["robust_critical_value"]
+    assert rob is not None and _same(rob["expression"], "15/16") and "q = 2" in rob["nearby_case"]
+    assert rob["value"] > 0.9          # a channel with p = 0.9 is not robustly mean-stable
+    # the flagged neighbour is real: A + E is the degenerate pair with p_c = 1 − 1.9999995^{−4}
+    E_rel = 5e-7 / np.linalg.norm(np.array([[2, 4000], [0, -1.999999]]), 2)
+    assert E_rel <= 1e-9
+    near = critical.critical_section(_sys([["1.9999995", 4000], [0, "-1.9999995"]], [[1, 0]]))
+    assert near["classification"] == "degenerate-second-order"
+    assert abs(near["critical_value"]["value"] - (1 - 1.9999995 ** -4)) <= 1e-12
+    # a normal matrix with the same moduli gap (κ = 1, ‖A‖ = 2): δ = 2e-9 per eigenvalue, far
+    # below the gap 1e-6, so no nearby pair
+    assert critical.critical_section(_sys([[2, 0], [0, "-1.999999"]], [[1, 1]]))[
+        "robust_critical_value"] is None
+
+
+def test_bounds_coincide_single_output():
+    # diag(2, −2, 1), C = [1 1 1]: two equi-blocks with |λ| ≥ 1, no closed form. Block lower
+    # bound: the pair (2, −2), q = 2 → 1 − 2^{−4} = 15/16 (Thm 3 + Thm 9). Single-output upper
+    # bound (MATH §3 [beyond]): 1 − 1/(|2|²·|−2|²) = 1 − 1/16 = 15/16. They coincide.
+    d = critical.critical_section(_sys([[2, 0, 0], [0, -2, 0], [0, 0, 1]], [[1, 1, 1]]))
+    assert d["classification"] == "degenerate"
+    cv = d["critical_value"]
+    assert _same(cv["expression"], "15/16") and abs(cv["value"] - 15 / 16) <= 1e-15
+    assert cv["basis"] == "claim" and "[beyond]" in cv["reason"]
+    assert "block lower bound 15/16" in cv["reason"] and "p_up = 15/16" in cv["reason"]
+    assert any("claim" in w for w in d["warnings"])
+    # diag(2, −2, 3): block lower max(15/16, 8/9) = 15/16, single-output p_up = 1 − 1/144:
+    # the bounds differ, no value
+    d = critical.critical_section(_sys([[2, 0, 0], [0, -2, 0], [0, 0, 3]], [[1, 1, 1]]))
+    assert d["critical_value"]["value"] is None
+    assert _same(d["block_lower_bound"]["expression"], "15/16")
+
+
+def test_stable_system_near_the_unit_circle():
+    # diag(1 − 1e-12, 1/2), C = [0 1]: stable (p_c = 0), but the first mode is unobservable and
+    # a perturbation of relative size 1e-12 puts it on the unit circle: not detectable nearby.
+    d = critical.critical_section(_sys([["0.999999999999", 0], [0, "1/2"]], [[0, 1]]))
+    assert d["classification"] == "stable" and d["critical_value"]["value"] == 0
+    rob = d["robust_critical_value"]
+    assert rob is not None and rob["value"] == 1.0 and "not detectable" in rob["nearby_case"]
+    assert any("not detectable" in w for w in d["warnings"])
+    # observable: nearby it is critically stable (p_c still 0 by continuity): a note, no value
+    d = critical.critical_section(_sys([["0.999999999999", 0], [0, "1/2"]], [[1, 1]]))
+    assert d["robust_critical_value"] is None
+    assert any("unit circle" in w for w in d["warnings"])
+    # far from the circle: nothing
+    d = critical.critical_section(_sys([["1/2", 1], [0, "1/3"]], [[1, 0]]))
+    assert d["robust_critical_value"] is None and not any("circle" in w for w in d["warnings"])
+
+
+def test_numeric_path_names_the_other_side():
+    # NumPy input diag(2, −(2 − 1e-12), 0.1, 0.2) goes to the numeric path (binary floats, n > 3).
+    # At tolerance 1e-9 the moduli are merged: degenerate pair, q = 2, p_c = 1 − 2^{−4} = 15/16;
+    # strictly they differ, and Thm 4 gives 1 − 2^{−2} = 3/4. Both must be reported.
+    A = np.diag([2.0, -(2 - 1e-12), 0.1, 0.2])
+    s = System(A, np.ones((1, 4)), np.eye(4), np.eye(1))
+    d = critical.critical_section(s)
+    assert d["structure"]["path"] == "numeric"
+    assert d["classification"] == "degenerate-second-order"
+    assert abs(d["critical_value"]["value"] - 15 / 16) <= 1e-9
+    alts = d["robust_critical_value"]["alternatives"]
+    assert any(abs(a["value"] - 0.75) <= 1e-9 and a["classification"] == "non-degenerate"
+               for a in alts)
+    assert any("other side" in w for w in d["warnings"])
+    # the user's tolerance decides: at 1e-13 the relative gap 5e-13 is not merged (3/4), and a
+    # neighbourhood of relative size 1e-13 (δ = 2e-13 per eigenvalue, κ = 1) cannot close it
+    d = critical.critical_section(s, tolerance=1e-13)
+    assert d["classification"] == "non-degenerate"
+    assert abs(d["critical_value"]["value"] - 0.75) <= 1e-12
+    assert d["structure"]["tolerances"]["modulus_relative"] == 1e-13
+
+
+def test_pair_value_text_has_no_unit_denominator():
+    m = sp.Rational(10**20 + 1, 10**19)
+    v2 = critical.pair_value(float(m), 2, m)
+    assert "/1)" not in v2.expression and "**(-2)" in v2.expression
+    assert sp.simplify(sp.sympify(v2.expression) - (1 - m ** -2)) == 0
+    v3 = critical.pair_value(float(m), 3, m)
+    assert sp.simplify(sp.sympify(v3.expression) - (1 - m ** sp.Rational(-3, 2))) == 0
+
+
+def test_almost_sure_text_for_critically_stable_a():
+    # rotation by π/2 of modulus 1: ρ(A) = 1, nothing unstable
+    d = critical.critical_section(_sys([[0, -1], [1, 0]], [[1, 0]]),
+                                  channel=Bernoulli(sp.Rational(9, 10)))
+    text = " ".join(d["theory"]["almost_sure"])
+    # the upper a.s. instability consequence (stated for unstable A) is not claimed
+    assert "limsup tr Pₖ = ∞" not in text and "critically stable" in text
+
+
+def test_critical_jordan_block_is_labelled():
+    # [[1, 1], [0, 1]], C = [1 0]: ρ(A) = 1, not diagonalizable. MATH §3 gives p_c = 0 only for
+    # diagonalizable A. p_low = 0; the single-output claim gives p_up = 1 − 1/(empty product) = 0,
+    # so the bounds coincide at 0 — as a claim, not a theorem.
+    d = critical.critical_section(_sys([[1, 1], [0, 1]], [[1, 0]]))
+    assert d["classification"] == "non-diagonalizable"
+    cv = d["critical_value"]
+    assert "only for diagonalizable" in cv["reason"]
+    assert cv["value"] == 0 and cv["basis"] == "claim"

@@ -11,6 +11,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -201,3 +202,28 @@ def test_float_rotation_exact_path_with_large_surd():
 def test_observable_flag():
     assert eigen_structure(_sys([[2, 1], [0, 3]], [[1, 0]])).observable
     assert not eigen_structure(_sys([[2, 0], [0, 3]], [[1, 0]])).observable
+
+
+def test_standard_form_in_record():
+    # [[2, 4], [0, −2]], C = [1 0]: eigenvectors v₁ = e₁ (λ = 2) and v₂ ∝ (−1, 1) (λ = −2:
+    # A(−1, 1) = (2, −2)). One equi-block {2, −2} with C·V = [C v₁, C v₂], both nonzero.
+    s = _sys([[2, 4], [0, -2]], [[1, 0]])
+    form = eigen_structure(s).to_dict()["standard_form"]
+    assert form["eigenvalues"] == ["2", "-2"]
+    (blk,) = form["equi_blocks"]
+    assert blk["indices"] == [0, 1] and blk["eigenvalues"] == ["2", "-2"]
+    assert all(sp.sympify(col[0]) != 0 for col in blk["C_columns"])
+    # numeric path: unit eigenvectors, |C v₁| = 1, |C v₂| = 1/√2
+    num = eigen_structure(s, force_numeric=True).to_dict()["standard_form"]
+    (blk,) = num["equi_blocks"]
+    mags = [abs(complex(*col[0])) for col in blk["C_columns"]]
+    assert abs(mags[0] - 1) < 1e-12 and abs(mags[1] - 2 ** -0.5) < 1e-12
+    json.dumps(num)
+
+
+def test_numeric_path_uses_given_tolerance():
+    # moduli 2 and 2 − 1e-12 (relative gap 5e-13): merged at tolerance 1e-9, not at 1e-13
+    s = _sys([[2.0, 0], [0, -(2 - 1e-12)]], [[1, 1]])
+    loose = eigen_structure(s, force_numeric=True, tolerance=1e-9)
+    tight = eigen_structure(s, force_numeric=True, tolerance=1e-13)
+    assert len(loose.blocks) == 1 and len(tight.blocks) == 2

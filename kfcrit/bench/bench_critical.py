@@ -2,7 +2,10 @@
 
 Targets (issue 3): exact path, n ≤ 6 with small rational or quadratic-surd entries, ≤ 2 s per
 system; numeric path, n = 200, ≤ 5 s. Prints, per system, the wall time, the path taken and the
-ratio time / target (< 1 meets the target). Run::
+ratio time / target (< 1 meets the target). A system of the exact set whose analysis fell back
+to the numeric path (e.g. the 6×6 a + b·sqrt(2) systems: an irreducible degree-12 factor over
+Q(sqrt(2)) is beyond the exact path) is listed as a *fallback* and not counted toward the exact
+target — its time says nothing about the exact path. Run::
 
     python -m kfcrit.bench.bench_critical [--repeat 3]
 """
@@ -136,14 +139,24 @@ def main() -> None:
     print(f"{'system':44s} {'path':8s} {'class':24s} {'seconds':>8s} {'ratio':>6s}")
     for label, target, systems in (("exact", EXACT_TARGET, exact_systems()),
                                    ("numeric", NUMERIC_TARGET, numeric_systems(args.n))):
-        worst = 0.0
+        worst, counted, fallbacks = 0.0, 0, []
         for name, s in systems:
             t, rec = _time(s, args.repeat)
-            worst = max(worst, t / target)
-            print(f"{name:44s} {rec['structure']['path']:8s} {rec['classification']:24s} "
-                  f"{t:8.3f} {t / target:6.3f}")
-        print(f"  {label} targets: worst ratio time/target = {worst:.3f} (target {target:g} s; "
-              "the path column says which path actually ran)")
+            path = rec["structure"]["path"]
+            if path == label:
+                worst = max(worst, t / target)
+                counted += 1
+                tag = ""
+            else:
+                fallbacks.append(name)
+                tag = "  (fallback: not counted)"
+            print(f"{name:44s} {path:8s} {rec['classification']:24s} "
+                  f"{t:8.3f} {t / target:6.3f}{tag}")
+        print(f"  {label} target: worst ratio time/target = {worst:.3f} over the {counted} "
+              f"systems that ran the {label} path (target {target:g} s)")
+        if fallbacks:
+            print(f"  {len(fallbacks)} of {len(systems)} {label}-set systems fell back to another "
+                  f"path and are not counted: {', '.join(fallbacks)}")
 
 
 if __name__ == "__main__":
