@@ -124,9 +124,15 @@ def operating_point(spec: SystemSpec, sections: dict[str, Any]) -> dict[str, Any
     out: dict[str, Any] = {"arrival_probability": p, "channel": spec.channel.to_dict(),
                            "iid": spec.channel.iid}
     if sections.get("classification") == "stable":
-        out.update(margin=p - (pc or 0.0), margin_robust=p - (pc or 0.0), bracket=None,
+        worst = max(pc or 0.0, robust.get("value") if robust.get("value") is not None else 0.0)
+        out.update(margin=p - (pc or 0.0), margin_robust=p - worst, bracket=None,
                    verdict="mean-stable",
                    reason="ρ(A) < 1: E[P_t] is bounded for every arrival probability")
+        if robust.get("value") is not None and p <= worst:
+            # a system within the tolerance is unstable (or undetectable) at this p
+            out.update(verdict="undetermined",
+                       reason="ρ(A) < 1 as entered, but a system within the tolerance has "
+                              f"critical value {worst:.6g} ≥ p (see the robust critical value)")
         return out
     if sections.get("classification") == "not-detectable":
         out.update(margin=None, margin_robust=None, bracket=None, verdict="mean-unstable",

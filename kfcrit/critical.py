@@ -741,12 +741,11 @@ def _hypothesis_warnings(system: System, st: Structure) -> list[str]:
     if not st.controllable_Q:
         out.append("(A, Q^(1/2)) is not controllable: Sinopoli's existence theorem for p_c "
                    "assumes it")
-    qf = np.linalg.eigvalsh(0.5 * (system.q + system.q.T))
-    if qf.min() <= 1e-12 * max(1.0, float(np.abs(qf).max())):
+    # exact for exact input, scale-aware for floats: Q = 1e-250·I is positive definite
+    if not system.is_positive_definite("Q"):
         out.append("Q is not positive definite: Mo–Sinopoli (H3) assumes Q ≻ 0 (Thm 2, "
                    "independence of Q, R, Σ0)")
-    sf = np.linalg.eigvalsh(0.5 * (system.sigma0 + system.sigma0.T))
-    if sf.min() <= 1e-12 * max(1.0, float(np.abs(sf).max())):
+    if not system.is_positive_definite("Sigma0"):
         out.append("Σ0 is not positive definite: Mo–Sinopoli (H3) assumes Σ0 ≻ 0")
     return out
 

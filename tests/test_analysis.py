@@ -373,3 +373,16 @@ def test_undetectable_system_text_view(tmp_path: Path) -> None:
     assert res.exit_code == 0
     assert "not-detectable" in res.stdout and "MEAN-UNSTABLE" in res.stdout
     assert "not applicable" in res.stdout and "None" not in res.stdout
+
+
+def test_stable_but_near_undetectable_is_undetermined(tmp_path: Path) -> None:
+    # λ = 1 − 1e-12 is unobservable through C = [0, 1]: as entered the system is stable
+    # (p_c = 0), but moving λ by 1e-12 < tol·‖A‖ = 1e-9 puts an unobservable mode on the unit
+    # circle, which no arrival probability fixes: the verdict at p = 0.9 cannot be decided.
+    code, rec, _ = analyze_json(write(tmp_path, "name: s\nA: [[0.999999999999, 0], [0, 0.5]]\n"
+                                      "C: [[0, 1]]\nQ: 1\nR: 1\nchannel: {model: bernoulli, "
+                                      "arrival_probability: 0.9}\n"), "--no-simulate")
+    assert rec["classification"] == "stable" and rec["critical_value"]["value"] == 0
+    assert rec["operating_point"]["verdict"] == "undetermined" and code == 3
+    assert rec["operating_point"]["margin"] == pytest.approx(0.9)
+    assert rec["operating_point"]["margin_robust"] <= 0
