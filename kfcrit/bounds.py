@@ -50,8 +50,33 @@ def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
 def _summary(M: np.ndarray | None) -> dict[str, Any]:
     if M is None:
         return {"exists": False, "trace": None, "max_eig": None, "matrix": None}
-    return {"exists": True, "trace": float(np.trace(M)),
-            "max_eig": float(np.linalg.eigvalsh(M).max()), "matrix": _matrix(M)}
+    with np.errstate(all="ignore"):
+        tr = float(np.trace(M))
+        try:
+            top = float(np.linalg.eigvalsh(M).max())
+        except np.linalg.LinAlgError:
+            top = float("nan")
+    finite = bool(np.all(np.isfinite(M)))
+    out = {"exists": True, "trace": tr if np.isfinite(tr) else None,
+           "max_eig": top if np.isfinite(top) else None,
+           "matrix": _matrix(M) if finite else None}
+    if not (finite and np.isfinite(tr) and np.isfinite(top)):
+        out["beyond_float64"] = True
+    return out
+
+
+def _scaled_norm_ratio(D: np.ndarray, V: np.ndarray) -> float | None:
+    """‖D‖_F / ‖V‖_F without overflow (both scaled by max |entry| first); None if not finite.
+
+    ``np.linalg.norm`` squares the entries: for V ~ 1e250 (e.g. R = 1e250) that overflows to
+    inf and inf/inf gives NaN with a RuntimeWarning on stderr."""
+    with np.errstate(all="ignore"):
+        s = max(float(np.max(np.abs(V))) if V.size else 0.0,
+                float(np.max(np.abs(D))) if D.size else 0.0)
+        if not (np.isfinite(s) and s > 0):
+            return 0.0 if s == 0 else None
+        r = float(np.linalg.norm(D / s)) / max(float(np.linalg.norm(V / s)), 1e-300)
+    return r if np.isfinite(r) else None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -81,9 +106,15 @@ def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | Non
         return symmetrize(sla.solve_discrete_lyapunov(M, Q, method="bilinear"))
 
 
-def mare_residual(A, C, Q, R, V: np.ndarray, p: float) -> float:
-    """Relative residual ‖g_p(V) − V‖_F / ‖V‖_F of the MARE."""
-    return float(np.linalg.norm(g(A, C, Q, R, V, p) - V) / max(np.linalg.norm(V), 1e-300))
+def mare_residual(A, C, Q, R, V: np.ndarray, p: float) -> float | None:
+    """Relative residual ‖g_p(V) − V‖_F / ‖V‖_F of the MARE (computed with scaling, so huge V
+    do not overflow); None when it cannot be evaluated in float64 (non-finite g_p(V))."""
+    with np.errstate(all="ignore"):
+        try:
+            D = g(A, C, Q, R, V, p) - V
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+    return _scaled_norm_ratio(D, V)
 
 
 def mare_iteration(A, C, Q, R, p: float, V0: np.ndarray | None = None,
@@ -95,15 +126,17 @@ def mare_iteration(A, C, Q, R, p: float, V0: np.ndarray | None = None,
     iteration budget ends first (bounded ⇔ p > p_up; the iteration slows down near p_up).
     """
     V = np.zeros_like(Q, dtype=float) if V0 is None else np.array(V0, dtype=float)
-    scale = 1.0 + float(np.linalg.norm(g(A, C, Q, R, V, p)))
-    for t in range(1, max_iterations + 1):
-        Vn = g(A, C, Q, R, V, p)
-        nv = float(np.linalg.norm(Vn))
-        if not np.isfinite(nv) or nv > blowup * scale:
-            return None, t
-        if float(np.linalg.norm(Vn - V)) <= rtol * nv:
-            return Vn, t
-        V = Vn
+    # overflow and NaN are detected below (non-finite norm): no RuntimeWarning on stderr
+    with np.errstate(all="ignore"):
+        scale = 1.0 + float(np.linalg.norm(g(A, C, Q, R, V, p)))
+        for t in range(1, max_iterations + 1):
+            Vn = g(A, C, Q, R, V, p)
+            nv = float(np.linalg.norm(Vn))
+            if not np.isfinite(nv) or nv > blowup * scale:
+                return None, t
+            if float(np.linalg.norm(Vn - V)) <= rtol * nv:
+                return Vn, t
+            V = Vn
     return None, max_iterations
 
 
@@ -131,7 +164,9 @@ def mare_newton(A, C, Q, R, p: float, K0: np.ndarray, max_iterations: int = 60,
         Vn = stabilising_solution(A, C, Q, R, K, p)
         if Vn is None:
             return None, k
-        change = float(np.linalg.norm(Vn - V)) / float(np.linalg.norm(Vn))
+        change = _scaled_norm_ratio(Vn - V, Vn)
+        if change is None:
+            return None, k
         V = Vn
         # converged, or stagnating at rounding level (quadratic convergence has stopped)
         if change <= rtol or (change <= 1e-10 and change >= 0.5 * prev):
@@ -147,6 +182,16 @@ def upper_covariance(system: System, p: float, gains: list[np.ndarray] | None = 
     A, C, Q, R = system.a, system.c, system.q, system.r
     n = system.n
     candidates = list(gains or [])
+    if C.shape[0] == n:
+        # C invertible: K = −A C⁻¹ gives F = A + K C = 0, stabilising for every p > p_low
+        # (no MARE iteration needed — whose blow-up test misfires when V̄ is huge, R = 1e250)
+        with np.errstate(all="ignore"):
+            try:
+                K_inv = -np.linalg.solve(C.T, A.T).T
+                if np.all(np.isfinite(K_inv)):
+                    candidates.append(K_inv)
+            except np.linalg.LinAlgError:
+                pass
     if n <= NEWTON_MAX_STATES:
         for K0 in candidates:
             V, its = mare_newton(A, C, Q, R, p, K0, rtol=rtol)
@@ -202,10 +247,37 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
         V = res["V"]
         out_up = {**_summary(V), "residual": res["residual"], "method": res["method"],
                   "iterations": res["iterations"]}
+        if V is None:
+            out_up["not_reached"] = True
     ordered = None
+    warnings: list[str] = []
     if S is not None and V is not None:
-        ordered = bool(np.linalg.eigvalsh(V - S).min() >= -1e-9 * np.linalg.norm(V))
-    return {"p": p, "lower": _summary(S), "upper": out_up, "ordered": ordered}
+        with np.errstate(all="ignore"):
+            scale = float(np.max(np.abs(V)))
+            if np.isfinite(scale) and scale > 0:
+                ordered = bool(np.linalg.eigvalsh((V - S) / scale).min()
+                               >= -1e-9 * np.linalg.norm(V / scale))
+    low = _summary(S)
+    for name, summ in (("S̄ (lower bound)", low), ("V̄ (upper bound)", out_up)):
+        if summ.get("beyond_float64"):
+            warnings.append(f"covariance bound {name} at p = {p:.6g}: its trace or largest "
+                            "eigenvalue (or an entry) is beyond the float64 range (about "
+                            "1.8e308) and is given as null")
+    if V is not None and out_up.get("residual") is None:
+        warnings.append(f"covariance bound V̄ at p = {p:.6g}: the MARE residual could not be "
+                        "evaluated in float64 (entries of V̄ or g_p(V̄) beyond its range); "
+                        "V̄ is unverified and its residual is given as null")
+    if out_up.get("not_reached"):
+        warnings.append(f"covariance bound V̄ at p = {p:.6g} not computed: p is above the "
+                        f"lower end {lo_up:.12g} of the p_up bracket, but {out_up['method']} "
+                        f"did not reach the MARE fixed point ({out_up['iterations']} "
+                        "iterations; overflow, a blow-up or the iteration budget); V̄ is "
+                        "given as null")
+    if S is None and V is None and not np.all(np.isfinite(system.a)):
+        warnings.append("covariance bounds not computed: the system matrices are not finite "
+                        "in float64")
+    return {"p": p, "lower": low, "upper": out_up, "ordered": ordered, "warnings": warnings}
+
 
 
 # ---------------------------------------------------------------------------------------------

@@ -33,6 +33,7 @@ falls back to the LMI when Newton cannot produce a certified bracket.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -538,7 +539,12 @@ def _evidence_p_low(p_low: float) -> dict[str, Any]:
             "statement": "p_up ≥ p_c ≥ p_low = 1 − 1/ρ(A)² (Sinopoli Thm 3)"}
 
 
-def _newton_method(system: System, tol: float) -> UpperBound:
+def _newton_method(system: System, tol: float,
+                   progress: dict[str, Any] | None = None) -> UpperBound:
+    """The fast method (module docstring). ``progress`` receives the stage and the numerical
+    bracket as they are reached (read by :func:`upper_bound` if a numerical failure stops it)."""
+    progress = {} if progress is None else progress
+    progress.update(stage="Schur reduction", method="newton")
     t0 = time.perf_counter()
     A, C = system.a, system.c
     stats: dict[str, Any] = {"power_iterations": 0, "newton_iterations": 0, "certificate_checks": 0}
@@ -567,6 +573,7 @@ def _newton_method(system: System, tol: float) -> UpperBound:
     Au, Cu = red.Au, red.Cu
     # 2. bracket by bisection on the power-iteration radius
     lo, hi = p_low, 1.0
+    progress["stage"] = "power-iteration bracket"
     r1, X1, it = cone_radius(Au, Cu, 1.0)
     stats["power_iterations"] += it
     if not (r1 < 1.0):
@@ -587,7 +594,9 @@ def _newton_method(system: System, tol: float) -> UpperBound:
             hi, Xh = mid, Xm
         else:
             lo, Xl = mid, Xm
+    progress.update(lo=lo, hi=hi, stage="threshold Newton and certificate")
     if red.k > NEWTON_MAX_REDUCED:
+        progress["stage"] = "power-iteration bisection"
         return _power_bisection(system, red, lo, hi, Xh, tol, stats, warnings, done)
     # 3. Newton on the threshold (plain and regularised) and 4. certificates; if Newton lands
     #    on a face of the cone (a boundary eigenvector: a lower bound only) or nothing can be
@@ -627,6 +636,7 @@ def _newton_method(system: System, tol: float) -> UpperBound:
         lo, hi, Xl, Xh = _refine_bracket(Au, Cu, lo, hi, Xl, Xh, target, stats)
         if lo > lo_before:       # raised only by a Collatz–Wielandt bound r(lo) >= 1
             lo_seen = max(lo_seen, lo)
+        progress.update(lo=lo_seen, hi=hi)
         plain_ok = False
     if best is None:
         warnings.append("no certificate could be verified; the upper end is a numerical "
@@ -637,6 +647,7 @@ def _newton_method(system: System, tol: float) -> UpperBound:
                          "Collatz-Wielandt bound of the power iterate)", "p_low_theorem": p_low}
         return done(None, (lo_seen, hi), False, "undetermined", None, lower)
     hi_p, (Z, Xz, Kz), check, eps_used = best
+    progress.update(stage="lower-end evidence", hi=hi_p)
     X, K = symmetrize(Z @ Xz @ Z.T), _full_gain(red, Z @ Kz)
     stats["regularisation"] = eps_used
     origin = ("cone eigenvector of the regularised noise-free MARE map (epsilon = "
@@ -1174,11 +1185,71 @@ def upper_bound(system: System, tol: float = 1e-9, method: str = "auto") -> Uppe
            float(tol), method)
     if key in _CACHE:
         return _CACHE[key]
-    result = replace(_upper_bound(system, tol, method), tolerance=float(tol))
+    progress: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    try:
+        result = replace(_upper_bound(system, tol, method, progress), tolerance=float(tol))
+    except Exception as exc:              # noqa: BLE001 — re-raised unless numerical
+        if not is_numerical_failure(exc):
+            raise
+        return _failure_record(system, tol, method, exc, progress, time.perf_counter() - t0)
     _CACHE[key] = result
     while len(_CACHE) > 16:
         _CACHE.pop(next(iter(_CACHE)))
     return result
+
+
+def numerical_failure_types() -> tuple[type[BaseException], ...]:
+    """The exceptions that mean "the numerics failed" (not a bug, not bad input): LinAlgError,
+    FloatingPointError / ZeroDivisionError / OverflowError (ArithmeticError), ValueError (scipy
+    solvers raise it for non-finite or ill-posed data) and, when cvxpy has been loaded,
+    its SolverError."""
+    types: list[type[BaseException]] = [np.linalg.LinAlgError, ArithmeticError, ValueError]
+    cp_error = getattr(sys.modules.get("cvxpy.error"), "SolverError", None)
+    if isinstance(cp_error, type):
+        types.append(cp_error)
+    return tuple(types)
+
+
+def is_numerical_failure(exc: BaseException) -> bool:
+    return isinstance(exc, numerical_failure_types())
+
+
+def _failure_record(system: System, tol: float, method: str, exc: BaseException,
+                    progress: dict[str, Any], seconds: float) -> UpperBound:
+    """The ``undetermined`` record of a computation stopped by a numerical failure: the bracket
+    reached so far (the lower end from p_low, or a numerical cone-radius bound; the upper end 1
+    or a numerical power-iteration estimate — neither certified) and a warning naming the
+    failure. Not memoised (the failure may be transient)."""
+    try:
+        p_low = p_low_bounds(system).down
+    except Exception as exc2:             # noqa: BLE001
+        if not is_numerical_failure(exc2):
+            raise
+        try:
+            p_low = p_low_of(system.a)
+        except Exception:                 # noqa: BLE001
+            p_low = 0.0
+    lo = float(progress.get("lo", p_low))
+    hi = float(progress.get("hi", 1.0))
+    if not (np.isfinite(lo) and np.isfinite(hi) and p_low <= lo <= hi <= 1.0):
+        lo, hi = p_low, 1.0
+    lower = _evidence_p_low(p_low) if lo <= p_low else {
+        "kind": "numerical", "value": lo, "certified": False,
+        "statement": "power-iteration bracket reached before the numerical failure (cone "
+                     "spectral radius r(lo) >= 1 of the noise-free MARE map, numerically)",
+        "p_low_theorem": p_low}
+    name = type(exc).__name__
+    text = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else "(no message)"
+    stage = progress.get("stage", "start")
+    warning = (f"upper bound undetermined: numerical failure ({name}: {text}) in the "
+               f"{method} method at stage '{stage}'; the bracket [{lo:.12g}, {hi:.12g}] is the "
+               "one reached so far, not certified")
+    solver = {"seconds": seconds, "solves": 0, "failure": name, "failure_message": text,
+              "failure_stage": stage}
+    return UpperBound(None, (lo, hi), False, "undetermined",
+                      progress.get("method", "newton" if method != "lmi" else "lmi"), None,
+                      lower, solver, (warning,), {}, float(tol))
 
 
 _CACHE: dict[tuple, UpperBound] = {}
@@ -1186,8 +1257,9 @@ _CACHE: dict[tuple, UpperBound] = {}
 only, and the covariance-bound and static-gain sections ask for it again."""
 
 
-def _upper_bound(system: System, tol: float, method: str) -> UpperBound:
-    result = _upper_bound_raw(system, tol, method)
+def _upper_bound(system: System, tol: float, method: str,
+                 progress: dict[str, Any] | None = None) -> UpperBound:
+    result = _upper_bound_raw(system, tol, method, {} if progress is None else progress)
     # the LMI works to max(tol, 1e-7): judge its width by the tolerance it used
     used = max(tol, 1e-7) if result.method == "lmi" else tol
     return _exact_lower_end(system, result, used)
@@ -1214,19 +1286,23 @@ def _exact_lower_end(system: System, result: UpperBound, tol: float) -> UpperBou
     return replace(result, interval=(pl.down, hi), lower_evidence=lower, status=status)
 
 
-def _upper_bound_raw(system: System, tol: float, method: str) -> UpperBound:
+def _upper_bound_raw(system: System, tol: float, method: str,
+                     progress: dict[str, Any]) -> UpperBound:
     if method != "lmi":
+        progress["stage"] = "C invertible test"
         inv, how = c_invertible(system)
         if inv:
             return _c_invertible_bound(system, how)
     if method == "lmi":
         from .lmi import lmi_upper_bound
+        progress.update(stage="LMI bisection", method="lmi")
         return lmi_upper_bound(system, tol=max(tol, 1e-7))
-    result = _newton_method(system, tol)
+    result = _newton_method(system, tol, progress)
     if result.extras.get("not_applicable"):
         return result            # not detectable: no LMI fallback (it cannot succeed either)
     if method == "auto" and not result.certified and system.n <= 30:
         from .lmi import lmi_upper_bound
+        progress.update(stage="LMI fallback", method="lmi")
         alt = lmi_upper_bound(system, tol=max(tol, 1e-7))
         if alt.certified:
             width_ok = alt.interval[1] - alt.interval[0] <= tol

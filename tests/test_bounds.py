@@ -96,7 +96,7 @@ def test_bounds_absent_below_thresholds():
     assert not d["lower"]["exists"] and not d["upper"]["exists"] and d["ordered"] is None
     d = bounds.covariance_bounds(GENERAL, 0.4)           # p_low < 0.4 < p_up = 57/121
     assert d["lower"]["exists"] and not d["upper"]["exists"]
-    assert set(d) == {"p", "lower", "upper", "ordered"}
+    assert set(d) == {"p", "lower", "upper", "ordered", "warnings"} and d["warnings"] == []
     assert set(d["upper"]) == {"exists", "trace", "max_eig", "matrix", "residual", "method",
                                "iterations"}
     json.dumps(d, allow_nan=False)
@@ -243,3 +243,68 @@ def test_best_static_gain_critical_value_within_p_up_bracket(case):
     assert best["critical_value"] is not None
     assert lo - slack <= best["critical_value"] <= hi + slack, (ub.interval, best)
     assert best["equals_p_up"]
+
+
+# ---------------------------------------------------------------------------------------------
+# extreme magnitudes: no RuntimeWarning on stderr, values or a record warning instead of null
+# ---------------------------------------------------------------------------------------------
+
+
+def test_huge_r_gives_a_residual_and_no_runtime_warning():
+    import warnings
+
+    s = System(np.array([[1.25, 0.0], [1.0, 1.1]]), np.array([[1.0, 1.0]]), 20 * np.eye(2),
+               np.array([[1e250]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        cb = bounds.covariance_bounds(s, 0.9)
+    up = cb["upper"]
+    assert up["exists"] and up["trace"] > 1e249
+    assert up["residual"] is not None and up["residual"] < 1e-12
+    assert cb["warnings"] == [] and cb["ordered"] is True
+
+
+def test_huge_r_scalar_v_bar_is_found_not_null():
+    import warnings
+
+    # a = -1.25, p = 0.9, R = 1e250: V̄ = c R with (a² − 1)(c + 1) = p a² c, c = 2/3
+    s = System(np.array([[-1.25]]), np.array([[1.0]]), np.array([[1.0]]), np.array([[1e250]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        cb = bounds.covariance_bounds(s, 0.9)
+    assert cb["upper"]["exists"]
+    assert cb["upper"]["trace"] == pytest.approx(2e250 / 3, rel=1e-9)
+
+
+def test_mare_residual_is_scaled_not_overflowing():
+    import warnings
+
+    A, C, Q, R = np.array([[2.0]]), np.array([[1.0]]), np.array([[1.0]]), np.array([[1.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert bounds.mare_residual(A, C, Q, R, np.array([[1e300]]), 0.5) is not None
+        assert bounds.mare_residual(A, C, Q, R, np.array([[np.inf]]), 0.5) is None
+
+
+def test_unreached_v_bar_is_a_record_warning(monkeypatch):
+    s = System(np.array([[1.25, 0.0], [1.0, 1.1]]), np.array([[1.0, 1.0]]), 20 * np.eye(2),
+               2.5 * np.eye(1))
+    monkeypatch.setattr(bounds, "upper_covariance",
+                        lambda *a, **k: {"V": None, "method": "mare-iteration",
+                                         "iterations": 7, "residual": None})
+    cb = bounds.covariance_bounds(s, 0.9)
+    assert cb["upper"]["exists"] is False
+    assert any("not computed" in w for w in cb["warnings"])
+
+
+def test_huge_a_entry_analysis_has_no_runtime_warning(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "huge.yaml"
+    path.write_text('name: huge\nA: [["2**64", 0], [1, 1.1]]\nC: [[1, 1]]\nQ: [[1, 0], [0, 1]]\n'
+                    'R: [[1e250]]\nchannel:\n  model: bernoulli\n  arrival_probability: 0.9\n')
+    r = subprocess.run([sys.executable, "-W", "default", "-m", "kfcrit", "analyze", str(path),
+                        "--json", "--no-simulate"], capture_output=True, text=True, timeout=600)
+    assert r.returncode in (0, 3), r.stderr[-2000:]
+    assert "RuntimeWarning" not in r.stderr, r.stderr[-2000:]

@@ -477,3 +477,156 @@ def test_lower_end_proven_with_stable_modes():
     V, _ = bounds.mare_iteration(A, C, np.eye(5), np.eye(1), ub.interval[0] - 1e-3,
                                  max_iterations=20_000)
     assert V is None
+
+
+# ---------------------------------------------------------------------------------------------
+# width 1e-9 on systems that were undetermined before the consistent regulariser and the
+# Stein certificate (survey of random_system(n, m, seed), n ≤ 30)
+# ---------------------------------------------------------------------------------------------
+
+PREVIOUSLY_UNDETERMINED = [(12, 4, 0), (20, 1, 0), (20, 2, 3), (20, 6, 1)]
+
+
+@pytest.mark.parametrize("n, m, seed", PREVIOUSLY_UNDETERMINED)
+def test_previously_undetermined_systems_reach_width_1e9(n, m, seed):
+    from kfcrit import certify
+
+    A, C, Q, R = random_system(n, m, seed)
+    s = System(A, C, Q, R)
+    ub = upper_bound(s, tol=1e-9)
+    lo, hi = ub.interval
+    assert ub.status == "determined" and ub.certified, (ub.interval, ub.warnings)
+    assert hi - lo <= 1e-9 + 4 * math.ulp(hi)
+    # the certificate re-verifies on its own, exactly as recorded; it fails just below lo
+    ex = ub.extras
+    check = certify.verify_upper(s, ub.certificate["p"], ex["X_basis"], ex["K_basis"],
+                                 basis=ex["basis"], output_map=ex["output_map"])
+    assert check.ok and ub.certificate["p"] == hi
+    assert not certify.verify_upper(s, lo - 1e-6, ex["X_basis"], ex["K_basis"],
+                                    basis=ex["basis"], output_map=ex["output_map"]).ok
+    if m == 1:
+        # independent: the single-output closed form, to float accuracy
+        assert_contains(ub, closed_form_single_output(A), slack=1e-12)
+    else:
+        # independent: the MARE iteration from 0 (with Q, R) is bounded above hi and diverges
+        # below lo ...
+        V, _ = bounds.mare_iteration(A, C, Q, R, hi + 1e-3, max_iterations=100_000)
+        assert V is not None
+        V, _ = bounds.mare_iteration(A, C, Q, R, lo - 1e-3, max_iterations=100_000)
+        assert V is None
+        # ... and the certificate gain's own mean-square critical value (generalised
+        # eigenvalues of the vech pencil, no certificate code) is in [lo, hi]: it is >= p_up
+        # by definition and <= hi because the gain works there
+        crit = bounds.ms_critical_value(A, C, ex["K"])["critical_value"]
+        assert lo - 1e-10 <= crit <= hi + 1e-10, (crit, ub.interval)
+
+
+# ---------------------------------------------------------------------------------------------
+# numerical failures inside upper_bound: an undetermined record, never an exception
+# ---------------------------------------------------------------------------------------------
+
+
+def _raise(exc):
+    def boom(*_a, **_k):
+        raise exc
+    return boom
+
+
+@pytest.mark.parametrize("exc", [np.linalg.LinAlgError("Singular matrix (injected)"),
+                                 FloatingPointError("overflow (injected)"),
+                                 ZeroDivisionError("division by zero (injected)"),
+                                 ValueError("array must not contain infs or NaNs (injected)")])
+def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
+    from kfcrit import upper
+
+    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(upper, "threshold_newton", _raise(exc))
+    s = System(*random_system(8, 2, 1))
+    ub = upper_bound(s, tol=1e-9)
+    assert ub.status == "undetermined" and not ub.certified and ub.value is None
+    lo, hi = ub.interval
+    # the bracket reached by the power iteration before the failure (width 1/64 at most)
+    assert upper.p_low_of(s.a) <= lo < hi <= 1.0 and hi - lo <= 1 / 64 + 1e-12
+    assert any(type(exc).__name__ in w and "bracket" in w for w in ub.warnings)
+    assert ub.solver["failure"] == type(exc).__name__
+    json.dumps(ub.to_dict(), allow_nan=False)
+    assert not upper._CACHE                   # a failure is not memoised
+    monkeypatch.undo()
+    upper._CACHE.clear()
+    assert upper_bound(s, tol=1e-9).status == "determined"
+
+
+def test_numpy_solve_failure_is_undetermined(monkeypatch):
+    from kfcrit import upper
+
+    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(np.linalg, "solve", _raise(np.linalg.LinAlgError("Singular matrix")))
+    ub = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]]))
+    assert ub.status == "undetermined" and ub.interval[1] == 1.0
+    assert any("LinAlgError" in w for w in ub.warnings)
+
+
+def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
+    import cvxpy
+
+    from kfcrit import lmi, upper
+
+    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(lmi, "lmi_upper_bound", _raise(cvxpy.error.SolverError("Clarabel")))
+    ub = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]]), tol=1e-7, method="lmi")
+    assert ub.status == "undetermined" and ub.method == "lmi"
+    assert any("SolverError" in w for w in ub.warnings)
+
+
+def test_programming_errors_are_not_swallowed(monkeypatch):
+    from kfcrit import upper
+
+    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(upper, "threshold_newton", _raise(TypeError("a bug")))
+    with pytest.raises(TypeError):
+        upper_bound(System(*random_system(8, 2, 1)), tol=1e-9)
+
+
+NO_CHANNEL = """name: no channel
+A: [[1.25, 0], [1, 1.1]]
+C: [[1, 1]]
+Q: [[20, 0], [0, 20]]
+R: [[2.5]]
+"""
+
+
+def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
+    from click.testing import CliRunner
+
+    import kfcrit
+    from kfcrit import upper
+    from kfcrit.cli import main
+
+    path = tmp_path / "no-channel.yaml"
+    path.write_text(NO_CHANNEL)
+    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(upper, "threshold_newton",
+                        _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
+    rec = kfcrit.analyze(load_spec(path), simulate=False).to_dict()
+    assert rec["upper_bound"]["status"] == "undetermined"
+    assert any("LinAlgError" in w for w in rec["upper_bound"]["warnings"])
+    r = CliRunner().invoke(main, ["analyze", str(path), "--json", "--no-simulate"])
+    assert r.exit_code == 3, (r.exit_code, r.output[-2000:])
+    out = json.loads(r.stdout)
+    assert out["upper_bound"]["status"] == "undetermined"
+    assert "internal error" not in r.output
+
+
+def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
+    from kfcrit import upper
+
+    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(upper, "threshold_newton",
+                        _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
+    s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
+    cb = bounds.covariance_bounds(s, 0.9)
+    assert cb["lower"]["exists"]
+    pt = bounds.phase_transition(s, time_budget=5)
+    assert len(pt["p"]) == len(pt["trace_upper"])
+    sg = bounds.static_gain(s, 0.9)
+    assert sg["best"] == {"available": False}
