@@ -95,15 +95,21 @@ def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | Non
     if (1.0 - p) * rho**2 >= 1.0:
         return None
     M = np.sqrt(1.0 - p) * A
+    # the equation is linear in Q: solve for Q/s with s = max |Q_ij| and scale back, so that
+    # Q = 1e-250·I or 1e250·I reaches scipy at unit scale (no underflow inside its balancing)
+    s = float(np.max(np.abs(Q))) if Q.size else 0.0
+    if not (s > 0 and np.isfinite(s)):
+        s = 1.0
+    Qs = Q / s
     with _warnings.catch_warnings():
         _warnings.simplefilter("error", sla.LinAlgWarning)
         try:
-            return symmetrize(sla.solve_discrete_lyapunov(M, Q))
+            return s * symmetrize(sla.solve_discrete_lyapunov(M, Qs))
         except sla.LinAlgWarning:
             pass
     with _warnings.catch_warnings():
         _warnings.simplefilter("ignore", sla.LinAlgWarning)
-        return symmetrize(sla.solve_discrete_lyapunov(M, Q, method="bilinear"))
+        return s * symmetrize(sla.solve_discrete_lyapunov(M, Qs, method="bilinear"))
 
 
 def mare_residual(A, C, Q, R, V: np.ndarray, p: float) -> float | None:
@@ -477,8 +483,12 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
         return {**out, "kalman": na, "best": dict(na), "p_up": None, "p_up_interval": None,
                 "skipped": reason}
     try:
-        P = symmetrize(sla.solve_discrete_are(A.T, C.T, Q, R))
-        K_kf = optimal_gain(A, C, R, P)
+        # scipy's balancing warns (and may fail) on extreme scales such as Q = 1e-250·I: the
+        # result is checked for finiteness instead of letting a RuntimeWarning reach stderr
+        with np.errstate(all="ignore"), _warnings.catch_warnings():
+            _warnings.simplefilter("ignore", RuntimeWarning)
+            P = symmetrize(sla.solve_discrete_are(A.T, C.T, Q, R))
+        K_kf = optimal_gain(A, C, R, P) if np.all(np.isfinite(P)) else None
     except (np.linalg.LinAlgError, ValueError):
         K_kf = None
     ub = upper_bound(system)

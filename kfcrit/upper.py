@@ -343,6 +343,38 @@ def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray
     return red.Z, symmetrize(Xz), Kz
 
 
+MARGINAL_TOL = 1e-6
+"""| |λ| − 1 | below this marks a mode of the unstable block as marginal (see
+:func:`_lower_evidence`: numerical lower-end evidence is not accepted there)."""
+PBH_TOL = 1e-10
+"""Relative PBH threshold of :func:`undetected_modes` (σ_min against ‖A‖ + ‖C‖)."""
+
+
+def undetected_modes(Au: np.ndarray, Cu: np.ndarray,
+                     tol: float = PBH_TOL) -> list[tuple[complex, float]]:
+    """Modes of the reduced block (|λ| ≥ 1 − tol) that C cannot see: PBH test in float64.
+
+    (A, C) is detectable iff [A − λI; C] has full column rank for every |λ| ≥ 1. With a right
+    eigenvector v, Cv = 0, then (A + KC) v = A v = λ v for every gain K, so
+    (1 − p) A⊗A + p (A+KC)⊗(A+KC) keeps the eigenvalue |λ|² ≥ 1 on v⊗v̄: no p and no K give a
+    mean-square stable error system and p_up does not exist. Returns (λ, σ_min) for each
+    eigenvalue whose σ_min([A − λI; C]) ≤ tol·(‖A‖ + ‖C‖) (the exact structure analysis
+    decides detectability exactly; this guard keeps the numerical methods from reporting a
+    bracket for a threshold that does not exist).
+    """
+    k = Au.shape[0]
+    if k == 0:
+        return []
+    scale = float(np.linalg.norm(Au, 2) + (np.linalg.norm(Cu, 2) if Cu.size else 0.0))
+    out = []
+    for lam in np.linalg.eigvals(Au):
+        M = np.vstack([Au - lam * np.eye(k), Cu.astype(complex)])
+        s = float(np.linalg.svd(M, compute_uv=False)[-1])
+        if s <= tol * max(scale, 1.0):
+            out.append((complex(lam), s))
+    return out
+
+
 def stable_certificate(A: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For ρ(A) < 1: K = 0 and X = A X A' + I certify p = 0."""
     X = sla.solve_discrete_lyapunov(A, np.eye(A.shape[0]))
@@ -571,6 +603,16 @@ def _newton_method(system: System, tol: float,
         return done(0.0, (0.0, 0.0), check.ok, "determined", cert, lower)
 
     Au, Cu = red.Au, red.Cu
+    blind = undetected_modes(Au, Cu)
+    if blind:
+        warnings.append("upper bound not applicable: (A, C) is not detectable in float64 (PBH: "
+                        + ", ".join(f"λ ≈ {z:.6g} with σ_min([A − λI; C]) ≈ {s:.1e}"
+                                    for z, s in blind[:3])
+                        + "); no gain makes the error system mean-square stable")
+        return done(None, (p_low, 1.0), False, "undetermined", None, _evidence_p_low(p_low),
+                    {"not_applicable": "(A, C) is not detectable: a mode with |λ| ≥ 1 is "
+                                       "invisible to C, so (A + KC) keeps it for every K and no "
+                                       "p makes E[P_t] bounded; p_up is not defined"})
     # 2. bracket by bisection on the power-iteration radius
     lo, hi = p_low, 1.0
     progress["stage"] = "power-iteration bracket"
@@ -1086,6 +1128,15 @@ def _lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float
     if r < 1 - 1e-12:
         return {"inconsistent": f"cone eigenvalue r({lo:.12g}) = {r:.15g} < 1 contradicts the "
                                 "Newton root; the lower end falls back to p_low"}
+    marginal = np.abs(np.abs(np.linalg.eigvals(red.Au)) - 1.0) <= MARGINAL_TOL
+    if not conf["certified"] and np.any(marginal):
+        # a mode on the unit circle makes the cone eigenvector nearly singular, and the
+        # homogeneous regulariser then biases r(p) upward by more than tol (seen: r(lo) =
+        # 1 + 2e-8 at a lo 1.7e-8 above a p_up proven by a certificate of the similar system)
+        return {"inconsistent": f"r({lo:.12g}) = {r:.15g} ≥ 1 is not evidence here: A has a "
+                                "mode with |λ| ≈ 1 in the unstable block, where the "
+                                "regularised cone eigenvalue is biased upward; the lower end "
+                                "falls back to p_low"}
     if conf["certified"]:
         check = conf["check"]
         evidence.update({"kind": "certificate", "certified": True,

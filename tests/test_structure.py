@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from fractions import Fraction
 
 import numpy as np
@@ -227,3 +228,100 @@ def test_numeric_path_uses_given_tolerance():
     loose = eigen_structure(s, force_numeric=True, tolerance=1e-9)
     tight = eigen_structure(s, force_numeric=True, tolerance=1e-13)
     assert len(loose.blocks) == 1 and len(tight.blocks) == 2
+
+
+# --------------------------------------------------------------------------- certified enclosures
+
+# 6×6 a + b·sqrt(2) (fixed integers): χ_A has an eigenvalue of degree 12 over Q, beyond the
+# radical/CRootOf algebra; the certified-enclosure stage decides it on the exact path.
+_SURD_A = [[-1, 1, -2, -1, -1, -1], [2, 1, 2, 2, -2, -2], [2, -2, -2, -2, 2, -1],
+           [-1, -2, 0, 0, 2, 1], [2, -2, 0, 0, 1, -2], [-1, 0, -2, 2, 1, 1]]
+_SURD_B = [[0, 0, 0, -1, -1, -1], [1, 0, 1, -1, 1, 1], [1, -1, 0, -1, 1, 1],
+           [0, -1, -1, -1, -1, -1], [1, 0, 1, -1, 0, 1], [0, -1, 0, 1, 0, 0]]
+
+
+def _surd_system(C):
+    A = [[f"{a} + {b}*sqrt(2)" for a, b in zip(ra, rb)] for ra, rb in zip(_SURD_A, _SURD_B)]
+    return _sys(A, C)
+
+
+def _surd_float():
+    return np.array(_SURD_A, float) + np.sqrt(2) * np.array(_SURD_B, float)
+
+
+@pytest.mark.parametrize("C, classification", [
+    (np.eye(6).astype(int).tolist(), "non-degenerate"),   # C = I: every block observable
+    ([[1, 0, 0, 0, 0, 1]], "degenerate"),                 # m = 1: two degenerate pairs
+])
+def test_certified_stage_decides_surd_system(C, classification):
+    from kfcrit import critical
+    system = _surd_system(C)
+    s = eigen_structure(system)
+    assert s.path == "exact" and "certified enclosures" in s.path_reason
+    assert "degree 12" in s.path_reason          # why the radical algebra did not run
+    assert s.diagonalizable and s.detectable and s.controllable_Q
+    # independent check: numpy on the float matrix, with the moduli far apart (conjugate
+    # pairs aside), so float64 decides the same equi-blocks beyond doubt
+    w = np.linalg.eigvals(_surd_float())
+    mods = np.sort(np.abs(w))[::-1]
+    distinct = sorted({round(float(x), 6) for x in mods}, reverse=True)
+    assert min(-np.diff(distinct)) > 0.1
+    assert np.allclose([e.modulus for e in s.eigen], mods, rtol=1e-12)
+    assert [b.size for b in s.blocks] == [
+        int(np.sum(np.abs(mods - d) < 1e-5)) for d in distinct]
+    nu = eigen_structure(system, force_numeric=True)
+    assert [b.rank for b in s.blocks] == [b.rank for b in nu.blocks]
+    assert all(p.q is None and p.turn_text == "irrational" for p in s.pairs)
+    rec = critical.critical_section(system)
+    assert rec["classification"] == classification
+    assert rec["structure"]["path"] == "exact"
+    if classification == "non-degenerate":
+        assert abs(rec["critical_value"]["value"] - (1 - mods[0] ** -2)) < 1e-12
+        assert rec["critical_value"]["exact"] is False   # |λ₁|² has degree ≥ 3: a float
+    assert abs(rec["lower_bound"]["value"] - (1 - mods[0] ** -2)) < 1e-12
+    json.dumps(s.to_dict(), allow_nan=False)
+
+
+@pytest.mark.parametrize("A, C, why", [
+    ([[2, 0], [0, -2]], [[1, 1]], "moduli not separated"),      # 2 = |−2|, not conjugate
+    ([[0, -2], [2, 0]], [[1, 0]], "φ/2π"),                      # z = −1 (q = 2)
+    ([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]], "root of unity not excluded"),   # q = 3
+    ([[2, 1], [0, 2]], [[1, 0]], "not isolated"),               # Jordan block
+    ([[2, 0], [0, "1/2"]], [[0, 1]], "C·v not certified nonzero"),   # undetectable
+])
+def test_certified_stage_hands_over(A, C, why):
+    # What balls cannot certify (equal moduli of non-conjugates, roots of unity, multiple
+    # eigenvalues, exact zeros) the certified stage refuses; the exact algebra decides it.
+    from kfcrit.structure import _certified_structure, _Fallback
+    system = _sys(A, C)
+    with pytest.raises(_Fallback, match=why):
+        _certified_structure(system, time.monotonic(), "test")
+    assert eigen_structure(system).path == "exact"
+
+
+def test_diag_two_minus_two_handover_keeps_exact_value():
+    from kfcrit import critical
+    system = _sys([[2, 0], [0, -2]], [[1, 1]])
+    s = eigen_structure(system)
+    assert s.path == "exact" and "certified" not in s.path_reason
+    assert _pair(s).q == 2 and _pair(s).degenerate
+    rec = critical.critical_section(system)
+    assert rec["classification"] == "degenerate-second-order"
+    assert sp.simplify(sp.sympify(rec["critical_value"]["expression"]) - sp.Rational(15, 16)) == 0
+
+
+def test_certified_stage_agrees_with_exact_algebra():
+    # 5·e^{±j·atan(4/3)} (φ/2π irrational, C sees one combination: degenerate pair) and a
+    # stable real mode: the exact algebra and the certified stage decide the same facts.
+    from kfcrit.structure import _certified_structure
+    system = _sys([[3, -4, 0], [4, 3, 0], [0, 0, "1/2"]], [[1, 0, 1]])
+    ex = eigen_structure(system)
+    ce = _certified_structure(system, time.monotonic(), "cross-check")
+    assert ex.path == ce.path == "exact" and "certified" in ce.path_reason
+    assert [b.size for b in ce.blocks] == [b.size for b in ex.blocks]
+    assert [b.rank for b in ce.blocks] == [b.rank for b in ex.blocks]
+    assert [(p.q, p.degenerate) for p in ce.pairs] == [(p.q, p.degenerate) for p in ex.pairs]
+    assert [e.unit_cmp for e in ce.eigen] == [e.unit_cmp for e in ex.eigen]
+    assert np.allclose([e.mod2 for e in ce.eigen], [e.mod2 for e in ex.eigen], rtol=1e-14)
+    assert (ce.detectable, ce.diagonalizable, ce.controllable_Q, ce.observable) == (
+        ex.detectable, ex.diagonalizable, ex.controllable_Q, ex.observable)
