@@ -27,7 +27,8 @@ Examples:
 
 \b
 Exit codes: 0 done, 1 a verification failed, 2 bad usage or bad input file,
-3 a numerical method was inconclusive, 4 internal error (a bug: please report it).
+3 a numerical method was inconclusive, 4 internal error (a bug: please report it),
+130 interrupted, 141 the reader of stdout closed the pipe.
 """
 
 
@@ -232,11 +233,13 @@ def exit_code_of(record: dict[str, Any]) -> int:
               help="Output format (default: from the output file's extension).")
 @click.option("--quick", is_flag=True, help="A fast draft with fewer simulations.")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@click.option("--tolerance", type=ToleranceType(), default=1e-9, show_default=True,
+              help="Relative perturbation size for the robust critical value, in [0, 0.1].")
 @max_states_option
 @debug_option
 @handle_errors
 def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: int,
-           max_states: int, debug: bool) -> None:
+           tolerance: float, max_states: int, debug: bool) -> None:
     """Write a design-review report of SYSTEM_FILE to OUTPUT (HTML or PDF)."""
     from .atomic import check_writable
     from .report import report_command
@@ -248,7 +251,7 @@ def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: in
     check_writable(output)
     load_spec(system_file, max_states=max_states)
     sys.exit(report_command(system_file, output, fmt=fmt, quick=quick, seed=seed,
-                            max_states=max_states))
+                            max_states=max_states, tolerance=tolerance))
 
 
 @main.command(epilog=EXAMPLES)

@@ -1343,7 +1343,7 @@ def _progress(message: str) -> None:
 
 
 def report_command(system_file: str, output: str, *, fmt: str | None, quick: bool, seed: int,
-                   max_states: int) -> int:
+                   max_states: int, tolerance: float = 1e-9) -> int:
     """``kfcrit report``: analyse ``system_file`` and write the HTML or PDF report to ``output``.
 
     Returns the exit code (:func:`kfcrit.cli.exit_code_of` of the record: 3 when the upper bound
@@ -1359,7 +1359,8 @@ def report_command(system_file: str, output: str, *, fmt: str | None, quick: boo
     _progress(f"reading {system_file}")
     spec = load_spec(system_file, max_states=max_states)
     _progress("analysing" + (" (quick draft)" if quick else ""))
-    record = analyze(spec, AnalysisOptions(quick=quick, seed=seed)).to_dict()
+    record = analyze(spec, AnalysisOptions(quick=quick, seed=seed,
+                                           tolerance=tolerance)).to_dict()
     _progress("drawing figures")
     figures = build_figures(record)
     _progress(f"rendering {kind.upper()}")

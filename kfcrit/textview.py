@@ -12,7 +12,7 @@ def _num(v: Any, digits: int = 6) -> str:
     return str(v)
 
 
-EXACT_TEXT_MAX = 60
+EXACT_TEXT_MAX = 100
 """Longest exact expression the terminal view prints in full (``--json`` always has it all)."""
 
 

@@ -915,3 +915,26 @@ def test_notes_end_with_full_stops():
 def test_plain_log_tick_labels():
     assert figures._plain_label(0.6) == "0.6" and figures._plain_label(20.0) == "20"
     assert "e" not in figures._plain_label(0.002)
+
+
+def test_report_tolerance_option_reaches_the_robust_value(tmp_path: Path) -> None:
+    # the third-turn rotation entered with a float √3 is exactly irrational as entered
+    # (p_c = 3/4, Thm 10) but within 1e-9 of q = 3 (p_c = 1 − 2^{−3} = 7/8, Thm 9): the
+    # report shows the robust value 0.875 at the default tolerance and none at 1e-18
+    from click.testing import CliRunner
+
+    from kfcrit.cli import main
+
+    src = tmp_path / "float-third-turn.yaml"
+    src.write_text("name: float third turn\nA: [[1, -1.7320508075688772], "
+                   "[1.7320508075688772, 1]]\nC: [[1, 0]]\nQ: 1\nR: 1\n")
+    texts = {}
+    for tol in ("1e-9", "1e-18"):
+        out = tmp_path / f"r{tol}.html"
+        r = CliRunner().invoke(main, ["report", str(src), "-o", str(out), "--quick",
+                                      "--tolerance", tol])
+        assert r.exit_code in (0, 3), r.stderr
+        texts[tol] = out.read_text()
+    calm = "no perturbation within the tolerance changes it"
+    assert calm not in texts["1e-9"] and "0.875" in texts["1e-9"]
+    assert calm in texts["1e-18"]
