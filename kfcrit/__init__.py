@@ -9,16 +9,16 @@ from __future__ import annotations
 
 from typing import Any
 
-__version__ = "0.1.0"
-
-from .errors import ExitCode, KfcritError  # noqa: E402
+from kfcrit.version import __version__
+from kfcrit.errors import ExitCode, KfcritError  # noqa: E402
 
 # Everything else is imported on first use: ``kfcrit --help``, input errors and signals
 # answer at once instead of after the ~1 s import of sympy, numpy and scipy.
-_LAZY = {"Analysis": "analysis", "AnalysisOptions": "analysis", "analyze": "analysis",
-         "System": "system", "SystemSpec": "systemfile", "load_spec": "systemfile",
-         "load_system": "systemfile", "critical_value": "critical", "upper_bound": "upper",
-         "simulate": "montecarlo", "covariance_bounds": "bounds"}
+_LAZY = {"Analysis": "analysis.record", "AnalysisOptions": "analysis.record",
+         "analyze": "analysis.record", "System": "model.system", "SystemSpec": "io.systemfile",
+         "load_spec": "io.systemfile", "load_system": "io.systemfile",
+         "critical_value": "theory.critical", "upper_bound": "theory.upper",
+         "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds"}
 
 
 def __getattr__(name: str) -> Any:

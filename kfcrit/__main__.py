@@ -1,5 +1,5 @@
 """``python -m kfcrit`` runs the command line."""
-from .cli import main
+from kfcrit.cli.main import main
 
 if __name__ == "__main__":
     main()

@@ -27,7 +27,7 @@ settings.register_profile("thorough", deadline=None, max_examples=1000,
                           suppress_health_check=[HealthCheck.too_slow])
 PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "dev")
 # Exact-path assertions must not depend on machine load: a generous budget for this process and
-# for the ``kfcrit`` subprocesses the tests start (read when kfcrit.structure is imported).
+# for the ``kfcrit`` subprocesses the tests start (read when kfcrit.theory.structure is imported).
 os.environ.setdefault("KFCRIT_EXACT_TIME_BUDGET", "120")
 settings.load_profile(PROFILE)
 

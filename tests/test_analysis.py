@@ -11,8 +11,8 @@ import sympy as sp
 from click.testing import CliRunner
 
 import kfcrit
-from kfcrit.analysis import CONTRACT_KEYS
-from kfcrit.cli import main
+from kfcrit.analysis.record import CONTRACT_KEYS
+from kfcrit.cli.main import main
 
 from .conftest import REPORTS, SHARED_CASES
 from .util import assert_all_finite
@@ -203,7 +203,7 @@ def test_not_detectable_diverges_for_every_p_and_skips_p_up(tmp_path: Path) -> N
 
 
 def test_trace_channel_is_undetermined_with_information(tmp_path: Path) -> None:
-    from kfcrit.analysis import exit_code
+    from kfcrit.analysis.record import exit_code
 
     # "1 1 1 0" repeated: 750 ones in 1000 packets; of the 750 ones (each followed by a value)
     # 250 go to 0, so f̂ = 1/3; the 249 zeros with a successor all recover, r̂ = 1.
@@ -253,7 +253,7 @@ def _ge_sections(decides: bool, holds: bool, status: str) -> dict:
 ])
 def test_bursty_verdict_reads_decides(decides: bool, holds: bool, status: str,
                                       want: str) -> None:
-    from kfcrit.analysis import bursty_verdict
+    from kfcrit.analysis.record import bursty_verdict
 
     sec = _ge_sections(decides, holds, status)
     bursty_verdict(sec)
@@ -345,8 +345,8 @@ def test_undecided_p_up_width_does_not_undo_a_decided_verdict(tmp_path: Path) ->
 def test_requirement_assessment_reads_the_wilson_interval() -> None:
     """met iff the interval's upper end ≤ allowed; not met iff its lower end > allowed; else
     not demonstrated. Wilson interval for 0 of 300 at 95 %: [0, z²/(N + z²)] = [0, 0.01264]."""
-    from kfcrit.analysis import requirement_assessment
-    from kfcrit.montecarlo import _proportion
+    from kfcrit.analysis.record import requirement_assessment
+    from kfcrit.sim.montecarlo import _proportion
 
     req = {"max_error_trace": 20.0, "max_tail_probability": 0.01}
 

@@ -17,7 +17,7 @@ import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
-from kfcrit.channels import (
+from kfcrit.model.channels import (
     _REGISTRY,
     ArrivalProcess,
     Bernoulli,
@@ -27,7 +27,7 @@ from kfcrit.channels import (
     channel_from_mapping,
 )
 from kfcrit.errors import InputError
-from kfcrit.montecarlo import _KIND_CODE, arrival_sequence, path_keys
+from kfcrit.sim.montecarlo import _KIND_CODE, arrival_sequence, path_keys
 
 
 def runs(x: np.ndarray, value: bool) -> np.ndarray:
@@ -94,8 +94,8 @@ def test_base_class_default_is_iid_with_the_stationary_probability():
     x = ch.draw_arrivals(np.random.default_rng(1), 40_000)
     se = math.sqrt(0.75 * 0.25 / x.size)
     assert abs(x.mean() - 0.75) < 5 * se
-    from kfcrit.montecarlo import simulate
-    from kfcrit.system import System
+    from kfcrit.sim.montecarlo import simulate
+    from kfcrit.model.system import System
 
     res = simulate(System([[0.5]], [[1]], 1, 1), 10, 5, 0, ch)
     assert res.channel["model"] == "only-stationary"
@@ -164,7 +164,7 @@ def test_trace_from_arrivals_rejects_other_values():
 
 
 def test_probability_proven_equal_to_an_end_point_is_that_end_point() -> None:
-    from kfcrit.channels import exact_probability
+    from kfcrit.model.channels import exact_probability
 
     assert exact_probability("cos(1)**2+sin(1)**2", "p") == 1
     assert exact_probability("1-cos(1)**2-sin(1)**2", "p") == 0
@@ -177,7 +177,7 @@ def test_probability_proven_equal_to_an_end_point_is_that_end_point() -> None:
 
 
 def test_gilbert_elliott_memoryless_when_rates_sum_to_one_exactly() -> None:
-    from kfcrit.channels import channel_from_mapping
+    from kfcrit.model.channels import channel_from_mapping
 
     ch = channel_from_mapping({"model": "gilbert-elliott", "failure_rate": "cos(1)**2",
                                "recovery_rate": "sin(1)**2"})
@@ -188,8 +188,8 @@ def test_trace_start_comes_from_the_path_key_not_the_number_of_paths():
     """Prefix independence for trace channels: path i starts at key_i mod L, key_i the first
     64-bit word of NumPy's SeedSequence(seed, spawn_key=(0, i)); running 3 or 300 paths gives
     the same first paths (the old ⌊i·L/paths⌋ start moved with the number of paths)."""
-    from kfcrit.montecarlo import simulate
-    from kfcrit.system import System
+    from kfcrit.sim.montecarlo import simulate
+    from kfcrit.model.system import System
 
     seq = (np.random.default_rng(11).random(37) < 0.6).tolist()
     system = System([[1.1]], [[1]], 1, 1)

@@ -15,11 +15,11 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kfcrit import critical
-from kfcrit.channels import Bernoulli, GilbertElliott
-from kfcrit.exprparse import parse_expression
-from kfcrit.system import System
-from kfcrit.systemfile import load_spec
+from kfcrit.theory import critical
+from kfcrit.model.channels import Bernoulli, GilbertElliott
+from kfcrit.model.exprparse import parse_expression
+from kfcrit.model.system import System
+from kfcrit.io.systemfile import load_spec
 
 from .conftest import SHARED_CASES
 
@@ -371,7 +371,7 @@ def test_float_third_turn_reason_shows_computed_modulus():
     assert "1.9999999999999998" in reason
     assert "binary-float input" in reason          # how the decision was made is stated
     # numeric path: the decision tolerance is stated
-    from kfcrit.structure import eigen_structure
+    from kfcrit.theory.structure import eigen_structure
     st_num = eigen_structure(s, force_numeric=True)
     critical._CACHE[s] = st_num
     try:
@@ -398,7 +398,7 @@ def test_reason_texts_use_unicode_math():
 
 def test_long_exact_numbers_keep_an_exact_expression() -> None:
     """A rational with 70-digit parts is written exactly (never as a float) and reads back."""
-    from kfcrit.critical import Num
+    from kfcrit.theory.critical import Num
 
     x = sp.Rational(10**70 + 7, 3 * 10**65 + 1)
     num = Num(float(x), x)
@@ -409,7 +409,7 @@ def test_long_exact_numbers_keep_an_exact_expression() -> None:
 
 @pytest.mark.parametrize("bad", [-1e-3, 0.2, float("nan"), "0.01"])
 def test_tolerance_message_names_its_range(bad) -> None:
-    from kfcrit.critical import critical_value
+    from kfcrit.theory.critical import critical_value
     from kfcrit.errors import InputError
 
     with pytest.raises(InputError, match=r"\[0, 0\.1\]"):

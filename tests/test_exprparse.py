@@ -7,7 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from kfcrit.errors import ExpressionError
-from kfcrit.exprparse import number_from_text, parse_expression
+from kfcrit.model.exprparse import number_from_text, parse_expression
 
 
 @pytest.mark.parametrize(
@@ -100,7 +100,7 @@ def test_number_from_text_is_exact(mantissa: int, scale: int) -> None:
 # ---- bounded decisions (audit "Hardening: hostile inputs") -----------------------------------
 
 def test_sign_of_decides_without_bool_of_a_relational() -> None:
-    from kfcrit.exprparse import compare, sign_of
+    from kfcrit.model.exprparse import compare, sign_of
 
     one = sp.cos(1) ** 2 + sp.sin(1) ** 2  # exactly 1, not syntactically
     assert compare(one, 1) == 0  # proven by the bounded exact test
@@ -150,7 +150,7 @@ def test_magnitude_rule_is_the_same_for_literals_and_results() -> None:
 
 
 def test_exact_text_keeps_long_numbers_exact_and_parseable() -> None:
-    from kfcrit.exprparse import exact_text
+    from kfcrit.model.exprparse import exact_text
 
     r = sp.Rational(10**70 + 3, 7 * 10**65 + 1)
     text = exact_text(r)

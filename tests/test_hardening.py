@@ -20,10 +20,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from kfcrit import System
-from kfcrit.cli import main
+from kfcrit.cli.main import main
 from kfcrit.errors import InputError, KfcritError
-from kfcrit.exprparse import parse_expression
-from kfcrit.systemfile import load_spec, spec_from_mapping
+from kfcrit.model.exprparse import parse_expression
+from kfcrit.io.systemfile import load_spec, spec_from_mapping
 
 from .conftest import PROFILE
 
@@ -270,7 +270,7 @@ def test_yaml_value_budget_is_refused_within_seconds(tmp_path: Path) -> None:
 
 
 def test_shapes_are_checked_before_any_exact_conversion(monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.systemfile as sf
+    import kfcrit.io.systemfile as sf
 
     def no_conversion(*args: object, **kwargs: object) -> None:
         raise AssertionError("an entry was converted before the shapes were checked")
@@ -411,7 +411,7 @@ def test_write_atomic_turns_os_errors_into_output_errors(tmp_path: Path,
     import errno
     import os
 
-    from kfcrit.atomic import write_atomic
+    from kfcrit.io.atomic import write_atomic
     from kfcrit.errors import OutputError
 
     target = tmp_path / "keep.txt"
@@ -429,7 +429,7 @@ def test_write_atomic_turns_os_errors_into_output_errors(tmp_path: Path,
 
 
 def test_os_error_naming_a_path_maps_to_exit_2(monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.systemfile as sf
+    import kfcrit.io.systemfile as sf
 
     def denied(*args: object, **kwargs: object) -> None:
         raise PermissionError(13, "Permission denied", "/some/output/folder")
@@ -533,7 +533,7 @@ def _sweep_case(folder: Path, field: str, value: object) -> Path:
 @given(field=st.sampled_from(sorted(SWEEP_FIELDS)), value=_yaml_values)
 def test_fuzz_sweep_fields_through_the_loader(field: str, value: object,
                                               tmp_path_factory) -> None:  # noqa: ANN001
-    from kfcrit.sweep import load_sweep
+    from kfcrit.analysis.sweep import load_sweep
 
     p = _sweep_case(tmp_path_factory.mktemp("sweep"), field, value)
     t0 = time.perf_counter()

@@ -185,7 +185,7 @@ def test_exit_code_enum_has_internal_and_interrupted() -> None:
 def test_cli_uses_the_enum_not_bare_exit_literals() -> None:
     import re
 
-    import kfcrit.cli as cli
+    import kfcrit.cli.main as cli
 
     source = Path(cli.__file__).read_text()
     assert not re.search(r"_exit\(\s*\d+\s*\)", source)
@@ -196,8 +196,8 @@ def test_internal_error_is_one_short_line_exit_4(tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     from click.testing import CliRunner
 
-    import kfcrit.systemfile as sf
-    from kfcrit.cli import main
+    import kfcrit.io.systemfile as sf
+    from kfcrit.cli.main import main
 
     def broken(*args: object, **kwargs: object) -> None:
         raise TypeError("x" * 5000)  # e.g. a sympy relational printed in full
@@ -213,8 +213,8 @@ def test_internal_error_is_one_short_line_exit_4(tmp_path: Path,
 _SIGTERM_AT = """
 import os, signal, sys
 import click
-import kfcrit.systemfile as sf
-from kfcrit.cli import KfcritGroup, main
+import kfcrit.io.systemfile as sf
+from kfcrit.cli.main import KfcritGroup, main
 
 def term_now():
     os.kill(os.getpid(), signal.SIGTERM)  # the handler runs before kill() returns to Python

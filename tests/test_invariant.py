@@ -11,10 +11,10 @@ import pytest
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.invariant import ScalarMaps, gap_levels, invariant_section, support_points
-from kfcrit.montecarlo import ergodic, simulate
-from kfcrit.system import System
-from kfcrit.systemfile import load_spec
+from kfcrit.theory.invariant import ScalarMaps, gap_levels, invariant_section, support_points
+from kfcrit.sim.montecarlo import ergodic, simulate
+from kfcrit.model.system import System
+from kfcrit.io.systemfile import load_spec
 
 from .conftest import REPORTS, SHARED_CASES
 
@@ -133,7 +133,7 @@ def test_invariant_section_scalar_only_and_overlapping_images():
 
 def test_tiny_scalar_a_is_decided_by_a_certified_comparison() -> None:
     # exit 4 before: bool(lo < hi) on a sympy Relational it could not decide (TypeError)
-    from kfcrit.invariant import gap_is_open
+    from kfcrit.theory.invariant import gap_is_open
 
     s = System([["1e-200"]], 1, 1, 1)
     sec = invariant_section(s)
@@ -150,7 +150,7 @@ def test_tiny_scalar_a_through_the_cli(tmp_path) -> None:  # noqa: ANN001
 
     from click.testing import CliRunner
 
-    from kfcrit.cli import main
+    from kfcrit.cli.main import main
 
     p = tmp_path / "tiny.yaml"
     p.write_text("name: tiny\nA: [[1e-200]]\nC: 1\nQ: 1\nR: 1\n")
@@ -161,7 +161,7 @@ def test_tiny_scalar_a_through_the_cli(tmp_path) -> None:  # noqa: ANN001
 
 
 def test_undecidable_first_hole_skips_the_holes_with_a_note(monkeypatch) -> None:  # noqa: ANN001
-    import kfcrit.invariant as inv
+    import kfcrit.theory.invariant as inv
     from kfcrit.errors import ExpressionError
 
     def undecidable(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
@@ -184,7 +184,7 @@ def test_huge_values_warn_in_the_record_and_print_nothing(tmp_path) -> None:  # 
     import sys
     import warnings
 
-    from kfcrit.invariant import OVERFLOW
+    from kfcrit.theory.invariant import OVERFLOW
 
     s = System([["2**64"]], 1, 1, "1e250")
     with warnings.catch_warnings():

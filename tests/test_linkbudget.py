@@ -11,17 +11,17 @@ import sympy as sp
 from scipy import integrate, stats
 from scipy.special import erfc
 
-from kfcrit.channels import Bernoulli, GilbertElliott
+from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.errors import InputError
-from kfcrit.linkbudget import (
+from kfcrit.link.linkbudget import (
     LinkBudget,
     design_section,
     ge_horizon,
     gilbert_elliott_section,
     thermal_noise_dbm,
 )
-from kfcrit.radios import CoherentBpsk, Ieee802154Oqpsk
-from kfcrit.system import System
+from kfcrit.link.radios import CoherentBpsk, Ieee802154Oqpsk
+from kfcrit.model.system import System
 
 LINK = {"model": "link-budget", "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": "0",
         "distance_m": "30", "packet_bytes": "40",
@@ -118,7 +118,7 @@ def test_bpsk_textbook_values() -> None:
 def sensor_record() -> dict:
     from click.testing import CliRunner
 
-    from kfcrit.cli import main
+    from kfcrit.cli.main import main
 
     r = CliRunner().invoke(main, ["analyze", str(SENSOR), "--json", "--no-simulate"])
     assert r.exit_code == 0, r.stderr
@@ -165,7 +165,7 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
 
 
 def test_sensor_link_design_outputs_in_the_terminal_view(sensor_record: dict) -> None:
-    from kfcrit.textview import summary
+    from kfcrit.views.text import summary
 
     text = summary(sensor_record)
     lb = sensor_record["link_budget"]

@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from kfcrit import System
-from kfcrit.cli import main
-from kfcrit.upper import upper_bound
+from kfcrit.cli.main import main
+from kfcrit.theory.upper import upper_bound
 
 from .util import assert_all_finite
 
@@ -98,7 +98,7 @@ def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
     # "undetermined" with the bracket obtained so far [p_low, 1] — never exit 4, never a guess
     import numpy as np
 
-    import kfcrit.upper as upper
+    import kfcrit.theory.upper as upper
 
     def newton_fails(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
         raise np.linalg.LinAlgError("injected solver failure")

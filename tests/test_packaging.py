@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 import kfcrit
-from kfcrit.cli import main
+from kfcrit.cli.main import main
 from kfcrit.errors import ExitCode
 
 from .conftest import ROOT

@@ -22,8 +22,11 @@ from pathlib import Path
 
 import pytest
 
-from kfcrit import figures, filters, mathsvg, report
-from kfcrit.atomic import write_atomic
+from kfcrit.views import figures
+from kfcrit.views import jinja_filters as filters
+from kfcrit.views import mathsvg
+from kfcrit.views import report
+from kfcrit.io.atomic import write_atomic
 from kfcrit.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -648,7 +651,7 @@ def test_fixture_report_has_no_raw_dumps(full_html):
 def link_record() -> dict:
     """FIXTURE: the link-budget section shape of ``linkbudget.design_section`` (numbers of the
     link-oqpsk-sensor example, rounded), with the analysis' ``design_check``."""
-    from kfcrit.analysis import design_check
+    from kfcrit.analysis.record import design_check
 
     rec = fixture_record()
     channel = {"model": "link-budget", "radio": {"model": "ieee802154-oqpsk-2450"},
@@ -748,7 +751,7 @@ def test_simulation_summary_is_labelled():
 def test_phase_window_starts_where_the_bounds_exist() -> None:
     """Below p_low both bounds are infinite: the window starts just below the first finite point
     (a tenth of the remaining range), and widens to show an operating point further left."""
-    from kfcrit.figures import phase_window
+    from kfcrit.views.figures import phase_window
 
     p = [0.0, 0.25, 0.5, 0.75, 0.8, 0.9, 1.0]
     nan = float("nan")
@@ -824,7 +827,7 @@ def test_diverged_paths_are_described_as_censored_lower_bounds():
 def test_cdf_points_keep_the_tail_and_the_maximum():
     import numpy as np
 
-    from kfcrit.montecarlo import SimulationResult
+    from kfcrit.sim.montecarlo import SimulationResult
 
     def result(traces, threshold=1e10):
         res = object.__new__(SimulationResult)      # cdf_points reads these two fields only
@@ -923,7 +926,7 @@ def test_report_tolerance_option_reaches_the_robust_value(tmp_path: Path) -> Non
     # report shows the robust value 0.875 at the default tolerance and none at 1e-18
     from click.testing import CliRunner
 
-    from kfcrit.cli import main
+    from kfcrit.cli.main import main
 
     src = tmp_path / "float-third-turn.yaml"
     src.write_text("name: float third turn\nA: [[1, -1.7320508075688772], "

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from kfcrit import figures, report
+from kfcrit.views import figures
+from kfcrit.views import report
 
 CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium"
                                         if Path("/usr/bin/chromium").exists() else None)

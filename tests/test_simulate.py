@@ -1,6 +1,6 @@
 """Monte Carlo of the random Riccati equation: exactness, reproducibility, statistics, CLI.
 
-Reference values come from independent computations: ``kfcrit.riccati`` (the standard-form
+Reference values come from independent computations: ``kfcrit.theory.riccati`` (the standard-form
 Riccati maps, not the kernel's Joseph form), closed-form scalar recursions, scipy's
 ``solve_discrete_lyapunov`` for S̄ and a plain MARE iteration for V̄ (Sinopoli Thm 4/6), and the
 Gilbert–Elliott condition (1 − r) a² < 1 of MATH.md §7.
@@ -24,9 +24,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_lyapunov
 
-from kfcrit.channels import GilbertElliott, Trace
+from kfcrit.model.channels import GilbertElliott, Trace
 from kfcrit.errors import InputError
-from kfcrit.montecarlo import (
+from kfcrit.sim.montecarlo import (
     LANES,
     _lambda_max_lanes,
     _riccati_lanes,
@@ -36,10 +36,10 @@ from kfcrit.montecarlo import (
     simulate_command,
     simulation_section,
 )
-from kfcrit.record import dumps
-from kfcrit.riccati import f_arrival, f_loss, g
-from kfcrit.system import System
-from kfcrit.systemfile import Requirements, SystemSpec, load_spec
+from kfcrit.io.jsonio import dumps
+from kfcrit.theory.riccati import f_arrival, f_loss, g
+from kfcrit.model.system import System
+from kfcrit.io.systemfile import Requirements, SystemSpec, load_spec
 
 from .conftest import REPORTS
 
@@ -90,7 +90,7 @@ def trace_offset(seed, i, length):
 @given(small_systems(), st.lists(st.booleans(), min_size=1, max_size=25))
 def test_kernel_follows_the_standard_riccati_maps(sysmats, arrivals):
     """Paths of a trace channel read the trace from offset key_i mod L: compare with
-    kfcrit.riccati on the rotated trace."""
+    kfcrit.theory.riccati on the rotated trace."""
     A, C, Q, R = sysmats
     system = System(A, C, Q, R)
     L = len(arrivals)
@@ -283,14 +283,14 @@ def test_values_beyond_float64_are_reported_as_log10():
 
 
 def simulate_summary(res):
-    from kfcrit.montecarlo import summary_text
+    from kfcrit.sim.montecarlo import summary_text
 
     return summary_text(res)
 
 
 def test_log_sum_exp_moments_by_hand():
     """Values 1e400 and 1e401 (as logs): mean 5.5e400, sample sd 9e400/√2."""
-    from kfcrit.montecarlo import _accumulate_log, _column_stats
+    from kfcrit.sim.montecarlo import _accumulate_log, _column_stats
 
     ln10 = math.log(10)
     lv = np.array([[400 * ln10], [401 * ln10]])
@@ -318,7 +318,7 @@ def test_bit_identical_for_any_batch_size_with_diverging_paths():
 def test_progress_is_reported_in_step_chunks(monkeypatch):
     """A run with fewer paths than one batch still reports progress as the steps advance,
     and the chunking changes no number (diverging lanes carry their scaled state across)."""
-    import kfcrit.montecarlo as mc
+    import kfcrit.sim.montecarlo as mc
 
     kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4}
     ref = simulate(GENERAL, 50, 900, 2, record_traces=2, **kw)
@@ -602,7 +602,7 @@ def test_simulate_command_json_text_and_plot(tmp_path, capsys):
 
 def test_progress_bar_path_runs_and_reports(capsys):
     """The rich progress path (used only when stderr is a terminal) gives the same result."""
-    from kfcrit.montecarlo import _with_progress
+    from kfcrit.sim.montecarlo import _with_progress
 
     spec = load_spec(REPORTS / "sinopoli-scalar.yaml")
     res = _with_progress(spec, 600, 20, 3, False)
@@ -674,8 +674,8 @@ def _doctored(res, factor):
 
 
 def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
-    from kfcrit.channels import Bernoulli
-    from kfcrit.montecarlo import simulation_checks, tail_regime
+    from kfcrit.model.channels import Bernoulli
+    from kfcrit.sim.montecarlo import simulation_checks, tail_regime
 
     # scalar a = -1.25: p_c = 1 - 1/a^2 = 0.36; the variance of P is finite iff
     # (1 - p) a^4 < 1, i.e. p > 1 - 1/a^4 = 0.5904 (hand derivation, MATH §3 / Cor. 2)
@@ -698,8 +698,8 @@ def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
 
 
 def test_lyapunov_settling_is_reported():
-    from kfcrit.channels import Bernoulli
-    from kfcrit.montecarlo import tail_regime
+    from kfcrit.model.channels import Bernoulli
+    from kfcrit.sim.montecarlo import tail_regime
 
     # (1 - p) a^2 = 0.64 * 1.5625 = 1 - 1.5625e-10: S_t grows by ~1 per step for 500 steps while
     # its limit is 1/(1.5625e-10) ≈ 6.4e9, so the horizon is far from settled

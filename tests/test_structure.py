@@ -1,4 +1,4 @@
-"""Eigen-structure decisions (kfcrit.structure): exact path, numeric path, fallbacks.
+"""Eigen-structure decisions (kfcrit.theory.structure): exact path, numeric path, fallbacks.
 
 Expected facts are hand derivations (stated next to each case) or a second method (brute force
 for the simplest rational; the numeric path against the exact path).
@@ -16,8 +16,8 @@ import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
-from kfcrit.structure import MAX_DENOMINATOR, eigen_structure, simplest_rational
-from kfcrit.system import System
+from kfcrit.theory.structure import MAX_DENOMINATOR, eigen_structure, simplest_rational
+from kfcrit.model.system import System
 
 
 def _sys(A, C, Q=None) -> System:
@@ -254,7 +254,7 @@ def _surd_float():
     ([[1, 0, 0, 0, 0, 1]], "degenerate"),                 # m = 1: two degenerate pairs
 ])
 def test_certified_stage_decides_surd_system(C, classification):
-    from kfcrit import critical
+    from kfcrit.theory import critical
     system = _surd_system(C)
     s = eigen_structure(system)
     assert s.path == "exact" and "certified enclosures" in s.path_reason
@@ -292,7 +292,7 @@ def test_certified_stage_decides_surd_system(C, classification):
 def test_certified_stage_hands_over(A, C, why):
     # What balls cannot certify (equal moduli of non-conjugates, roots of unity, multiple
     # eigenvalues, exact zeros) the certified stage refuses; the exact algebra decides it.
-    from kfcrit.structure import _certified_structure, _Fallback
+    from kfcrit.theory.structure import _certified_structure, _Fallback
     system = _sys(A, C)
     with pytest.raises(_Fallback, match=why):
         _certified_structure(system, time.monotonic(), "test")
@@ -300,7 +300,7 @@ def test_certified_stage_hands_over(A, C, why):
 
 
 def test_diag_two_minus_two_handover_keeps_exact_value():
-    from kfcrit import critical
+    from kfcrit.theory import critical
     system = _sys([[2, 0], [0, -2]], [[1, 1]])
     s = eigen_structure(system)
     assert s.path == "exact" and "certified" not in s.path_reason
@@ -313,7 +313,7 @@ def test_diag_two_minus_two_handover_keeps_exact_value():
 def test_certified_stage_agrees_with_exact_algebra():
     # 5·e^{±j·atan(4/3)} (φ/2π irrational, C sees one combination: degenerate pair) and a
     # stable real mode: the exact algebra and the certified stage decide the same facts.
-    from kfcrit.structure import _certified_structure
+    from kfcrit.theory.structure import _certified_structure
     system = _sys([[3, -4, 0], [4, 3, 0], [0, 0, "1/2"]], [[1, 0, 1]])
     ex = eigen_structure(system)
     ce = _certified_structure(system, time.monotonic(), "cross-check")

@@ -23,8 +23,8 @@ from click.testing import CliRunner
 from scipy import integrate, stats
 from scipy.special import erfc
 
-import kfcrit.sweep as sweep_mod
-from kfcrit.cli import main
+import kfcrit.analysis.sweep as sweep_mod
+from kfcrit.cli.main import main
 
 KB = 1.380649e-23
 OUTPUTS = ("sweep.csv", "sweep.json", "margin.svg", "margin.png")
@@ -556,7 +556,7 @@ def test_a_named_field_can_be_swept_and_bad_names_fail_their_points(tmp_path: Pa
 
 def test_upper_bound_column_is_filled_once_per_system(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.upper as upper_mod
+    import kfcrit.theory.upper as upper_mod
 
     calls: list[float] = []
     real = upper_mod.upper_bound
@@ -588,7 +588,7 @@ def test_upper_bound_column_is_filled_once_per_system(tmp_path: Path,
 
 def test_shipped_sweep_fills_upper_bound() -> None:
     # the Sinopoli general plant: p_up = 1 − 1/(1.25 · 1.1)² = 57/121 (expected.json, MATH §3)
-    from kfcrit.system import System
+    from kfcrit.model.system import System
 
     value = sweep_mod.upper_bound_value(System([[1.25, 0], [1, 1.1]], [[1, 1]], 20, 2.5))
     assert value == pytest.approx(57 / 121, abs=2e-6)

@@ -15,7 +15,7 @@ import sympy as sp
 from click.testing import CliRunner
 
 from kfcrit import System, load_spec, load_system
-from kfcrit.cli import main
+from kfcrit.cli.main import main
 from kfcrit.errors import InputError
 
 from .conftest import REPORTS, SHARED_CASES, example_files
@@ -234,14 +234,14 @@ def test_merge_keys_are_refused_with_or_without_aliases(tmp_path: Path) -> None:
 def test_loader_refuses_merge_keys_even_without_the_scan() -> None:
     import yaml
 
-    from kfcrit.systemfile import _ExactLoader
+    from kfcrit.io.systemfile import _ExactLoader
 
     with pytest.raises(InputError, match="merge keys"):
         yaml.load("a: {<<: {b: 1}, c: 2}\n", Loader=_ExactLoader)  # noqa: S506 - safe subclass
 
 
 def test_structure_scan_limits(tmp_path: Path) -> None:
-    from kfcrit.systemfile import scan_yaml
+    from kfcrit.io.systemfile import scan_yaml
 
     scan_yaml("a: " + "[" * 63 + "]" * 63)  # 64 levels with the top mapping: at the limit
     with pytest.raises(InputError, match="deeper than 64 levels"):
@@ -258,7 +258,7 @@ def test_structure_scan_limits(tmp_path: Path) -> None:
 
 
 def test_report_loads_the_system_file_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.systemfile as sf
+    import kfcrit.io.systemfile as sf
 
     calls = []
     original = sf.spec_from_mapping
@@ -272,7 +272,7 @@ def test_report_loads_the_system_file_once(tmp_path: Path, monkeypatch: pytest.M
     assert load_spec(p).system.R[0, 0] == 3 and len(calls) == 3
 
 
-# ---- bounded reading of special files (kfcrit.safeio) -----------------------------------------
+# ---- bounded reading of special files (kfcrit.io.safeio) -----------------------------------------
 
 def _analyze_in_subprocess(path: Path | str, timeout: float = 60) -> subprocess.CompletedProcess:
     """``kfcrit analyze`` in a real subprocess under a 2 GB address-space limit (an unbounded
@@ -338,7 +338,7 @@ def test_trace_path_to_a_fifo_is_refused_without_hanging(tmp_path: Path) -> None
 
 
 def test_read_text_limits(tmp_path: Path) -> None:
-    from kfcrit.safeio import read_text
+    from kfcrit.io.safeio import read_text
 
     p = tmp_path / "f.txt"
     p.write_bytes(b"x" * 100)
@@ -366,7 +366,7 @@ def test_read_text_decides_on_the_opened_descriptor(tmp_path: Path,
     # is still refused: the binding check is fstat of the descriptor
     import stat as stat_mod
 
-    import kfcrit.safeio as safeio
+    import kfcrit.io.safeio as safeio
 
     p = tmp_path / "f.yaml"
     p.write_text("name: x\n")
@@ -384,7 +384,7 @@ def test_read_text_decides_on_the_opened_descriptor(tmp_path: Path,
 
 def test_read_text_reads_at_most_max_bytes_plus_one(tmp_path: Path,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.safeio as safeio
+    import kfcrit.io.safeio as safeio
 
     p = tmp_path / "big.txt"
     p.write_bytes(b"1" * (3 * safeio.CHUNK_BYTES))
@@ -404,7 +404,7 @@ def test_read_text_reads_at_most_max_bytes_plus_one(tmp_path: Path,
 # ---- definiteness: exact for exact input, scale-aware for floats -------------------------------
 
 def test_positive_definiteness_is_exact_or_scale_aware() -> None:
-    from kfcrit.system import is_definite
+    from kfcrit.model.system import is_definite
 
     tiny = System(3, 1, "1e-250", 1)
     assert tiny.exact and tiny.is_positive_definite("Q")

@@ -1,4 +1,4 @@
-"""The upper bound p_up (kfcrit.upper, kfcrit.lmi): closed forms, paper values, cross-checks.
+"""The upper bound p_up (kfcrit.theory.upper, kfcrit.theory.lmi): closed forms, paper values, cross-checks.
 
 Expected values: MATH.md §3 and ../shared/cases/expected.json (paper values); the single-output
 closed form p_up = 1 − 1/Π|λ_u|² ([beyond] in MATH.md, tested here as a property); p_low
@@ -17,10 +17,10 @@ import pytest
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
-from kfcrit import bounds
-from kfcrit.system import System
-from kfcrit.systemfile import load_spec
-from kfcrit.upper import UpperBound, upper_bound, upper_section
+from kfcrit.theory import bounds
+from kfcrit.model.system import System
+from kfcrit.io.systemfile import load_spec
+from kfcrit.theory.upper import UpperBound, upper_bound, upper_section
 
 from .conftest import SHARED_CASES
 
@@ -165,7 +165,7 @@ def test_undetectable_is_undetermined_not_an_error():
 
 
 def test_upper_section_never_raises(monkeypatch):
-    from kfcrit import upper
+    from kfcrit.theory import upper
 
     def boom(*_a, **_k):
         raise np.linalg.LinAlgError("singular matrix")
@@ -222,7 +222,7 @@ def test_lmi_mare_static_gain_agree(n, m, seed):
 def test_lmi_never_reads_inaccurate_or_errors_as_a_decision(monkeypatch):
     import cvxpy as cp
 
-    from kfcrit.lmi import PsiProblem
+    from kfcrit.theory.lmi import PsiProblem
 
     s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
     prob = PsiProblem(s.a, s.c)
@@ -340,7 +340,7 @@ def test_p_low_bounds_enclose_independent_values():
     import mpmath
     import sympy as sp
 
-    from kfcrit.upper import p_low_bounds
+    from kfcrit.theory.upper import p_low_bounds
     A = [[1, 2, 0], [0, 3, 1], [1, 0, -1]]
     mpmath.mp.dps = 50
     roots = mpmath.polyroots([float(c) for c in sp.Matrix(A).charpoly().all_coeffs()],
@@ -372,7 +372,7 @@ def test_lmi_random_20_6_lower_end_is_not_above_the_proven_p_up():
     # p_up <= 0.4082840242 is proven. Expected values, independently: p_low = 1 − 1/1.3² of the
     # float A (Thm 3, p_up ≥ p_low) and the fast method's certificate, re-checked here in ball
     # arithmetic (X ≻ 0, X − L_{K,hi}(X) ≻ 0) — so p_up ∈ [p_low, 0.4082840242].
-    from kfcrit import certify
+    from kfcrit.theory import certify
 
     A, C, _, _ = random_system(20, 6, 0)
     s = make(A, C)
@@ -402,7 +402,7 @@ def test_lmi_random_20_6_lower_end_is_not_above_the_proven_p_up():
 def test_lmi_infeasible_needs_an_independent_confirmation(monkeypatch):
     import cvxpy as cp
 
-    from kfcrit.lmi import PsiProblem
+    from kfcrit.theory.lmi import PsiProblem
 
     s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
     prob = PsiProblem(s.a, s.c)
@@ -448,8 +448,8 @@ def test_lmi_lower_end_is_confirmed_on_the_paper_example():
 def test_lower_end_proven_with_stable_modes():
     # random_system(5, 1, 0): 3 unstable and 2 stable modes, single output, so
     # p_up = 1 − 1/Π|λ_u|² ≈ 0.54115 > p_low (closed form, computed here from eigenvalues)
-    from kfcrit import certify
-    from kfcrit.upper import invariant_block_of, reduce_system
+    from kfcrit.theory import certify
+    from kfcrit.theory.upper import invariant_block_of, reduce_system
 
     A, C, _, _ = random_system(5, 1, 0)
     s = make(A, C)
@@ -489,7 +489,7 @@ PREVIOUSLY_UNDETERMINED = [(12, 4, 0), (20, 1, 0), (20, 2, 3), (20, 6, 1)]
 
 @pytest.mark.parametrize("n, m, seed", PREVIOUSLY_UNDETERMINED)
 def test_previously_undetermined_systems_reach_width_1e9(n, m, seed):
-    from kfcrit import certify
+    from kfcrit.theory import certify
 
     A, C, Q, R = random_system(n, m, seed)
     s = System(A, C, Q, R)
@@ -537,7 +537,7 @@ def _raise(exc):
                                  ZeroDivisionError("division by zero (injected)"),
                                  ValueError("array must not contain infs or NaNs (injected)")])
 def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
-    from kfcrit import upper
+    from kfcrit.theory import upper
 
     monkeypatch.setattr(upper, "_CACHE", {})
     monkeypatch.setattr(upper, "threshold_newton", _raise(exc))
@@ -557,7 +557,7 @@ def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
 
 
 def test_numpy_solve_failure_is_undetermined(monkeypatch):
-    from kfcrit import upper
+    from kfcrit.theory import upper
 
     monkeypatch.setattr(upper, "_CACHE", {})
     monkeypatch.setattr(np.linalg, "solve", _raise(np.linalg.LinAlgError("Singular matrix")))
@@ -569,7 +569,8 @@ def test_numpy_solve_failure_is_undetermined(monkeypatch):
 def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
     import cvxpy
 
-    from kfcrit import lmi, upper
+    from kfcrit.theory import lmi
+    from kfcrit.theory import upper
 
     monkeypatch.setattr(upper, "_CACHE", {})
     monkeypatch.setattr(lmi, "lmi_upper_bound", _raise(cvxpy.error.SolverError("Clarabel")))
@@ -579,7 +580,7 @@ def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
 
 
 def test_programming_errors_are_not_swallowed(monkeypatch):
-    from kfcrit import upper
+    from kfcrit.theory import upper
 
     monkeypatch.setattr(upper, "_CACHE", {})
     monkeypatch.setattr(upper, "threshold_newton", _raise(TypeError("a bug")))
@@ -599,8 +600,8 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
     from click.testing import CliRunner
 
     import kfcrit
-    from kfcrit import upper
-    from kfcrit.cli import main
+    from kfcrit.theory import upper
+    from kfcrit.cli.main import main
 
     path = tmp_path / "no-channel.yaml"
     path.write_text(NO_CHANNEL)
@@ -618,7 +619,7 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
 
 
 def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
-    from kfcrit import upper
+    from kfcrit.theory import upper
 
     monkeypatch.setattr(upper, "_CACHE", {})
     monkeypatch.setattr(upper, "threshold_newton",

@@ -20,8 +20,8 @@ import time
 
 import numpy as np
 
-from kfcrit import critical
-from kfcrit.system import System
+from kfcrit.theory import critical
+from kfcrit.model.system import System
 
 EXACT_TARGET = 2.0
 NUMERIC_TARGET = 5.0
@@ -48,7 +48,7 @@ def _similar(A: list[list], T: list[list], C: list[list]) -> tuple[list[list], l
     """(T A T^{-1}, C T^{-1}) with a small integer unimodular T (entries stay exact and small)."""
     import sympy as sp
 
-    from kfcrit.exprparse import parse_expression
+    from kfcrit.model.exprparse import parse_expression
     Am = sp.Matrix([[parse_expression(str(v), "A") for v in row] for row in A])
     Tm = sp.Matrix(T)
     Ti = Tm.inv()

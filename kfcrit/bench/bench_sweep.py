@@ -99,7 +99,7 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
     """
     from distributed import LocalCluster
 
-    from kfcrit.sweep import load_sweep, run_sweep
+    from kfcrit.analysis.sweep import load_sweep, run_sweep
 
     out = out or sys.stdout
     workers = workers or os.cpu_count() or 1

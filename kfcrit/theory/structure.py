@@ -45,7 +45,7 @@ These decisions are discontinuous in the data, so for exact input they are made 
 
 Invariant: whichever path ran, every distinct eigenvalue carries a float64 value, its geometric
 multiplicity and an orthonormal basis of its eigenspace (float), so that the robustness analysis
-in :mod:`kfcrit.critical` treats both paths alike.
+in :mod:`kfcrit.theory.critical` treats both paths alike.
 """
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ import numpy as np
 import sympy as sp
 from sympy.polys.matrices import DomainMatrix
 
-from .system import System
+from kfcrit.model.system import System
 
 EXACT_MAX_STATES = 6
 """Largest n for the exact path (beyond it the number-field arithmetic grows too fast)."""

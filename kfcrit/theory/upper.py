@@ -19,15 +19,15 @@ The default method ("newton") works in four steps:
    The same Newton on the *regularised* map G^ε_p(X) = G_p with Q = R = ε·tr(X)·I gives
    p_ε ≥ p_up (a little above p*), with X_ε ≻ 0 and X_ε − L_{K,p_ε}(X_ε) ⪰ ε·tr(X_ε)·I.
 4. *Certify.* Lift (X_ε, K_ε) to the full state and prove X ≻ 0, X − L_{K,hi}(X) ≻ 0 in ball
-   arithmetic on the exact matrices (:mod:`kfcrit.certify`). The lower end is p_low (Thm 3,
+   arithmetic on the exact matrices (:mod:`kfcrit.theory.certify`). The lower end is p_low (Thm 3,
    proven) when hi − tol ≤ p_low, otherwise the Newton root p* (numerical), upgraded to a
    proof when a positive definite eigenvector X_u of G_lo on the unstable block with eigenvalue
    > 1 is verified in balls on an exactly A-invariant subspace (enclosed by Stewart's theorem,
-   :func:`kfcrit.certify.invariant_block`). That is valid with stable modes too: G_p maps the
+   :func:`kfcrit.theory.certify.invariant_block`). That is valid with stable modes too: G_p maps the
    cone of PSD matrices supported on an A-invariant subspace into itself, so its cone radius
    bounds that of the full map from below (:func:`cone_lower_check`).
 
-``method="lmi"`` runs Sinopoli's Ψ_p LMI (:mod:`kfcrit.lmi`) instead; "auto" runs "newton" and
+``method="lmi"`` runs Sinopoli's Ψ_p LMI (:mod:`kfcrit.theory.lmi`) instead; "auto" runs "newton" and
 falls back to the LMI when Newton cannot produce a certified bracket.
 """
 from __future__ import annotations
@@ -42,9 +42,9 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from . import certify
-from .riccati import noise_free_g, stein_matrix, symmetrize, unvech, vech
-from .system import System
+from kfcrit.theory import certify
+from kfcrit.theory.riccati import noise_free_g, stein_matrix, symmetrize, unvech, vech
+from kfcrit.model.system import System
 
 UNSTABLE_TOL = 1e-9
 """Modes with |λ| ≥ 1 − UNSTABLE_TOL are kept in the reduced system."""
@@ -137,7 +137,7 @@ def reduce_system(system: System, tol: float = UNSTABLE_TOL) -> Reduced:
     rows are dependent (numerical rank r < m by NumPy's rule σ_i > max(m, k)·eps·σ_max), the
     methods use M C with M = diag(1/σ_1..1/σ_r) U_r' (then M C Z_u has orthonormal rows).
     M C is formed exactly in balls from the exact C and rounded once, and every certificate
-    is checked with the gain K_w M on the exact C (:func:`kfcrit.certify.verify_upper`,
+    is checked with the gain K_w M on the exact C (:func:`kfcrit.theory.certify.verify_upper`,
     ``output_map``), so the compression never enters a proof.
     """
     A, C = system.a, system.c
@@ -440,7 +440,7 @@ def _p_low_from_mod2(mod2: sp.Expr, how: str) -> PLow:
 
 
 def _p_low_bounds(system: System) -> PLow:
-    from . import critical
+    from kfcrit.theory import critical
     st = critical._CACHE.get(system)
     if st is not None and st.path == "exact" and st.eigen and st.eigen[0].mod2_expr is not None:
         top = st.eigen[0]
@@ -1057,11 +1057,11 @@ def cone_lower_check(system: System, red: Reduced, p: float, X0: np.ndarray | No
 
     Why the unstable block suffices (and is valid for the full system): the first k Schur
     vectors span an A-invariant subspace V (exactly so for the enclosed W = Z[I; P] of
-    :func:`kfcrit.certify.invariant_block`); for X = W X_u W' the noise-free map satisfies
+    :func:`kfcrit.theory.certify.invariant_block`); for X = W X_u W' the noise-free map satisfies
     G_p(X) = W G^u_p(X_u) W', so the cone {W X_u W' : X_u ⪰ 0} is invariant and the cone
     spectral radius of the full map is at least that of G^u_p. An X_u ≻ 0 with
     G^u_p(X_u) ≻ X_u therefore gives X ⪰ 0, X ≠ 0 with G_p(X) ⪰ X, and the cone argument
-    (:func:`kfcrit.certify.verify_lower_block`) shows that no Y ≻ 0 has Y ≻ G_p(Y): p ≤ p_up.
+    (:func:`kfcrit.theory.certify.verify_lower_block`) shows that no Y ≻ 0 has Y ≻ G_p(Y): p ≤ p_up.
     (The converse direction — that p_up of the full system equals that of the block — is the
     reduction of the module docstring; the lower bound needs only the invariance.)
     """
@@ -1104,7 +1104,7 @@ def _lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float
     p_low (theorem) when lo ≤ p_low; else the cone eigenpair (X, r) of G_lo on the unstable
     block (:func:`cone_lower_check`): r ≥ 1 supports lo numerically, and is proven when
     X_u ≻ 0, G^u_lo(X_u) − X_u ≻ 0 pass in balls on an exactly A-invariant subspace enclosed
-    by :func:`kfcrit.certify.invariant_block` (valid for the full system, stable modes
+    by :func:`kfcrit.theory.certify.invariant_block` (valid for the full system, stable modes
     included: see :func:`cone_lower_check`). When the proof fails at lo itself (its margin
     (r − 1)·λ_min(X_u) is below the ball widths), the largest of a few points lo − δ where it
     passes is reported as ``proven_lower`` (a proven p_up ≥ lo − δ beside the numerical lo).
@@ -1345,14 +1345,14 @@ def _upper_bound_raw(system: System, tol: float, method: str,
         if inv:
             return _c_invertible_bound(system, how)
     if method == "lmi":
-        from .lmi import lmi_upper_bound
+        from kfcrit.theory.lmi import lmi_upper_bound
         progress.update(stage="LMI bisection", method="lmi")
         return lmi_upper_bound(system, tol=max(tol, 1e-7))
     result = _newton_method(system, tol, progress)
     if result.extras.get("not_applicable"):
         return result            # not detectable: no LMI fallback (it cannot succeed either)
     if method == "auto" and not result.certified and system.n <= 30:
-        from .lmi import lmi_upper_bound
+        from kfcrit.theory.lmi import lmi_upper_bound
         progress.update(stage="LMI fallback", method="lmi")
         alt = lmi_upper_bound(system, tol=max(tol, 1e-7))
         if alt.certified:

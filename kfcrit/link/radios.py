@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import comb, erfc
 
-from .errors import InputError
+from kfcrit.errors import InputError
 
 SINR_SEARCH_DB = (-40.0, 60.0)
 """Interval (dB) searched when inverting PER(SINR); error rates outside it are reported as edges."""
@@ -159,7 +159,7 @@ class CoherentBpsk(Radio):
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str) -> CoherentBpsk:
-        from .linkbudget import real_field
+        from kfcrit.link.linkbudget import real_field
 
         _check_radio_keys(data, {"processing_gain_db"}, prefix)
         gain = 0.0

@@ -22,10 +22,10 @@ import platform
 from dataclasses import dataclass, field
 from typing import Any
 
-from . import __version__
-from .record import jsonable
-from .system import System, conditioning_warnings
-from .systemfile import SystemSpec
+from kfcrit.version import __version__
+from kfcrit.io.jsonio import jsonable
+from kfcrit.model.system import System, conditioning_warnings
+from kfcrit.io.systemfile import SystemSpec
 
 CONTRACT_KEYS = ("name", "classification", "critical_value", "robust_critical_value",
                  "lower_bound", "block_lower_bound", "upper_bound", "operating_point",
@@ -183,7 +183,7 @@ def trace_verdict(spec: SystemSpec, op: dict[str, Any]) -> None:
     *models*, and a finite recording is neither. The verdict is ``undetermined``; the empirical
     arrival rate, what the i.i.d. comparison would say, and a Gilbert–Elliott fit of the trace
     are kept for information."""
-    from .linkbudget import gilbert_elliott_fit
+    from kfcrit.link.linkbudget import gilbert_elliott_fit
 
     fit = gilbert_elliott_fit(spec.channel.arrivals, spec.system)
     op["iid_comparison_verdict"] = op.get("verdict")
@@ -246,7 +246,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
 
 def _critical_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
                        warnings: list[str]) -> None:
-    from . import critical
+    from kfcrit.theory import critical
 
     crit = critical.critical_section(spec.system, opts.tolerance, channel=spec.channel)
     for key in ("classification", "critical_value", "robust_critical_value", "lower_bound",
@@ -257,7 +257,7 @@ def _critical_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, A
 
 def _upper_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
                     warnings: list[str]) -> None:
-    from . import upper
+    from kfcrit.theory import upper
 
     if sec.get("classification") == "not-detectable":
         sec["upper_bound"] = not_detectable_upper()
@@ -301,7 +301,7 @@ def close_bracket(sec: dict[str, Any]) -> None:
 def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -> None:
     import numpy as np
 
-    from . import bounds
+    from kfcrit.theory import bounds
 
     s = spec.system
     markers = {"p_low": (sec.get("lower_bound") or {}).get("value"),
@@ -347,14 +347,14 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str])
 
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
                          warnings: list[str]) -> None:
-    from . import invariant
+    from kfcrit.theory import invariant
 
     sec["invariant"] = invariant.invariant_section(spec.system)
     warnings.extend((sec["invariant"] or {}).get("warnings") or [])
     if not opts.simulate:
         sec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
         return
-    from .montecarlo import simulation_section
+    from kfcrit.sim.montecarlo import simulation_section
 
     sim = simulation_section(
         spec, critical_value=(sec.get("critical_value") or {}).get("value"),
@@ -368,7 +368,7 @@ def _link_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -
     ch = spec.channel
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
-    from . import linkbudget
+    from kfcrit.link import linkbudget
 
     if ch.model == "gilbert-elliott":
         sec["link_budget"] = linkbudget.gilbert_elliott_section(spec.system, ch)
@@ -413,7 +413,7 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
 
 def bursty_verdict(sec: dict[str, Any]) -> None:
     """For a non-i.i.d. Gilbert–Elliott channel the i.i.d. comparison p > p_c does not decide
-    mean stability. The Gilbert–Elliott section (:func:`kfcrit.linkbudget.
+    mean stability. The Gilbert–Elliott section (:func:`kfcrit.link.linkbudget.
     gilbert_elliott_section`) states for its condition (1 − r)a² < 1 whether it ``decides``:
     only the scalar case is a theorem (MATH §7; and ρ(A) < 1 trivially). Where it decides, the
     verdict follows the condition; where it does not (a claim from the literature, or a
@@ -578,7 +578,7 @@ def exit_code(record: dict[str, Any]) -> int:
     Gilbert–Elliott theorem), or, with no operating point, the upper bound could not be decided
     (an undecided p_up bracket that does not contain the operating point does not change a
     decided verdict; the record still says ``undetermined`` for p_up); else 0, whatever the verdict
-    (``mean-unstable`` is a result, not an error). ``kfcrit.cli.exit_code_of`` should return
+    (``mean-unstable`` is a result, not an error). ``kfcrit.cli.main.exit_code_of`` should return
     this.
     """
     if any(c.get("passed") is False for c in record.get("verification") or []):

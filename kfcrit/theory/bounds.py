@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from .riccati import g, optimal_gain, solve_generalized_stein, stein_matrix, symmetrize
-from .system import System
+from kfcrit.theory.riccati import g, optimal_gain, solve_generalized_stein, stein_matrix, symmetrize
+from kfcrit.model.system import System
 
 NEWTON_MAX_STATES = 60
 """Newton–Kleinman (a dense solve in n(n+1)/2 unknowns) is used up to this state dimension."""
@@ -235,7 +235,7 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
         bounds exist (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9 ‖V̄‖), None otherwise. ``residual``
         is the relative MARE residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
     """
-    from .upper import upper_bound
+    from kfcrit.theory.upper import upper_bound
 
     p = float(p)
     S = lower_covariance(system.a, system.q, p)
@@ -347,7 +347,7 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     V̄ curve stops after ``time_budget`` seconds (:data:`PHASE_TIME_BUDGET`); both are stated
     in ``warnings`` and ``limits``.
     """
-    from .upper import p_low_of, upper_bound
+    from kfcrit.theory.upper import p_low_of, upper_bound
 
     budget = PHASE_TIME_BUDGET if time_budget is None else float(time_budget)
     markers = dict(markers or {})
@@ -467,10 +467,10 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
 
     * steady Kalman gain K_∞ = −A P C'(C P C' + R)^{-1}, P the stabilising DARE solution (the
       filter with no losses); its critical value p_{K_∞} ≥ p_up, covariance Σ_∞(p) if p > p_{K_∞}.
-    * best static gain: the gain K* of the p_up certificate (:mod:`kfcrit.upper`); its critical
+    * best static gain: the gain K* of the p_up certificate (:mod:`kfcrit.theory.upper`); its critical
       value equals p_up to within the certificate's width — shown by ``difference``.
     """
-    from .upper import upper_bound
+    from kfcrit.theory.upper import upper_bound
 
     A, C, Q, R = system.a, system.c, system.q, system.r
     p = float(p)

@@ -12,17 +12,17 @@ is feasible iff p > p_up (Y = X^{-1}, Z = Y K). Ψ is homogeneous in (Y, Z), so 
 whose optimum t* is > 0 iff the LMI is feasible and 0 otherwise ((Y, Z) = 0 gives t = 0).
 The problem is built once with DPP parameters √p and √(1−p) and re-solved with Clarabel.
 Scaling: the LMI is posed for the unstable Schur block (T_uu, C Z_u) of A (p_up depends on it
-only, see :mod:`kfcrit.upper`; the stable modes make Y = X^{-1} needlessly ill-conditioned),
+only, see :mod:`kfcrit.theory.upper`; the stable modes make Y = X^{-1} needlessly ill-conditioned),
 balanced by a diagonal similarity D (powers of two: A_b = D^{-1} T_uu D, C_b = C Z_u D).
 Certificates are lifted back to the full state and checked there, on the exact matrices.
 
 Each solve is classified, never guessed:
 
 * feasible — status optimal, the a-posteriori eigenvalues of Ψ_p(Y, Z) and Y are positive,
-  *and* X = T Y^{-1} T, K = T Y^{-1} Z pass :func:`kfcrit.certify.verify_upper` (balls);
+  *and* X = T Y^{-1} T, K = T Y^{-1} Z pass :func:`kfcrit.theory.certify.verify_upper` (balls);
 * infeasible — status optimal and t* ≤ ``INFEASIBLE_MARGIN``, *and independently confirmed*:
   the cone spectral radius r(p) of the noise-free MARE map on the unstable block is ≥ 1
-  (power iteration + Newton, :func:`kfcrit.upper.cone_lower_check`); the confirmation is a proof
+  (power iteration + Newton, :func:`kfcrit.theory.upper.cone_lower_check`); the confirmation is a proof
   when X_u ≻ 0 with G_p(X_u) ≻ X_u passes in balls on an exactly invariant subspace, else it is
   labelled numerical. Clarabel's INFEASIBLE status for the unit form Ψ_p ⪰ I is recorded but
   never trusted alone (measured: it is wrong near the threshold, see below);
@@ -47,8 +47,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from . import certify
-from .system import System
+from kfcrit.theory import certify
+from kfcrit.model.system import System
 
 INFEASIBLE_MARGIN = 1e-10
 """Optimal margins t* at or below this are read as t* = 0 (infeasible, numerically)."""
@@ -93,7 +93,7 @@ class PsiProblem:
         self.solves = 0
         self.seconds = 0.0
         self.confirm = None
-        """``confirm(p)`` → :func:`kfcrit.upper.cone_lower_check`-style dict (set by the caller);
+        """``confirm(p)`` → :func:`kfcrit.theory.upper.cone_lower_check`-style dict (set by the caller);
         without it a margin t* ≈ 0 is never read as infeasible."""
 
     def _gain(self, K: np.ndarray) -> np.ndarray:
@@ -175,7 +175,7 @@ class PsiProblem:
         First the unit form Ψ_p ⪰ I is solved: a solution that passes the ball check makes p
         feasible. Clarabel's INFEASIBLE status for it is *not* trusted (near the threshold it
         is wrong: random_system(20, 6, 0) gave "infeasible" at 0.4082897 > p_up): "infeasible"
-        needs ``self.confirm(p)`` (:func:`kfcrit.upper.cone_lower_check`), the cone spectral
+        needs ``self.confirm(p)`` (:func:`kfcrit.theory.upper.cone_lower_check`), the cone spectral
         radius r(p) ≥ 1 of the noise-free MARE map on the unstable block — proven in balls when
         possible, else numerical — and is otherwise undetermined.
         """
@@ -225,9 +225,9 @@ class PsiProblem:
 def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
     """Bisection on p over the margin LMI from [p_low, 1] to width ``tol`` (stops if undetermined).
 
-    Returns an :class:`kfcrit.upper.UpperBound` with method "lmi".
+    Returns an :class:`kfcrit.theory.upper.UpperBound` with method "lmi".
     """
-    from .upper import (
+    from kfcrit.theory.upper import (
         UpperBound,
         _certificate_summary,
         _compression_note,
@@ -244,7 +244,7 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
     p_low = p_low_of(A)
     red = reduce_system(system)      # output compressed when C Z_u is ill-conditioned
     if red.k == 0:
-        from .upper import _newton_method
+        from kfcrit.theory.upper import _newton_method
         return _newton_method(system, tol)
 
     def lift(Xu, Ku, p):

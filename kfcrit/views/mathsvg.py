@@ -6,7 +6,7 @@ result needs no font and no network; every SVG gets a fresh id prefix so that se
 live in one HTML document without clashing ``id``s.
 
 Exact expressions from the record (``sympy.sstr`` text such as ``1 - 2**(-3)`` or ``sqrt(3)``) are
-read back with the safe parser :func:`kfcrit.exprparse.parse_expression` (never ``sympify``) and
+read back with the safe parser :func:`kfcrit.model.exprparse.parse_expression` (never ``sympify``) and
 converted with ``sympy.latex``.
 """
 from __future__ import annotations
@@ -96,13 +96,13 @@ def latex_svg(latex: str, *, fontsize: float = 11.0, label: str | None = None) -
 def expression_latex(text: str) -> str | None:
     """LaTeX of an exact expression given as text (``sympy.sstr`` form), or ``None``.
 
-    The text is read with the safe parser :func:`kfcrit.exprparse.parse_expression`, then typeset
+    The text is read with the safe parser :func:`kfcrit.model.exprparse.parse_expression`, then typeset
     with ``sympy.latex``; anything the parser refuses gives ``None`` (the caller shows plain text).
     """
     import sympy as sp
 
-    from .errors import KfcritError
-    from .exprparse import parse_expression
+    from kfcrit.errors import KfcritError
+    from kfcrit.model.exprparse import parse_expression
 
     if not text or not isinstance(text, str):
         return None

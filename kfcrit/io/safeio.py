@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import stat
 
-from .errors import InputError
+from kfcrit.errors import InputError
 
 CHUNK_BYTES = 1 << 20
 """Bytes requested per ``read`` call (the buffer never grows beyond what the file holds)."""

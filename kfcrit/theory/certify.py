@@ -32,7 +32,7 @@ import flint
 import numpy as np
 import sympy as sp
 
-from .system import System
+from kfcrit.model.system import System
 
 PRECISION_BITS = 160
 """Working precision of the ball arithmetic."""

@@ -60,11 +60,11 @@ from typing import Any
 
 import sympy as sp
 
-from . import __version__
-from .atomic import write_atomic
-from .errors import ExitCode, InputError, KfcritError
-from .record import jsonable
-from .safeio import read_text
+from kfcrit.version import __version__
+from kfcrit.io.atomic import write_atomic
+from kfcrit.errors import ExitCode, InputError, KfcritError
+from kfcrit.io.jsonio import jsonable
+from kfcrit.io.safeio import read_text
 
 FORMAT_VERSION = 1
 MAX_POINTS = 1_000_000
@@ -159,7 +159,7 @@ def _scalar_text(value: Any, where: str) -> str:
 
 
 def _exact(value: Any, where: str) -> sp.Expr:
-    from .linkbudget import exact_number
+    from kfcrit.link.linkbudget import exact_number
 
     return exact_number(_scalar_text(value, where), where)
 
@@ -171,7 +171,7 @@ def _range_values(spec: dict, where: str, *, count_only: bool = False) -> list[s
     enormous grid is refused before any value is generated). Values are exact: rational
     arithmetic (:class:`fractions.Fraction`) for linear ranges.
     """
-    from .channels import check_keys
+    from kfcrit.model.channels import check_keys
 
     check_keys(spec, {"start", "stop", "num", "step", "scale"}, {"start", "stop"}, where)
     scale = spec.get("scale", "linear")
@@ -290,7 +290,7 @@ def point_key(spec_base: dict, tolerance_text: str, max_states: int,
 
 
 def _load_base(system: Any, sweep_dir: Path) -> tuple[dict, Path, str | None]:
-    from .systemfile import read_yaml
+    from kfcrit.io.systemfile import read_yaml
 
     if isinstance(system, dict):
         return _plain(system), sweep_dir, None
@@ -310,8 +310,8 @@ def _load_base(system: Any, sweep_dir: Path) -> tuple[dict, Path, str | None]:
 
 def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
     """Read and validate a sweep file (every error is one line naming the field)."""
-    from .channels import check_keys
-    from .systemfile import read_yaml
+    from kfcrit.model.channels import check_keys
+    from kfcrit.io.systemfile import read_yaml
 
     doc, digest = read_yaml(path)
     if not isinstance(doc, dict):
@@ -377,7 +377,7 @@ def _base_value(base_doc: dict, path: str) -> Any:
 
 
 def _is_number_text(text: str, cache: dict[str, bool]) -> bool:
-    from .exprparse import parse_expression
+    from kfcrit.model.exprparse import parse_expression
 
     if text not in cache:
         try:
@@ -429,7 +429,7 @@ def _check_unknown_keys(parameters: list[str], first: tuple[str, ...], where: li
     model then refuses the key itself (``unknown key``), the sweep file names an unknown
     parameter. Other errors (a value out of range) stay errors of the points that have them.
     """
-    from .channels import channel_from_mapping
+    from kfcrit.model.channels import channel_from_mapping
 
     for path, text, where_ in zip(parameters, first, where):
         if _MATRIX_PATH.match(path) or _base_value(base_doc, path) is not None:
@@ -444,7 +444,7 @@ def _check_unknown_keys(parameters: list[str], first: tuple[str, ...], where: li
 
 
 def _validate_base(base_doc: dict, base_dir: Path, max_states: int) -> None:
-    from .systemfile import spec_from_mapping
+    from kfcrit.io.systemfile import spec_from_mapping
 
     try:
         spec_from_mapping(base_doc, base_dir=base_dir, max_states=max_states)
@@ -519,7 +519,7 @@ def _value(obj: Any) -> float | None:
 
 def critical_summary(system: Any, tolerance: float) -> dict[str, Any]:
     """Critical value (``critical.critical_value`` when available) and bounds of one system."""
-    from . import critical
+    from kfcrit.theory import critical
 
     out: dict[str, Any] = {"classification": None, "lower_bound": None, "critical_value": None,
                            "critical_expression": None, "robust_critical_value": None,
@@ -563,7 +563,7 @@ def upper_bound_value(system: Any) -> float | None:
                       np.asarray(system.c, dtype=float).tolist()])
 
     def build() -> float | None:
-        from .upper import upper_bound
+        from kfcrit.theory.upper import upper_bound
 
         try:
             ub = upper_bound(system, tol=SWEEP_UPPER_TOL)
@@ -601,7 +601,7 @@ def _verdict(p: float, crit: dict[str, Any], req: float | None, basis: str | Non
 
 
 def _link_columns(channel: Any, req: float | None) -> dict[str, Any]:
-    from .linkbudget import LinkBudget
+    from kfcrit.link.linkbudget import LinkBudget
 
     out: dict[str, Any] = {}
     if not isinstance(channel, LinkBudget):
@@ -624,8 +624,8 @@ def _link_columns(channel: Any, req: float | None) -> dict[str, Any]:
 def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
                    assignments: list[tuple[str, str]]) -> dict[str, Any]:
     """The result columns of one point (``status`` ``error`` with a one-line message on error)."""
-    from .channels import channel_from_mapping
-    from .system import System
+    from kfcrit.model.channels import channel_from_mapping
+    from kfcrit.model.system import System
 
     row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
     try:
@@ -866,7 +866,7 @@ def run_dask(spec: SweepSpec, items: Items, max_states: int, client: Any,
 def _param_value(text: str) -> Any:
     """A parameter's value for the table: an int for an integer (``packet_bytes: 20`` stays
     20), a float for any other number, else the text."""
-    from .exprparse import parse_expression
+    from kfcrit.model.exprparse import parse_expression
 
     try:
         value = parse_expression(text)

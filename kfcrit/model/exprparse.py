@@ -33,7 +33,7 @@ from fractions import Fraction
 import sympy as sp
 from sympy.core.evalf import PrecisionExhausted
 
-from .errors import ExpressionError
+from kfcrit.errors import ExpressionError
 
 MAX_LENGTH = 500
 MAX_DEPTH = 30

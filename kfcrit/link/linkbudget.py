@@ -7,7 +7,7 @@ The chain, in dB and dBm (every step is a stated formula, tested against indepen
     received      Pr = Pt + G − PL(d)                          (G: total antenna gain, dB)
     noise floor   N = 10·log10(k_B T B / 1 mW) + NF            (≈ −174 dBm/Hz + 10·log10 B + NF)
     SINR          SINR_dB = Pr − 10·log10(10^{N/10} + 10^{I/10})   (I: interference, optional)
-    arrival       p = 1 − PER(SINR, L) = (1 − BER(SINR))^{8L}  (radio model: kfcrit.radios)
+    arrival       p = 1 − PER(SINR, L) = (1 − BER(SINR))^{8L}  (radio model: kfcrit.link.radios)
 
 Shadowing X is *per link* by default (slow fading: a deployed link has one fixed X, so its
 arrival process is i.i.d. with p(X); the channel's arrival probability is the median link's,
@@ -32,9 +32,9 @@ import numpy as np
 import sympy as sp
 from scipy.special import ndtr, ndtri
 
-from .channels import Channel, GilbertElliott, check_keys
-from .errors import InputError
-from .radios import Radio, db_to_linear, radio_from_mapping
+from kfcrit.model.channels import Channel, GilbertElliott, check_keys
+from kfcrit.errors import InputError
+from kfcrit.link.radios import Radio, db_to_linear, radio_from_mapping
 
 BOLTZMANN = 1.380649e-23
 """Boltzmann constant k_B in J/K (exact in the 2019 SI)."""
@@ -52,7 +52,7 @@ Z_RANGE = 9.0
 
 def exact_number(value: Any, field: str) -> sp.Expr:
     """Exact real number of a system-file value (text, int or sympy); never ``eval``."""
-    from .exprparse import number_from_text, parse_expression
+    from kfcrit.model.exprparse import number_from_text, parse_expression
 
     if isinstance(value, bool) or value is None:
         raise InputError("must be a number", field=field)
@@ -78,7 +78,7 @@ def exact_number(value: Any, field: str) -> sp.Expr:
 def _parsed_text(text: str) -> sp.Expr:
     """``parse_expression`` memoised by text (pure; sympy numbers are immutable; errors are
     not cached). A sweep re-reads the same channel texts at every point."""
-    from .exprparse import parse_expression
+    from kfcrit.model.exprparse import parse_expression
 
     return parse_expression(text, "value")
 
@@ -758,7 +758,7 @@ def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
         status, decides}, required_recovery_rate, max_mean_burst_length, simulation | null,
         simulation_consistent | null, simulation_note, claims``.
     """
-    from .critical import critical_value
+    from kfcrit.theory.critical import critical_value
 
     if not isinstance(channel, GilbertElliott):
         return {"applicable": False, "reason": "the channel is not a Gilbert-Elliott model"}

@@ -16,8 +16,8 @@ import numpy as np
 import sympy as sp
 from sympy.core.evalf import PrecisionExhausted
 
-from .errors import InputError
-from .exprparse import MAX_WORKING_DIGITS
+from kfcrit.errors import InputError
+from kfcrit.model.exprparse import MAX_WORKING_DIGITS
 
 MAX_STATES_DEFAULT = 400
 """Largest state dimension accepted unless the caller raises the guard (``max_states``)."""
@@ -25,7 +25,7 @@ MAX_STATES_DEFAULT = 400
 
 def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
     """Convert one matrix entry to an exact sympy number; return it and whether input was exact."""
-    from .exprparse import _finish, number_from_text, parse_expression
+    from kfcrit.model.exprparse import _finish, number_from_text, parse_expression
 
     if isinstance(value, bool):
         raise InputError("booleans are not numbers", field=where)
@@ -133,7 +133,7 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
 
     The float views are compared first (a clear asymmetry is refused at once). Exact entries are
     then compared pairwise with bounded effort, never ``simplify``: a rational difference
-    exactly; otherwise :func:`kfcrit.exprparse.sign_of`-style evaluation with certain digits (a
+    exactly; otherwise :func:`kfcrit.model.exprparse.sign_of`-style evaluation with certain digits (a
     digit found means asymmetric), and a difference with no digit up to ``SYMMETRY_DIGITS``
     digits counts as zero (proven or not), in which case the upper entry is used for both.
     """
@@ -295,7 +295,7 @@ class System:
         return is_definite(M, Mf, self.exact, strict=True)
 
     def matrices_text(self) -> dict[str, list[list[str]]]:
-        """Exact entries as strings readable by :func:`kfcrit.exprparse.parse_expression`."""
+        """Exact entries as strings readable by :func:`kfcrit.model.exprparse.parse_expression`."""
         return {nm: [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
                 for nm, M in (("A", self.A), ("C", self.C), ("Q", self.Q), ("R", self.R),
                               ("Sigma0", self.Sigma0))}

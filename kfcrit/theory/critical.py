@@ -1,7 +1,7 @@
 """Critical arrival probability p_c: which theorem applies, its exact value, and how robust it is.
 
 The decision tree (MATH.md §3–§4, Mo–Sinopoli; the eigen-structure comes from
-:mod:`kfcrit.structure`):
+:mod:`kfcrit.theory.structure`):
 
 1. some eigenvector with |λ| ≥ 1 is invisible to C  → ``not-detectable`` (no p_c: E[P_t]
    diverges for every p, even with no losses);
@@ -35,9 +35,9 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .errors import InputError
-from .exprparse import MAX_DIGITS, exact_text
-from .structure import (
+from kfcrit.errors import InputError
+from kfcrit.model.exprparse import MAX_DIGITS, exact_text
+from kfcrit.theory.structure import (
     DEFAULT_TOLERANCE,
     MAX_DENOMINATOR,
     NUMERIC_FLOOR,
@@ -48,7 +48,7 @@ from .structure import (
     eigen_structure,
     simplest_rational,
 )
-from .system import System
+from kfcrit.model.system import System
 
 _LONG_LITERAL = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
 _LONG_NUMBER = re.compile(r"\d{13,}")
@@ -63,7 +63,7 @@ _AT_TOL: weakref.WeakKeyDictionary[System, dict[float, Structure]] = weakref.Wea
 
 
 def structure_of(system: System, tolerance: float | None = None) -> Structure:
-    """The (cached) eigen-structure of ``system``; see :func:`kfcrit.structure.eigen_structure`.
+    """The (cached) eigen-structure of ``system``; see :func:`kfcrit.theory.structure.eigen_structure`.
 
     The exact path does not depend on ``tolerance``; a numeric-path structure is recomputed
     (numerically, same path reason) when ``tolerance`` differs from the one it was decided with.
@@ -99,7 +99,7 @@ class Num:
 
     @property
     def expression(self) -> str:
-        """Text readable by sympy and :func:`kfcrit.exprparse.parse_expression`."""
+        """Text readable by sympy and :func:`kfcrit.model.exprparse.parse_expression`."""
         if self.expr is None:
             return repr(self.value)
         full = sp.sstr(self.expr)

@@ -10,7 +10,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from .errors import OutputError
+from kfcrit.errors import OutputError
 
 __all__ = ["check_writable", "write_atomic"]
 

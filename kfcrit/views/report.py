@@ -1,11 +1,11 @@
 """Design-review reports: one Jinja template set, two outputs (self-contained HTML and PDF).
 
-The analysis record (``Analysis.to_dict()``) plus its figures (:mod:`kfcrit.figures`) is the only
+The analysis record (``Analysis.to_dict()``) plus its figures (:mod:`kfcrit.views.figures`) is the only
 input. :func:`view_model` turns them into one plain dict holding every key the templates read
 (missing sections become ``available: False`` with a "not computed" message, never a missing key:
 the environment uses ``StrictUndefined``). Templates only lay the view model out; numbers are
-formatted by the registered filters of :mod:`kfcrit.filters`; formulas are SVG from
-:mod:`kfcrit.mathsvg`. The PDF is the same HTML printed by WeasyPrint with the print stylesheet
+formatted by the registered filters of :mod:`kfcrit.views.jinja_filters`; formulas are SVG from
+:mod:`kfcrit.views.mathsvg`. The PDF is the same HTML printed by WeasyPrint with the print stylesheet
 (``@media print`` / ``@page`` in ``report.css``), with a URL fetcher that refuses every external
 URL. Files are written atomically and never over the input file.
 """
@@ -22,9 +22,11 @@ from typing import Any
 import jinja2
 from markupsafe import Markup
 
-from . import __version__, filters, mathsvg
-from .atomic import write_atomic
-from .errors import InputError
+from kfcrit.version import __version__
+from kfcrit.views import jinja_filters as filters
+from kfcrit.views import mathsvg
+from kfcrit.io.atomic import write_atomic
+from kfcrit.errors import InputError
 
 FORMATS = {".html": "html", ".htm": "html", ".pdf": "pdf"}
 TEMPLATE = "report.html.j2"
@@ -40,11 +42,11 @@ def template_dir() -> Path:
     ``pip install -e .`` or in a source checkout they are the repository's top-level
     ``templates/``.
     """
-    here = Path(__file__).resolve().parent
-    for candidate in (here / "templates", here.parent / "templates"):
+    package = Path(__file__).resolve().parents[1]
+    for candidate in (package / "templates", package.parent / "templates"):
         if (candidate / TEMPLATE).is_file():
             return candidate
-    raise FileNotFoundError(f"report templates not found next to {here} (looked for "
+    raise FileNotFoundError(f"report templates not found next to {package} (looked for "
                             f"kfcrit/templates/{TEMPLATE} and templates/{TEMPLATE})")
 
 
@@ -91,7 +93,7 @@ def _svg(svg: str | None) -> Markup | None:
 
 def _prose(value: Any) -> str:
     """Record prose with its ASCII mathematics in Unicode (``sqrt(3)`` → √3, ``<=`` → ≤ ...);
-    ``None`` → empty string. See :func:`kfcrit.filters.pretty_text`."""
+    ``None`` → empty string. See :func:`kfcrit.views.jinja_filters.pretty_text`."""
     return filters.pretty_text(value) if value is not None else ""
 
 
@@ -163,7 +165,7 @@ def row(label: str, value: Any, kind: str = "text", note: str = "",
         status: bool | None = None, unit_title: str = "") -> dict[str, Any]:
     """One labelled row of a quantity table: the template prints ``value | quantity(kind)``.
 
-    ``note`` is already formatted text (built with :mod:`kfcrit.filters`); ``status`` marks a
+    ``note`` is already formatted text (built with :mod:`kfcrit.views.jinja_filters`); ``status`` marks a
     pass/fail comparison (``None``: no comparison).
     """
     return {"label": label, "value": value, "kind": kind, "note": note, "status": status,
@@ -347,7 +349,7 @@ def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
     req = _dict(rec.get("requirements"))
     limit = _num(req.get("max_error_trace"))
     max_tail = _num(req.get("max_tail_probability"))
-    from .figures import tail_of
+    from kfcrit.views.figures import tail_of
 
     tail = tail_of(rec)
     exc = _dict(_dict(_dict(rec.get("simulation")).get("operating_point")).get("exceedance"))
@@ -689,7 +691,7 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     """Settings and summary numbers of the simulation as labelled rows (arrays are drawn)."""
     sim = rec.get("simulation")
     d = _dict(sim)
-    from .figures import series_of, tail_of
+    from kfcrit.views.figures import series_of, tail_of
 
     op = _dict(d.get("operating_point"))
     budget = _dict(d.get("budget"))
@@ -886,7 +888,7 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
     n = _dict(rec.get("system")).get("n")
     inv = rec.get("invariant")
     d = _dict(inv)
-    from .figures import invariant_gaps
+    from kfcrit.views.figures import invariant_gaps
 
     exact = [{"n": _dict(g).get("n"), "lower": _num(_dict(g).get("lower")),
               "upper": _num(_dict(g).get("upper")),
@@ -1248,7 +1250,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None]) -> dict[s
     record : dict
         ``Analysis.to_dict()`` (any section may be ``None`` or absent).
     figures : dict
-        Inline SVG strings from :func:`kfcrit.figures.build_figures` (``None`` where missing).
+        Inline SVG strings from :func:`kfcrit.views.figures.build_figures` (``None`` where missing).
     """
     rec = _dict(record)
     prov = _dict(rec.get("provenance"))
@@ -1346,13 +1348,13 @@ def report_command(system_file: str, output: str, *, fmt: str | None, quick: boo
                    max_states: int, tolerance: float = 1e-9) -> int:
     """``kfcrit report``: analyse ``system_file`` and write the HTML or PDF report to ``output``.
 
-    Returns the exit code (:func:`kfcrit.cli.exit_code_of` of the record: 3 when the upper bound
+    Returns the exit code (:func:`kfcrit.cli.main.exit_code_of` of the record: 3 when the upper bound
     was inconclusive, else 0). Bad paths or formats raise :class:`~kfcrit.errors.InputError`.
     """
-    from .analysis import AnalysisOptions, analyze
-    from .cli import exit_code_of
-    from .figures import build_figures
-    from .systemfile import load_spec
+    from kfcrit.analysis.record import AnalysisOptions, analyze
+    from kfcrit.cli.main import exit_code_of
+    from kfcrit.views.figures import build_figures
+    from kfcrit.io.systemfile import load_spec
 
     kind = output_format(output, fmt)
     out = check_output_path(system_file, output)

@@ -14,8 +14,8 @@ from typing import Any
 
 import click
 
-from . import __version__
-from .errors import ExitCode, KfcritError
+from kfcrit.version import __version__
+from kfcrit.errors import ExitCode, KfcritError
 
 EXAMPLES = """\b
 Examples:
@@ -205,11 +205,11 @@ def install_sigterm_handler() -> None:
 def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool, quick: bool,
             seed: int, max_states: int, debug: bool) -> None:
     """Analyse SYSTEM_FILE: critical value, bounds, simulation and verdict."""
-    from .analysis import AnalysisOptions
-    from .analysis import analyze as run
-    from .record import dumps
-    from .systemfile import load_spec
-    from .textview import summary
+    from kfcrit.analysis.record import AnalysisOptions
+    from kfcrit.analysis.record import analyze as run
+    from kfcrit.io.jsonio import dumps
+    from kfcrit.io.systemfile import load_spec
+    from kfcrit.views.text import summary
 
     spec = load_spec(system_file, max_states=max_states)
     record = run(spec, AnalysisOptions(tolerance=tolerance, simulate=not no_simulate,
@@ -219,8 +219,8 @@ def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool
 
 
 def exit_code_of(record: dict[str, Any]) -> int:
-    """The documented exit code of an analysis record: :func:`kfcrit.analysis.exit_code`."""
-    from .analysis import exit_code
+    """The documented exit code of an analysis record: :func:`kfcrit.analysis.record.exit_code`."""
+    from kfcrit.analysis.record import exit_code
 
     return exit_code(record)
 
@@ -241,9 +241,9 @@ def exit_code_of(record: dict[str, Any]) -> int:
 def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: int,
            tolerance: float, max_states: int, debug: bool) -> None:
     """Write a design-review report of SYSTEM_FILE to OUTPUT (HTML or PDF)."""
-    from .atomic import check_writable
-    from .report import report_command
-    from .systemfile import load_spec
+    from kfcrit.io.atomic import check_writable
+    from kfcrit.views.report import report_command
+    from kfcrit.io.systemfile import load_spec
 
     # refuse a bad output path or a bad system file before any progress line is printed (the
     # error is then the only line on stderr); load_spec remembers the file, so the report
@@ -275,8 +275,8 @@ def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              plot: str | None, ergodic_steps: int | None, tail: tuple[float, ...],
              max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
-    from .atomic import check_writable
-    from .montecarlo import simulate_command
+    from kfcrit.io.atomic import check_writable
+    from kfcrit.sim.montecarlo import simulate_command
 
     if plot is not None:
         check_writable(plot)
@@ -313,7 +313,7 @@ missing points. Exit codes: 0 done, 2 bad sweep file or option (or a point with 
 def sweep(sweep_file: str, output: str | None, scheduler: str | None, workers: int | None,
           max_states: int, debug: bool) -> None:
     """Sweep a grid of system/channel parameters described in SWEEP_FILE."""
-    from .sweep import sweep_command
+    from kfcrit.analysis.sweep import sweep_command
 
     sys.exit(sweep_command(sweep_file, output=output, scheduler=scheduler, workers=workers,
                            max_states=max_states))

@@ -28,7 +28,7 @@ matplotlib.use("Agg")
 
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
-from .mathsvg import clean_svg  # noqa: E402
+from kfcrit.views.mathsvg import clean_svg  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant")
 COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",

@@ -73,7 +73,7 @@ def pretty_expr(text: Any) -> str:
     """Readable plain text of an expression in ``sympy.sstr`` form.
 
     ``sqrt`` → √, ``a**b`` → a^b, ``*`` → ·, ``-`` → the minus sign. The result is plain text
-    (still autoescaped); the typeset form is the SVG from :mod:`kfcrit.mathsvg`.
+    (still autoescaped); the typeset form is the SVG from :mod:`kfcrit.views.mathsvg`.
     """
     if text is None or text == "":
         return DASH

@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .errors import ExpressionError, InputError
-from .exprparse import compare
-from .system import System
+from kfcrit.errors import ExpressionError, InputError
+from kfcrit.model.exprparse import compare
+from kfcrit.model.system import System
 
 MAX_DEPTH = 20
 """Largest word length for the numeric support points (2^(depth+1) − 1 compositions)."""
@@ -42,7 +42,7 @@ OVERFLOW = ("the support of the invariant law reaches beyond the float64 range (
 def gap_is_open(lo: sp.Expr, hi: sp.Expr) -> bool | None:
     """Whether ``lo < hi`` (f_1(∞) < f_0(P*): the first hole G_0 exists), certified.
 
-    Decided by :func:`kfcrit.exprparse.compare` (exact for rationals, otherwise evalf with
+    Decided by :func:`kfcrit.model.exprparse.compare` (exact for rationals, otherwise evalf with
     certain digits, never ``bool`` of a sympy relational); None when undecidable (the values
     agree beyond the working precision and are not provably equal).
     """

@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from .atomic import write_atomic
-from .channels import ArrivalProcess, Bernoulli, Channel, exact_probability
-from .errors import InputError
-from .system import System
+from kfcrit.io.atomic import write_atomic
+from kfcrit.model.channels import ArrivalProcess, Bernoulli, Channel, exact_probability
+from kfcrit.errors import InputError
+from kfcrit.model.system import System
 
 DEFAULT_SAMPLES = 200
 """Largest number of sample times kept for E[tr P_t] curves."""
@@ -1150,7 +1150,7 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     -------
     SimulationResult
     """
-    from .systemfile import SystemSpec
+    from kfcrit.io.systemfile import SystemSpec
 
     t_start = time.perf_counter()
     if isinstance(system, SystemSpec):
@@ -1539,7 +1539,7 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     max_burst : int
         Loss-burst histogram bins 1 … max_burst (the last collects longer bursts).
     """
-    from .systemfile import SystemSpec
+    from kfcrit.io.systemfile import SystemSpec
 
     if isinstance(system, SystemSpec):
         if channel is None and arrival_probability is None:
@@ -1632,7 +1632,7 @@ def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: 
     channel), ``phase_demo`` (None when the reference value is unknown or 0),
     ``runtime_seconds``, ``warnings``. See the module docstring for the streams.
     """
-    from .systemfile import SystemSpec
+    from kfcrit.io.systemfile import SystemSpec
 
     t0 = time.perf_counter()
     if not isinstance(spec, SystemSpec):
@@ -1732,7 +1732,7 @@ def tail_regime(system: System, channel: Channel, steps: int) -> dict[str, Any]:
         "heavy_tailed": None if value is None else bool(not value < 1),
         "lyapunov_trace_at_horizon": None, "lyapunov_trace_limit": None, "settled": None}
     if proc.kind == "iid" and q * rho * rho < 1:
-        from .bounds import lower_covariance
+        from kfcrit.theory.bounds import lower_covariance
 
         S_T = _lyapunov_traces(system, 1.0 - q, np.array([steps]))[0]
         with quiet_numerics():
@@ -1888,8 +1888,8 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
     file's ``max_error_trace``), loss bursts and the almost-sure indicators; under ``ergodic``
     in ``--json``.
     """
-    from .record import dumps
-    from .systemfile import load_spec
+    from kfcrit.io.jsonio import dumps
+    from kfcrit.io.systemfile import load_spec
 
     _check_sizes(paths, steps, seed)
     levels = [_tail_level(x) for x in tail]

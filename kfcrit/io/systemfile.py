@@ -1,7 +1,7 @@
-"""System files: YAML in, an exact :class:`~kfcrit.system.System` plus channel out.
+"""System files: YAML in, an exact :class:`~kfcrit.model.system.System` plus channel out.
 
 Numbers are read from their text, never through a binary float: the YAML loader below keeps the
-source text of every int/float scalar and :func:`kfcrit.exprparse.number_from_text` turns it into
+source text of every int/float scalar and :func:`kfcrit.model.exprparse.number_from_text` turns it into
 an exact rational. Aliases, duplicate keys and unknown keys are errors. Only the safe YAML
 constructors exist (``yaml.SafeLoader`` subclass), so no tag can build a Python object.
 """
@@ -14,11 +14,11 @@ from typing import Any
 
 import yaml
 
-from .channels import Channel, channel_from_mapping, check_keys, exact_probability, key_name
-from .errors import InputError
-from .exprparse import number_from_text
-from .safeio import read_text
-from .system import MAX_STATES_DEFAULT, System
+from kfcrit.model.channels import Channel, channel_from_mapping, check_keys, exact_probability, key_name
+from kfcrit.errors import InputError
+from kfcrit.model.exprparse import number_from_text
+from kfcrit.io.safeio import read_text
+from kfcrit.model.system import MAX_STATES_DEFAULT, System
 
 MAX_FILE_BYTES = 20_000_000
 MAX_NESTING = 64
@@ -237,7 +237,7 @@ def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: i
 
 
 def _read_text(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> tuple[str, str]:
-    """The UTF-8 text of a file (a regular file, size-capped: :func:`kfcrit.safeio.read_text`)
+    """The UTF-8 text of a file (a regular file, size-capped: :func:`kfcrit.io.safeio.read_text`)
     and the SHA-256 of its bytes."""
     text, data = read_text(path, field="file", max_bytes=max_bytes)
     digest = hashlib.sha256(data).hexdigest()

@@ -19,13 +19,13 @@ from typing import Any, ClassVar
 import numpy as np
 import sympy as sp
 
-from .errors import InputError
+from kfcrit.errors import InputError
 
 _REGISTRY: dict[str, str] = {
-    "bernoulli": "kfcrit.channels:Bernoulli",
-    "gilbert-elliott": "kfcrit.channels:GilbertElliott",
-    "trace": "kfcrit.channels:Trace",
-    "link-budget": "kfcrit.linkbudget:LinkBudget",
+    "bernoulli": "kfcrit.model.channels:Bernoulli",
+    "gilbert-elliott": "kfcrit.model.channels:GilbertElliott",
+    "trace": "kfcrit.model.channels:Trace",
+    "link-budget": "kfcrit.link.linkbudget:LinkBudget",
 }
 
 
@@ -36,7 +36,7 @@ def channel_models() -> list[str]:
 
 def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.Rational:
     """Read a probability exactly and check it lies in [0, 1] (or (0, 1] if ``low_open``)."""
-    from .exprparse import compare, number_from_text, parse_expression
+    from kfcrit.model.exprparse import compare, number_from_text, parse_expression
 
     if isinstance(value, bool) or value is None:
         raise InputError("must be a number", field=field)
@@ -237,8 +237,8 @@ class GilbertElliott(Channel):
 
     @property
     def iid(self) -> bool:
-        from .errors import ExpressionError
-        from .exprparse import compare
+        from kfcrit.errors import ExpressionError
+        from kfcrit.model.exprparse import compare
 
         try:  # f + r = 1 makes the chain memoryless; decided without bool() on a relational
             return compare(self.failure_rate + self.recovery_rate, 1, "channel") == 0
@@ -316,7 +316,7 @@ class Trace(Channel):
 
 def read_trace(path: Path, field: str) -> np.ndarray:
     """Read a 0/1 packet trace; anything but 0 and 1 separated by spaces/commas is an error."""
-    from .safeio import read_text  # a regular file only, at most MAX_TRACE_BYTES, UTF-8
+    from kfcrit.io.safeio import read_text  # a regular file only, at most MAX_TRACE_BYTES, UTF-8
 
     text, _ = read_text(path, field=field, max_bytes=MAX_TRACE_BYTES, what="trace file")
     tokens = text.replace(",", " ").split()
