@@ -16,7 +16,7 @@ from kfcrit.errors import ExitCode, KfcritError  # noqa: E402
 # answer at once instead of after the ~1 s import of sympy, numpy and scipy.
 _LAZY = {"Analysis": "analysis.record", "AnalysisOptions": "analysis.record",
          "analyze": "analysis.record", "System": "model.system", "SystemSpec": "io.systemfile",
-         "load_spec": "io.systemfile", "load_system": "io.systemfile",
+         "load_spec": "analysis.spec", "load_system": "analysis.spec",
          "critical_value": "theory.critical", "upper_bound": "theory.upper",
          "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds"}
 

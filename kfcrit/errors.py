@@ -18,9 +18,13 @@ class ExitCode(IntEnum):
     BAD_INPUT = 2
     """Bad usage or a bad input file."""
     INCONCLUSIVE = 3
-    """A numerical method was inconclusive (solver failure, undetermined result)."""
+    """Undetermined: the review decision is ``undetermined`` (or a numerical method was
+    inconclusive)."""
     INTERNAL = 4
     """An internal error (a bug): one line asking to rerun with ``--debug`` and report it."""
+    REVIEW_FAILED = 5
+    """The review decision is ``fail``: the design is unstable at its operating point, misses a
+    requirement, or its link misses the margin or outage policy."""
     INTERRUPTED = 130
     """Interrupted by SIGINT or SIGTERM (128 + SIGINT, the shell's convention for Ctrl-C)."""
     BROKEN_PIPE = 141

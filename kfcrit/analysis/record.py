@@ -1,35 +1,40 @@
-"""The analysis record: one immutable record that every view renders.
+"""The analysis: one typed record that every view renders.
 
-``analyze(spec)`` asks each concern for its section — the critical value (``critical``), the upper
-bound and covariance bounds (``upper``, ``bounds``), the simulation (``simulate``) and the link
-budget (``linkbudget``) — and assembles them with the operating point and the verdict. The
-terminal summary, ``--json``, the HTML and the PDF are all views of ``Analysis.to_dict()``; no
-view computes anything.
+``analyze(spec)`` asks each concern for its section — the critical value
+(:mod:`kfcrit.theory.critical`), the upper bound and covariance bounds
+(:mod:`kfcrit.theory.upper`, :mod:`kfcrit.theory.bounds`), the simulation
+(:mod:`kfcrit.sim`) and the link (:mod:`kfcrit.link`) — then decides, in one place
+(:mod:`kfcrit.analysis.verdict`), the stability verdict at the operating point and the review
+decision, and returns the typed :class:`~kfcrit.analysis.sections.Analysis`. The terminal
+summary, ``--json``, the HTML, the PDF and the sweep table are all views of it; no view computes
+anything.
 
 Contract (keys always present, ``null`` where not computed)::
 
-    name, classification, critical_value {value, exact, expression, latex, reason},
-    robust_critical_value {value, tolerance} | null, lower_bound {value, expression},
+    schema_version, name, classification, critical_value {value, exact, expression, latex,
+    reason}, robust_critical_value {value, tolerance} | null, lower_bound {value, expression},
     block_lower_bound {value, expression}, upper_bound {value, interval, certified},
-    operating_point {...} | null, warnings [...]
+    operating_point {..., verdict, basis} | null, review {decision, reasons}, warnings [...]
 
 followed by the detail sections ``system``, ``structure``, ``theory``, ``covariance_bounds``,
-``phase_transition``, ``simulation``, ``link_budget``, ``requirements`` and ``provenance``.
+``phase_transition``, ``simulation``, ``link_budget``, ``requirements``, ``verification`` and
+``provenance``.
 """
 from __future__ import annotations
 
 import platform
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
-from kfcrit.version import __version__
+from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.sections import SCHEMA_VERSION, Analysis, record_from_json
 from kfcrit.io.jsonio import jsonable
-from kfcrit.model.system import System, conditioning_warnings
 from kfcrit.io.systemfile import SystemSpec
+from kfcrit.model.system import System, conditioning_warnings
+from kfcrit.version import __version__
 
-CONTRACT_KEYS = ("name", "classification", "critical_value", "robust_critical_value",
-                 "lower_bound", "block_lower_bound", "upper_bound", "operating_point",
-                 "warnings")
+THEORY_KEYS = ("classification", "critical_value", "robust_critical_value", "lower_bound",
+               "block_lower_bound", "structure", "theory", "upper_bound")
 DETAIL_KEYS = ("description", "system", "structure", "theory", "covariance_bounds",
                "static_gain", "phase_transition", "simulation", "invariant", "link_budget",
                "requirements", "verification", "provenance")
@@ -37,7 +42,12 @@ DETAIL_KEYS = ("description", "system", "structure", "theory", "covariance_bound
 
 @dataclass(frozen=True)
 class AnalysisOptions:
-    """Options of one analysis (stored, not acted on, by the constructor)."""
+    """Options of one analysis (stored, not acted on, by the constructor).
+
+    ``details`` False computes only what the verdict and the review need (the sweep's mode):
+    no phase-transition curve, static gains or invariant support, covariance bounds only for an
+    accuracy requirement and the simulation only for a tail requirement.
+    """
 
     tolerance: float = 1e-9
     upper_tol: float = 1e-9
@@ -46,32 +56,21 @@ class AnalysisOptions:
     seed: int = 0
     paths: int | None = None
     steps: int | None = None
+    details: bool = True
 
 
 @dataclass(frozen=True)
-class Analysis:
-    """The analysis record. Build with :func:`analyze`; read with :meth:`to_dict`."""
+class TheorySections:
+    """The sections that depend on (A, C) and the tolerances only (not on the channel).
 
-    sections: dict[str, Any] = field(repr=False)
+    Computed once per system by :func:`theory_sections`; a sweep over channel parameters passes
+    the same object to every :func:`analyze` call instead of recomputing it.
+    """
 
-    def __getitem__(self, key: str) -> Any:
-        return self.sections[key]
-
-    def to_dict(self) -> dict[str, Any]:
-        """The record as plain JSON types, contract keys first.
-
-        Wall-clock timings are left out (see :meth:`timings`), so that the same input and seed
-        give byte-identical JSON.
-        """
-        out = {k: self.sections.get(k) for k in CONTRACT_KEYS}
-        out.update({k: self.sections.get(k) for k in DETAIL_KEYS})
-        return _split_timings(jsonable(out), "", {})
-
-    def timings(self) -> dict[str, float]:
-        """Wall-clock seconds reported by the sections, keyed by their dotted path."""
-        found: dict[str, float] = {}
-        _split_timings(jsonable(dict(self.sections)), "", found)
-        return found
+    sections: dict[str, Any]
+    warnings: tuple[str, ...]
+    critical_exact: Any = None
+    p_low_exact: Any = None
 
 
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
@@ -103,106 +102,123 @@ def system_section(spec: SystemSpec) -> dict[str, Any]:
             "channel": spec.channel.to_dict() if spec.channel is not None else None}
 
 
-def operating_point(spec: SystemSpec, sections: dict[str, Any]) -> dict[str, Any] | None:
-    """Arrival probability of the configured channel against p_c, the robust value and bracket.
+def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
+    """What the verdict needs of the theory sections (exact values where known)."""
+    sec = theory.sections
+    cv = sec.get("critical_value") or {}
+    low = (sec.get("block_lower_bound") or {}).get("value")
+    p_low = (sec.get("lower_bound") or {}).get("value")
+    if low is None:
+        low = p_low
+    return vd.CriticalInputs(
+        classification=sec.get("classification"), critical=cv.get("value"),
+        critical_exact=theory.critical_exact if cv.get("exact") else None,
+        robust=(sec.get("robust_critical_value") or {}).get("value"), lower=low,
+        upper=(sec.get("upper_bound") or {}).get("value"), p_low=p_low,
+        p_low_exact=theory.p_low_exact)
 
-    Verdict: ``mean-stable`` when p exceeds every value that could be the critical value
-    (p_c, or the upper end of the bracket when p_c is unknown, and the robust value),
-    ``mean-unstable`` when p is at or below the critical value (or the lower end of the
-    bracket), ``undetermined`` inside the bracket.
-    """
+
+def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
+    """The Gilbert–Elliott channel for the verdict, with the sufficient condition the link
+    section proved (the exact scalar condition of MATH §7 or a coupled certificate, §10)."""
+    ch = spec.channel
+    if ch is None or getattr(ch, "model", None) != "gilbert-elliott":
+        return None
+    cond = (link or {}).get("condition") if isinstance((link or {}).get("condition"), dict) \
+        else {}
+    sufficient, basis = None, None
+    if cond.get("decides") is True and cond.get("holds") is True:
+        sufficient = True
+        basis = (f"Gilbert–Elliott condition {cond.get('expression')} = {cond.get('value'):.6g} "
+                 f"< 1 ({cond.get('status')})")
+    cert = (link or {}).get("certificate")
+    if sufficient is None and isinstance(cert, dict) and cert.get("certified") is True:
+        sufficient, basis = True, cert.get("statement") or "coupled fixed-gain certificate"
+    elif sufficient is None and cond.get("status"):
+        basis = f"the condition {cond.get('expression')} is labelled: {cond.get('status')}"
+    return vd.BurstInputs(recovery=ch.recovery_rate, failure=ch.failure_rate,
+                          sufficient=sufficient, basis=basis)
+
+
+def operating_point(spec: SystemSpec, theory: TheorySections,
+                    link: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    """Arrival probability of the configured channel against p_c, the robust value and bracket,
+    with the verdict of :func:`kfcrit.analysis.verdict.operating_verdict`."""
     if spec.channel is None:
         return None
-    p = float(spec.channel.arrival_probability)
-    cv = sections.get("critical_value") or {}
-    robust = sections.get("robust_critical_value") or {}
-    low = (sections.get("block_lower_bound") or {}).get("value")
-    if low is None:
-        low = (sections.get("lower_bound") or {}).get("value")
-    up = (sections.get("upper_bound") or {}).get("value")
-    pc = cv.get("value")
-    out: dict[str, Any] = {"arrival_probability": p, "channel": spec.channel.to_dict(),
-                           "iid": spec.channel.iid}
-    if sections.get("classification") == "stable":
-        worst = max(pc or 0.0, robust.get("value") if robust.get("value") is not None else 0.0)
-        out.update(margin=p - (pc or 0.0), margin_robust=p - worst, bracket=None,
-                   verdict="mean-stable",
-                   reason="ρ(A) < 1: E[P_t] is bounded for every arrival probability")
-        if robust.get("value") is not None and p <= worst:
-            # a system within the tolerance is unstable (or undetectable) at this p
-            out.update(verdict="undetermined",
-                       reason="ρ(A) < 1 as entered, but a system within the tolerance has "
-                              f"critical value {worst:.6g} ≥ p (see the robust critical value)")
-        return out
-    if sections.get("classification") == "not-detectable":
-        out.update(margin=None, margin_robust=None, bracket=None, verdict="mean-unstable",
-                   diverges_for_all_p=True,
-                   reason="(C, A) is not detectable: a mode with |λ| ≥ 1 is unobservable, so "
-                          "the expected error covariance diverges for every arrival probability, "
-                          "even p = 1 (no losses); there is no critical value, and p_up and the "
-                          "covariance bounds do not apply",
-                   basis="PBH detectability test (MATH §3: the theorems assume (A, C) "
-                         "detectable)")
-        return out
-    if pc is not None:
-        out["margin"] = p - pc
-        worst = max(pc, robust.get("value") if robust.get("value") is not None else pc)
-        out["margin_robust"] = p - worst
-        if p > worst:
-            verdict = "mean-stable"
-        elif p <= pc:
-            verdict = "mean-unstable"
-        else:
-            verdict = "undetermined"
-        out["bracket"] = None
+    sec = theory.sections
+    ch = spec.channel
+    p_exact = ch.arrival_probability
+    p = float(p_exact)
+    crit = critical_inputs(theory)
+    burst = burst_inputs(spec, link)
+    verdict, basis = vd.operating_verdict(p_exact, crit, iid=bool(ch.iid), burst=burst,
+                                          measured_trace=ch.model == "trace")
+    out: dict[str, Any] = {"arrival_probability": p, "channel": ch.to_dict(), "iid": ch.iid}
+    cls = sec.get("classification")
+    pc = crit.critical
+    worst = max(pc if pc is not None else 0.0, crit.robust if crit.robust is not None else 0.0)
+    if cls == "not-detectable":
+        out.update(margin=None, margin_robust=None, bracket=None, diverges_for_all_p=True)
+    elif cls == "stable" or pc is not None:
+        out.update(margin=p - (pc or 0.0), margin_robust=p - worst, bracket=None)
     else:
-        out["margin"] = None
-        out["margin_robust"] = None
-        lo = low if low is not None else 0.0
-        out["bracket"] = [lo, up]
-        out["margin_to_bracket"] = [p - lo, (p - up) if up is not None else None]
-        if up is not None and p > up:
-            verdict = "mean-stable"
-        elif p <= lo:
-            verdict = "mean-unstable"
-        else:
-            verdict = "undetermined"
-    if not spec.channel.iid:
+        lo = crit.lower if crit.lower is not None else 0.0
+        out.update(margin=None, margin_robust=None, bracket=[lo, crit.upper],
+                   margin_to_bracket=[p - lo, (p - crit.upper) if crit.upper is not None
+                                      else None])
+    if not ch.iid or ch.model == "trace":
+        out["iid_comparison_verdict"] = vd.operating_verdict(p_exact, crit)[0].value
         out["note"] = ("p_c, p_up and the covariance bounds S̄, V̄ assume i.i.d. losses; for this "
-                       "bursty channel the margin compares only the stationary arrival "
-                       "probability, and the verdict follows the basis stated")
-    out["verdict"] = verdict
-    if spec.channel.model == "trace":
-        trace_verdict(spec, out)
+                       "channel the margin compares only the stationary arrival probability, "
+                       "and the verdict follows the basis stated")
+    if ch.model == "trace":
+        out["trace"] = trace_summary(spec, p)
+    out["verdict"] = verdict.value
+    out["basis"] = basis
     return out
 
 
-def trace_verdict(spec: SystemSpec, op: dict[str, Any]) -> None:
-    """A measured 0/1 trace decides nothing about mean stability: the theorems (Sinopoli,
-    Mo–Sinopoli, MATH §3–4; Gilbert–Elliott, MATH §7) are about i.i.d. or Markov arrival
-    *models*, and a finite recording is neither. The verdict is ``undetermined``; the empirical
-    arrival rate, what the i.i.d. comparison would say, and a Gilbert–Elliott fit of the trace
-    are kept for information."""
+def trace_summary(spec: SystemSpec, p: float) -> dict[str, Any]:
+    """Length, empirical arrival rate and a Gilbert–Elliott fit of a measured trace (for
+    information: a finite recording decides nothing about mean stability)."""
     from kfcrit.link.linkbudget import gilbert_elliott_fit
 
-    fit = gilbert_elliott_fit(spec.channel.arrivals, spec.system)
-    op["iid_comparison_verdict"] = op.get("verdict")
-    op["verdict"] = "undetermined"
-    op["note"] = ("p_c, p_up and the covariance bounds S̄, V̄ assume i.i.d. losses; the margin "
-                  "compares only the empirical arrival rate of the trace with p_c")
-    op["basis"] = ("measured trace: the mean-stability theorems assume i.i.d. (Sinopoli, "
-                   "Mo–Sinopoli) or Gilbert–Elliott (MATH §7) arrivals, which a recorded "
-                   "sequence is not; the empirical arrival rate"
-                   + (" and a Gilbert–Elliott fit are" if fit.get("available") else " is")
-                   + " given for information only")
-    op["trace"] = {"length": int(spec.channel.arrivals.size),
-                   "empirical_arrival_probability": op["arrival_probability"],
-                   "gilbert_elliott_fit": fit}
+    return {"length": int(spec.channel.arrivals.size), "empirical_arrival_probability": p,
+            "gilbert_elliott_fit": gilbert_elliott_fit(spec.channel.arrivals, spec.system)}
 
 
-def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
-            **kwargs: Any) -> Analysis:
-    """Analyse a system (or a loaded system file) and return the :class:`Analysis` record.
+def theory_sections(system: System, options: AnalysisOptions | None = None,
+                    channel: Any = None) -> TheorySections:
+    """Critical value, its bounds and robust value, the structure, and p_up of one system.
+
+    These depend on (A, C) and the tolerances only; compute them once per system and pass them
+    to :func:`analyze` (``theory=``) when only the channel changes.
+    """
+    from kfcrit.theory import critical, upper
+
+    opts = options or AnalysisOptions()
+    crit = critical.critical_value(system, opts.tolerance, channel=channel)
+    d = crit.to_dict()
+    sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
+    warnings = list(d.get("warnings") or [])
+    if sec.get("classification") == "not-detectable":
+        sec["upper_bound"] = not_detectable_upper()
+    else:
+        ub = upper.upper_section(system, tol=opts.upper_tol)
+        sec["upper_bound"] = ub
+        warnings.extend(ub.get("warnings") or [])
+    close_bracket(sec)
+    value = getattr(crit, "value", None)
+    lower = getattr(crit, "lower", None)
+    return TheorySections(sections=sec, warnings=tuple(warnings),
+                          critical_exact=getattr(value, "expr", None),
+                          p_low_exact=getattr(lower, "expr", None))
+
+
+def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
+            theory: TheorySections | None = None, **kwargs: Any) -> Analysis:
+    """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
 
     Parameters
     ----------
@@ -210,61 +226,68 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         The system, or a loaded system file (which adds channel and requirements).
     options : AnalysisOptions, optional
         Tolerances, simulation size and seed; keyword arguments override its fields.
+    theory : TheorySections, optional
+        The channel-independent sections of this system, when already computed (sweeps).
 
     Notes
     -----
     The order is that of the theory: exact structure and p_c (Mo–Sinopoli), the numerical upper
-    bound p_up (Sinopoli Thm 5), the covariance bounds S̄ ⪯ lim E[P_t] ⪯ V̄ at the operating point
-    (Thm 4, 6), then the simulation that cross-checks them, and finally the verdict.
+    bound p_up (Sinopoli Thm 5), the link, the verdict at the operating point, the covariance
+    bounds S̄ ⪯ lim E[P_t] ⪯ V̄ (Thm 4, 6), the simulation that cross-checks them, the
+    requirements, and finally the review decision.
     """
     opts = options or AnalysisOptions()
     if kwargs:
-        opts = AnalysisOptions(**{**opts.__dict__, **kwargs})
+        opts = replace(opts, **kwargs)
     spec = _as_spec(system)
     s = spec.system
-    sec: dict[str, Any] = {k: None for k in CONTRACT_KEYS + DETAIL_KEYS}
+    if theory is None:
+        theory = theory_sections(s, opts, channel=spec.channel)
+    sec: dict[str, Any] = {k: None for k in ("name", "operating_point", "warnings")
+                           + DETAIL_KEYS}
+    sec.update(theory.sections)
     sec["name"] = s.name
     sec["description"] = spec.description
     sec["system"] = system_section(spec)
-    sec["requirements"] = spec.requirements.to_dict()
-    warnings: list[str] = conditioning_warnings(s)
+    warnings: list[str] = conditioning_warnings(s) + list(theory.warnings)
 
-    _critical_sections(spec, opts, sec, warnings)
-    _upper_sections(spec, opts, sec, warnings)
-    close_bracket(sec)
-    sec["operating_point"] = operating_point(spec, sec)
-    _bounds_sections(spec, sec, warnings)
-    _simulation_sections(spec, opts, sec, warnings)
-    _link_sections(spec, sec, warnings)
-    sec["requirements"] = requirement_assessment(sec["requirements"], sec.get("simulation"))
-    bursty_verdict(sec)
+    _link_sections(spec, opts, sec, warnings)
+    sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
+    reqs = spec.requirements
+    if opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
+        _bounds_sections(spec, sec, warnings, curves=opts.details)
+    tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
+    if opts.details or tail:
+        _simulation_sections(spec, opts, sec, warnings)
+    sec["requirements"] = requirement_assessment(reqs.to_dict() if reqs else None,
+                                                 sec.get("simulation"),
+                                                 sec.get("covariance_bounds"),
+                                                 sec.get("operating_point"))
     sec["verification"] = verification(sec, warnings)
+    op = sec.get("operating_point") or {}
+    lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
+    review = vd.review(op.get("verdict"), op.get("basis"), sec["requirements"],
+                       lb.get("design_check"))
+    if not op and (sec.get("upper_bound") or {}).get("status") == "undetermined":
+        review = vd.review(None, None, None, None, extra=[vd.Reason(
+            "upper bound p_up", vd.CheckStatus.UNDETERMINED,
+            "the p_up bracket could not be narrowed to the tolerance")])
+    sec["review"] = review
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
     sec["provenance"] = provenance(spec, opts)
-    return Analysis(sections=sec)
+    sec["schema_version"] = SCHEMA_VERSION
+    timings: dict[str, float] = {}
+    data = _split_timings(jsonable({k: v for k, v in sec.items() if k != "review"}), "",
+                          timings)
+    data["review"] = review_json(review)
+    return replace(record_from_json(data), timings=timings)
 
 
-def _critical_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                       warnings: list[str]) -> None:
-    from kfcrit.theory import critical
-
-    crit = critical.critical_section(spec.system, opts.tolerance, channel=spec.channel)
-    for key in ("classification", "critical_value", "robust_critical_value", "lower_bound",
-                "block_lower_bound", "structure", "theory"):
-        sec[key] = crit.get(key)
-    warnings.extend(crit.get("warnings") or [])
-
-
-def _upper_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                    warnings: list[str]) -> None:
-    from kfcrit.theory import upper
-
-    if sec.get("classification") == "not-detectable":
-        sec["upper_bound"] = not_detectable_upper()
-        return
-    ub = upper.upper_section(spec.system, tol=opts.upper_tol)
-    sec["upper_bound"] = ub
-    warnings.extend(ub.get("warnings") or [])
+def review_json(review: vd.Review) -> dict[str, Any]:
+    """The plain JSON form of a :class:`~kfcrit.analysis.verdict.Review`."""
+    return {"decision": review.decision.value,
+            "reasons": [{"check": r.check, "status": r.status.value, "detail": r.detail}
+                        for r in review.reasons]}
 
 
 NOT_DETECTABLE = ("not applicable: (C, A) is not detectable, so E[P_t] diverges for every "
@@ -298,7 +321,10 @@ def close_bracket(sec: dict[str, Any]) -> None:
                        f"{hi:.12g} of p_up (Sinopoli Thm 3) differ by at most {tol:g}.").strip()}
 
 
-def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -> None:
+def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str], *,
+                     curves: bool = True) -> None:
+    """Covariance bounds at the operating point; with ``curves`` also the static gains and the
+    phase-transition curves tr S̄(p), tr V̄(p)."""
     import numpy as np
 
     from kfcrit.theory import bounds
@@ -321,6 +347,8 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str])
             na = {"available": False, "reason": NOT_DETECTABLE}
             sec["static_gain"] = {"p": p, "kalman": na, "best": dict(na), "p_up": None,
                                   "p_up_interval": None}
+        if not curves:
+            return
         grid = bounds.phase_grid(markers["p_low"] or 0.0, None, bounds.phase_points(s.n))
         lower = [bounds.lower_covariance(s.a, s.q, float(p)) for p in grid]
         sec["phase_transition"] = {
@@ -334,7 +362,10 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str])
             cb = bounds.covariance_bounds(s, markers["operating"])
             sec["covariance_bounds"] = cb
             warnings.extend(cb.get("warnings") or [])
-            sec["static_gain"] = bounds.static_gain(s, markers["operating"])
+            if curves:
+                sec["static_gain"] = bounds.static_gain(s, markers["operating"])
+        if not curves:
+            return
         pt = bounds.phase_transition(s, markers)
     except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
         warnings.append("covariance bounds and phase transition not computed: numerical "
@@ -364,7 +395,8 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     warnings.extend((sim or {}).get("warnings") or [])
 
 
-def _link_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -> None:
+def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
+                   warnings: list[str]) -> None:
     ch = spec.channel
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
@@ -373,12 +405,16 @@ def _link_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str]) -
     if ch.model == "gilbert-elliott":
         sec["link_budget"] = linkbudget.gilbert_elliott_section(spec.system, ch)
         return
-    op = sec.get("operating_point") or {}
+    crit = sec.get("critical_value") or {}
+    blb = (sec.get("block_lower_bound") or {}).get("value")
+    low = blb if blb is not None else (sec.get("lower_bound") or {}).get("value")
+    bracket = (None, None) if crit.get("value") is not None or \
+        sec.get("classification") in ("stable", "not-detectable") else \
+        (low if low is not None else 0.0, (sec.get("upper_bound") or {}).get("value"))
     sec["link_budget"] = linkbudget.design_section(
-        ch, critical_value=(sec.get("critical_value") or {}).get("value"),
+        ch, critical_value=crit.get("value"),
         robust_value=(sec.get("robust_critical_value") or {}).get("value"),
-        bracket=tuple(op.get("bracket") or (None, None)),
-        upper_bound=(sec.get("upper_bound") or {}).get("value"))
+        bracket=bracket, upper_bound=(sec.get("upper_bound") or {}).get("value"))
     if isinstance(sec["link_budget"], dict):
         sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
     warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
@@ -409,39 +445,6 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
             "outage_probability": outage, "max_outage": max_outage,
             "outage_within_policy": (outage <= max_outage)
             if None not in (outage, max_outage) else None}
-
-
-def bursty_verdict(sec: dict[str, Any]) -> None:
-    """For a non-i.i.d. Gilbert–Elliott channel the i.i.d. comparison p > p_c does not decide
-    mean stability. The Gilbert–Elliott section (:func:`kfcrit.link.linkbudget.
-    gilbert_elliott_section`) states for its condition (1 − r)a² < 1 whether it ``decides``:
-    only the scalar case is a theorem (MATH §7; and ρ(A) < 1 trivially). Where it decides, the
-    verdict follows the condition; where it does not (a claim from the literature, or a
-    necessary condition only), the verdict is ``undetermined`` and the basis says which. An
-    undetectable system stays ``mean-unstable`` whatever the channel."""
-    op = sec.get("operating_point")
-    lb = sec.get("link_budget") or {}
-    if not op or op.get("iid") or op["channel"].get("model") != "gilbert-elliott":
-        return
-    if sec.get("classification") == "not-detectable":
-        return
-    cond = lb.get("condition") if isinstance(lb.get("condition"), dict) else {}
-    iid_verdict = op.get("verdict")
-    if cond.get("decides") is True and cond.get("holds") is not None:
-        op["verdict"] = "mean-stable" if cond["holds"] else "mean-unstable"
-        op["basis"] = (f"Gilbert–Elliott condition {cond.get('expression')}: value "
-                       f"{cond.get('value'):.6g} "
-                       f"{'< 1 holds' if cond['holds'] else '>= 1 fails'} "
-                       f"({cond.get('status')})")
-    else:
-        op["verdict"] = "undetermined"
-        what = cond.get("status") or "no Gilbert–Elliott condition was evaluated"
-        value = cond.get("value")
-        op["basis"] = ("bursty losses: no theorem in the papers decides mean stability for this "
-                       f"system; the condition {cond.get('expression') or '(1 - r) a^2 < 1'}"
-                       + (f" (value {value:.6g})" if isinstance(value, (int, float)) else "")
-                       + f" is labelled: {what}")
-    op["iid_comparison_verdict"] = iid_verdict
 
 
 def _simulated_mean_between_bounds(cb: dict[str, Any],
@@ -531,19 +534,14 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
     return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
 
 
-def requirement_assessment(requirements: dict[str, Any] | None,
-                           simulation: dict[str, Any] | None) -> dict[str, Any] | None:
-    """The system file's tail requirement against the simulated exceedance at the horizon.
+def tail_assessment(limit: float | None, allowed: float | None,
+                    simulation: dict[str, Any] | None) -> dict[str, Any]:
+    """The tail requirement P(tr P > limit) ≤ allowed against the simulated exceedance.
 
-    With k of N paths above ``max_error_trace`` and the 95 % Wilson interval [lo, hi] of
-    P(tr P > max_error_trace): ``met`` if hi ≤ max_tail_probability, ``not met`` if
-    lo > max_tail_probability, else ``not demonstrated`` (the interval contains the allowed
-    probability: more paths are needed). ``status`` is None when an input is missing.
+    With k of N paths above ``limit`` and the 95 % Wilson interval [lo, hi] of the exceedance:
+    ``met`` if hi ≤ allowed, ``not met`` if lo > allowed, else ``not demonstrated`` (more paths
+    are needed); ``status`` None when an input is missing.
     """
-    if not requirements:
-        return requirements
-    out = dict(requirements)
-    limit, allowed = out.get("max_error_trace"), out.get("max_tail_probability")
     op = (simulation or {}).get("operating_point") or {}
     exc = op.get("exceedance") or {}
     status, basis = None, None
@@ -553,42 +551,70 @@ def requirement_assessment(requirements: dict[str, Any] | None,
         basis = "no simulation at the operating point"
     else:
         lo, hi, est = exc["lower"], exc["upper"], exc.get("estimate")
-        if hi <= allowed:
-            status = "met"
-        elif lo > allowed:
-            status = "not met"
-        else:
-            status = "not demonstrated"
+        status = "met" if hi <= allowed else "not met" if lo > allowed else "not demonstrated"
         basis = (f"P(tr P > {limit:g}) ≈ {est:.4g} at t = {op.get('steps')} "
                  f"({exc.get('count')} of {exc.get('total')} paths; 95 % interval "
                  f"[{lo:.3g}, {hi:.3g}]) against the allowed {allowed:g}")
-    out["assessment"] = {"status": status, "basis": basis,
-                         "estimate": exc.get("estimate"), "interval":
-                         [exc.get("lower"), exc.get("upper")] if exc else None}
-    return out
+    return {"status": status, "basis": basis, "estimate": exc.get("estimate"),
+            "interval": [exc.get("lower"), exc.get("upper")] if exc else None}
 
 
-def exit_code(record: dict[str, Any]) -> int:
-    """The documented exit code of an analysis record (README, "Exit codes").
+def mean_assessment(limit: float, bounds: dict[str, Any] | None,
+                    op: dict[str, Any] | None) -> dict[str, Any]:
+    """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (MATH §11).
 
-    1 when a verification check failed (``passed`` False; an *inconclusive* Monte Carlo
-    cross-check is a warning, not a failure); 3 when the result is undetermined — the
-    operating-point verdict is ``undetermined`` (a bracket around the operating point, or no
-    theorem for the channel: a measured trace, a bursty channel outside the scalar
-    Gilbert–Elliott theorem), or, with no operating point, the upper bound could not be decided
-    (an undecided p_up bracket that does not contain the operating point does not change a
-    decided verdict; the record still says ``undetermined`` for p_up); else 0, whatever the verdict
-    (``mean-unstable`` is a result, not an error). ``kfcrit.cli.main.exit_code_of`` should return
-    this.
+    ``not met`` when the filter is mean-unstable (E[tr P_t] diverges) or tr S̄ > L (S̄ is a lower
+    bound for every p); ``met`` when tr V̄ ≤ L (V̄ an upper bound above p_up); otherwise ``not
+    demonstrated`` (L lies between the bounds).
     """
-    if any(c.get("passed") is False for c in record.get("verification") or []):
-        return 1
-    op = record.get("operating_point") or {}
-    if op.get("verdict") == "undetermined":
-        return 3
-    if not op.get("verdict") and (record.get("upper_bound") or {}).get("status") == "undetermined":
-        return 3
-    return 0
+    verdict = (op or {}).get("verdict")
+    if verdict is None:
+        return {"status": None, "basis": "no channel: no operating point to assess"}
+    if verdict == vd.Verdict.MEAN_UNSTABLE.value:
+        return {"status": "not met", "basis": "the filter is mean-unstable at the operating "
+                "point: lim E[tr P_t] is infinite"}
+    lower = (bounds or {}).get("lower") or {}
+    upper = (bounds or {}).get("upper") or {}
+    if bounds and lower.get("exists") is False:
+        return {"status": "not met", "basis": "the Lyapunov lower bound S̄ does not exist "
+                "((1 − p)ρ(A)² ≥ 1): lim E[tr P_t] is infinite"}
+    s_tr, v_tr = lower.get("trace"), upper.get("trace")
+    if s_tr is not None and s_tr > limit:
+        return {"status": "not met", "basis": f"tr S̄ = {s_tr:.6g} > L = {limit:g} (S̄ ⪯ lim "
+                "E[P_t], Sinopoli Thm 4)", "interval": [s_tr, v_tr]}
+    if v_tr is not None and upper.get("exists") and v_tr <= limit \
+            and verdict == vd.Verdict.MEAN_STABLE.value:
+        return {"status": "met", "basis": f"tr V̄ = {v_tr:.6g} ≤ L = {limit:g} (lim E[P_t] ⪯ V̄, "
+                "Sinopoli Thm 6)", "interval": [s_tr, v_tr]}
+    return {"status": "not demonstrated", "basis": f"L = {limit:g} lies between tr S̄ = "
+            f"{s_tr if s_tr is None else f'{s_tr:.6g}'} and tr V̄ = "
+            f"{v_tr if v_tr is None else f'{v_tr:.6g}'} (or V̄ is not available)",
+            "interval": [s_tr, v_tr]}
+
+
+def requirement_assessment(requirements: dict[str, Any] | None,
+                           simulation: dict[str, Any] | None,
+                           bounds: dict[str, Any] | None = None,
+                           op: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    """The system file's requirements, each assessed (``assessments``, in file order; the tail
+    requirement's assessment also as ``assessment`` for scripts written against schema 1)."""
+    if not requirements:
+        return requirements
+    out = dict(requirements)
+    items = []
+    limit, allowed = out.get("max_error_trace"), out.get("max_tail_probability")
+    if limit is not None or allowed is not None:
+        tail = tail_assessment(limit, allowed, simulation)
+        out["assessment"] = tail
+        name = (f"P(tr P > {limit:g}) ≤ {allowed:g}" if None not in (limit, allowed)
+                else "tail requirement (incomplete)")
+        items.append({"requirement": name, **tail})
+    mean_limit = out.get("max_mean_error_trace")
+    if mean_limit is not None:
+        items.append({"requirement": f"lim E[tr P] ≤ {mean_limit:g}",
+                      **mean_assessment(mean_limit, bounds, op)})
+    out["assessments"] = items
+    return out
 
 
 def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
@@ -604,3 +630,7 @@ def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
             versions[pkg] = None
     return {"versions": versions, "seed": opts.seed, "input_path": spec.path,
             "input_sha256": spec.sha256, "options": dict(opts.__dict__)}
+
+
+exit_code = vd.exit_code
+"""The documented exit code of a record's JSON form (:func:`kfcrit.analysis.verdict.exit_code`)."""

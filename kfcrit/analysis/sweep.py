@@ -85,8 +85,9 @@ DASK_CONNECT_TIMEOUT = "15s"
 RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
                   "critical_expression", "robust_critical_value", "upper_bound", "requirement",
                   "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
-                  "sinr_db", "required_sinr_db", "link_margin_db", "max_distance_m",
-                  "outage_probability", "mean_arrival_probability")
+                  "decision",
+                  "sinr_db", "required_sinr_db", "link_margin_db", "required_margin_db",
+                  "max_distance_m", "outage_probability", "mean_arrival_probability")
 """Columns of every row after ``index``, ``key`` and the parameters (fixed: a tidy table)."""
 
 
@@ -429,14 +430,14 @@ def _check_unknown_keys(parameters: list[str], first: tuple[str, ...], where: li
     model then refuses the key itself (``unknown key``), the sweep file names an unknown
     parameter. Other errors (a value out of range) stay errors of the points that have them.
     """
-    from kfcrit.model.channels import channel_from_mapping
+    from kfcrit.analysis.spec import parse_channel
 
     for path, text, where_ in zip(parameters, first, where):
         if _MATRIX_PATH.match(path) or _base_value(base_doc, path) is not None:
             continue
         doc = apply_point(base_doc, [(path, text)])
         try:
-            channel_from_mapping(doc["channel"], "channel", base_dir)
+            parse_channel(doc["channel"], "channel", base_dir)
         except InputError as exc:
             if exc.field == path and "unknown key" in str(exc):
                 raise InputError(f"unknown parameter: {str(exc)[len(path) + 2:]}",
@@ -444,7 +445,7 @@ def _check_unknown_keys(parameters: list[str], first: tuple[str, ...], where: li
 
 
 def _validate_base(base_doc: dict, base_dir: Path, max_states: int) -> None:
-    from kfcrit.io.systemfile import spec_from_mapping
+    from kfcrit.analysis.spec import spec_from_mapping
 
     try:
         spec_from_mapping(base_doc, base_dir=base_dir, max_states=max_states)
@@ -490,22 +491,9 @@ def _points(points: Any, base_doc: dict) -> tuple[list[str], list[tuple[str, ...
 # One point
 # ---------------------------------------------------------------------------------------------
 
-_SYSTEMS: dict[str, Any] = {}
-_CRITICAL: dict[str, dict[str, Any]] = {}
-_CACHE_LIMIT = 512
-
-
-def _cached(cache: dict, key: str, build: Callable[[], Any]) -> Any:
-    """Per-process memo (results are pure functions of the key, so caching never changes them)."""
-    if key not in cache:
-        if len(cache) >= _CACHE_LIMIT:
-            cache.clear()
-        cache[key] = build()
-    return cache[key]
-
 
 def _value(obj: Any) -> float | None:
-    """``x`` or ``x["value"]`` as a float; None when absent."""
+    """``x`` or ``x["value"]`` as a finite float; None when absent."""
     if isinstance(obj, dict):
         obj = obj.get("value")
     if obj is None or isinstance(obj, bool):
@@ -517,140 +505,92 @@ def _value(obj: Any) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def critical_summary(system: Any, tolerance: float) -> dict[str, Any]:
-    """Critical value (``critical.critical_value`` when available) and bounds of one system."""
-    from kfcrit.theory import critical
+def point_options(tolerance: float) -> Any:
+    """The analysis options of a sweep point: those of ``kfcrit analyze`` (same tolerances,
+    seed and simulation size), computing only what the verdict and the review need."""
+    from kfcrit.analysis.record import AnalysisOptions
 
-    out: dict[str, Any] = {"classification": None, "lower_bound": None, "critical_value": None,
-                           "critical_expression": None, "robust_critical_value": None,
-                           "upper_bound": None, "block_lower_bound": None}
-    out["lower_bound"] = _value(critical.lower_bound(system))
-    fn = getattr(critical, "critical_value", None)
-    if fn is None:
-        out["classification"] = "lower-bound-only"
-        return out
-    rec = fn(system, tolerance)
-    d = rec.to_dict() if hasattr(rec, "to_dict") else dict(rec)
-    cv = d.get("critical_value")
-    out.update(classification=d.get("classification"), critical_value=_value(cv),
-               critical_expression=cv.get("expression") if isinstance(cv, dict) else None,
-               robust_critical_value=_value(d.get("robust_critical_value")),
-               block_lower_bound=_value(d.get("block_lower_bound")),
-               upper_bound=_value(d.get("upper_bound")))
-    if out["upper_bound"] is None and out["classification"] != "not-detectable":
-        out["upper_bound"] = upper_bound_value(system)
-    if out["block_lower_bound"] is not None and out["lower_bound"] is not None:
-        out["lower_bound"] = max(out["lower_bound"], out["block_lower_bound"])
-    return out
+    return AnalysisOptions(tolerance=tolerance, details=False)
 
 
-_UPPER: dict[str, float | None] = {}
-SWEEP_UPPER_TOL = 1e-6
-"""Width of the p_up bracket in sweeps (a design table; ``kfcrit analyze`` uses 1e-9): about
-half the cost of 1e-9 per distinct (A, C)."""
-
-
-def upper_bound_value(system: Any) -> float | None:
-    """p_up of the system (Sinopoli Thm 5), None when undetermined.
-
-    p_up depends on (A, C) only (Q and R do not enter Ψ_p, MATH §3), so it is computed once per
-    distinct (A, C) in each process and cached: a sweep over channel or noise parameters pays
-    for it once. Computed to :data:`SWEEP_UPPER_TOL`.
-    """
-    import numpy as np
-
-    key = json.dumps([np.asarray(system.a, dtype=float).tolist(),
-                      np.asarray(system.c, dtype=float).tolist()])
-
-    def build() -> float | None:
-        from kfcrit.theory.upper import upper_bound
-
-        try:
-            ub = upper_bound(system, tol=SWEEP_UPPER_TOL)
-        except (KfcritError, ValueError, ArithmeticError, np.linalg.LinAlgError):
-            return None
-        if getattr(ub, "status", None) == "undetermined":
-            return None
-        return _value(ub.value)
-
-    return _cached(_UPPER, key, build)
-
-
-def _requirement(crit: dict[str, Any]) -> tuple[float | None, str | None]:
-    """The arrival probability a point must exceed, and the basis of that number."""
-    pc, robust = crit["critical_value"], crit["robust_critical_value"]
+def requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:
+    """The arrival probability a point must exceed, and the basis of that number (from the
+    record: p_c, its robust value, else the ends of the bracket)."""
+    pc = _value(record.get("critical_value"))
+    robust = _value(record.get("robust_critical_value"))
     if pc is not None:
         if robust is not None and robust > pc:
             return robust, "robust critical value"
         return pc, "critical value"
-    if crit["upper_bound"] is not None:
-        return crit["upper_bound"], "upper bound (sufficient)"
-    if crit["lower_bound"] is not None:
-        return crit["lower_bound"], "lower bound (necessary only)"
+    up = _value(record.get("upper_bound"))
+    if up is not None:
+        return up, "upper bound (sufficient)"
+    low = _value(record.get("block_lower_bound")) or _value(record.get("lower_bound"))
+    if low is not None:
+        return low, "lower bound (necessary only)"
     return None, None
 
 
-def _verdict(p: float, crit: dict[str, Any], req: float | None, basis: str | None) -> str:
-    pc = crit["critical_value"]
-    low = pc if pc is not None else crit["lower_bound"]
-    if low is not None and p <= low:
-        return "mean-unstable"
-    if req is not None and p > req and basis != "lower bound (necessary only)":
-        return "mean-stable"
-    return "undetermined"
-
-
-def _link_columns(channel: Any, req: float | None) -> dict[str, Any]:
-    from kfcrit.link.linkbudget import LinkBudget
-
-    out: dict[str, Any] = {}
-    if not isinstance(channel, LinkBudget):
-        return out
-    sinr = channel.sinr_db
-    out.update(sinr_db=sinr, mean_arrival_probability=channel.mean_arrival(sinr))
-    if req is None or req >= 1:
-        return out
-    try:
-        s_req = channel.required_sinr_db(req)
-    except ValueError:
-        return out
-    out["outage_probability"] = channel.outage_probability(req)
-    if s_req is not None:
-        out.update(required_sinr_db=s_req, link_margin_db=sinr - s_req,
-                   max_distance_m=channel.max_distance_m(s_req, channel.effective_margin_db))
-    return out
+def row_of(record: dict[str, Any]) -> dict[str, Any]:
+    """The result columns of one point, read from its analysis record (nothing recomputed:
+    the verdict and the decision are the record's)."""
+    op = record.get("operating_point") or {}
+    lb = record.get("link_budget") or {}
+    req, basis = requirement_of(record)
+    low = _value(record.get("block_lower_bound"))
+    p_low = _value(record.get("lower_bound"))
+    row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
+    row.update(status="ok", classification=record.get("classification"),
+               lower_bound=max(v for v in (low, p_low, -1.0) if v is not None)
+               if (low, p_low) != (None, None) else None,
+               critical_value=_value(record.get("critical_value")),
+               critical_expression=(record.get("critical_value") or {}).get("expression")
+               if _value(record.get("critical_value")) is not None else None,
+               robust_critical_value=_value(record.get("robust_critical_value")),
+               upper_bound=_value(record.get("upper_bound")), requirement=req,
+               requirement_basis=basis, decision=(record.get("review") or {}).get("decision"))
+    if op:
+        p = op.get("arrival_probability")
+        row.update(arrival_probability=p, iid=op.get("iid"),
+                   margin=(p - req) if None not in (p, req) else None,
+                   verdict=op.get("verdict"))
+    if lb.get("applicable") and "link" in lb:
+        link = lb.get("link") or {}
+        row.update(sinr_db=link.get("sinr_db"), required_sinr_db=lb.get("required_sinr_db"),
+                   link_margin_db=lb.get("link_margin_db"),
+                   required_margin_db=(lb.get("design_check") or {}).get("required_margin_db"),
+                   max_distance_m=lb.get("max_distance_m"),
+                   outage_probability=(lb.get("design_check") or {}).get("outage_probability"),
+                   mean_arrival_probability=(lb.get("shadowing") or {}).get(
+                       "mean_arrival_probability"))
+    return row
 
 
 def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
-                   assignments: list[tuple[str, str]]) -> dict[str, Any]:
-    """The result columns of one point (``status`` ``error`` with a one-line message on error)."""
-    from kfcrit.model.channels import channel_from_mapping
-    from kfcrit.model.system import System
+                   assignments: list[tuple[str, str]],
+                   theories: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The result columns of one point (``status`` ``error`` with a one-line message on error).
+
+    The point is analysed by :func:`kfcrit.analysis.record.analyze` with
+    :func:`point_options`, so its verdict and review decision are those of ``kfcrit analyze``
+    on the same file. ``theories`` memoises the channel-independent sections per system within
+    one chunk of work (passed in, never module state).
+    """
+    from kfcrit.analysis.record import analyze, theory_sections
+    from kfcrit.analysis.spec import spec_from_mapping
 
     row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
+    theories = {} if theories is None else theories
     try:
         doc = apply_point(base_doc, assignments)
-        mats = {k: doc[k] for k in MATRICES if doc.get(k) is not None}
-        skey = json.dumps([mats, max_states], sort_keys=True)
-        system = _cached(_SYSTEMS, skey, lambda: System(
-            mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
-            name=str(doc.get("name")), max_states=max_states))
-        crit = _cached(_CRITICAL, f"{skey}|{tolerance!r}",
-                       lambda: critical_summary(system, tolerance))
-        channel = (channel_from_mapping(doc["channel"], "channel", Path(base_dir))
-                   if doc.get("channel") is not None else None)
-        req, basis = _requirement(crit)
-        row.update(status="ok", classification=crit["classification"],
-                   lower_bound=crit["lower_bound"], critical_value=crit["critical_value"],
-                   critical_expression=crit["critical_expression"],
-                   robust_critical_value=crit["robust_critical_value"],
-                   upper_bound=crit["upper_bound"], requirement=req, requirement_basis=basis)
-        if channel is not None:
-            p = float(channel.arrival_probability)
-            row.update(arrival_probability=p, iid=bool(channel.iid),
-                       margin=(p - req) if req is not None else None,
-                       verdict=_verdict(p, crit, req, basis))
-            row.update(_link_columns(channel, req))
+        spec = spec_from_mapping(doc, base_dir=Path(base_dir), max_states=max_states)
+        opts = point_options(tolerance)
+        skey = json.dumps([{k: doc.get(k) for k in MATRICES}, max_states, tolerance],
+                          sort_keys=True, default=str)
+        if skey not in theories:
+            theories[skey] = theory_sections(spec.system, opts, channel=spec.channel)
+        record = analyze(spec, opts, theory=theories[skey]).to_dict()
+        row.update(row_of(record))
     except KfcritError as exc:
         row.update(status="error", error=str(exc)[:300],
                    error_code=int(exc.exit_code))
@@ -664,7 +604,9 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
                    items: list[tuple[int, str, list[tuple[str, str]]]]
                    ) -> list[tuple[int, str, dict[str, Any]]]:
     """Evaluate a chunk of points (the unit of work sent to a process or a Dask worker)."""
-    return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments))
+    theories: dict[str, Any] = {}
+    return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments,
+                                        theories))
             for index, key, assignments in items]
 
 
@@ -905,52 +847,6 @@ def table_csv(spec: SweepSpec, rows: list[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
-def plot_margin(spec: SweepSpec, rows: list[dict[str, Any]]) -> dict[str, bytes]:
-    """Margin p − p_req (and the link margin in dB when present) against ``plot_x``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    x_name = spec.plot_x
-    others = [p for p in spec.parameters if p != x_name]
-    series: dict[tuple, list[dict]] = {}
-    for row in rows:
-        series.setdefault(tuple(row[p] for p in others), []).append(row)
-    has_db = any(r.get("link_margin_db") is not None for r in rows)
-    with plt.rc_context({"svg.hashsalt": "kfcrit", "font.size": 9}):
-        fig, axes = plt.subplots(2 if has_db else 1, 1, figsize=(6.4, 6.4 if has_db else 3.8),
-                                 sharex=True, squeeze=False)
-        for label_key, group in list(series.items())[:MAX_SERIES]:
-            group = [r for r in group if isinstance(r[x_name], float)]
-            group.sort(key=lambda r: r[x_name])
-            label = ", ".join(f"{p}={v:g}" if isinstance(v, float) else f"{p}={v}"
-                              for p, v in zip(others, label_key)) or None
-            for ax, col in zip(axes[:, 0], ("margin", "link_margin_db")):
-                pts = [(r[x_name], r[col]) for r in group if r.get(col) is not None]
-                if pts:
-                    ax.plot(*zip(*pts), marker="o", markersize=3, label=label)
-        titles = ("margin p − p_req", "link margin (dB)")
-        for ax, title in zip(axes[:, 0], titles):
-            ax.axhline(0.0, color="0.4", linewidth=0.8)
-            ax.set_ylabel(title)
-            ax.grid(True, linewidth=0.3)
-        axes[-1, 0].set_xlabel(x_name)
-        if len(series) > 1 and axes[0, 0].get_legend_handles_labels()[0]:
-            axes[0, 0].legend(fontsize=7)
-        if len(series) > MAX_SERIES:
-            axes[0, 0].set_title(f"first {MAX_SERIES} of {len(series)} series", fontsize=8)
-        fig.tight_layout()
-        out = {}
-        for fmt in ("svg", "png"):
-            buf = io.BytesIO()
-            fig.savefig(buf, format=fmt, metadata={"Date": None} if fmt == "svg" else None,
-                        dpi=120)
-            out[fmt] = buf.getvalue()
-        plt.close(fig)
-    return out
-
-
 # ---------------------------------------------------------------------------------------------
 # Driver
 # ---------------------------------------------------------------------------------------------
@@ -966,6 +862,8 @@ class SweepResult:
     exit_code: int
     output: str
     files: dict[str, str]
+    runner: str = "local"
+    workers: int = 1
 
     def to_dict(self) -> dict[str, Any]:
         return {"computed": self.computed, "reused": self.reused, "errors": self.errors,
@@ -973,29 +871,16 @@ class SweepResult:
                 "points": len(self.rows)}
 
 
-def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[], None]]:
-    """A rich progress bar on stderr when stderr is a terminal; otherwise no-ops."""
-    if not sys.stderr.isatty() or total == 0:
-        return (lambda n: None), (lambda: None)
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-
-    prog = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("points"),
-                    TimeRemainingColumn(), console=Console(stderr=True), transient=True)
-    task = prog.add_task("sweep", total=total, completed=done)
-    prog.start()
-    return (lambda n: prog.advance(task, n)), prog.stop
-
-
 def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = None,
-              workers: int | None = None, max_states: int = 400) -> SweepResult:
-    """Run (or resume) a sweep and write its outputs to the folder ``output``."""
+              workers: int | None = None, max_states: int = 400,
+              progress: Callable[[int, int], tuple[Callable[[int], None], Callable[[], None]]]
+              | None = None) -> SweepResult:
+    """Run (or resume) a sweep, journalling each finished point in the folder ``output``.
+
+    Returns the table (rows sorted by point index); the files are written by
+    :func:`kfcrit.cli.sweep.write_outputs` (or by the caller). ``progress(total, done)`` may
+    return an ``(advance, stop)`` pair of callbacks.
+    """
     out = Path(output)
     if out.exists() and not out.is_dir():
         raise InputError(f"{str(out)[:80]!r} exists and is not a folder", field="--output")
@@ -1033,7 +918,8 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
         batches = run_serial(spec, pending, max_states)
     else:
         batches = run_processes(spec, pending, max_states, workers)
-    advance, stop = _progress(len(spec.keys), reused)
+    advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
+                                                                       lambda: None)
     try:
         for batch in batches:
             journal.append([(key, res) for _, key, res in batch])
@@ -1048,80 +934,6 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
     codes = [known[k].get("error_code") or int(ExitCode.BAD_INPUT)
              for k in spec.keys if known[k].get("status") != "ok"]
     exit_code = max(codes) if codes else int(ExitCode.OK)
-    files = write_outputs(spec, rows, out, scheduler=scheduler, workers=workers,
-                          computed=len(pending), reused=reused)
     return SweepResult(rows=rows, computed=len(pending), reused=reused, errors=len(errors),
-                       exit_code=exit_code, output=str(out), files=files)
-
-
-def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
-                  scheduler: str | None, workers: int, computed: int,
-                  reused: int) -> dict[str, str]:
-    """Write sweep.csv, sweep.json and the margin plots atomically; return their paths."""
-    meta = {"name": spec.name, "description": spec.description, "sweep_file": spec.path,
-            "sweep_sha256": spec.sha256, "base_system": spec.base_path,
-            "parameters": list(spec.parameters), "tolerance": spec.tolerance,
-            "points": len(rows), "plot_x": spec.plot_x, "kfcrit": __version__,
-            "format": FORMAT_VERSION, "columns": ["index", "key", *spec.parameters,
-                                                 *RESULT_COLUMNS]}
-    record = {"sweep": meta, "rows": rows}
-    run = {"runner": "dask" if scheduler else "local", "workers": workers,
-           "computed": computed, "reused": reused}
-    files = {"csv": out / "sweep.csv", "json": out / "sweep.json",
-             "svg": out / "margin.svg", "png": out / "margin.png",
-             "run": out / "run.json"}
-    write_atomic(files["csv"], table_csv(spec, rows).encode())
-    write_atomic(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
-                                           ensure_ascii=False).encode())
-    write_atomic(files["run"], json.dumps(run, indent=1).encode())
-    for fmt, data in plot_margin(spec, rows).items():
-        write_atomic(files[fmt], data)
-    return {k: str(v) for k, v in files.items()}
-
-
-def _interrupted(journal: Path) -> None:
-    """One line on stderr, then leave with exit code 130 (as ``cli.interrupted_exit`` does).
-
-    Unlike the other commands, an interrupted sweep keeps what it finished: the journal.
-    """
-    done = 0
-    try:
-        with open(journal, "rb") as fh:
-            done = sum(1 for line in fh if line.endswith(b"\n"))
-    except OSError:
-        pass
-    print(f"kfcrit: error: interrupted; {done} finished points are kept in {journal} (run the "
-          "same command again to resume); the table and plots were not updated",
-          file=sys.stderr)
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(ExitCode.INTERRUPTED)
-
-
-def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
-                  workers: int | None, max_states: int) -> int:
-    """Run the ``kfcrit sweep`` subcommand; return the exit code.
-
-    Errors in the sweep file are :class:`InputError` (exit 2). Points that fail (for example a
-    swept value outside its allowed range) are rows with ``status = error`` and their message;
-    the outputs are still written and the exit code is the worst point's (2 input, 3 numerical).
-    """
-    spec = load_sweep(sweep_file, max_states=max_states)
-    if output is None:
-        output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
-    try:
-        result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
-                           max_states=max_states)
-    except KeyboardInterrupt:
-        _interrupted(Path(output) / "sweep.journal.jsonl")
-    print(f"kfcrit: sweep {spec.name!r}: {len(result.rows)} points ({result.computed} computed, "
-          f"{result.reused} from the journal), {result.errors} errors; outputs in "
-          f"{result.output}", file=sys.stderr)
-    if result.errors:
-        first = next(r for r in result.rows if r["status"] != "ok")
-        print(f"kfcrit: first failing point {first['index']}: {first['error']}",
-              file=sys.stderr)
-    return result.exit_code
+                       exit_code=exit_code, output=str(out), files={},
+                       runner="dask" if scheduler else "local", workers=workers)

@@ -1,6 +1,7 @@
 """JSON-safe conversion of analysis records (no NaN or inf ever reaches JSON, HTML or PDF)."""
 from __future__ import annotations
 
+import enum
 import json
 import math
 from dataclasses import fields, is_dataclass
@@ -17,6 +18,8 @@ def jsonable(obj: Any) -> Any:
     tuples become lists, and any non-finite float becomes ``None`` (the record carries a warning
     or a flag saying why; JSON never holds NaN or Infinity).
     """
+    if isinstance(obj, enum.Enum):
+        return jsonable(obj.value)
     if obj is None or isinstance(obj, (bool, str)):
         return obj
     if isinstance(obj, (int, np.integer)) and not isinstance(obj, bool):

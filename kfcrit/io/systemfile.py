@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from kfcrit.model.channels import Channel, channel_from_mapping, check_keys, exact_probability, key_name
+from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
+from kfcrit.model.channels import Channel, check_keys, exact_probability, key_name
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import number_from_text
 from kfcrit.io.safeio import read_text
@@ -28,7 +30,7 @@ MAX_NODES = 1_000_000
 MATRIX_KEYS = frozenset({"A", "C", "Q", "R", "Sigma0"})
 TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements"}
 REQUIRED_KEYS = {"name", "A", "C", "Q", "R"}
-REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability"}
+REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability", "max_mean_error_trace"}
 
 
 class YamlNumber(str):
@@ -204,11 +206,21 @@ class Requirements:
     """Optional design requirements from the system file."""
 
     max_error_trace: float | None = None
+    """Limit M of the tail requirement P(tr P > M) ≤ max_tail_probability."""
     max_tail_probability: float | None = None
+    max_mean_error_trace: float | None = None
+    """Limit L of the accuracy requirement lim E[tr P_t] ≤ L (MATH §11)."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"max_error_trace": self.max_error_trace,
-                "max_tail_probability": self.max_tail_probability}
+        out: dict[str, Any] = {"max_error_trace": self.max_error_trace,
+                               "max_tail_probability": self.max_tail_probability}
+        if self.max_mean_error_trace is not None:
+            out["max_mean_error_trace"] = self.max_mean_error_trace
+        return out
+
+    def __bool__(self) -> bool:
+        return any(v is not None for v in (self.max_error_trace, self.max_tail_probability,
+                                           self.max_mean_error_trace))
 
 
 @dataclass(frozen=True, eq=False)
@@ -267,19 +279,34 @@ def parse_yaml_text(text: str, *, name: str = "file", max_nodes: int = MAX_NODES
     return doc
 
 
+def _positive_number(v: Any, field: str) -> float:
+    """A positive finite number from a YAML number, a Python number or an exact expression."""
+    from kfcrit.model.exprparse import parse_expression
+
+    if isinstance(v, bool) or v is None:
+        raise InputError("must be a number", field=field)
+    if isinstance(v, YamlNumber):
+        val = number_from_text(str(v), field)
+    elif isinstance(v, (int, float)):
+        val = number_from_text(repr(v), field)
+    elif isinstance(v, str):
+        val = parse_expression(v, field)
+    else:
+        raise InputError("must be a number", field=field)
+    out = float(val)
+    if not out > 0 or out == float("inf"):
+        raise InputError("must be a positive finite number", field=field)
+    return out
+
+
 def _requirements(data: Any) -> Requirements:
     if not isinstance(data, dict):
         raise InputError("must be a mapping", field="requirements")
     check_keys(data, REQUIREMENT_KEYS, set(), "requirements")
     out: dict[str, float] = {}
-    if "max_error_trace" in data:
-        v = data["max_error_trace"]
-        if not isinstance(v, YamlNumber):
-            raise InputError("must be a number", field="requirements.max_error_trace")
-        val = number_from_text(str(v), "requirements.max_error_trace")
-        if val <= 0:
-            raise InputError("must be positive", field="requirements.max_error_trace")
-        out["max_error_trace"] = float(val)
+    for key in ("max_error_trace", "max_mean_error_trace"):
+        if key in data:
+            out[key] = _positive_number(data[key], f"requirements.{key}")
     if "max_tail_probability" in data:
         v = data["max_tail_probability"]
         v = str(v) if isinstance(v, YamlNumber) else v
@@ -336,8 +363,13 @@ def _check_shapes(doc: dict, max_states: int) -> None:
 
 
 def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
-                      max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
-    """Validate a parsed system document and build the :class:`SystemSpec`."""
+                      max_states: int = MAX_STATES_DEFAULT,
+                      channels: Mapping[str, ChannelParser] = BASIC_CHANNELS) -> SystemSpec:
+    """Validate a parsed system document and build the :class:`SystemSpec`.
+
+    ``channels`` maps each channel ``model`` to its parser (the analysis layer adds the models
+    of higher layers, e.g. link budgets).
+    """
     if not isinstance(doc, dict):
         raise InputError("the file must be a YAML mapping (name:, A:, C:, Q:, R:, ...)",
                          field="file")
@@ -358,7 +390,8 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     mats = {k: _exact_numbers(doc[k], k) for k in ("A", "C", "Q", "R", "Sigma0") if k in doc}
     system = System(mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
                     name=str(name)[:200], max_states=max_states)
-    channel = (channel_from_mapping(_plain(doc["channel"]), "channel", base_dir)
+    channel = (channel_from_mapping(_plain(doc["channel"]), "channel", base_dir,
+                                    parsers=channels)
                if doc.get("channel") is not None else None)
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()
@@ -372,30 +405,22 @@ def max_nodes_for(max_states: int) -> int:
     return 5 * max_states * max_states + 10_000
 
 
-_LAST: dict[tuple[str, str, str, int], SystemSpec] = {}
 
 
-def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
+def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
+              channels: Mapping[str, ChannelParser] = BASIC_CHANNELS) -> SystemSpec:
     """Load a system file: the system, its channel, requirements and provenance (SHA-256).
 
     The structure is checked before the document is built (:func:`scan_yaml` with the
-    state-size guard ``max_states``); then the shapes, then the exact entries. The last spec
-    loaded is remembered by path, content hash and ``max_states`` (unless its channel reads a
-    trace file), so validating a file and then loading it again (``kfcrit report``) parses and
-    checks it once.
+    state-size guard ``max_states``); then the shapes, then the exact entries.
     """
     text, digest = _read_text(path)
-    key = (str(path), str(Path(path).resolve()), digest, max_states)
-    if key in _LAST:
-        return _LAST[key]
     doc = parse_yaml_text(text, name=Path(path).name, max_nodes=max_nodes_for(max_states),
                           matrix_keys=MATRIX_KEYS, max_items=max_states)
-    spec = spec_from_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states)
+    spec = spec_from_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states,
+                             channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
                      description=spec.description, path=str(path), sha256=digest)
-    _LAST.clear()
-    if getattr(spec.channel, "model", None) != "trace":  # a trace file could change meanwhile
-        _LAST[key] = out
     return out
 
 

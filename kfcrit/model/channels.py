@@ -1,9 +1,9 @@
 """Packet channels: the arrival process γ_t of the measurements.
 
-A channel model is a frozen dataclass registered under the name used in system files
-(``channel: {model: NAME, ...}``). Adding a model never touches the others: write a class with
-``from_mapping`` and ``to_dict`` and add one line to ``_REGISTRY`` (import path, so that heavy
-models load lazily).
+A channel model is a frozen dataclass named in system files by ``channel: {model: NAME, ...}``.
+Adding a model never touches the others: write a class with ``from_mapping`` and ``to_dict`` and
+register its parser where system files are read (:mod:`kfcrit.io.channelfile` for the models of
+this module, :mod:`kfcrit.analysis.spec` for those of higher layers such as link budgets).
 
 Every channel exposes ``arrival_probability``: the stationary probability that a packet arrives
 (exact sympy number where the input is exact), which is what the mean-stability theory compares
@@ -11,7 +11,6 @@ with the critical value p_c for i.i.d. losses.
 """
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -20,19 +19,6 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
-
-_REGISTRY: dict[str, str] = {
-    "bernoulli": "kfcrit.model.channels:Bernoulli",
-    "gilbert-elliott": "kfcrit.model.channels:GilbertElliott",
-    "trace": "kfcrit.model.channels:Trace",
-    "link-budget": "kfcrit.link.linkbudget:LinkBudget",
-}
-
-
-def channel_models() -> list[str]:
-    """Names of the registered channel models."""
-    return sorted(_REGISTRY)
-
 
 def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.Rational:
     """Read a probability exactly and check it lies in [0, 1] (or (0, 1] if ``low_open``)."""
@@ -258,14 +244,11 @@ class GilbertElliott(Channel):
                               recovery_rate=float(self.recovery_rate))
 
 
-MAX_TRACE_BYTES = 50_000_000
-
-
 @dataclass(frozen=True, eq=False)
 class Trace(Channel):
-    """A measured 0/1 arrival sequence read from a text file (whitespace/commas separate values).
-
-    The file path is relative to the system file. The stationary arrival probability is the
+    """A measured 0/1 arrival sequence (read from a text file by
+    :func:`kfcrit.io.channelfile.trace_from_mapping`; the path is relative to the system file).
+ The stationary arrival probability is the
     empirical frequency of ones. The simulations read it cyclically, each path from its own
     start: the path's 64-bit stream key modulo the trace length (path i of ``simulate``: the
     key of ``SeedSequence(seed, spawn_key=(0, i))``; ergodic replica j: ``(2, j)``), so a path's
@@ -275,17 +258,6 @@ class Trace(Channel):
     path: str
     arrivals: np.ndarray
     model: ClassVar[str] = "trace"
-
-    @classmethod
-    def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> Trace:
-        check_keys(data, {"model", "path"}, {"path"}, prefix)
-        raw = data["path"]
-        if not isinstance(raw, str) or not raw.strip():
-            raise InputError("must be a file path", field=f"{prefix}.path")
-        path = Path(raw)
-        if not path.is_absolute() and base_dir is not None:
-            path = base_dir / path
-        return cls(raw, read_trace(path, f"{prefix}.path"))
 
     @property
     def arrival_probability(self) -> sp.Expr:
@@ -312,37 +284,3 @@ class Trace(Channel):
         out = arr.astype(bool)
         out.setflags(write=False)
         return cls(name, out)
-
-
-def read_trace(path: Path, field: str) -> np.ndarray:
-    """Read a 0/1 packet trace; anything but 0 and 1 separated by spaces/commas is an error."""
-    from kfcrit.io.safeio import read_text  # a regular file only, at most MAX_TRACE_BYTES, UTF-8
-
-    text, _ = read_text(path, field=field, max_bytes=MAX_TRACE_BYTES, what="trace file")
-    tokens = text.replace(",", " ").split()
-    bad = next((i for i, t in enumerate(tokens) if t not in ("0", "1")), None)
-    if bad is not None:  # the offending text is not echoed: the file may not be a trace at all
-        raise InputError(f"trace file value number {bad + 1} is not 0 or 1; only 0 and 1 are "
-                         "allowed", field=field)
-    if not tokens:
-        raise InputError("trace file is empty", field=field)
-    arr = np.fromiter((t == "1" for t in tokens), dtype=bool, count=len(tokens))
-    arr.setflags(write=False)
-    return arr
-
-
-def channel_from_mapping(data: Any, prefix: str = "channel",
-                         base_dir: Path | None = None) -> Channel:
-    """Build a channel from its system-file mapping, dispatching on ``model``."""
-    if not isinstance(data, dict):
-        raise InputError("must be a mapping with a 'model' key", field=prefix)
-    model = data.get("model")
-    if not isinstance(model, str):
-        raise InputError(f"is required (one of: {', '.join(channel_models())})",
-                         field=f"{prefix}.model")
-    if model not in _REGISTRY:
-        raise InputError(f"unknown channel model {model[:40]!r} (known: "
-                         f"{', '.join(channel_models())})", field=f"{prefix}.model")
-    module_name, _, cls_name = _REGISTRY[model].partition(":")
-    cls = getattr(importlib.import_module(module_name), cls_name)
-    return cls.from_mapping(data, prefix, base_dir)

@@ -12,6 +12,12 @@ def _num(v: Any, digits: int = 6) -> str:
     return str(v)
 
 
+def safe_text(text: Any) -> str:
+    """Text from a user's file with control characters (ESC, CR, …) shown as ``\\xNN``, so
+    that a crafted name cannot rewrite the terminal."""
+    return "".join(c if c.isprintable() or c == " " else f"\\x{ord(c):02x}" for c in str(text))
+
+
 EXACT_TEXT_MAX = 100
 """Longest exact expression the terminal view prints in full (``--json`` always has it all)."""
 
@@ -26,9 +32,25 @@ def _exact(d: dict[str, Any]) -> str:
     return f"  (= {expr})"
 
 
+REVIEW_MARK = {"pass": "PASS", "fail": "FAIL", "undetermined": "UNDETERMINED"}
+STATUS_MARK = {"pass": "ok ", "fail": "FAIL", "undetermined": "?  ", "not applicable": "-  "}
+
+
+def review_lines(rec: dict[str, Any]) -> list[str]:
+    """The review decision and its reasons (the first thing a reader sees)."""
+    review = rec.get("review") or {}
+    decision = review.get("decision")
+    lines = [f"  REVIEW: {REVIEW_MARK.get(decision, '—')}"]
+    for r in review.get("reasons") or []:
+        lines.append(f"    [{STATUS_MARK.get(r.get('status'), '?  ')}] {r.get('check')}: "
+                     f"{r.get('detail')}")
+    return lines
+
+
 def summary(rec: dict[str, Any]) -> str:
     """A readable multi-line summary of an analysis record."""
-    lines = [f"kfcrit analysis: {rec['name']}"]
+    lines = [f"kfcrit analysis: {safe_text(rec['name'])}"]
+    lines.extend(review_lines(rec))
     sysd = rec.get("system") or {}
     lines.append(f"  states n = {sysd.get('n')}, outputs m = {sysd.get('m')}, "
                  f"input {'exact' if sysd.get('exact_input') else 'floating-point'}")
@@ -62,7 +84,7 @@ def summary(rec: dict[str, Any]) -> str:
         if op.get("bracket"):
             b = op["bracket"]
             lines.append(f"  bracket               [{_num(b[0])}, {_num(b[1])}]")
-        lines.append(f"  verdict               {op.get('verdict', '—').upper()}")
+        lines.append(f"  stability verdict     {op.get('verdict', '—').upper()}")
         if op.get("reason"):
             lines.append(f"      reason: {op['reason']}")
         if op.get("iid_comparison_verdict"):

@@ -1,0 +1,49 @@
+"""System files with every channel model: the io reader plus the models of higher layers.
+
+:mod:`kfcrit.io.systemfile` reads and validates system files but knows only the channels of the
+model layer; link budgets live in :mod:`kfcrit.link`. This module joins them: :data:`CHANNELS`
+is the full table of channel parsers, and :func:`load_spec` / :func:`spec_from_mapping` are the
+readers every command and the public API use.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from kfcrit.io import systemfile
+from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.link.linkbudget import LinkBudget
+from kfcrit.model.channels import Channel
+from kfcrit.model.system import MAX_STATES_DEFAULT, System
+
+CHANNELS: Mapping[str, ChannelParser] = {**BASIC_CHANNELS, "link-budget": LinkBudget.from_mapping}
+"""Parser of every channel model a system file may name."""
+
+
+def channel_models() -> list[str]:
+    """Names of the channel models a system file may use."""
+    return sorted(CHANNELS)
+
+
+def parse_channel(data: Any, prefix: str = "channel", base_dir: Path | None = None) -> Channel:
+    """A channel of any model from its system-file mapping (errors name the field)."""
+    return channel_from_mapping(data, prefix, base_dir, parsers=CHANNELS)
+
+
+def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
+                      max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
+    """Validate a parsed system document (any channel model) and build the spec."""
+    return systemfile.spec_from_mapping(doc, base_dir=base_dir, max_states=max_states,
+                                        channels=CHANNELS)
+
+
+def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
+    """Load a system file: system, channel (any model), requirements and provenance."""
+    return systemfile.load_spec(path, max_states=max_states, channels=CHANNELS)
+
+
+def load_system(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> System:
+    """Load only the :class:`~kfcrit.model.system.System` of a system file."""
+    return load_spec(path, max_states=max_states).system

@@ -1,0 +1,319 @@
+"""The one verdict and the one review decision.
+
+Everything that says whether a design is acceptable is decided here, once, from the sections of
+the analysis record; ``analyze``, ``sweep`` and ``report`` all call these functions and every
+view renders what they return.
+
+* :func:`operating_verdict` — mean stability at the operating point of the channel
+  (``operating_point.verdict``): the arrival probability against p_c, its robust value or the
+  bracket [lower, upper]; bursty and measured channels by their own rules (MATH §7, §10).
+* :func:`review` — the review decision, combining in this order: stability at the operating
+  point (mean-unstable → fail), each requirement (not met → fail, not demonstrated →
+  undetermined), the link policy (margin or outage not met → fail).
+* :func:`exit_code` — the documented exit code of a record (README, "Exit codes").
+
+Invariant: a decision is ``fail`` if any reason fails, else ``undetermined`` if any reason is
+undetermined, else ``pass``; the exit code is a function of the decision (and of failed
+verification checks) only.
+"""
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import sympy as sp
+
+from kfcrit.errors import ExitCode
+
+
+class Verdict(str, enum.Enum):
+    """Mean stability of the filter at the operating point."""
+
+    MEAN_STABLE = "mean-stable"
+    MEAN_UNSTABLE = "mean-unstable"
+    UNDETERMINED = "undetermined"
+
+
+class Decision(str, enum.Enum):
+    """The review decision a CI gate uses."""
+
+    PASS = "pass"
+    FAIL = "fail"
+    UNDETERMINED = "undetermined"
+
+
+class CheckStatus(str, enum.Enum):
+    """Outcome of one reason of the review."""
+
+    PASS = "pass"
+    FAIL = "fail"
+    UNDETERMINED = "undetermined"
+    NOT_APPLICABLE = "not applicable"
+
+
+@dataclass(frozen=True)
+class Reason:
+    """One check of the review decision: what was checked, its outcome, and why."""
+
+    check: str
+    status: CheckStatus
+    detail: str
+
+
+@dataclass(frozen=True)
+class Review:
+    """The review decision and the reasons it combines (stability, requirements, link)."""
+
+    decision: Decision
+    reasons: tuple[Reason, ...]
+
+
+STABILITY_CHECK = "stability at the operating point"
+LINK_MARGIN_CHECK = "link policy: margin"
+LINK_OUTAGE_CHECK = "link policy: outage"
+
+
+# ----------------------------------------------------------------------------- comparisons
+
+def exceeds(p: Any, value: Any) -> bool | None:
+    """Whether the arrival probability ``p`` is strictly above ``value`` (exactly if both are
+    exact numbers).
+
+    Exact inputs (sympy numbers without floats) are compared exactly — ``9/25 + 10**-40`` is
+    above ``9/25`` although both round to the same double: rationals by rational arithmetic,
+    algebraic and transcendental numbers by 60 certain digits; a difference that shows no digit
+    there counts as zero (so ``p`` does not exceed ``value``: the conservative side). A float on
+    either side is compared as a float. ``None`` when either is unknown.
+    """
+    if value is None or p is None:
+        return None
+    if _is_exact(p) and _is_exact(value):
+        diff = p - value
+        if diff.is_Rational:
+            return bool(diff > 0)
+        return _certain_sign(diff) > 0
+    return float(p) > float(value)
+
+
+def _is_exact(x: Any) -> bool:
+    return isinstance(x, sp.Basic) and x.is_number and not x.has(sp.Float)
+
+
+def _certain_sign(x: sp.Expr) -> int:
+    """Sign of an exact real number from 60 certain digits (0 when none shows)."""
+    try:
+        v = sp.N(x, 60, strict=True)
+    except (TypeError, ValueError, ArithmeticError, sp.PrecisionExhausted):
+        return 0
+    if not v.is_real or v == 0:
+        return 0
+    return 1 if v > 0 else -1
+
+
+# ----------------------------------------------------------------------------- verdict
+
+@dataclass(frozen=True)
+class CriticalInputs:
+    """What the verdict needs of the theory sections (plain numbers, exact where available).
+
+    ``critical`` is p_c (None when it has no closed form), ``critical_exact`` its exact value
+    (a sympy number) when known, ``robust`` the robust critical value (None when no nearby
+    system is worse), ``lower`` the best lower bound (block lower bound or p_low), ``upper``
+    the upper end of p_up, ``classification`` the structure class.
+    """
+
+    classification: str | None
+    critical: float | None
+    critical_exact: Any = None
+    robust: float | None = None
+    lower: float | None = None
+    upper: float | None = None
+    p_low: float | None = None
+    p_low_exact: Any = None
+
+
+@dataclass(frozen=True)
+class BurstInputs:
+    """A Gilbert–Elliott channel as the verdict sees it (MATH §7, §10).
+
+    ``recovery`` is r; ``sufficient`` is True when a coupled fixed-gain certificate (or, for a
+    scalar plant, the exact condition (1 − r)a² < 1) proves mean stability, None when nothing
+    sufficient was evaluated; ``basis`` names that sufficient argument.
+    """
+
+    recovery: float
+    failure: float
+    sufficient: bool | None = None
+    basis: str | None = None
+
+
+def burst_factor(recovery: float, spectral_radius: float) -> float:
+    r"""The burst growth factor of MATH §10.
+
+    .. math:: \beta = (1 - r)\,\rho(A)^2
+
+    A loss burst lasts j steps with probability (1 − r)^{j−1} r and the dominant mode grows by
+    ρ^{2j} over it, so E[P_t] is unbounded when β ≥ 1, for any system.
+    """
+    return (1.0 - recovery) * spectral_radius ** 2
+
+
+def operating_verdict(p: Any, crit: CriticalInputs, *, iid: bool = True,
+                      burst: BurstInputs | None = None, measured_trace: bool = False
+                      ) -> tuple[Verdict, str]:
+    """Mean stability at arrival probability ``p`` and the basis of the verdict.
+
+    Rules, in this order:
+
+    1. not detectable → mean-unstable for every p (no p makes E[P_t] bounded);
+    2. a measured trace → undetermined (the theorems are about arrival *models*);
+    3. a Gilbert–Elliott channel → mean-unstable when (1 − r)ρ(A)² ≥ 1 (any system, MATH §10),
+       mean-stable when a sufficient condition is proven, else undetermined;
+    4. i.i.d. losses, ρ(A) < 1 → mean-stable unless a system within the tolerance has a
+       critical value ≥ p (undetermined);
+    5. i.i.d. losses with p_c known → mean-stable if p exceeds p_c and its robust value,
+       mean-unstable if p ≤ p_c, undetermined between them;
+    6. p_c bracketed → mean-stable above the upper end, mean-unstable at or below the lower end,
+       undetermined inside.
+    """
+    if crit.classification == "not-detectable":
+        return (Verdict.MEAN_UNSTABLE, "(C, A) is not detectable: a mode with |λ| ≥ 1 is "
+                "unobservable, so E[P_t] diverges for every arrival probability")
+    if measured_trace:
+        return (Verdict.UNDETERMINED, "measured trace: the mean-stability theorems assume i.i.d. "
+                "(Sinopoli, Mo–Sinopoli) or Gilbert–Elliott arrivals, which a recorded sequence "
+                "is not")
+    if burst is not None and not iid:
+        return _burst_verdict(crit, burst)
+    return _iid_verdict(p, crit)
+
+
+def _iid_verdict(p: Any, crit: CriticalInputs) -> tuple[Verdict, str]:
+    if crit.classification == "stable":
+        if crit.robust is not None and not exceeds(p, crit.robust):
+            return (Verdict.UNDETERMINED, "ρ(A) < 1 as entered, but a system within the "
+                    f"tolerance has critical value {crit.robust:.6g} ≥ p")
+        return Verdict.MEAN_STABLE, "ρ(A) < 1: E[P_t] is bounded for every arrival probability"
+    if crit.critical is not None:
+        pc = crit.critical_exact if crit.critical_exact is not None else crit.critical
+        worst = max(crit.critical, crit.robust if crit.robust is not None else crit.critical)
+        if not exceeds(p, pc):
+            return Verdict.MEAN_UNSTABLE, f"p ≤ p_c = {crit.critical:.6g}"
+        if crit.robust is not None and crit.robust > crit.critical and not exceeds(p, worst):
+            return (Verdict.UNDETERMINED, f"p_c = {crit.critical:.6g} < p ≤ robust critical "
+                    f"value {worst:.6g} (a system within the tolerance is unstable at p)")
+        return Verdict.MEAN_STABLE, f"p > p_c = {crit.critical:.6g}"
+    lo = crit.lower if crit.lower is not None else 0.0
+    if not exceeds(p, lo):
+        return Verdict.MEAN_UNSTABLE, f"p ≤ lower bound {lo:.6g} of p_c"
+    if crit.upper is not None and exceeds(p, crit.upper):
+        return Verdict.MEAN_STABLE, f"p > upper bound p_up = {crit.upper:.6g} of p_c"
+    up = f"{crit.upper:.6g}" if crit.upper is not None else "unknown"
+    return Verdict.UNDETERMINED, f"p inside the bracket [{lo:.6g}, {up}] of p_c"
+
+
+def _burst_verdict(crit: CriticalInputs, burst: BurstInputs) -> tuple[Verdict, str]:
+    """Gilbert–Elliott verdict. With ρ(A) > 1, (1 − r)ρ² ≥ 1 ⇔ r ≤ 1 − 1/ρ² = p_low, which is
+    compared exactly when p_low and r are exact."""
+    if crit.classification == "stable" and crit.robust is None:
+        return Verdict.MEAN_STABLE, "ρ(A) < 1: E[P_t] is bounded for every arrival process"
+    p_low = crit.p_low_exact if crit.p_low_exact is not None else crit.p_low
+    if p_low is not None and crit.p_low is not None and crit.p_low > 0 \
+            and not exceeds(burst.recovery, p_low):
+        beta = (1.0 - float(burst.recovery)) / (1.0 - crit.p_low)
+        return (Verdict.MEAN_UNSTABLE, f"burst condition (1 − r)·ρ(A)² = {beta:.6g} ≥ 1 "
+                f"(r = {float(burst.recovery):.6g} ≤ 1 − 1/ρ(A)² = {crit.p_low:.6g}; necessary "
+                "for bounded E[P_t] for any system, MATH §10): loss bursts make E[P_t] diverge")
+    if burst.sufficient is True:
+        return Verdict.MEAN_STABLE, burst.basis or "a sufficient condition holds"
+    return (Verdict.UNDETERMINED, "bursty losses: the necessary burst condition (1 − r)·ρ(A)² < 1 "
+            "holds, and no sufficient condition was proven at this operating point"
+            + (f" ({burst.basis})" if burst.basis else ""))
+
+
+# ----------------------------------------------------------------------------- review
+
+def stability_reason(verdict: Verdict | str | None, basis: str | None) -> Reason:
+    """The review's first reason: mean stability at the operating point."""
+    if verdict is None:
+        return Reason(STABILITY_CHECK, CheckStatus.NOT_APPLICABLE,
+                      "no channel in the file: no operating point to review")
+    verdict = Verdict(verdict)
+    status = {Verdict.MEAN_STABLE: CheckStatus.PASS, Verdict.MEAN_UNSTABLE: CheckStatus.FAIL,
+              Verdict.UNDETERMINED: CheckStatus.UNDETERMINED}[verdict]
+    return Reason(STABILITY_CHECK, status, f"{verdict.value}: {basis or ''}".rstrip(": "))
+
+
+def requirement_reasons(requirements: Mapping[str, Any] | None) -> list[Reason]:
+    """One reason per requirement of the system file, from its assessment.
+
+    ``met`` → pass, ``not met`` → fail, ``not demonstrated`` (or no assessment) → undetermined.
+    """
+    out: list[Reason] = []
+    if not requirements:
+        return out
+    for item in requirements.get("assessments") or []:
+        status = {"met": CheckStatus.PASS, "not met": CheckStatus.FAIL}.get(
+            item.get("status"), CheckStatus.UNDETERMINED)
+        out.append(Reason(f"requirement: {item.get('requirement')}", status,
+                          item.get("basis") or "not assessed"))
+    return out
+
+
+def link_reasons(design_check: Mapping[str, Any] | None) -> list[Reason]:
+    """The link policy of a link-budget channel: the margin and the shadowing outage."""
+    if not design_check:
+        return []
+    out = []
+    met = design_check.get("margin_policy_met")
+    if met is not None:
+        margin, needed = design_check.get("link_margin_db"), design_check.get("required_margin_db")
+        out.append(Reason(LINK_MARGIN_CHECK, CheckStatus.PASS if met else CheckStatus.FAIL,
+                          f"link margin {margin:.3g} dB {'≥' if met else '<'} the policy's "
+                          f"{needed:.3g} dB"))
+    ok = design_check.get("outage_within_policy")
+    if ok is not None:
+        outage, allowed = design_check.get("outage_probability"), design_check.get("max_outage")
+        out.append(Reason(LINK_OUTAGE_CHECK, CheckStatus.PASS if ok else CheckStatus.FAIL,
+                          f"shadowing outage {100 * outage:.3g} % {'≤' if ok else '>'} the "
+                          f"allowed {100 * allowed:.3g} %"))
+    return out
+
+
+def decide(reasons: Sequence[Reason]) -> Decision:
+    """fail if any reason fails, else undetermined if any is undetermined, else pass."""
+    statuses = {r.status for r in reasons}
+    if CheckStatus.FAIL in statuses:
+        return Decision.FAIL
+    if CheckStatus.UNDETERMINED in statuses:
+        return Decision.UNDETERMINED
+    return Decision.PASS
+
+
+def review(verdict: Verdict | str | None, basis: str | None,
+           requirements: Mapping[str, Any] | None,
+           design_check: Mapping[str, Any] | None,
+           extra: Sequence[Reason] = ()) -> Review:
+    """The review decision: stability, then each requirement, then the link policy."""
+    reasons = [stability_reason(verdict, basis), *requirement_reasons(requirements),
+               *link_reasons(design_check), *extra]
+    return Review(decide(reasons), tuple(reasons))
+
+
+def exit_code(record: Mapping[str, Any]) -> int:
+    """The documented exit code of a record (plain JSON form).
+
+    1 when a verification check failed (``passed`` False); else 5 when the review fails, 3 when
+    it is undetermined (or, with no operating point, when p_up could not be decided), 0 when it
+    passes.
+    """
+    if any(c.get("passed") is False for c in record.get("verification") or []):
+        return int(ExitCode.VERIFICATION_FAILED)
+    decision = (record.get("review") or {}).get("decision")
+    if decision == Decision.FAIL.value:
+        return int(ExitCode.REVIEW_FAILED)
+    if decision == Decision.UNDETERMINED.value:
+        return int(ExitCode.INCONCLUSIVE)
+    return int(ExitCode.OK)

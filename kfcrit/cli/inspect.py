@@ -1,0 +1,49 @@
+"""``kfcrit check`` and ``kfcrit schema``: validate files and print the JSON Schemas."""
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+
+from kfcrit.cli.common import debug_option, handle_errors, max_states_option
+
+
+@click.command()
+@click.argument("what", type=click.Choice(["record", "system", "sweep"]))
+def schema(what: str) -> None:
+    """Print the JSON Schema (draft 2020-12) of the analysis record, or of system or sweep files."""
+    from kfcrit.analysis.sections import record_schema
+    from kfcrit.io.fileschema import sweep_schema, system_schema
+
+    build = {"record": record_schema, "system": system_schema, "sweep": sweep_schema}[what]
+    click.echo(json.dumps(build(), indent=2, ensure_ascii=False))
+
+
+def is_sweep_document(doc: object) -> bool:
+    """A sweep file names a base ``system`` and a ``grid`` or ``points``; a system file does not."""
+    return isinstance(doc, dict) and "system" in doc and ("grid" in doc or "points" in doc)
+
+
+@click.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@max_states_option
+@debug_option
+@handle_errors
+def check(file: str, max_states: int, debug: bool) -> None:
+    """Validate a system or sweep FILE without analysing it (exit 0 valid, 2 invalid)."""
+    from kfcrit.analysis.spec import load_spec
+    from kfcrit.analysis.sweep import load_sweep
+    from kfcrit.io.systemfile import read_yaml
+
+    doc, _ = read_yaml(file)
+    if is_sweep_document(doc):
+        sweep = load_sweep(file, max_states=max_states)
+        click.echo(f"{file}: valid sweep file: {len(sweep.points)} points over "
+                   f"{', '.join(sweep.parameters)}")
+    else:
+        spec = load_spec(file, max_states=max_states)
+        s = spec.system
+        channel = spec.channel.model if spec.channel is not None else "no channel"
+        click.echo(f"{file}: valid system file: n = {s.n}, m = {s.m}, {channel}")
+    sys.exit(0)

@@ -1,0 +1,119 @@
+"""``kfcrit sweep``: run a sweep file, write its table and figures, report in one line."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from kfcrit.analysis.sweep import (
+    FORMAT_VERSION,
+    RESULT_COLUMNS,
+    SweepSpec,
+    load_sweep,
+    run_sweep,
+    table_csv,
+)
+from kfcrit.errors import ExitCode
+from kfcrit.io.atomic import write_atomic
+from kfcrit.io.jsonio import jsonable
+from kfcrit.version import __version__
+from kfcrit.views.sweepplots import margin_images
+
+
+def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[], None]]:
+    """A rich progress bar on stderr when stderr is a terminal; otherwise no-ops."""
+    if not sys.stderr.isatty() or total == 0:
+        return (lambda n: None), (lambda: None)
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    prog = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("points"),
+                    TimeRemainingColumn(), console=Console(stderr=True), transient=True)
+    task = prog.add_task("sweep", total=total, completed=done)
+    prog.start()
+    return (lambda n: prog.advance(task, n)), prog.stop
+
+
+def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
+                  runner: str, workers: int, computed: int, reused: int) -> dict[str, str]:
+    """Write sweep.csv, sweep.json and the margin plots atomically; return their paths."""
+    meta = {"name": spec.name, "description": spec.description, "sweep_file": spec.path,
+            "sweep_sha256": spec.sha256, "base_system": spec.base_path,
+            "parameters": list(spec.parameters), "tolerance": spec.tolerance,
+            "points": len(rows), "plot_x": spec.plot_x, "kfcrit": __version__,
+            "format": FORMAT_VERSION, "columns": ["index", "key", *spec.parameters,
+                                                 *RESULT_COLUMNS]}
+    record = {"sweep": meta, "rows": rows}
+    run = {"runner": runner, "workers": workers,
+           "computed": computed, "reused": reused}
+    files = {"csv": out / "sweep.csv", "json": out / "sweep.json",
+             "svg": out / "margin.svg", "png": out / "margin.png",
+             "run": out / "run.json"}
+    write_atomic(files["csv"], table_csv(spec, rows).encode())
+    write_atomic(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
+                                           ensure_ascii=False).encode())
+    write_atomic(files["run"], json.dumps(run, indent=1).encode())
+    for fmt, data in margin_images(rows, spec.parameters, spec.plot_x).items():
+        write_atomic(files[fmt], data)
+    return {k: str(v) for k, v in files.items()}
+
+
+def _interrupted(journal: Path) -> None:
+    """One line on stderr, then leave with exit code 130 (as ``cli.interrupted_exit`` does).
+
+    Unlike the other commands, an interrupted sweep keeps what it finished: the journal.
+    """
+    done = 0
+    try:
+        with open(journal, "rb") as fh:
+            done = sum(1 for line in fh if line.endswith(b"\n"))
+    except OSError:
+        pass
+    print(f"kfcrit: error: interrupted; {done} finished points are kept in {journal} (run the "
+          "same command again to resume); the table and plots were not updated",
+          file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(ExitCode.INTERRUPTED)
+
+
+def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
+                  workers: int | None, max_states: int) -> int:
+    """Run the ``kfcrit sweep`` subcommand; return the exit code.
+
+    Errors in the sweep file are :class:`InputError` (exit 2). Points that fail (for example a
+    swept value outside its allowed range) are rows with ``status = error`` and their message;
+    the outputs are still written and the exit code is the worst point's (2 input, 3 numerical).
+    Each point's review decision is a column of the table; the exit code does not summarise
+    decisions (a sweep explores where a design passes and fails).
+    """
+    spec = load_sweep(sweep_file, max_states=max_states)
+    if output is None:
+        output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
+    try:
+        result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
+                           max_states=max_states, progress=_progress)
+        write_outputs(spec, result.rows, Path(result.output), runner=result.runner,
+                      workers=result.workers, computed=result.computed, reused=result.reused)
+    except KeyboardInterrupt:
+        _interrupted(Path(output) / "sweep.journal.jsonl")
+    print(f"kfcrit: sweep {spec.name!r}: {len(result.rows)} points ({result.computed} computed, "
+          f"{result.reused} from the journal), {result.errors} errors; outputs in "
+          f"{result.output}", file=sys.stderr)
+    if result.errors:
+        first = next(r for r in result.rows if r["status"] != "ok")
+        print(f"kfcrit: first failing point {first['index']}: {first['error']}",
+              file=sys.stderr)
+    return result.exit_code

@@ -1,0 +1,146 @@
+"""JSON Schemas (draft 2020-12) of the files kfcrit reads: system files and sweep files.
+
+The schemas describe the *shape* of a file — keys, nesting, which values are numbers or
+expressions; the readers (:mod:`kfcrit.io.systemfile`, :mod:`kfcrit.analysis.sweep`) enforce the
+rest (matrix sizes, symmetry, ranges of exact values) with one-line errors. ``kfcrit schema
+system`` prints :func:`system_schema`; the key reference in ``docs/`` is generated from it.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+
+NUMBER = {"description": "a number (read exactly from its text) or an exact expression string "
+                         "such as \"sqrt(2)/2\", \"2*cos(pi/5)\", \"1/3\"",
+          "anyOf": [{"type": "number"}, {"type": "string", "maxLength": 500}]}
+MATRIX = {"description": "a list of rows of numbers or expression strings; for Q, R and Sigma0 "
+                         "a single value s means s times the identity",
+          "anyOf": [{"$ref": "#/$defs/number"},
+                    {"type": "array", "minItems": 1,
+                     "items": {"type": "array", "minItems": 1,
+                               "items": {"$ref": "#/$defs/number"}}}]}
+PROBABILITY = {"$ref": "#/$defs/number", "description": "a probability in [0, 1]"}
+
+
+def _object(properties: dict[str, Any], required: list[str], description: str) -> dict[str, Any]:
+    return {"type": "object", "description": description, "properties": properties,
+            "required": required, "additionalProperties": False}
+
+
+def channel_defs() -> dict[str, Any]:
+    """Schemas of the channel models (``channel.model`` selects one)."""
+    num = {"$ref": "#/$defs/number"}
+    bernoulli = _object({"model": {"const": "bernoulli"},
+                         "arrival_probability": {**PROBABILITY,
+                                                 "description": "P(packet arrives), i.i.d."}},
+                        ["model", "arrival_probability"], "i.i.d. packet losses")
+    ge = _object({"model": {"const": "gilbert-elliott"},
+                  "failure_rate": {**num, "description": "P(lost next | received now), in (0, 1]"},
+                  "recovery_rate": {**num, "description": "P(received next | lost now), in (0, 1]"}},
+                 ["model", "failure_rate", "recovery_rate"],
+                 "bursty (two-state Markov) packet losses")
+    trace = _object({"model": {"const": "trace"},
+                     "path": {"type": "string", "description": "file of 0/1 values, relative to "
+                              "the system file"}},
+                    ["model", "path"], "a measured arrival sequence")
+    path_loss = {"type": "object", "description": "median path loss and log-normal shadowing",
+                 "properties": {
+                     "model": {"enum": ["log-distance", "free-space"]},
+                     "exponent": {**num, "description": "path-loss exponent n (log-distance)"},
+                     "reference_distance_m": {**num, "description": "d0 in metres (default 1)"},
+                     "reference_loss_db": {**num, "description": "PL(d0) in dB"},
+                     "frequency_hz": {**num, "description": "carrier frequency (free space)"},
+                     "shadowing_sigma_db": {**num, "description": "σ of log-normal shadowing"},
+                     "shadowing": {"enum": ["per-link", "per-packet"],
+                                   "description": "one shadowing draw per link, or per packet"}},
+                 "required": ["model"], "additionalProperties": False}
+    noise = _object({"noise_floor_dbm": {**num, "description": "noise floor (dBm)"},
+                     "noise_figure_db": {**num, "description": "receiver noise figure (dB)"},
+                     "bandwidth_hz": {**num, "description": "noise bandwidth (Hz)"},
+                     "temperature_k": {**num, "description": "noise temperature (K)"},
+                     "interference_dbm": {**num, "description": "interference power (dBm)"}},
+                    [], "noise floor, or thermal noise from bandwidth and noise figure")
+    radio = {"description": "a radio model name (see `kfcrit radios`), or a mapping with "
+                            "`model` and that model's parameters",
+             "anyOf": [{"type": "string"},
+                       {"type": "object", "required": ["model"],
+                        "properties": {"model": {"type": "string"}}}]}
+    link = _object({"model": {"const": "link-budget"}, "radio": radio,
+                    "tx_power_dbm": {**num, "description": "transmit power (dBm)"},
+                    "distance_m": {**num, "description": "transmitter–receiver distance (m)"},
+                    "packet_bytes": {**num, "description": "application payload per packet "
+                                     "(bytes)"},
+                    "path_loss": path_loss, "noise": noise,
+                    "antenna_gain_db": {**num, "description": "total antenna gain (dB)"},
+                    "margin_db": {**num, "description": "link margin the policy requires (dB)"},
+                    "max_outage": {**num, "description": "largest shadowing outage the policy "
+                                   "allows, in [0, 0.5]"},
+                    "max_retries": {**num, "description": "MAC retransmissions per sample "
+                                    "(0 to 7 for 802.15.4)"},
+                    "coherence_time_s": {**num, "description": "shadowing coherence time"},
+                    "sample_period_s": {**num, "description": "sampling period of the filter"},
+                    "speed_m_s": {**num, "description": "node speed (for a correlation "
+                                  "distance)"},
+                    "correlation_distance_m": {**num, "description": "shadowing decorrelation "
+                                               "distance"}},
+                   ["model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
+                    "noise"], "a radio link: transmit power, distance, packet size, path loss")
+    return {"bernoulli": bernoulli, "gilbert_elliott": ge, "trace": trace, "link_budget": link,
+            "channel": {"description": "the packet channel of the operating point",
+                        "oneOf": [{"$ref": f"#/$defs/{k}"} for k in
+                                  ("bernoulli", "gilbert_elliott", "trace", "link_budget")]}}
+
+
+def system_schema() -> dict[str, Any]:
+    """JSON Schema of a system file."""
+    num = {"$ref": "#/$defs/number"}
+    mat = {"$ref": "#/$defs/matrix"}
+    requirements = _object({
+        "max_error_trace": {**num, "description": "M of the tail requirement P(tr P > M) ≤ α"},
+        "max_tail_probability": {**PROBABILITY, "description": "α of the tail requirement"},
+        "max_mean_error_trace": {**num, "description": "L of the accuracy requirement "
+                                 "lim E[tr P] ≤ L"}}, [], "design requirements")
+    props = {"name": {"type": "string", "minLength": 1, "description": "name of the system"},
+             "description": {"type": "string", "description": "free text"},
+             "A": {**mat, "description": "state matrix (n × n)"},
+             "C": {**mat, "description": "output matrix (m × n)"},
+             "Q": {**mat, "description": "process-noise covariance (n × n, PSD)"},
+             "R": {**mat, "description": "measurement-noise covariance (m × m, PD)"},
+             "Sigma0": {**mat, "description": "initial covariance (default identity)"},
+             "channel": {"$ref": "#/$defs/channel"},
+             "requirements": {"$ref": "#/$defs/requirements"}}
+    defs = {"number": NUMBER, "matrix": MATRIX, "requirements": requirements, **channel_defs()}
+    return {"$schema": SCHEMA_DIALECT, "$id": "https://kfcrit.invalid/schema/system.json",
+            "title": "kfcrit system file", "type": "object", "properties": props,
+            "required": ["name", "A", "C", "Q", "R"], "additionalProperties": False,
+            "$defs": defs}
+
+
+def sweep_schema() -> dict[str, Any]:
+    """JSON Schema of a sweep file."""
+    values = {"description": "a list of values, or a range",
+              "anyOf": [{"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"}},
+                        {"type": "object", "properties": {
+                            "start": {"$ref": "#/$defs/number"}, "stop": {"$ref": "#/$defs/number"},
+                            "num": {"type": "integer"}, "step": {"$ref": "#/$defs/number"},
+                            "scale": {"enum": ["linear", "log"]}},
+                         "required": ["start", "stop"], "additionalProperties": False}]}
+    props = {"name": {"type": "string"}, "description": {"type": "string"},
+             "system": {"description": "the base system: a system-file path (relative to the "
+                                       "sweep file) or an inline system mapping",
+                        "anyOf": [{"type": "string"}, {"type": "object"}]},
+             "tolerance": {"$ref": "#/$defs/number"},
+             "grid": {"type": "object", "description": "parameter path (e.g. channel.distance_m,"
+                                                       " A[0][1]) → values; the grid is their "
+                                                       "product",
+                      "additionalProperties": values},
+             "points": {"type": "array", "description": "explicit points: mappings of parameter "
+                                                        "path → value",
+                        "items": {"type": "object",
+                                  "additionalProperties": {"$ref": "#/$defs/number"}}},
+             "plot": _object({"x": {"type": "string"}}, [], "the margin plot's x parameter")}
+    return {"$schema": SCHEMA_DIALECT, "$id": "https://kfcrit.invalid/schema/sweep.json",
+            "title": "kfcrit sweep file", "type": "object", "properties": props,
+            "required": ["system"], "additionalProperties": False,
+            "$defs": {"number": NUMBER}}

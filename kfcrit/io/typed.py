@@ -1,0 +1,236 @@
+"""Typed records: frozen dataclasses read from, written to and described by JSON.
+
+The analysis record is a tree of frozen dataclasses. Three generic functions, driven by the
+dataclasses' type hints alone, keep its three forms in step:
+
+* :func:`to_json` — the plain JSON value (what ``--json`` prints and every view renders);
+* :func:`from_json` — the typed record from JSON (strict: an unknown or missing key, or a value
+  of the wrong type, is an error naming its path);
+* :func:`json_schema` — the JSON Schema (draft 2020-12) of the JSON form.
+
+Invariant: for every record ``r``, ``from_json(type(r), to_json(r)) == r`` and ``to_json(r)``
+validates against ``json_schema(type(r))``. A renamed field therefore fails the schema test, the
+round trip and every view that reads it, instead of hiding behind ``dict.get``.
+
+Supported field types: ``bool``, ``int``, ``float``, ``str``, ``None``, an :class:`enum.Enum`
+of strings, a nested dataclass, ``list[T]``, ``tuple[T, ...]``, ``dict[str, T]``, unions with
+``None`` (``T | None``) and :data:`JSON` (any JSON value, for payloads whose shape belongs to a
+lower layer, e.g. a matrix of numbers).
+"""
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+import types
+import typing
+from typing import Any, Union
+
+JSON = Union[None, bool, int, float, str, list[Any], dict[str, Any]]
+"""Any JSON value (its schema is ``{}``)."""
+
+SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+
+
+def opt(default: Any = None) -> Any:
+    """A field that may be absent from the JSON form: written only when not ``None``.
+
+    Used for keys that a section carries only in some cases (e.g. ``basis`` of a critical value
+    that rests on coinciding bounds); the schema lists them as optional properties.
+    """
+    return dataclasses.field(default=default, metadata={"omit_none": True})
+
+
+def internal(default_factory: Any) -> Any:
+    """A field kept on the object but not in its JSON form or schema (e.g. wall-clock timings,
+    which would make two runs of the same input differ)."""
+    return dataclasses.field(default_factory=default_factory, metadata={"internal": True},
+                             compare=False, repr=False)
+
+
+def _omittable(f: dataclasses.Field) -> bool:
+    return bool(f.metadata.get("omit_none"))
+
+
+def _public_fields(cls_or_obj: Any) -> list[dataclasses.Field]:
+    return [f for f in dataclasses.fields(cls_or_obj) if not f.metadata.get("internal")]
+
+
+class RecordError(ValueError):
+    """A JSON value does not fit the typed record (the message names the path)."""
+
+
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls, include_extras=False)
+
+
+def _is_optional(tp: Any) -> tuple[bool, Any]:
+    """``(True, T)`` for ``T | None``; ``(False, tp)`` otherwise."""
+    origin = typing.get_origin(tp)
+    if origin in (Union, types.UnionType) and tp is not JSON:
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1 and len(typing.get_args(tp)) == 2:
+            return True, args[0]
+    return False, tp
+
+
+# ----------------------------------------------------------------------------- to JSON
+
+def to_json(obj: Any) -> Any:
+    """The plain JSON value of a typed record (non-finite floats become ``None``).
+
+    Dataclass fields keep their declaration order; enums become their values; tuples lists.
+    """
+    if isinstance(obj, enum.Enum):
+        return obj.value
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, int):
+        return int(obj)
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: to_json(getattr(obj, f.name)) for f in _public_fields(obj)
+                if not (_omittable(f) and getattr(obj, f.name) is None)}
+    if isinstance(obj, dict):
+        return {str(k): to_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_json(v) for v in obj]
+    raise RecordError(f"cannot write {type(obj).__name__} as JSON")
+
+
+# ----------------------------------------------------------------------------- from JSON
+
+def from_json(tp: Any, value: Any, path: str = "record") -> Any:
+    """Read ``value`` (plain JSON) as type ``tp``; :class:`RecordError` names the first misfit."""
+    if tp is JSON or tp is Any:
+        return _check_json(value, path)
+    optional, inner = _is_optional(tp)
+    if value is None:
+        if optional or tp is type(None):
+            return None
+        raise RecordError(f"{path}: must not be null")
+    tp = inner
+    origin = typing.get_origin(tp)
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        return _dataclass_from_json(tp, value, path)
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        try:
+            return tp(value)
+        except ValueError:
+            allowed = ", ".join(repr(m.value) for m in tp)
+            raise RecordError(f"{path}: must be one of {allowed}, got {value!r}") from None
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise RecordError(f"{path}: must be true or false")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise RecordError(f"{path}: must be an integer")
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise RecordError(f"{path}: must be a number")
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise RecordError(f"{path}: must be a string")
+        return value
+    if origin in (list, tuple):
+        if not isinstance(value, list):
+            raise RecordError(f"{path}: must be a list")
+        (item,) = typing.get_args(tp)[:1]
+        items = [from_json(item, v, f"{path}[{i}]") for i, v in enumerate(value)]
+        return tuple(items) if origin is tuple else items
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise RecordError(f"{path}: must be an object")
+        _, item = typing.get_args(tp)
+        return {k: from_json(item, v, f"{path}.{k}") for k, v in value.items()}
+    if origin in (Union, types.UnionType):
+        for arg in typing.get_args(tp):
+            try:
+                return from_json(arg, value, path)
+            except RecordError:
+                continue
+        raise RecordError(f"{path}: fits none of {tp}")
+    raise RecordError(f"{path}: unsupported field type {tp!r}")
+
+
+def _check_json(value: Any, path: str) -> Any:
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, list):
+        return [_check_json(v, f"{path}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, dict):
+        return {str(k): _check_json(v, f"{path}.{k}") for k, v in value.items()}
+    raise RecordError(f"{path}: {type(value).__name__} is not a JSON value")
+
+
+def _dataclass_from_json(cls: type, value: Any, path: str) -> Any:
+    if not isinstance(value, dict):
+        raise RecordError(f"{path}: must be an object")
+    hints = _hints(cls)
+    fields = _public_fields(cls)
+    names = [f.name for f in fields]
+    unknown = sorted(set(value) - set(names))
+    if unknown:
+        raise RecordError(f"{path}: unknown key {unknown[0]!r} (expected one of {', '.join(names)})")
+    missing = [f.name for f in fields if f.name not in value and not _omittable(f)]
+    if missing:
+        raise RecordError(f"{path}: missing key {missing[0]!r}")
+    return cls(**{n: from_json(hints[n], value[n], f"{path}.{n}") for n in names if n in value})
+
+
+# ----------------------------------------------------------------------------- JSON Schema
+
+def json_schema(cls: type, *, title: str | None = None) -> dict[str, Any]:
+    """JSON Schema (draft 2020-12) of the JSON form of dataclass ``cls``.
+
+    Every dataclass becomes a ``$defs`` entry (objects with all fields required and no other
+    keys); enums become ``enum`` lists; :data:`JSON` fields accept any value.
+    """
+    defs: dict[str, Any] = {}
+    root = _schema_of(cls, defs)
+    out = {"$schema": SCHEMA_DIALECT, "title": title or cls.__name__, **root, "$defs": defs}
+    return out
+
+
+def _schema_of(tp: Any, defs: dict[str, Any]) -> dict[str, Any]:
+    if tp is JSON or tp is Any:
+        return {}
+    optional, inner = _is_optional(tp)
+    if optional:
+        return {"anyOf": [_schema_of(inner, defs), {"type": "null"}]}
+    origin = typing.get_origin(tp)
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        name = tp.__name__
+        if name not in defs:
+            defs[name] = {}  # placeholder: recursion-safe
+            hints = _hints(tp)
+            fields = _public_fields(tp)
+            doc = (tp.__doc__ or "").strip().split("\n")[0]
+            defs[name] = {"type": "object", "description": doc,
+                          "properties": {f.name: _schema_of(hints[f.name], defs) for f in fields},
+                          "required": [f.name for f in fields if not _omittable(f)],
+                          "additionalProperties": False}
+        return {"$ref": f"#/$defs/{name}"}
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        return {"enum": [m.value for m in tp]}
+    if tp is bool:
+        return {"type": "boolean"}
+    if tp is int:
+        return {"type": "integer"}
+    if tp is float:
+        return {"type": "number"}
+    if tp is str:
+        return {"type": "string"}
+    if tp is type(None):
+        return {"type": "null"}
+    if origin in (list, tuple):
+        return {"type": "array", "items": _schema_of(typing.get_args(tp)[0], defs)}
+    if origin is dict:
+        return {"type": "object", "additionalProperties": _schema_of(typing.get_args(tp)[1], defs)}
+    if origin in (Union, types.UnionType):
+        return {"anyOf": [_schema_of(a, defs) for a in typing.get_args(tp)]}
+    raise RecordError(f"unsupported field type {tp!r}")
