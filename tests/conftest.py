@@ -16,9 +16,9 @@ from hypothesis import HealthCheck, settings
 
 ROOT = Path(__file__).resolve().parents[1]
 REPORTS = ROOT / "reports"
-SHARED_CASES = next((p for p in (ROOT.parent / "shared" / "cases", Path("/work/shared/cases"))
-                     if p.is_dir()), ROOT.parent / "shared" / "cases")
-"""The papers' example systems and expected values (beside the repository, or /work/shared)."""
+SHARED_CASES = ROOT / "tests" / "data" / "cases"
+"""The papers' example systems and their expected values (facts from the papers, kept in the
+repository: ``expected.json`` and one system file per case)."""
 
 settings.register_profile("ci", derandomize=True, deadline=None, max_examples=40,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])

@@ -17,14 +17,14 @@ import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
+from kfcrit.analysis.spec import CHANNELS
+from kfcrit.analysis.spec import parse_channel as channel_from_mapping
 from kfcrit.model.channels import (
-    _REGISTRY,
     ArrivalProcess,
     Bernoulli,
     Channel,
     GilbertElliott,
     Trace,
-    channel_from_mapping,
 )
 from kfcrit.errors import InputError
 from kfcrit.sim.montecarlo import _KIND_CODE, arrival_sequence, path_keys
@@ -51,7 +51,7 @@ def kernel_arrivals(channel: Channel, steps: int, key_index: int = 0, offset: in
 
 
 def test_registry_and_record_keys_unchanged():
-    assert {"bernoulli", "gilbert-elliott", "trace", "link-budget"} <= set(_REGISTRY)
+    assert {"bernoulli", "gilbert-elliott", "trace", "link-budget"} <= set(CHANNELS)
     b = Bernoulli(sp.Rational(3, 5))
     assert set(b.to_dict()) == {"model", "arrival_probability", "arrival_probability_expression"}
     ge = GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2))
@@ -177,7 +177,6 @@ def test_probability_proven_equal_to_an_end_point_is_that_end_point() -> None:
 
 
 def test_gilbert_elliott_memoryless_when_rates_sum_to_one_exactly() -> None:
-    from kfcrit.model.channels import channel_from_mapping
 
     ch = channel_from_mapping({"model": "gilbert-elliott", "failure_rate": "cos(1)**2",
                                "recovery_rate": "sin(1)**2"})

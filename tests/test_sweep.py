@@ -566,8 +566,6 @@ def test_upper_bound_column_is_filled_once_per_system(tmp_path: Path,
         return real(system, *args, **kwargs)
 
     monkeypatch.setattr(upper_mod, "upper_bound", counting)
-    monkeypatch.setattr(sweep_mod, "_UPPER", {})
-    monkeypatch.setattr(sweep_mod, "_CRITICAL", {})
     sweep = write_case(tmp_path, "system: system.yaml\ngrid:\n"
                        "  A[0][0]: [1.25, 2, sqrt(2)]\n"
                        "  channel.arrival_probability: [0.2, 0.5, 0.9]\n"
@@ -588,10 +586,10 @@ def test_upper_bound_column_is_filled_once_per_system(tmp_path: Path,
 
 def test_shipped_sweep_fills_upper_bound() -> None:
     # the Sinopoli general plant: p_up = 1 − 1/(1.25 · 1.1)² = 57/121 (expected.json, MATH §3)
-    from kfcrit.model.system import System
-
-    value = sweep_mod.upper_bound_value(System([[1.25, 0], [1, 1.1]], [[1, 1]], 20, 2.5))
-    assert value == pytest.approx(57 / 121, abs=2e-6)
+    doc = {"name": "g", "A": [[1.25, 0], [1, 1.1]], "C": [[1, 1]], "Q": 20, "R": 2.5}
+    row = sweep_mod.evaluate_point(doc, ".", 1e-9, 400, [])
+    assert row["status"] == "ok"
+    assert row["upper_bound"] == pytest.approx(57 / 121, abs=2e-6)
 
 
 # ---- special files: never read without bound, never block ---------------------------------

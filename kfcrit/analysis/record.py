@@ -159,7 +159,8 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     pc = crit.critical
     worst = max(pc if pc is not None else 0.0, crit.robust if crit.robust is not None else 0.0)
     if cls == "not-detectable":
-        out.update(margin=None, margin_robust=None, bracket=None, diverges_for_all_p=True)
+        out.update(margin=None, margin_robust=None, bracket=None, diverges_for_all_p=True,
+                   reason=vd.NOT_DETECTABLE_BASIS)
     elif cls == "stable" or pc is not None:
         out.update(margin=p - (pc or 0.0), margin_robust=p - worst, bracket=None)
     else:
@@ -189,11 +190,14 @@ def trace_summary(spec: SystemSpec, p: float) -> dict[str, Any]:
 
 
 def theory_sections(system: System, options: AnalysisOptions | None = None,
-                    channel: Any = None) -> TheorySections:
+                    channel: Any = None, *,
+                    upper_bound: dict[str, Any] | None = None) -> TheorySections:
     """Critical value, its bounds and robust value, the structure, and p_up of one system.
 
-    These depend on (A, C) and the tolerances only; compute them once per system and pass them
-    to :func:`analyze` (``theory=``) when only the channel changes.
+    These depend on the system and the tolerances only; compute them once per system and pass
+    them to :func:`analyze` (``theory=``) when only the channel changes. ``upper_bound`` is the
+    ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
+    enter Ψ_p, MATH §3), so a sweep over noise parameters computes it once.
     """
     from kfcrit.theory import critical, upper
 
@@ -205,7 +209,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     if sec.get("classification") == "not-detectable":
         sec["upper_bound"] = not_detectable_upper()
     else:
-        ub = upper.upper_section(system, tol=opts.upper_tol)
+        ub = upper_bound if upper_bound is not None else upper.upper_section(
+            system, tol=opts.upper_tol)
         sec["upper_bound"] = ub
         warnings.extend(ub.get("warnings") or [])
     close_bracket(sec)

@@ -337,7 +337,6 @@ class Analysis:
     section).
     """
 
-    schema_version: str
     name: str
     classification: Classification | None
     critical_value: CriticalValue | None
@@ -346,8 +345,9 @@ class Analysis:
     block_lower_bound: BlockLowerBound | None
     upper_bound: UpperBound | None
     operating_point: OperatingPoint | None
-    review: Review
     warnings: list[str]
+    schema_version: str
+    review: Review
     description: str | None
     system: SystemSection
     structure: Structure | None

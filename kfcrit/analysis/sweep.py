@@ -585,10 +585,16 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
         doc = apply_point(base_doc, assignments)
         spec = spec_from_mapping(doc, base_dir=Path(base_dir), max_states=max_states)
         opts = point_options(tolerance)
-        skey = json.dumps([{k: doc.get(k) for k in MATRICES}, max_states, tolerance],
+        skey = json.dumps([{k: doc.get(k) for k in MATRICES}, max_states, tolerance,
+                           (doc.get("channel") or {}).get("model")],
+                          sort_keys=True, default=str)
+        ukey = json.dumps(["upper", doc.get("A"), doc.get("C"), opts.upper_tol],
                           sort_keys=True, default=str)
         if skey not in theories:
-            theories[skey] = theory_sections(spec.system, opts, channel=spec.channel)
+            theory = theory_sections(spec.system, opts, channel=spec.channel,
+                                     upper_bound=theories.get(ukey))
+            theories[skey] = theory
+            theories.setdefault(ukey, theory.sections["upper_bound"])
         record = analyze(spec, opts, theory=theories[skey]).to_dict()
         row.update(row_of(record))
     except KfcritError as exc:
@@ -601,10 +607,16 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
 
 
 def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
-                   items: list[tuple[int, str, list[tuple[str, str]]]]
+                   items: list[tuple[int, str, list[tuple[str, str]]]],
+                   theories: dict[str, Any] | None = None
                    ) -> list[tuple[int, str, dict[str, Any]]]:
-    """Evaluate a chunk of points (the unit of work sent to a process or a Dask worker)."""
-    theories: dict[str, Any] = {}
+    """Evaluate a chunk of points (the unit of work sent to a process or a Dask worker).
+
+    ``theories`` memoises the channel-independent sections per system across the chunks one
+    caller evaluates (a serial run passes one dict for the whole run; a worker gets a fresh one
+    per chunk); results never depend on it.
+    """
+    theories = {} if theories is None else theories
     return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments,
                                         theories))
             for index, key, assignments in items]
@@ -675,9 +687,10 @@ def _chunks(items: Items, workers: int) -> list[Items]:
 def run_serial(spec: SweepSpec, items: Items, max_states: int,
                ) -> Iterator[list[tuple[int, str, dict]]]:
     """Evaluate in this process (chunk by chunk, so the journal is written as it goes)."""
+    theories: dict[str, Any] = {}
     for chunk in _chunks(items, 1):
         yield evaluate_chunk(spec.base_doc, str(spec.base_dir), spec.tolerance, max_states,
-                             chunk)
+                             chunk, theories)
 
 
 def run_processes(spec: SweepSpec, items: Items, max_states: int, workers: int,

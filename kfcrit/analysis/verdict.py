@@ -71,6 +71,10 @@ class Review:
 
 
 STABILITY_CHECK = "stability at the operating point"
+NOT_DETECTABLE_BASIS = ("(C, A) is not detectable (PBH test): a mode with |λ| ≥ 1 is "
+                        "unobservable, so the expected error covariance diverges for every "
+                        "arrival probability, even p = 1 (no losses); there is no critical "
+                        "value, and p_up and the covariance bounds do not apply")
 LINK_MARGIN_CHECK = "link policy: margin"
 LINK_OUTAGE_CHECK = "link policy: outage"
 
@@ -179,12 +183,12 @@ def operating_verdict(p: Any, crit: CriticalInputs, *, iid: bool = True,
        undetermined inside.
     """
     if crit.classification == "not-detectable":
-        return (Verdict.MEAN_UNSTABLE, "(C, A) is not detectable: a mode with |λ| ≥ 1 is "
-                "unobservable, so E[P_t] diverges for every arrival probability")
+        return Verdict.MEAN_UNSTABLE, NOT_DETECTABLE_BASIS
     if measured_trace:
         return (Verdict.UNDETERMINED, "measured trace: the mean-stability theorems assume i.i.d. "
                 "(Sinopoli, Mo–Sinopoli) or Gilbert–Elliott arrivals, which a recorded sequence "
-                "is not")
+                "is not; the empirical arrival rate and a Gilbert–Elliott fit are given for "
+                "information only")
     if burst is not None and not iid:
         return _burst_verdict(crit, burst)
     return _iid_verdict(p, crit)

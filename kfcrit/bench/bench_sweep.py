@@ -18,6 +18,7 @@ may be shared), and checks that both produced byte-identical tables. Run::
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import sys
@@ -99,7 +100,7 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
     """
     from distributed import LocalCluster
 
-    from kfcrit.analysis.sweep import load_sweep, run_sweep
+    from kfcrit.analysis.sweep import load_sweep, run_sweep, table_csv
 
     out = out or sys.stdout
     workers = workers or os.cpu_count() or 1
@@ -138,9 +139,8 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
               f"{points / dt:9.1f} points/s", file=out)
         result["ratio"] = result["dask"]["points_per_second"] / \
             result["local"]["points_per_second"]
-        result["identical"] = all(
-            (folder / "local" / name).read_bytes() == (folder / "dask" / name).read_bytes()
-            for name in ("sweep.csv", "sweep.json"))
+        result["identical"] = (table_csv(spec, local.rows) == table_csv(spec, dask.rows)
+                               and json.dumps(local.rows) == json.dumps(dask.rows))
     result["load_after"] = _load()
     print(f"ratio dask / local (points per second): {result['ratio']:.3f}; tables identical: "
           f"{result['identical']}; {result['load_after']}", file=out)
