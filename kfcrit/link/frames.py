@@ -149,7 +149,7 @@ def arrival_with_retries(log_arrival: Any, retries: int) -> np.ndarray:
         k ≥ 0.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
-        return -np.expm1((retries + 1) * log_per(log_arrival))
+        return 0.0 - np.expm1((retries + 1) * log_per(log_arrival))  # 0.0 −: no −0.0
 
 
 def attempt_probability(arrival_probability: float, retries: int) -> float:
