@@ -14,7 +14,7 @@ import pytest
 from scipy import integrate, stats
 
 from kfcrit.errors import InputError
-from kfcrit.link.linkbudget import LinkBudget
+from kfcrit.link.linkbudget import LinkBudget, design_section
 from kfcrit.link.radios import radio_catalogue, radio_from_mapping
 from kfcrit.link.shadowing import markov_from_threshold
 
@@ -210,6 +210,10 @@ def test_time_correlated_link_is_a_bursty_channel() -> None:
     assert float(ge.failure_rate) == pytest.approx(f) and float(ge.recovery_rate) == \
         pytest.approx(r)
     assert f + r < 0.2  # strongly correlated: long bursts
+    sec = design_section(link, critical_value=0.36, robust_value=None, bracket=(None, None),
+                         upper_bound=0.47)
+    assert sec["gilbert_elliott"]["failure_rate"] == pytest.approx(f)
+    assert any("bursty" in w and "does not decide" in w for w in sec["warnings"])
     same_t = LinkBudget.from_mapping(
         {**LINK, "path_loss": path,
          "shadowing_correlation": {"sample_period_s": "0.1",

@@ -11,11 +11,11 @@ import sympy as sp
 from scipy import integrate, stats
 from scipy.special import erfc
 
-from kfcrit.model.channels import Bernoulli, GilbertElliott
-from kfcrit.errors import InputError
 from kfcrit.analysis.bursty import ge_horizon, gilbert_elliott_section
+from kfcrit.errors import InputError
 from kfcrit.link.linkbudget import LinkBudget, design_section, thermal_noise_dbm
 from kfcrit.link.radios import CoherentBpsk, Ieee802154Oqpsk
+from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.system import System
 
 LINK = {"model": "link-budget", "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": "0",

@@ -465,11 +465,12 @@ def design_section(channel: Channel, *, critical_value: float | None,
     Returns
     -------
     dict
-        ``applicable, radio, link, frame, gilbert_elliott | null, margin_policy, required_arrival_probability {critical_value,
-        robust_value, bracket, design_value, basis}, required_sinr_db, required_rx_power_dbm,
+        ``applicable, radio, link, frame, gilbert_elliott | null, margin_policy,
+        required_arrival_probability {critical_value, robust_value, bracket, design_value,
+        basis}, required_sinr_db, required_rx_power_dbm,
         link_margin_db, max_distance_m, max_distance_unbounded, mean_stable_at_distance,
         shadowing {sigma_db, mode, mean_arrival_probability, outage_below_critical,
-        outage_below_upper}, thresholds [rows], notes``.
+        outage_below_upper}, thresholds [rows], notes, warnings``.
     """
     if not isinstance(channel, LinkBudget):
         return {"applicable": False, "reason": "the channel is not a link-budget model"}
@@ -532,6 +533,12 @@ def design_section(channel: Channel, *, critical_value: float | None,
                                    if upper_bound is not None else None)},
         "thresholds": rows,
         "notes": notes,
+        "warnings": ([] if not channel.time_correlated else [
+            "time-correlated shadowing makes the losses bursty (Gilbert-Elliott f = "
+            f"{channel.shadowing_markov().failure_rate:.4g}, r = "
+            f"{channel.shadowing_markov().recovery_rate:.4g}): comparing the stationary arrival "
+            "probability with the i.i.d. p_c does not decide mean stability; the burst "
+            "condition (1 - r) rho(A)^2 < 1 is necessary (MATH §10)"]),
     }
 
 
