@@ -1,256 +1,66 @@
-"""Link budgets: from transmit power, distance and packet size to the arrival probability.
+"""Link budgets: from transmit power, distance and payload size to the arrival probability.
 
 The chain, in dB and dBm (every step is a stated formula, tested against independent values)::
 
-    path loss     PL(d) = PL0 + 10·n·log10(d/d0) + X          (log-distance, X ~ N(0, σ²) dB)
-                  PL(d) = 20·log10(4π d f / c) + X             (free space, Friis)
+    path loss     PL(d) = PL0 + 10·n·log10(d/d0) + X          (kfcrit.link.propagation)
     received      Pr = Pt + G − PL(d)                          (G: total antenna gain, dB)
-    noise floor   N = 10·log10(k_B T B / 1 mW) + NF            (≈ −174 dBm/Hz + 10·log10 B + NF)
-    SINR          SINR_dB = Pr − 10·log10(10^{N/10} + 10^{I/10})   (I: interference, optional)
-    arrival       p = 1 − PER(SINR, L) = (1 − BER(SINR))^{8L}  (radio model: kfcrit.link.radios)
+    SINR          SINR_dB = Pr − (N ⊕ I)                       (noise floor and interference)
+    frame         L = payload + MAC overhead (PSDU bytes)       (kfcrit.link.frames)
+    one attempt   1 − PER(SINR, L) = (1 − BER(SINR))^{8L}      (radio model: kfcrit.link.radios)
+    arrival       p = 1 − PER^{k+1}                            (k = max_retries MAC retries)
 
-Shadowing X is *per link* by default (slow fading: a deployed link has one fixed X, so its
-arrival process is i.i.d. with p(X); the channel's arrival probability is the median link's,
-X = 0, and shadowing enters the design through outage probabilities P(p(X) < p_c) and the margin
-policy) or *per packet* (X drawn afresh for every packet: arrivals are i.i.d. with
-p̄ = E_X[p(X)], which is then the channel's arrival probability).
+``packet_bytes`` is the application payload; the PSDU adds the radio's MAC header and FCS
+(``mac_overhead_bytes``, 11 bytes for an 802.15.4 data frame with short addresses) and must fit
+the PHY (127 bytes for 802.15.4); the PHY header (preamble, SFD, PHR) counts in the airtime.
+
+Shadowing X (``path_loss.shadowing``):
+
+* ``per-link`` (default; slow fading: a deployed link has one fixed X, so its arrival process is
+  i.i.d. with p(X)); the channel's arrival probability is the median link's, X = 0, and
+  shadowing enters the design through outage probabilities P(p(X) < p_c) and the margin policy;
+* ``per-packet``: X drawn afresh every sample period; arrivals are i.i.d. with
+  p̄ = E_X[p(X)], which is then the channel's arrival probability (the retries of one period
+  share its X);
+* ``time-correlated``: X an AR(1) process over the sample periods (``shadowing_correlation``);
+  the arrivals are the two-state Markov (Gilbert–Elliott) approximation of
+  :mod:`kfcrit.link.shadowing`, with stationary arrival probability p̄ — a bursty channel.
 
 Design outputs (``design_section``): for each required arrival probability (p_c, the robust
 value, the bracket ends, p_up) the required SINR and received power, the link margin of the
 configured link in dB, the largest distance that still meets it under the margin policy, and
-the outage probabilities. ``gilbert_elliott_section`` states the bursty-loss condition.
+the outage probabilities. The bursty-loss condition is an analysis section
+(:func:`kfcrit.analysis.bursty.gilbert_elliott_section`).
 """
 from __future__ import annotations
 
-import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 import sympy as sp
+from scipy.optimize import brentq
 from scipy.special import ndtr, ndtri
 
-from kfcrit.model.channels import Channel, GilbertElliott, check_keys
 from kfcrit.errors import InputError
-from kfcrit.link.radios import Radio, db_to_linear, radio_from_mapping
+from kfcrit.link.fields import exact_number, integer_field, real_field
+from kfcrit.link.frames import arrival_with_retries, attempt_probability
+from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
+from kfcrit.link.radios import CalibratedOqpsk, Radio, db_to_linear, radio_from_mapping
+from kfcrit.link.shadowing import ShadowingCorrelation, ShadowingMarkov, markov_from_mean_arrival
+from kfcrit.link.units import BOLTZMANN, SPEED_OF_LIGHT, thermal_noise_dbm
+from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check_keys
 
-BOLTZMANN = 1.380649e-23
-"""Boltzmann constant k_B in J/K (exact in the 2019 SI)."""
-SPEED_OF_LIGHT = 299_792_458.0
-"""c in m/s (exact)."""
-SHADOWING_MODES = ("per-link", "per-packet")
-MAX_SIGMA_DB = 30.0
+__all__ = [
+    "BOLTZMANN", "SPEED_OF_LIGHT", "MAX_SIGMA_DB", "SHADOWING_MODES", "Z_RANGE", "LinkBudget",
+    "Noise", "PathLoss", "design_section", "exact_number", "gilbert_elliott_fit",
+    "integer_field", "real_field", "thermal_noise_dbm",
+]
+
 Z_RANGE = 9.0
 """Shadowing averages integrate the standard normal over [−9, 9] (mass outside < 1e-18)."""
-
-
-# ---------------------------------------------------------------------------------------------
-# Reading numbers exactly from their text
-# ---------------------------------------------------------------------------------------------
-
-def exact_number(value: Any, field: str) -> sp.Expr:
-    """Exact real number of a system-file value (text, int or sympy); never ``eval``."""
-    from kfcrit.model.exprparse import number_from_text, parse_expression
-
-    if isinstance(value, bool) or value is None:
-        raise InputError("must be a number", field=field)
-    if isinstance(value, sp.Basic):
-        if not value.is_number:
-            raise InputError("must be a number", field=field)
-        return value
-    if isinstance(value, int):
-        return sp.Integer(value)
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            raise InputError("must be a finite number", field=field)
-        return number_from_text(repr(value), field)
-    if isinstance(value, str):
-        try:
-            return _parsed_text(value)
-        except InputError:  # parse again to name the caller's field in the message
-            return parse_expression(value, field)
-    raise InputError(f"must be a number, got {type(value).__name__}", field=field)
-
-
-@functools.lru_cache(maxsize=8192)
-def _parsed_text(text: str) -> sp.Expr:
-    """``parse_expression`` memoised by text (pure; sympy numbers are immutable; errors are
-    not cached). A sweep re-reads the same channel texts at every point."""
-    from kfcrit.model.exprparse import parse_expression
-
-    return parse_expression(text, "value")
-
-
-def real_field(data: dict, key: str, prefix: str, *, low: float | None = None,
-               high: float | None = None, low_open: bool = False) -> float:
-    """Read ``data[key]`` exactly; check ``low ≤ x ≤ high`` (``low < x`` if ``low_open``)."""
-    where = f"{prefix}.{key}"
-    x = exact_number(data[key], where)
-    if low is not None and (bool(x <= low) if low_open else bool(x < low)):
-        raise InputError(f"must be {'>' if low_open else '>='} {low:g}, got {sp.sstr(x)[:30]}",
-                         field=where)
-    if high is not None and bool(x > high):
-        raise InputError(f"must be <= {high:g}, got {sp.sstr(x)[:30]}", field=where)
-    return float(sp.N(x, 20)) if not x.is_Rational else float(x)
-
-
-def integer_field(data: dict, key: str, prefix: str, *, low: int, high: int) -> int:
-    """Read an integer exactly and check ``low ≤ x ≤ high``."""
-    where = f"{prefix}.{key}"
-    x = exact_number(data[key], where)
-    if not x.is_Integer:
-        raise InputError(f"must be an integer, got {sp.sstr(x)[:30]}", field=where)
-    if not low <= int(x) <= high:
-        raise InputError(f"must be between {low} and {high}, got {int(x)}", field=where)
-    return int(x)
-
-
-def _mapping(value: Any, field: str) -> dict:
-    if not isinstance(value, dict):
-        raise InputError("must be a mapping", field=field)
-    return value
-
-
-# ---------------------------------------------------------------------------------------------
-# Path loss and noise
-# ---------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class PathLoss:
-    """Median path loss (log-distance or free space) plus log-normal shadowing σ (dB).
-
-    ``loss_db(d)`` is the median; ``distance_m(loss)`` its inverse.
-    """
-
-    model: str
-    exponent: float = 2.0
-    reference_distance_m: float = 1.0
-    reference_loss_db: float = 0.0
-    frequency_hz: float | None = None
-    shadowing_sigma_db: float = 0.0
-    shadowing: str = "per-link"
-    MODELS: ClassVar[tuple[str, ...]] = ("log-distance", "free-space")
-
-    @classmethod
-    def from_mapping(cls, data: Any, prefix: str) -> PathLoss:
-        data = _mapping(data, prefix)
-        model = data.get("model")
-        if model not in cls.MODELS:
-            raise InputError(f"must be one of: {', '.join(cls.MODELS)}", field=f"{prefix}.model")
-        common = {"model", "shadowing_sigma_db", "shadowing"}
-        if model == "log-distance":
-            check_keys(data, common | {"exponent", "reference_distance_m", "reference_loss_db"},
-                       {"exponent", "reference_loss_db"}, prefix)
-            kw: dict[str, Any] = {
-                "exponent": real_field(data, "exponent", prefix, low=0, high=10, low_open=True),
-                "reference_loss_db": real_field(data, "reference_loss_db", prefix, low=-100,
-                                                high=300),
-                "reference_distance_m": (real_field(data, "reference_distance_m", prefix, low=0,
-                                                    high=1e7, low_open=True)
-                                         if "reference_distance_m" in data else 1.0)}
-        else:
-            check_keys(data, common | {"frequency_hz"}, {"frequency_hz"}, prefix)
-            kw = {"frequency_hz": real_field(data, "frequency_hz", prefix, low=0, high=1e15,
-                                             low_open=True)}
-        if "shadowing_sigma_db" in data:
-            kw["shadowing_sigma_db"] = real_field(data, "shadowing_sigma_db", prefix, low=0,
-                                                  high=MAX_SIGMA_DB)
-        if "shadowing" in data:
-            if data["shadowing"] not in SHADOWING_MODES:
-                raise InputError(f"must be one of: {', '.join(SHADOWING_MODES)}",
-                                 field=f"{prefix}.shadowing")
-            kw["shadowing"] = data["shadowing"]
-        return cls(model=model, **kw)
-
-    def loss_db(self, distance_m: Any) -> Any:
-        """Median path loss: PL0 + 10 n log10(d/d0), or Friis 20 log10(4π d f / c)."""
-        d = np.asarray(distance_m, dtype=float)
-        if self.model == "log-distance":
-            return self.reference_loss_db + 10.0 * self.exponent * np.log10(
-                d / self.reference_distance_m)
-        return 20.0 * np.log10(4.0 * math.pi * d * self.frequency_hz / SPEED_OF_LIGHT)
-
-    def distance_m(self, loss_db: float) -> float | None:
-        """Inverse of :meth:`loss_db`; None when the distance overflows a float."""
-        if self.model == "log-distance":
-            expo = (loss_db - self.reference_loss_db) / (10.0 * self.exponent)
-            scale = self.reference_distance_m
-        else:
-            expo = loss_db / 20.0
-            scale = SPEED_OF_LIGHT / (4.0 * math.pi * self.frequency_hz)
-        if expo > 300:
-            return None
-        return float(scale * 10.0 ** expo)
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"model": self.model}
-        if self.model == "log-distance":
-            out.update(exponent=self.exponent, reference_distance_m=self.reference_distance_m,
-                       reference_loss_db=self.reference_loss_db,
-                       formula="PL(d) = PL0 + 10 n log10(d/d0) + X")
-        else:
-            out.update(frequency_hz=self.frequency_hz,
-                       formula="PL(d) = 20 log10(4 pi d f / c) + X")
-        out.update(shadowing_sigma_db=self.shadowing_sigma_db, shadowing=self.shadowing)
-        return out
-
-
-def thermal_noise_dbm(bandwidth_hz: float, noise_figure_db: float = 0.0,
-                      temperature_k: float = 290.0) -> float:
-    """Noise floor N = 10·log10(k_B·T·B / 1 mW) + NF in dBm (−173.98 dBm/Hz at 290 K)."""
-    return float(10.0 * math.log10(BOLTZMANN * temperature_k * bandwidth_hz * 1e3)
-                 + noise_figure_db)
-
-
-@dataclass(frozen=True)
-class Noise:
-    """Receiver noise floor (thermal, or given) and optional interference power, in dBm."""
-
-    floor_dbm: float
-    bandwidth_hz: float | None = None
-    noise_figure_db: float | None = None
-    temperature_k: float | None = None
-    interference_dbm: float | None = None
-
-    @classmethod
-    def from_mapping(cls, data: Any, prefix: str) -> Noise:
-        data = _mapping(data, prefix)
-        thermal = {"noise_figure_db", "bandwidth_hz", "temperature_k"}
-        check_keys(data, thermal | {"noise_floor_dbm", "interference_dbm"}, set(), prefix)
-        interference = (real_field(data, "interference_dbm", prefix, low=-300, high=100)
-                        if "interference_dbm" in data else None)
-        if "noise_floor_dbm" in data:
-            extra = sorted(thermal & set(data))
-            if extra:
-                raise InputError("give either noise_floor_dbm or the thermal parameters, "
-                                 "not both", field=f"{prefix}.{extra[0]}")
-            return cls(real_field(data, "noise_floor_dbm", prefix, low=-300, high=100),
-                       interference_dbm=interference)
-        if "bandwidth_hz" not in data:
-            raise InputError("is required (or give noise_floor_dbm)",
-                             field=f"{prefix}.bandwidth_hz")
-        b = real_field(data, "bandwidth_hz", prefix, low=0, high=1e15, low_open=True)
-        nf = (real_field(data, "noise_figure_db", prefix, low=0, high=100)
-              if "noise_figure_db" in data else 0.0)
-        t = (real_field(data, "temperature_k", prefix, low=0, high=1e6, low_open=True)
-             if "temperature_k" in data else 290.0)
-        return cls(thermal_noise_dbm(b, nf, t), b, nf, t, interference)
-
-    @property
-    def total_dbm(self) -> float:
-        """Noise plus interference: 10·log10(10^{N/10} + 10^{I/10})."""
-        if self.interference_dbm is None:
-            return self.floor_dbm
-        return float(np.logaddexp(self.floor_dbm * math.log(10) / 10,
-                                  self.interference_dbm * math.log(10) / 10) * 10 / math.log(10))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"noise_floor_dbm": self.floor_dbm, "bandwidth_hz": self.bandwidth_hz,
-                "noise_figure_db": self.noise_figure_db, "temperature_k": self.temperature_k,
-                "interference_dbm": self.interference_dbm,
-                "noise_plus_interference_dbm": self.total_dbm}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -258,17 +68,22 @@ class Noise:
 # ---------------------------------------------------------------------------------------------
 
 LINK_KEYS = {"model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
-             "noise", "antenna_gain_db", "margin_db", "max_outage"}
+             "noise", "antenna_gain_db", "margin_db", "max_outage", "max_retries",
+             "mac_overhead_bytes", "shadowing_correlation"}
 LINK_REQUIRED = {"radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise"}
+MAX_PAYLOAD_BYTES = 65535
 
 
 @dataclass(frozen=True, eq=False)
 class LinkBudget(Channel):
-    """A radio link: i.i.d. packet arrivals with p = 1 − PER(SINR(d), L) (see module docstring).
+    """A radio link: arrivals with p = 1 − PER(SINR(d), L)^{k+1} (see module docstring).
 
     Margin policy: a design must keep ``margin_db`` dB of SINR in reserve; with ``max_outage``
     the reserve is at least σ·Φ^{-1}(1 − max_outage) (per-link shadowing: at most that fraction
     of links fall below the requirement).
+
+    ``packet_bytes`` is the application payload; ``mac_overhead_bytes`` (None: the radio's
+    default) is added to it to form the PSDU over which the PER is computed.
     """
 
     radio: Radio
@@ -280,17 +95,34 @@ class LinkBudget(Channel):
     antenna_gain_db: float = 0.0
     margin_db: float = 0.0
     max_outage: float | None = None
+    max_retries: int = 0
+    mac_overhead_bytes: int | None = None
+    shadowing_correlation: ShadowingCorrelation | None = None
     model: ClassVar[str] = "link-budget"
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        frame = self.radio.frame
+        frame.check_payload(self.packet_bytes, self.mac_overhead_bytes, "packet_bytes")
+        frame.check_retries(self.max_retries, "max_retries")
+        correlated = self.path_loss.shadowing == "time-correlated"
+        if correlated and (self.shadowing_correlation is None or self.sigma_db <= 0):
+            raise InputError("time-correlated shadowing needs shadowing_sigma_db > 0 and the "
+                             "link's shadowing_correlation", field="path_loss.shadowing")
+        if self.shadowing_correlation is not None and not correlated:
+            raise InputError("only with path_loss.shadowing: time-correlated",
+                             field="shadowing_correlation")
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> LinkBudget:
         check_keys(data, LINK_KEYS, LINK_REQUIRED, prefix)
+        radio = radio_from_mapping(data["radio"], f"{prefix}.radio")
+        frame = radio.frame
         kw: dict[str, Any] = {
-            "radio": radio_from_mapping(data["radio"], f"{prefix}.radio"),
+            "radio": radio,
             "tx_power_dbm": real_field(data, "tx_power_dbm", prefix, low=-100, high=100),
             "distance_m": real_field(data, "distance_m", prefix, low=0, high=1e9, low_open=True),
-            "packet_bytes": integer_field(data, "packet_bytes", prefix, low=1, high=65535),
+            "packet_bytes": integer_field(data, "packet_bytes", prefix, low=1,
+                                          high=MAX_PAYLOAD_BYTES),
             "path_loss": PathLoss.from_mapping(data["path_loss"], f"{prefix}.path_loss"),
             "noise": Noise.from_mapping(data["noise"], f"{prefix}.noise"),
         }
@@ -302,7 +134,21 @@ class LinkBudget(Channel):
         if "max_outage" in data:
             kw["max_outage"] = real_field(data, "max_outage", prefix, low=0, high=0.5,
                                           low_open=True)
-        return cls(**kw)
+        if "max_retries" in data:
+            kw["max_retries"] = integer_field(data, "max_retries", prefix, low=0,
+                                              high=frame.max_retries)
+        if "mac_overhead_bytes" in data:
+            kw["mac_overhead_bytes"] = integer_field(
+                data, "mac_overhead_bytes", prefix, low=0,
+                high=(frame.max_psdu_bytes - 1) if frame.max_psdu_bytes else MAX_PAYLOAD_BYTES)
+        if "shadowing_correlation" in data:
+            kw["shadowing_correlation"] = ShadowingCorrelation.from_mapping(
+                data["shadowing_correlation"], f"{prefix}.shadowing_correlation")
+        try:
+            return cls(**kw)
+        except InputError as exc:  # name the field with the caller's prefix
+            raise InputError(str(exc).split(": ", 1)[-1],
+                             field=f"{prefix}.{exc.field}" if exc.field else prefix) from None
 
     # -- the chain -----------------------------------------------------------------------------
     @property
@@ -326,14 +172,48 @@ class LinkBudget(Channel):
 
     @property
     def per_packet_shadowing(self) -> bool:
-        return self.sigma_db > 0 and self.path_loss.shadowing == "per-packet"
+        """Shadowing redrawn per sample period (independently, or as a correlated process)."""
+        return self.sigma_db > 0 and self.path_loss.shadowing in ("per-packet",
+                                                                  "time-correlated")
+
+    @property
+    def time_correlated(self) -> bool:
+        return self.path_loss.shadowing == "time-correlated"
+
+    @property
+    def psdu_bytes(self) -> int:
+        """Bytes the packet error rate covers: payload + MAC header + FCS."""
+        return self.radio.frame.psdu_bytes(self.packet_bytes, self.mac_overhead_bytes)
+
+    def with_changes(self, **changes: Any) -> LinkBudget:
+        """A copy with some parameters changed (validated like the original)."""
+        fields = {k: getattr(self, k) for k in (
+            "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise",
+            "antenna_gain_db", "margin_db", "max_outage", "max_retries", "mac_overhead_bytes",
+            "shadowing_correlation")}
+        fields.update(changes)
+        return LinkBudget(**fields)
+
+    def attempt_per(self, sinr_db: Any) -> np.ndarray:
+        """PER of one attempt, 1 − (1 − BER)^{8L}, L = PSDU bytes."""
+        return self.radio.per(sinr_db, self.psdu_bytes)
+
+    def link_arrival(self, sinr_db: Any) -> np.ndarray:
+        r"""Arrival probability within a sample period at SINR ``sinr_db`` (no shadowing draw).
+
+        .. math:: p(s) = 1 - \mathrm{PER}(s, L)^{k+1}
+        """
+        return arrival_with_retries(self.radio.log_arrival(sinr_db, self.psdu_bytes),
+                                    self.max_retries)
 
     def nominal_arrival(self, sinr_db: float) -> float:
-        """1 − PER at a given SINR, without shadowing."""
-        return float(self.radio.arrival(sinr_db, self.packet_bytes))
+        """p(s) of :meth:`link_arrival` as a float."""
+        return float(self.link_arrival(sinr_db))
 
     def mean_arrival(self, sinr_db: float) -> float:
-        """Shadowing average p̄(s) = ∫ p(s + σz) φ(z) dz (trapezoid rule on z ∈ [−9, 9]).
+        r"""Shadowing average (trapezoid rule on z ∈ [−9, 9]).
+
+        .. math:: \bar p(s) = \int p(s + \sigma z)\,\varphi(z)\,dz
 
         The integrand is smooth and decays like φ(z), so the trapezoid rule converges
         geometrically; the step keeps σ·h ≤ 0.02 dB, far finer than the width of any PER curve.
@@ -345,29 +225,54 @@ class LinkBudget(Channel):
         count = 2 * math.ceil(Z_RANGE / h) + 1
         z = np.linspace(-Z_RANGE, Z_RANGE, count)
         weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
-        values = self.radio.arrival(sinr_db + sigma * z, self.packet_bytes)
+        values = self.link_arrival(sinr_db + sigma * z)
         return float(min(1.0, np.trapezoid(values * weights, z)))
 
     def effective_arrival(self, sinr_db: float) -> float:
-        """The i.i.d. arrival probability at median SINR ``sinr_db`` (mean if per-packet)."""
+        """The stationary arrival probability at median SINR ``sinr_db`` (mean if redrawn)."""
         return self.mean_arrival(sinr_db) if self.per_packet_shadowing \
             else self.nominal_arrival(sinr_db)
 
-    @property
+    @cached_property
     def arrival_value(self) -> float:
-        """The arrival probability as a float (cached)."""
-        if "p" not in self._cache:
-            self._cache["p"] = self.effective_arrival(self.sinr_db)
-        return self._cache["p"]
+        """The arrival probability as a float (computed once per link)."""
+        return self.effective_arrival(self.sinr_db)
 
     @property
     def arrival_probability(self) -> sp.Expr:
-        """Median link's 1 − PER (per-link shadowing) or its shadowing average (per-packet)."""
+        """Median link's p (per-link shadowing) or its shadowing average (redrawn shadowing)."""
         return sp.Float(self.arrival_value, 17)
 
     @property
     def iid(self) -> bool:
-        return True
+        return not self.time_correlated
+
+    def shadowing_markov(self) -> ShadowingMarkov | None:
+        """The Gilbert–Elliott approximation of time-correlated shadowing (None otherwise)."""
+        if not self.time_correlated or self.shadowing_correlation is None:
+            return None
+        return markov_from_mean_arrival(self.shadowing_correlation.correlation,
+                                        self.arrival_value)
+
+    def gilbert_elliott(self) -> GilbertElliott | None:
+        """The equivalent :class:`GilbertElliott` channel of time-correlated shadowing.
+
+        None when the shadowing is not time-correlated, or when a rate underflows to 0 (a link
+        that practically never fails or never recovers; its arrival probability decides).
+        """
+        chain = self.shadowing_markov()
+        if chain is None or not (chain.failure_rate > 0 and chain.recovery_rate > 0):
+            return None
+        return GilbertElliott(sp.Float(chain.failure_rate, 17),
+                              sp.Float(chain.recovery_rate, 17))
+
+    def arrival_process(self) -> ArrivalProcess:
+        """I.i.d. arrivals, or the Markov chain of time-correlated shadowing."""
+        chain = self.shadowing_markov()
+        if chain is None:
+            return ArrivalProcess("iid", p=self.arrival_value)
+        return ArrivalProcess("markov", failure_rate=chain.failure_rate,
+                              recovery_rate=chain.recovery_rate)
 
     # -- design --------------------------------------------------------------------------------
     @property
@@ -379,12 +284,18 @@ class LinkBudget(Channel):
             margin = max(margin, float(self.sigma_db * ndtri(1.0 - self.max_outage)))
         return margin
 
+    def link_required_sinr_db(self, p: float) -> float | None:
+        """Least SINR (dB) with p(s) ≥ p without a shadowing draw (retries included).
+
+        Solved on one attempt: PER(s)^{k+1} ≤ 1 − p ⇔ 1 − PER(s) ≥ 1 − (1 − p)^{1/(k+1)}.
+        """
+        return self.radio.required_sinr_db(attempt_probability(p, self.max_retries),
+                                           self.psdu_bytes)
+
     def required_sinr_db(self, p: float) -> float | None:
         """Least median SINR (dB) whose arrival probability is ≥ p; None if none is needed."""
         if not self.per_packet_shadowing:
-            return self.radio.required_sinr_db(p, self.packet_bytes)
-        from scipy.optimize import brentq
-
+            return self.link_required_sinr_db(p)
         lo, hi = -60.0, 100.0
         if p <= self.mean_arrival(lo):
             return None
@@ -394,7 +305,7 @@ class LinkBudget(Channel):
 
     def outage_probability(self, p: float) -> float:
         """P(p_link < p) over per-link shadowing: Φ((s_req(p) − s0)/σ) (0 or 1 when σ = 0)."""
-        s_req = self.radio.required_sinr_db(p, self.packet_bytes) if p < 1 else math.inf
+        s_req = self.link_required_sinr_db(p) if p < 1 else math.inf
         if s_req is None:
             return 0.0
         if self.sigma_db == 0:
@@ -407,31 +318,64 @@ class LinkBudget(Channel):
             - sinr_required_db - margin_db
         return self.path_loss.distance_m(allowed)
 
+    def frame_dict(self) -> dict[str, Any]:
+        """The frame on the air: payload, overheads, PHY limit, airtime and retries."""
+        frame = self.radio.frame
+        psdu = self.psdu_bytes
+        return {"payload_bytes": self.packet_bytes,
+                "mac_overhead_bytes": psdu - self.packet_bytes,
+                "psdu_bytes": psdu, "phy_header_bytes": frame.phy_header_bytes,
+                "ppdu_bytes": psdu + frame.phy_header_bytes,
+                "max_psdu_bytes": frame.max_psdu_bytes,
+                "max_payload_bytes": frame.max_payload_bytes(self.mac_overhead_bytes),
+                "standard": frame.standard, "per_covers": "PSDU (MAC header + payload + FCS)",
+                "definition": "packet_bytes is the application payload; PSDU = MAC header + "
+                              "payload + FCS; PPDU = PHY header (preamble, SFD, PHR) + PSDU",
+                "airtime_s": frame.airtime_s(psdu),
+                "max_retries": self.max_retries, "max_retries_allowed": frame.max_retries,
+                "attempts_duration_s": frame.attempts_duration_s(psdu, self.max_retries),
+                "retry_formula": "p = 1 - PER^(k+1)",
+                "retry_assumption": "the k + 1 attempts fit in the sample period and fail "
+                                    "independently given the shadowing value of the period, "
+                                    "which they share; acknowledgement losses cause needless "
+                                    "retries, not lost updates; CSMA-CA backoffs are not "
+                                    "included in attempts_duration_s"}
+
     def link_dict(self) -> dict[str, Any]:
         """The configured link, step by step."""
         sinr = self.sinr_db
         ber = float(self.radio.ber(db_to_linear(sinr)))
         return {"tx_power_dbm": self.tx_power_dbm, "antenna_gain_db": self.antenna_gain_db,
                 "distance_m": self.distance_m, "packet_bytes": self.packet_bytes,
+                "psdu_bytes": self.psdu_bytes, "max_retries": self.max_retries,
                 "path_loss_db": self.path_loss_db, "rx_power_dbm": self.rx_power_dbm,
                 **self.noise.to_dict(), "sinr_db": sinr,
                 "sinr_linear": float(db_to_linear(sinr)), "bit_error_rate": ber,
-                "packet_error_rate": float(self.radio.per(sinr, self.packet_bytes)),
+                "packet_error_rate": float(self.attempt_per(sinr)),
+                "attempt_arrival_probability": float(
+                    self.radio.arrival(sinr, self.psdu_bytes)),
                 "arrival_probability_nominal": self.nominal_arrival(sinr),
                 "arrival_probability_mean": self.mean_arrival(sinr),
                 "arrival_probability": self.arrival_value}
 
     def to_dict(self) -> dict[str, Any]:
+        chain = self.shadowing_markov()
         return {"model": self.model, "radio": self.radio.to_dict(),
                 "tx_power_dbm": self.tx_power_dbm, "distance_m": self.distance_m,
                 "packet_bytes": self.packet_bytes, "antenna_gain_db": self.antenna_gain_db,
                 "path_loss": self.path_loss.to_dict(), "noise": self.noise.to_dict(),
                 "margin_db": self.margin_db, "max_outage": self.max_outage,
+                "max_retries": self.max_retries, "frame": self.frame_dict(),
+                "shadowing_correlation": (self.shadowing_correlation.to_dict()
+                                          if self.shadowing_correlation else None),
+                "gilbert_elliott": chain.to_dict() if chain else None,
                 "sinr_db": self.sinr_db, "arrival_probability": self.arrival_value,
                 "arrival_probability_expression": repr(self.arrival_value),
-                "arrival_probability_basis": ("shadowing average (per-packet shadowing)"
-                                              if self.per_packet_shadowing else
-                                              "median link (no shadowing draw)")}
+                "arrival_probability_basis": (
+                    "stationary arrival probability of the Gilbert-Elliott approximation of "
+                    "time-correlated shadowing (= the shadowing average)" if chain else
+                    "shadowing average (per-packet shadowing)" if self.per_packet_shadowing
+                    else "median link (no shadowing draw)")}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -462,6 +406,25 @@ def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
                link_margin_db=channel.sinr_db - s_req, max_distance_m=d,
                max_distance_unbounded=d is None)
     return row
+
+
+def _frame_notes(channel: LinkBudget) -> list[str]:
+    """What the frame and radio model assume, in words for the record."""
+    frame = channel.frame_dict()
+    notes = [f"packet_bytes = {frame['payload_bytes']} is the application payload; the packet "
+             f"error rate covers the PSDU of {frame['psdu_bytes']} bytes (MAC header and FCS "
+             f"{frame['mac_overhead_bytes']} bytes added); the PHY header "
+             f"({frame['phy_header_bytes']} bytes) counts in the airtime only"]
+    if channel.max_retries:
+        notes.append(f"{channel.max_retries} MAC retries: p = 1 - PER^{channel.max_retries + 1}"
+                     " within the sample period (attempts independent given the period's "
+                     "shadowing value, which they share)")
+    if isinstance(channel.radio, CalibratedOqpsk) and (channel.noise.noise_figure_db or 0) > 0:
+        notes.append("the radio's implementation loss is calibrated from its datasheet "
+                     "sensitivity and already contains the receiver noise figure; the noise "
+                     f"figure of {channel.noise.noise_figure_db:g} dB given under noise is "
+                     "counted in addition")
+    return notes
 
 
 def _design_requirement(critical_value: float | None, robust_value: float | None,
@@ -502,11 +465,12 @@ def design_section(channel: Channel, *, critical_value: float | None,
     Returns
     -------
     dict
-        ``applicable, radio, link, margin_policy, required_arrival_probability {critical_value,
-        robust_value, bracket, design_value, basis}, required_sinr_db, required_rx_power_dbm,
+        ``applicable, radio, link, frame, gilbert_elliott | null, margin_policy,
+        required_arrival_probability {critical_value, robust_value, bracket, design_value,
+        basis}, required_sinr_db, required_rx_power_dbm,
         link_margin_db, max_distance_m, max_distance_unbounded, mean_stable_at_distance,
         shadowing {sigma_db, mode, mean_arrival_probability, outage_below_critical,
-        outage_below_upper}, thresholds [rows], notes``.
+        outage_below_upper}, thresholds [rows], notes, warnings``.
     """
     if not isinstance(channel, LinkBudget):
         return {"applicable": False, "reason": "the channel is not a link-budget model"}
@@ -527,10 +491,15 @@ def design_section(channel: Channel, *, critical_value: float | None,
     if channel.sigma_db > 0 and not channel.per_packet_shadowing:
         notes.append("per-link shadowing: the arrival probability is the median link's; a "
                      "deployed link falls below a requirement with the outage probability")
-    if channel.per_packet_shadowing:
+    if channel.per_packet_shadowing and not channel.time_correlated:
         notes.append("per-packet shadowing: arrivals are i.i.d. with the shadowing-averaged "
                      "probability; outage probabilities describe per-link shadowing and are "
                      "given for comparison")
+    if channel.time_correlated:
+        notes.append("time-correlated shadowing: arrivals are bursty (Gilbert-Elliott "
+                     "approximation, see gilbert_elliott); the i.i.d. requirements p_c, p_up "
+                     "below do not decide mean stability for this channel")
+    notes.extend(_frame_notes(channel))
     if channel.path_loss.model == "log-distance" \
             and channel.distance_m < channel.path_loss.reference_distance_m:
         notes.append("the distance is below the reference distance of the log-distance model")
@@ -538,6 +507,9 @@ def design_section(channel: Channel, *, critical_value: float | None,
         "applicable": True,
         "radio": channel.radio.to_dict(),
         "link": channel.link_dict(),
+        "frame": channel.frame_dict(),
+        "gilbert_elliott": (channel.shadowing_markov().to_dict()
+                            if channel.time_correlated else None),
         "margin_policy": {"margin_db": channel.margin_db, "max_outage": channel.max_outage,
                           "effective_margin_db": channel.effective_margin_db,
                           "rule": "keep max(margin_db, sigma * Phi^-1(1 - max_outage)) dB of "
@@ -561,139 +533,18 @@ def design_section(channel: Channel, *, critical_value: float | None,
                                    if upper_bound is not None else None)},
         "thresholds": rows,
         "notes": notes,
+        "warnings": ([] if not channel.time_correlated else [
+            "time-correlated shadowing makes the losses bursty (Gilbert-Elliott f = "
+            f"{channel.shadowing_markov().failure_rate:.4g}, r = "
+            f"{channel.shadowing_markov().recovery_rate:.4g}): comparing the stationary arrival "
+            "probability with the i.i.d. p_c does not decide mean stability; the burst "
+            "condition (1 - r) rho(A)^2 < 1 is necessary (MATH §10)"]),
     }
 
 
 # ---------------------------------------------------------------------------------------------
-# Gilbert–Elliott (bursty) links
+# Recorded arrival traces
 # ---------------------------------------------------------------------------------------------
-
-GE_CLAIMS = [
-    {"statement": "Kalman filtering with Markovian (Gilbert-Elliott) packet losses: conditions "
-                  "for the stability of the peak covariance (sufficient in general, necessary "
-                  "and sufficient for some classes of systems).",
-     "source": "M. Huang, S. Dey, Stability of Kalman filtering with Markovian packet losses, "
-               "Automatica 43(4), 2007",
-     "status": "claim from the literature (not verified by kfcrit)"},
-    {"statement": "For non-degenerate systems the mean error covariance is bounded iff "
-                  "(1 - r) |lambda_1|^2 < 1, whatever the failure rate f; for second-order "
-                  "systems the condition depends on the structure of (A, C) and reduces to the "
-                  "i.i.d. critical value when f + r = 1.",
-     "source": "K. You, M. Fu, L. Xie, Mean square stability for Kalman filtering with "
-               "Markovian packet losses, Automatica 47(12), 2011",
-     "status": "claim from the literature (not verified by kfcrit)"},
-]
-"""Literature results beyond the scalar case, labelled as claims (MATH §7)."""
-
-GE_SIM_PATHS = 4000
-GE_SIM_MIN_LOST = 100
-"""The horizon keeps about this many paths that have lost every packet since t = 0."""
-GE_SIM_STEPS = (8, 400)
-GE_SIM_BOUNDED_STEPS = 40
-"""Least horizon when the condition holds (E[P_t] must have settled to show that it is bounded)."""
-GE_GROWTH_FACTOR = 2.0
-"""E[P_T] / E[P_{T/2}] above this reads as growing, below as bounded."""
-
-
-def ge_horizon(a: float, failure: float, recovery: float, paths: int = GE_SIM_PATHS) -> int:
-    """Horizon T of :func:`ge_scalar_simulation` for the scalar system ``a``.
-
-    When (1 − r)a² > 1, E[P_t] grows like ((1 − r)a²)^t through the paths that have lost every
-    packet since the start; a sample of ``paths`` paths estimates it only while about
-    :data:`GE_SIM_MIN_LOST` such paths remain: paths·π_loss·(1 − r)^T ≈ 100 with π_loss =
-    f/(f + r). Beyond that horizon the sample mean saturates (it is a mean of a heavy-tailed
-    variable) and would wrongly look bounded. When the condition holds the horizon is at least
-    :data:`GE_SIM_BOUNDED_STEPS`, so that the mean has settled.
-    """
-    lo, hi = GE_SIM_STEPS
-    if recovery >= 1:
-        steps = hi
-    else:
-        pi_loss = failure / (failure + recovery)
-        steps = int(math.floor(math.log(GE_SIM_MIN_LOST / (paths * pi_loss))
-                               / math.log1p(-recovery)))
-    if (1 - recovery) * a * a < 1:
-        steps = max(steps, GE_SIM_BOUNDED_STEPS)
-    return max(lo, min(hi, steps))
-
-
-def ge_scalar_simulation(a: float, c: float, q: float, r_noise: float, failure: float,
-                         recovery: float, *, paths: int = GE_SIM_PATHS, steps: int | None = None,
-                         seed: int = 0) -> dict[str, Any]:
-    """Monte Carlo of the scalar random Riccati equation driven by a Gilbert–Elliott chain.
-
-    P ← a²P + q on a loss, P ← a²P + q − a²c²P²/(c²P + r) on an arrival; P_0 = 1 and the chain
-    starts in its stationary law. Reports the sample means of P at T/2 and T (T from
-    :func:`ge_horizon` unless given) and their ratio: near 1 when E[P_t] is bounded, about
-    ((1 − r)a²)^{T/2} when it grows.
-
-    Parameters
-    ----------
-    a, c, q, r_noise : float
-        The scalar system (A, C, Q, R).
-    failure, recovery : float
-        f = P(lost next | received now) and r = P(received next | lost now).
-    paths : int
-        Number of simulated paths.
-    steps : int, optional
-        Horizon T (default :func:`ge_horizon`).
-    seed : int
-        Seed of the NumPy generator.
-
-    Returns
-    -------
-    dict
-        ``paths, steps, seed, horizon_rule, mean_half, mean_end, growth_ratio,
-        expected_growth_if_unbounded, capped``.
-    """
-    if steps is None:
-        steps = ge_horizon(a, failure, recovery, paths)
-    rng = np.random.default_rng(seed)
-    received = rng.random(paths) < recovery / (failure + recovery)
-    P = np.ones(paths)
-    a2, c2 = a * a, c * c
-    means = np.empty(steps + 1)
-    means[0] = 1.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        for t in range(1, steps + 1):
-            u = rng.random(paths)
-            received = np.where(received, u >= failure, u < recovery)
-            pred = a2 * P + q
-            upd = pred - a2 * c2 * P * P / (c2 * P + r_noise)
-            P = np.minimum(np.where(received, upd, pred), 1e300)
-            means[t] = P.mean()
-    half, end = float(means[steps // 2]), float(means[steps])
-    value = (1 - recovery) * a2
-    return {"paths": paths, "steps": steps, "seed": seed,
-            "horizon_rule": f"about {GE_SIM_MIN_LOST} paths lose every packet up to T "
-                            f"(T in [{GE_SIM_STEPS[0]}, {GE_SIM_STEPS[1]}], at least "
-                            f"{GE_SIM_BOUNDED_STEPS} when the condition holds)",
-            "mean_half": half, "mean_end": end,
-            "growth_ratio": end / half if half > 0 else None,
-            "expected_growth_if_unbounded": (float(value ** (steps - steps // 2))
-                                             if value > 1 else None),
-            "capped": bool(np.max(P) >= 1e300)}
-
-
-def _ge_status(system: Any, classification: str, c_nonzero: bool) -> tuple[str, bool]:
-    """(label of the condition, whether it is a theorem that decides mean stability)."""
-    if classification == "stable":
-        return ("theorem: rho(A) < 1, so E[P_t] is bounded for every loss process "
-                "(the condition holds trivially)", True)
-    if classification == "not-detectable":
-        return ("not applicable: (C, A) is not detectable, E[P_t] diverges for every loss "
-                "process", False)
-    if system.n == 1 and c_nonzero:
-        return ("theorem (scalar case, MATH §7: a loss burst lasts j steps with probability "
-                "(1 - r)^(j-1) r and multiplies P by about a^(2j))", True)
-    if classification == "non-degenerate":
-        return ("claim: necessary and sufficient for non-degenerate systems (You-Fu-Xie 2011, "
-                "see claims); not verified by kfcrit", False)
-    return (f"necessary condition only (claim, loss-burst argument of MATH §7 applied to "
-            f"lambda_1); no sufficient condition is implemented for a {classification} system "
-            "(You-Fu-Xie 2011 give structure-dependent conditions for second-order systems)",
-            False)
-
 
 def gilbert_elliott_fit(arrivals: Any, system: Any = None) -> dict[str, Any]:
     """Maximum-likelihood two-state Markov (Gilbert–Elliott) fit of a 0/1 arrival sequence.
@@ -724,80 +575,4 @@ def gilbert_elliott_fit(arrivals: Any, system: Any = None) -> dict[str, Any]:
         a = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
         out["condition"] = {"expression": "(1 - r) a^2 < 1", "value": (1 - r) * a * a,
                             "holds": bool((1 - r) * a * a < 1)}
-    return out
-
-
-def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
-                            simulate: bool = True) -> dict[str, Any]:
-    """Mean stability under Gilbert–Elliott losses (MATH §7).
-
-    Scalar case (theorem): losses arrive in bursts of length j with probability
-    (1 − r)^{j−1} r, and P grows like a^{2j} during a burst (while after an arrival it is at most
-    R/c²), so E[P] is bounded iff (1 − r)·a² < 1, i.e. the recovery rate r exceeds 1 − 1/a²
-    (the i.i.d. critical value; f does not enter). It is checked by :func:`ge_scalar_simulation`.
-    For n > 1 the same test with a = ρ(A) is labelled as what it is: a claim from the literature
-    for non-degenerate systems, a necessary condition only otherwise.
-
-    Parameters
-    ----------
-    system : System
-        The system.
-    channel : Channel
-        The configured channel; anything but :class:`GilbertElliott` gives
-        ``{"applicable": False}``.
-    seed : int
-        Seed of the simulation check.
-    simulate : bool
-        Run the simulation check (scalar case only).
-
-    Returns
-    -------
-    dict
-        ``applicable, failure_rate, recovery_rate, stationary_arrival_probability,
-        mean_burst_length, spectral_radius, classification, condition {expression, value, holds,
-        status, decides}, required_recovery_rate, max_mean_burst_length, simulation | null,
-        simulation_consistent | null, simulation_note, claims``.
-    """
-    from kfcrit.theory.critical import critical_value
-
-    if not isinstance(channel, GilbertElliott):
-        return {"applicable": False, "reason": "the channel is not a Gilbert-Elliott model"}
-    f = float(channel.failure_rate)
-    r = float(channel.recovery_rate)
-    a = float(max(abs(np.linalg.eigvals(system.a))))
-    value = (1 - r) * a * a
-    classification = critical_value(system).classification
-    scalar = system.n == 1
-    c_nonzero = bool(np.any(system.c != 0))
-    status, decides = _ge_status(system, classification, c_nonzero)
-    r_min = max(0.0, 1 - 1 / (a * a)) if a > 0 else 0.0
-    out: dict[str, Any] = {
-        "applicable": True, "failure_rate": f, "recovery_rate": r,
-        "stationary_arrival_probability": r / (f + r), "mean_burst_length": 1 / r,
-        "spectral_radius": a, "classification": classification,
-        "condition": {"expression": "(1 - r) a^2 < 1", "value": value, "holds": value < 1,
-                      "status": status, "decides": decides},
-        "required_recovery_rate": r_min,
-        "max_mean_burst_length": (1 / r_min) if r_min > 0 else None,
-        "simulation": None, "simulation_consistent": None, "simulation_note": None,
-        "claims": GE_CLAIMS}
-    if simulate and scalar and decides and classification != "stable":
-        sim = ge_scalar_simulation(float(system.a[0, 0]), float(system.c[0, 0]),
-                                   float(system.q[0, 0]), float(system.r[0, 0]), f, r,
-                                   seed=seed)
-        out["simulation"] = sim
-        expected = sim["expected_growth_if_unbounded"]
-        if abs(value - 1) < 0.15:
-            out["simulation_note"] = ("(1 - r) a^2 is within 0.15 of 1: a simulation of this "
-                                      "size cannot tell bounded from growing; not compared")
-        elif value > 1 and (expected is None or expected < 2 * GE_GROWTH_FACTOR):
-            out["simulation_note"] = ("the horizon a simulation can resolve is too short for "
-                                      "the predicted growth to show; not compared")
-        elif sim["growth_ratio"] is not None:
-            out["simulation_consistent"] = (sim["growth_ratio"] < GE_GROWTH_FACTOR) == \
-                (value < 1)
-            reading = "bounded" if sim["growth_ratio"] < GE_GROWTH_FACTOR else "growing"
-            out["simulation_note"] = (f"E[P_T]/E[P_T/2] = {sim['growth_ratio']:.4g} at T = "
-                                      f"{sim['steps']}; read as {reading} (threshold "
-                                      f"{GE_GROWTH_FACTOR:g})")
     return out

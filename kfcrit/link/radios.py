@@ -1,12 +1,23 @@
-"""Radio models: bit error rate as a function of SINR, and packet error rate from it.
+r"""Radio models: bit error rate as a function of SINR, and packet error rate from it.
 
 A radio turns the signal-to-interference-plus-noise ratio at the receiver (linear, not dB) into a
 bit error rate; every radio shares the uncoded packet error rate
 
     PER(SINR, L) = 1 − (1 − BER(SINR))^{8 L}        (L bytes, independent bit errors)
 
-and the arrival probability 1 − PER. Adding a radio never touches the others: write a frozen
-dataclass with ``ber``, ``from_mapping`` and ``to_dict`` and add one line to ``_RADIOS``.
+and the arrival probability 1 − PER, with L the PSDU length (see :mod:`kfcrit.link.frames`). Adding
+a radio never touches the others: write a frozen dataclass with ``ber``, ``from_mapping`` and
+``to_dict`` and add one line to ``_RADIOS``.
+
+Datasheet profiles (:func:`radio_profiles`) are the ideal O-QPSK formula shifted by an
+implementation loss ΔL (dB), calibrated so that the datasheet sensitivity S (dBm, at the stated
+PER and PSDU length) is reproduced against the thermal noise of the 2 MHz channel at 290 K:
+
+.. math:: \Delta L = S - N_{ref} - s_{ideal}(1 - \mathrm{PER}_{ref}, L_{ref}),
+          \qquad N_{ref} = 10\log_{10}(k_B \cdot 290 \cdot 2\,\mathrm{MHz}/1\,\mathrm{mW}),
+
+and BER(SINR) = BER_ideal(SINR / 10^{ΔL/10}). ΔL contains the receiver's noise figure and its
+demodulator loss; a link using a profile should give its noise floor without a noise figure.
 
 Numerics: ``PER`` and ``arrival`` are computed as ``−expm1(8L·log1p(−BER))`` and
 ``exp(8L·log1p(−BER))`` so that tiny error rates (PER ~ 1e-12) keep full relative accuracy.
@@ -23,33 +34,30 @@ from scipy.optimize import brentq
 from scipy.special import comb, erfc
 
 from kfcrit.errors import InputError
+from kfcrit.link.fields import integer_field, real_field
+from kfcrit.link.frames import IEEE802154_2450, UNFRAMED, FrameFormat
+from kfcrit.link.units import db_to_linear, thermal_noise_dbm
 
 SINR_SEARCH_DB = (-40.0, 60.0)
 """Interval (dB) searched when inverting PER(SINR); error rates outside it are reported as edges."""
 
 
-def db_to_linear(x_db: Any) -> Any:
-    """10^(x/10)."""
-    return np.power(10.0, np.asarray(x_db, dtype=float) / 10.0)
-
-
-def linear_to_db(x: Any) -> Any:
-    """10·log10(x)."""
-    return 10.0 * np.log10(np.asarray(x, dtype=float))
-
-
 class Radio:
-    """Base class: subclasses define :meth:`ber` (vectorised over linear SINR)."""
+    """Base class: subclasses define :meth:`ber` (vectorised over linear SINR) and ``frame``."""
 
     name: ClassVar[str]
     formula: ClassVar[str]
     source: ClassVar[str]
+    frame: ClassVar[FrameFormat] = UNFRAMED
 
     def ber(self, sinr: Any) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def to_dict(self) -> dict[str, Any]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
     def log_arrival(self, sinr_db: Any, packet_bytes: int) -> np.ndarray:
-        """log(1 − PER) = 8L·log1p(−BER) at SINR given in dB."""
+        """log(1 − PER) = 8L·log1p(−BER) at SINR given in dB (L: bytes covered)."""
         ber = np.clip(self.ber(db_to_linear(sinr_db)), 0.0, 1.0)
         with np.errstate(divide="ignore"):
             return 8 * packet_bytes * np.log1p(-ber)
@@ -63,23 +71,23 @@ class Radio:
         return -np.expm1(self.log_arrival(sinr_db, packet_bytes))
 
     def required_sinr_db(self, arrival_probability: float, packet_bytes: int) -> float | None:
-        """Least SINR (dB) with 1 − PER ≥ ``arrival_probability`` (memoised, see below).
+        """Least SINR (dB) with 1 − PER ≥ ``arrival_probability``.
 
-        The result depends only on (radio, p, L) — not on distance, power or noise — so a
-        sweep over those asks the same question many times; the answers are memoised per
-        process (:func:`functools.lru_cache`; errors are not cached, and a cached answer is
-        the same float the computation gives).
+        The answer depends only on (radio, p, L), not on distance, power or noise, so a sweep
+        over those asks the same question many times; :func:`required_sinr_db` memoises it
+        (a pure function of hashable arguments; errors are not cached).
         """
-        return _required_sinr_cached(self, float(arrival_probability), int(packet_bytes))
+        return required_sinr_db(self, float(arrival_probability), int(packet_bytes))
 
-    def _required_sinr_db(self, arrival_probability: float, packet_bytes: int) -> float | None:
+    def solve_required_sinr_db(self, arrival_probability: float,
+                               packet_bytes: int) -> float | None:
         """Least SINR (dB) with 1 − PER ≥ ``arrival_probability`` (the computation).
 
         Returns None when no SINR is needed (``arrival_probability`` ≤ the arrival probability at
         the bottom of :data:`SINR_SEARCH_DB`, e.g. 0). Raises :class:`ValueError` for 1 or more
         (never reached at finite SINR). The root is found by Brent's method on
-        log PER(s) − log(1 − p) (p > 1/2) or log(1 − PER(s)) − log p, both increasing/decreasing
-        monotonically in s, so the result keeps relative accuracy for p near 0 and near 1.
+        log PER(s) − log(1 − p) (p > 1/2) or log(1 − PER(s)) − log p, both monotone in s, so
+        the result keeps relative accuracy for p near 0 and near 1.
         """
         p = float(arrival_probability)
         if not p < 1.0:
@@ -105,8 +113,23 @@ class Radio:
 
 
 @functools.lru_cache(maxsize=4096)
-def _required_sinr_cached(radio: Radio, p: float, packet_bytes: int) -> float | None:
-    return radio._required_sinr_db(p, packet_bytes)
+def required_sinr_db(radio: Radio, arrival_probability: float,
+                     packet_bytes: int) -> float | None:
+    """:meth:`Radio.solve_required_sinr_db`, memoised (frozen radios are hashable values)."""
+    return radio.solve_required_sinr_db(arrival_probability, packet_bytes)
+
+
+def oqpsk_ber(sinr: Any) -> np.ndarray:
+    r"""Bit error rate of the IEEE 802.15.4 2450 MHz O-QPSK PHY at linear SINR.
+
+    .. math:: \mathrm{BER} = \frac{8}{15}\cdot\frac{1}{16}\sum_{k=2}^{16} (-1)^k \binom{16}{k}
+              e^{20\,\mathrm{SINR}\,(1/k - 1)}
+    """
+    s = np.asarray(sinr, dtype=float)
+    k = np.arange(2, 17, dtype=float)
+    coeff = (-1.0) ** k * comb(16, k, exact=False)
+    terms = coeff * np.exp(20.0 * s[..., None] * (1.0 / k - 1.0))
+    return np.clip(terms.sum(axis=-1) * (8.0 / 15.0) / 16.0, 0.0, 0.5)
 
 
 @dataclass(frozen=True)
@@ -117,28 +140,130 @@ class Ieee802154Oqpsk(Radio):
 
     SINR linear (IEEE 802.15.4-2006 Annex E; ns-3 ``LrWpanErrorModel::GetChunkSuccessRate``).
     It is the bit error rate of non-coherent 16-ary orthogonal signalling,
-    (M/2)/(M − 1)·P_s with M = 16, at Es/N0 = 20·SINR.
+    (M/2)/(M − 1)·P_s with M = 16, at Es/N0 = 20·SINR. An ideal receiver: no implementation
+    loss (see :class:`CalibratedOqpsk` for datasheet-calibrated transceivers).
     """
 
     name: ClassVar[str] = "ieee802154-oqpsk-2450"
     formula: ClassVar[str] = ("BER = (8/15)(1/16) sum_{k=2}^{16} (-1)^k C(16,k) "
                               "exp(20 SINR (1/k - 1))")
     source: ClassVar[str] = "IEEE 802.15.4-2006 Annex E; ns-3 LrWpanErrorModel"
+    frame: ClassVar[FrameFormat] = IEEE802154_2450
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str) -> Ieee802154Oqpsk:
-        _check_radio_keys(data, set(), prefix)
+        check_radio_keys(data, set(), prefix)
         return cls()
 
     def ber(self, sinr: Any) -> np.ndarray:
-        s = np.asarray(sinr, dtype=float)
-        k = np.arange(2, 17, dtype=float)
-        coeff = (-1.0) ** k * comb(16, k, exact=False)
-        terms = coeff * np.exp(20.0 * s[..., None] * (1.0 / k - 1.0))
-        return np.clip(terms.sum(axis=-1) * (8.0 / 15.0) / 16.0, 0.0, 0.5)
+        return oqpsk_ber(sinr)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model": self.name, "formula": self.formula, "source": self.source}
+        return {"model": self.name, "formula": self.formula, "source": self.source,
+                "implementation_loss_db": 0.0, "frame": self.frame.to_dict()}
+
+
+OQPSK_REFERENCE_BANDWIDTH_HZ = 2.0e6
+"""Noise bandwidth of a 2450 MHz 802.15.4 channel (2 Mchip/s) used for the calibration."""
+
+
+@dataclass(frozen=True)
+class CalibratedOqpsk(Radio):
+    r"""An 802.15.4 O-QPSK transceiver: the ideal formula shifted by an implementation loss.
+
+    .. math:: \mathrm{BER}(\mathrm{SINR}) = \mathrm{BER}_{ideal}(\mathrm{SINR}\cdot
+              10^{-\Delta L/10})
+
+    ΔL is calibrated from the sensitivity (see the module docstring, :func:`calibrate_oqpsk`).
+    """
+
+    model_name: str
+    sensitivity_dbm: float
+    reference_per: float
+    reference_psdu_bytes: int
+    implementation_loss_db: float
+    datasheet: str
+    formula: ClassVar[str] = ("BER = BER_oqpsk(SINR / 10^(dL/10)), dL = S - N_ref - "
+                              "s_ideal(1 - PER_ref, L_ref)")
+    source: ClassVar[str] = "datasheet sensitivity; IEEE 802.15.4-2006 Annex E formula"
+    frame: ClassVar[FrameFormat] = IEEE802154_2450
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return self.model_name
+
+    @classmethod
+    def from_mapping(cls, data: dict, prefix: str) -> CalibratedOqpsk:
+        check_radio_keys(data, {"sensitivity_dbm", "reference_per", "reference_psdu_bytes"},
+                         prefix)
+        for key in ("sensitivity_dbm",):
+            if key not in data:
+                raise InputError("is required", field=f"{prefix}.{key}")
+        per = (real_field(data, "reference_per", prefix, low=0, high=0.5, low_open=True)
+               if "reference_per" in data else 0.01)
+        length = (integer_field(data, "reference_psdu_bytes", prefix, low=1,
+                                high=IEEE802154_2450.max_psdu_bytes)
+                  if "reference_psdu_bytes" in data else 20)
+        return calibrate_oqpsk(CUSTOM_OQPSK, real_field(data, "sensitivity_dbm", prefix,
+                                                        low=-150, high=0),
+                               per, length, "given in the system file")
+
+    def ber(self, sinr: Any) -> np.ndarray:
+        shift = 10.0 ** (-self.implementation_loss_db / 10.0)
+        return oqpsk_ber(np.asarray(sinr, dtype=float) * shift)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.model_name, "formula": self.formula, "source": self.source,
+                "sensitivity_dbm": self.sensitivity_dbm, "reference_per": self.reference_per,
+                "reference_psdu_bytes": self.reference_psdu_bytes,
+                "reference_noise_dbm": oqpsk_reference_noise_dbm(),
+                "implementation_loss_db": self.implementation_loss_db,
+                "datasheet": self.datasheet, "frame": self.frame.to_dict()}
+
+
+CUSTOM_OQPSK = "ieee802154-oqpsk-calibrated"
+"""Radio name for an 802.15.4 transceiver calibrated from a sensitivity given in the file."""
+
+
+def oqpsk_reference_noise_dbm() -> float:
+    """N_ref = thermal noise of the 2 MHz channel at 290 K with no noise figure (≈ −110.98)."""
+    return thermal_noise_dbm(OQPSK_REFERENCE_BANDWIDTH_HZ, 0.0, 290.0)
+
+
+def calibrate_oqpsk(name: str, sensitivity_dbm: float, reference_per: float,
+                    reference_psdu_bytes: int, datasheet: str) -> CalibratedOqpsk:
+    r"""The transceiver whose sensitivity is ``sensitivity_dbm`` at the given PER and PSDU.
+
+    .. math:: \Delta L = S - N_{ref} - s_{ideal}(1 - \mathrm{PER}_{ref}, L_{ref})
+    """
+    ideal = Ieee802154Oqpsk().required_sinr_db(1.0 - reference_per, reference_psdu_bytes)
+    loss = float(sensitivity_dbm) - oqpsk_reference_noise_dbm() - float(ideal)
+    return CalibratedOqpsk(name, float(sensitivity_dbm), float(reference_per),
+                           int(reference_psdu_bytes), loss, datasheet)
+
+
+DATASHEET_SENSITIVITY = (
+    ("cc2420", -95.0, 0.01, 20,
+     "TI/Chipcon CC2420 datasheet (SWRS041): receiver sensitivity -95 dBm typical, PER = 1 %, "
+     "20-byte PSDU (the IEEE 802.15.4 sensitivity test)"),
+    ("cc2520", -98.0, 0.01, 20,
+     "TI CC2520 datasheet (SWRS068): receiver sensitivity -98 dBm typical, PER = 1 %, "
+     "20-byte PSDU"),
+    ("at86rf233", -101.0, 0.01, 20,
+     "Atmel AT86RF233 datasheet (8351): receiver sensitivity -101 dBm typical at 250 kb/s, "
+     "AWGN, PER <= 1 %, PSDU length 20 octets"),
+    ("nrf52840", -100.0, 0.01, 20,
+     "Nordic nRF52840 Product Specification: IEEE 802.15.4 receiver sensitivity -100 dBm "
+     "typical, PER = 1 %, 20-byte PSDU"),
+)
+"""(name, sensitivity dBm, PER, PSDU bytes, source): typical values as the datasheets state them."""
+
+
+@functools.lru_cache(maxsize=1)
+def radio_profiles() -> dict[str, CalibratedOqpsk]:
+    """The datasheet-calibrated 802.15.4 transceivers, by name (pure; computed once)."""
+    return {name: calibrate_oqpsk(name, s, per, length, source)
+            for name, s, per, length, source in DATASHEET_SENSITIVITY}
 
 
 @dataclass(frozen=True)
@@ -148,7 +273,7 @@ class CoherentBpsk(Radio):
     BER = Q(√(2·Eb/N0)) = ½·erfc(√(Eb/N0)),   Eb/N0 [dB] = SINR [dB] + G,
 
     with G = ``processing_gain_db`` = 10·log10(B_noise / R_bit) (0 dB for a matched filter whose
-    noise bandwidth equals the bit rate).
+    noise bandwidth equals the bit rate). No framing: the packet is the payload.
     """
 
     processing_gain_db: float = 0.0
@@ -159,9 +284,7 @@ class CoherentBpsk(Radio):
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str) -> CoherentBpsk:
-        from kfcrit.link.linkbudget import real_field
-
-        _check_radio_keys(data, {"processing_gain_db"}, prefix)
+        check_radio_keys(data, {"processing_gain_db"}, prefix)
         gain = 0.0
         if "processing_gain_db" in data:
             gain = real_field(data, "processing_gain_db", prefix, low=-60, high=60)
@@ -173,21 +296,23 @@ class CoherentBpsk(Radio):
 
     def to_dict(self) -> dict[str, Any]:
         return {"model": self.name, "processing_gain_db": self.processing_gain_db,
-                "formula": self.formula, "source": self.source}
+                "formula": self.formula, "source": self.source, "frame": self.frame.to_dict()}
 
 
 _RADIOS: dict[str, type[Radio]] = {
     Ieee802154Oqpsk.name: Ieee802154Oqpsk,
     CoherentBpsk.name: CoherentBpsk,
+    CUSTOM_OQPSK: CalibratedOqpsk,
 }
 
 
 def radio_models() -> list[str]:
-    """Names of the registered radios."""
-    return sorted(_RADIOS)
+    """Names accepted by ``radio:``: the formula radios and the datasheet profiles."""
+    return sorted(set(_RADIOS) | set(radio_profiles()))
 
 
-def _check_radio_keys(data: dict, allowed: set[str], prefix: str) -> None:
+def check_radio_keys(data: dict, allowed: set[str], prefix: str) -> None:
+    """Unknown radio parameters are errors naming the field."""
     for key in data:
         if key != "model" and key not in allowed:
             raise InputError(f"unknown key (allowed: {', '.join(sorted(allowed | {'model'}))})",
@@ -201,7 +326,47 @@ def radio_from_mapping(value: Any, prefix: str) -> Radio:
         raise InputError(f"must be a radio name or a mapping with 'model' (one of: "
                          f"{', '.join(radio_models())})", field=prefix)
     name = data["model"]
+    profiles = radio_profiles()
+    if name in profiles:
+        check_radio_keys(data, set(), prefix)
+        return profiles[name]
     if name not in _RADIOS:
         raise InputError(f"unknown radio {name[:40]!r} (known: {', '.join(radio_models())})",
                          field=prefix if isinstance(value, str) else f"{prefix}.model")
     return _RADIOS[name].from_mapping(data, prefix)
+
+
+@dataclass(frozen=True)
+class RadioInfo:
+    """One entry of :func:`radio_catalogue`."""
+
+    name: str
+    kind: str
+    description: str
+    parameters: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.kind, "description": self.description,
+                "parameters": dict(self.parameters)}
+
+
+def radio_catalogue() -> tuple[RadioInfo, ...]:
+    """Every radio a system file can name, with its parameters (for ``kfcrit radios``).
+
+    ``kind`` is ``formula`` (an ideal receiver: a textbook BER), ``datasheet`` (an 802.15.4
+    transceiver calibrated from its datasheet sensitivity; ``implementation_loss_db`` relative
+    to the ideal O-QPSK formula) or ``calibrated`` (the same, with the sensitivity given in the
+    file: ``radio: {model: ieee802154-oqpsk-calibrated, sensitivity_dbm: ...}``).
+    """
+    out = [RadioInfo(Ieee802154Oqpsk.name, "formula", "ideal IEEE 802.15.4 O-QPSK receiver",
+                     Ieee802154Oqpsk().to_dict()),
+           RadioInfo(CoherentBpsk.name, "formula", "coherent BPSK in AWGN (optional "
+                     "processing_gain_db), unframed", CoherentBpsk().to_dict()),
+           RadioInfo(CUSTOM_OQPSK, "calibrated", "802.15.4 O-QPSK with the implementation loss "
+                     "of a given sensitivity_dbm (reference_per 0.01, reference_psdu_bytes 20 "
+                     "by default)", {"sensitivity_dbm": "required", "reference_per": 0.01,
+                                     "reference_psdu_bytes": 20,
+                                     "frame": IEEE802154_2450.to_dict()})]
+    for name, radio in sorted(radio_profiles().items()):
+        out.append(RadioInfo(name, "datasheet", radio.datasheet, radio.to_dict()))
+    return tuple(out)

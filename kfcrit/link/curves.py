@@ -1,0 +1,107 @@
+"""Curves of the link layer for the figures: arrays computed here, drawn in kfcrit.views.
+
+Every curve is a frozen dataclass of NumPy arrays with the formula it evaluates; the views only
+plot them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kfcrit.link.linkbudget import LinkBudget
+from kfcrit.link.radios import Radio
+
+
+@dataclass(frozen=True)
+class ArrivalCurve:
+    """p(d) of a link against distance: the median link's and the shadowing average."""
+
+    distance_m: np.ndarray = field(repr=False)
+    arrival: np.ndarray = field(repr=False)
+    mean_arrival: np.ndarray | None = field(repr=False)
+    configured_distance_m: float
+    max_retries: int
+    psdu_bytes: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"distance_m": self.distance_m.tolist(), "arrival": self.arrival.tolist(),
+                "mean_arrival": (None if self.mean_arrival is None
+                                 else self.mean_arrival.tolist()),
+                "configured_distance_m": self.configured_distance_m,
+                "max_retries": self.max_retries, "psdu_bytes": self.psdu_bytes}
+
+
+@dataclass(frozen=True)
+class PerCurve:
+    """PER(SINR) of one attempt for several PSDU lengths: 1 − (1 − BER(SINR))^{8L}."""
+
+    radio: str
+    sinr_db: np.ndarray = field(repr=False)
+    psdu_bytes: tuple[int, ...]
+    per: np.ndarray = field(repr=False)
+    """Shape (len(psdu_bytes), len(sinr_db))."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"radio": self.radio, "sinr_db": self.sinr_db.tolist(),
+                "psdu_bytes": list(self.psdu_bytes), "per": self.per.tolist()}
+
+
+@dataclass(frozen=True)
+class OutageCurve:
+    """P(p_link(X) < p) over per-link shadowing, against distance, for each requirement p."""
+
+    distance_m: np.ndarray = field(repr=False)
+    requirements: tuple[tuple[str, float], ...]
+    outage: np.ndarray = field(repr=False)
+    """Shape (len(requirements), len(distance_m))."""
+    sigma_db: float
+    max_outage: float | None
+    configured_distance_m: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"distance_m": self.distance_m.tolist(),
+                "requirements": [list(r) for r in self.requirements],
+                "outage": self.outage.tolist(), "sigma_db": self.sigma_db,
+                "max_outage": self.max_outage,
+                "configured_distance_m": self.configured_distance_m}
+
+
+def distance_grid(link: LinkBudget, factor: float = 4.0, points: int = 200) -> np.ndarray:
+    """Log-spaced distances from d/factor to d·factor around the configured distance."""
+    d = link.distance_m
+    return np.geomspace(d / factor, d * factor, points)
+
+
+def arrival_vs_distance(link: LinkBudget, distance_m: Any = None) -> ArrivalCurve:
+    """p(d) = 1 − PER(s_0(d), L)^{k+1} and, with shadowing, its average p̄(d)."""
+    d = distance_grid(link) if distance_m is None else np.asarray(distance_m, dtype=float)
+    sinr = (link.tx_power_dbm + link.antenna_gain_db - link.path_loss.loss_db(d)
+            - link.noise.total_dbm)
+    arrival = np.asarray(link.link_arrival(sinr), dtype=float)
+    mean = (np.array([link.mean_arrival(float(s)) for s in sinr]) if link.sigma_db > 0
+            else None)
+    return ArrivalCurve(d, arrival, mean, link.distance_m, link.max_retries, link.psdu_bytes)
+
+
+def per_vs_sinr(radio: Radio, psdu_bytes: tuple[int, ...] = (20, 60, 127),
+                sinr_db: Any = None) -> PerCurve:
+    """PER of one attempt against SINR (dB) for each PSDU length."""
+    s = np.linspace(-6.0, 6.0, 241) if sinr_db is None else np.asarray(sinr_db, dtype=float)
+    per = np.vstack([radio.per(s, int(L)) for L in psdu_bytes])
+    return PerCurve(radio.to_dict().get("model", "radio"), s, tuple(int(L) for L in psdu_bytes),
+                    per)
+
+
+def outage_vs_distance(link: LinkBudget, requirements: dict[str, float],
+                       distance_m: Any = None) -> OutageCurve:
+    """Φ((s(p) − s_0(d))/σ) for each requirement p (per-link shadowing)."""
+    d = distance_grid(link) if distance_m is None else np.asarray(distance_m, dtype=float)
+    rows = []
+    for _, p in requirements.items():
+        rows.append([link.with_changes(distance_m=float(x)).outage_probability(float(p))
+                     for x in d])
+    return OutageCurve(d, tuple((k, float(v)) for k, v in requirements.items()),
+                       np.array(rows, dtype=float), link.sigma_db, link.max_outage,
+                       link.distance_m)

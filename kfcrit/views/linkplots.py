@@ -1,0 +1,133 @@
+"""Link figures: arrival probability against distance, PER against SINR, outage against distance.
+
+Each function draws curves computed by :mod:`kfcrit.link.curves` and returns a matplotlib
+``Figure`` (nothing is computed here beyond plotting). Save with ``fig.savefig(path)``.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+from matplotlib import rc_context, ticker  # noqa: E402 - after choosing the backend
+from matplotlib.figure import Figure  # noqa: E402
+
+from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve  # noqa: E402
+from kfcrit.views.figures import COLORS, FIG_RC, HEIGHT_IN, WIDTH_IN  # noqa: E402
+
+LINE_COLORS = ("#1f5fa8", "#d9730d", "#15803d", "#7c3aed", "#6b7280")
+
+
+def _figure(height: float = HEIGHT_IN) -> tuple[Figure, object]:
+    fig = Figure(figsize=(WIDTH_IN, height), layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _plain_log_x(ax: object) -> None:
+    """Distances as plain numbers (20, 30, 50, 100 m) on a log axis."""
+    ax.xaxis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 3.0, 5.0)))
+    ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _pos: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+
+
+def _legend_below(fig: Figure, ax: object) -> None:
+    """The legend under the axes, so that it never hides a curve."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=2, frameon=False)
+
+
+def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None = None,
+                            requirement: Sequence[float] | None = None,
+                            design_distance_m: float | None = None) -> Figure:
+    """p(d) of the median link (and the shadowing average) with p_c and the requirement.
+
+    Parameters
+    ----------
+    curve : ArrivalCurve
+        From :func:`kfcrit.link.curves.arrival_vs_distance`.
+    critical_value : float, optional
+        p_c, drawn as a horizontal line.
+    requirement : (p_S, p_V), optional
+        The required arrival-probability interval, shaded (a single value: a line).
+    design_distance_m : float, optional
+        The largest distance meeting the requirement under the margin policy.
+    """
+    with rc_context(FIG_RC):
+        fig, ax = _figure(HEIGHT_IN + 0.9)
+        retries = f", {curve.max_retries} retries" if curve.max_retries else ""
+        ax.plot(curve.distance_m, curve.arrival, color=COLORS["lower"],
+                label=f"median link, p = 1 − PER^(k+1) (PSDU {curve.psdu_bytes} B{retries})")
+        if curve.mean_arrival is not None:
+            ax.plot(curve.distance_m, curve.mean_arrival, color=COLORS["upper"], ls="-.",
+                    label="shadowing average (per-packet mean)")
+        if critical_value is not None:
+            ax.axhline(critical_value, color=COLORS["p_c"], ls="--", lw=1,
+                       label=f"p_c = {critical_value:.4g}")
+        if requirement is not None and len(requirement) == 2 \
+                and requirement[0] != requirement[1]:
+            ax.axhspan(requirement[0], requirement[1], color=COLORS["operating"], alpha=0.15,
+                       label=f"required [p_S, p_V] = [{requirement[0]:.4g}, "
+                             f"{requirement[1]:.4g}]")
+        elif requirement is not None:
+            ax.axhline(requirement[-1], color=COLORS["operating"], ls=":", lw=1.2,
+                       label=f"required p = {requirement[-1]:.4g}")
+        ax.axvline(curve.configured_distance_m, color=COLORS["sim"], ls=":", lw=1,
+                   label=f"configured d = {curve.configured_distance_m:.4g} m")
+        if design_distance_m is not None:
+            ax.axvline(design_distance_m, color=COLORS["p_up"], ls="--", lw=1,
+                       label=f"max distance at margin policy = {design_distance_m:.4g} m")
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("distance d (m)")
+        ax.set_ylabel("arrival probability")
+        ax.set_title("Arrival probability against distance")
+        _plain_log_x(ax)
+        _legend_below(fig, ax)
+    return fig
+
+
+def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = ()) -> Figure:
+    """PER of one attempt against SINR (dB) for each PSDU length, log scale.
+
+    ``marks``: (label, SINR dB) pairs drawn as vertical lines (e.g. the configured SINR).
+    """
+    with rc_context(FIG_RC):
+        fig, ax = _figure()
+        for i, length in enumerate(curve.psdu_bytes):
+            y = curve.per[i]
+            ax.plot(curve.sinr_db, y, color=LINE_COLORS[i % len(LINE_COLORS)],
+                    label=f"PSDU {length} bytes")
+        for j, (label, x) in enumerate(marks):
+            ax.axvline(x, color=COLORS["sim"], ls=(":" if j % 2 == 0 else "--"), lw=1,
+                       label=f"{label} = {x:.3g} dB")
+        ax.set_yscale("log")
+        ax.set_ylim(1e-8, 1.5)
+        ax.set_xlabel("SINR (dB)")
+        ax.set_ylabel("packet error rate")
+        ax.set_title(f"PER = 1 − (1 − BER)^(8L), radio {curve.radio}")
+        ax.legend(loc="lower left", frameon=False)
+    return fig
+
+
+def outage_distance_figure(curve: OutageCurve) -> Figure:
+    """P(p_link < p) over per-link shadowing against distance, with the allowed outage."""
+    with rc_context(FIG_RC):
+        fig, ax = _figure(HEIGHT_IN + 0.6)
+        for i, (label, p) in enumerate(curve.requirements):
+            ax.plot(curve.distance_m, curve.outage[i], color=LINE_COLORS[i % len(LINE_COLORS)],
+                    label=f"P(p_link < {p:.4g}) ({label})")
+        if curve.max_outage is not None:
+            ax.axhline(curve.max_outage, color=COLORS["p_c"], ls="--", lw=1,
+                       label=f"max_outage = {curve.max_outage:.3g}")
+        ax.axvline(curve.configured_distance_m, color=COLORS["sim"], ls=":", lw=1,
+                   label=f"configured d = {curve.configured_distance_m:.4g} m")
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("distance d (m)")
+        ax.set_ylabel("outage probability")
+        ax.set_title(f"Shadowing outage against distance (σ = {curve.sigma_db:g} dB, per link)")
+        _plain_log_x(ax)
+        _legend_below(fig, ax)
+    return fig
