@@ -120,8 +120,13 @@ def sensor_record() -> dict:
     from kfcrit.cli.main import main
 
     r = CliRunner().invoke(main, ["analyze", str(SENSOR), "--json", "--no-simulate"])
-    assert r.exit_code == 0, r.stderr
-    return json.loads(r.stdout)
+    # mean-stable, but the 105 m link misses its margin and outage policy: the review fails
+    assert r.exit_code == 5, r.stderr
+    rec = json.loads(r.stdout)
+    assert rec["operating_point"]["verdict"] == "mean-stable"
+    assert rec["review"]["decision"] == "fail"
+    assert [x["status"] for x in rec["review"]["reasons"]] == ["pass", "fail", "fail"]
+    return rec
 
 
 def test_sensor_link_design_outputs(sensor_record: dict) -> None:

@@ -154,7 +154,7 @@ def assert_valid_plots(folder: Path) -> None:
 
 def test_link_grid_distance_by_packet_size(tmp_path: Path) -> None:
     sweep = write_case(tmp_path, "name: link grid\nsystem: system.yaml\ngrid:\n"
-                       "  channel.packet_bytes: [20, 127]\n"
+                       "  channel.packet_bytes: [20, 116]\n"
                        "  channel.distance_m: {start: 40, stop: 160, num: 3}\n")
     code, out, err = run_cli(["sweep", str(sweep), "-o", str(tmp_path / "out"), "--workers", "1"])
     assert code == 0, err
@@ -163,11 +163,13 @@ def test_link_grid_distance_by_packet_size(tmp_path: Path) -> None:
     rows = read_csv(tmp_path / "out" / "sweep.csv")
     # first parameter varies slowest; distances 40, 100, 160 (inclusive, exact steps)
     assert [(float(r["channel.packet_bytes"]), float(r["channel.distance_m"])) for r in rows] == \
-        [(20, 40), (20, 100), (20, 160), (127, 40), (127, 100), (127, 160)]
+        [(20, 40), (20, 100), (20, 160), (116, 40), (116, 100), (116, 160)]
     assert [int(r["index"]) for r in rows] == list(range(6))
     margin = max(2.0, 4.0 * stats.norm.ppf(1 - 0.1))  # margin policy: 5.126 dB
     for r in rows:
-        L, d = int(float(r["channel.packet_bytes"])), float(r["channel.distance_m"])
+        # packet_bytes is the payload: the PER covers it plus 11 bytes of 802.15.4 MAC header
+        # and FCS (the 127-byte PSDU limit allows payloads up to 116 bytes)
+        L, d = int(float(r["channel.packet_bytes"])) + 11, float(r["channel.distance_m"])
         s = sinr_db(0.0, d)
         p = arrival(oqpsk_ber(10 ** (s / 10)), L)
         s_req = required_sinr(0.36, L)
@@ -302,7 +304,7 @@ def test_progress_bar_on_a_terminal_only(tmp_path: Path) -> None:
 
 # ---- resume --------------------------------------------------------------------------------
 
-RESUME_SWEEP = ("system: system.yaml\ngrid:\n  channel.packet_bytes: [20, 127]\n"
+RESUME_SWEEP = ("system: system.yaml\ngrid:\n  channel.packet_bytes: [20, 116]\n"
                 "  channel.distance_m: {start: 40, stop: 160, num: 5}\n")
 
 
@@ -378,7 +380,7 @@ def test_interrupted_run_resumes_to_the_same_outputs(tmp_path: Path,
 def test_serial_processes_and_dask_localcluster_agree(tmp_path: Path) -> None:
     from distributed import LocalCluster
 
-    sweep = write_case(tmp_path, "system: system.yaml\ngrid:\n  channel.packet_bytes: [20, 127]\n"
+    sweep = write_case(tmp_path, "system: system.yaml\ngrid:\n  channel.packet_bytes: [20, 116]\n"
                        "  channel.distance_m: {start: 50, stop: 120, num: 8}\n")
     serial, procs, dask = tmp_path / "serial", tmp_path / "procs", tmp_path / "dask"
     assert run_cli(["sweep", str(sweep), "-o", str(serial), "--workers", "1"])[0] == 0

@@ -118,12 +118,29 @@ def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
         p_low_exact=theory.p_low_exact)
 
 
-def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
-    """The Gilbert–Elliott channel for the verdict, with the sufficient condition the link
-    section proved (the exact scalar condition of MATH §7 or a coupled certificate, §10)."""
-    ch = spec.channel
-    if ch is None or getattr(ch, "model", None) != "gilbert-elliott":
+def bursty_channel(channel: Any) -> Any:
+    """The Gilbert–Elliott chain of a bursty channel: the channel itself, or the two-state
+    approximation of a link budget's time-correlated shadowing; None for memoryless channels."""
+    if channel is None:
         return None
+    if channel.model == "gilbert-elliott":
+        return channel
+    if channel.model == "link-budget" and not channel.iid:
+        return channel.gilbert_elliott()
+    return None
+
+
+def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
+    """The Gilbert–Elliott chain for the verdict, with the sufficient condition the link
+    section proved (the exact scalar condition of MATH §7 or a coupled certificate, §10).
+
+    For a link budget with time-correlated shadowing the chain and its section are those of
+    the shadowing's two-state approximation (``link_budget.bursty``)."""
+    ge = bursty_channel(spec.channel)
+    if ge is None:
+        return None
+    if spec.channel.model == "link-budget":
+        link = (link or {}).get("bursty") or {}
     cond = (link or {}).get("condition") if isinstance((link or {}).get("condition"), dict) \
         else {}
     sufficient, basis = None, None
@@ -136,7 +153,7 @@ def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInput
         sufficient, basis = True, cert.get("statement") or "coupled fixed-gain certificate"
     elif sufficient is None and cond.get("status"):
         basis = f"the condition {cond.get('expression')} is labelled: {cond.get('status')}"
-    return vd.BurstInputs(recovery=ch.recovery_rate, failure=ch.failure_rate,
+    return vd.BurstInputs(recovery=ge.recovery_rate, failure=ge.failure_rate,
                           sufficient=sufficient, basis=basis)
 
 
@@ -405,10 +422,12 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
     ch = spec.channel
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
+    from kfcrit.analysis.bursty import gilbert_elliott_section
     from kfcrit.link import linkbudget
 
     if ch.model == "gilbert-elliott":
-        sec["link_budget"] = linkbudget.gilbert_elliott_section(spec.system, ch)
+        sec["link_budget"] = gilbert_elliott_section(spec.system, ch, seed=opts.seed,
+                                                     simulate=opts.details)
         return
     crit = sec.get("critical_value") or {}
     blb = (sec.get("block_lower_bound") or {}).get("value")
@@ -422,6 +441,10 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
         bracket=bracket, upper_bound=(sec.get("upper_bound") or {}).get("value"))
     if isinstance(sec["link_budget"], dict):
         sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
+        ge = bursty_channel(ch)
+        if ge is not None:
+            sec["link_budget"]["bursty"] = gilbert_elliott_section(
+                spec.system, ge, seed=opts.seed, simulate=opts.details)
     warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
 
 

@@ -318,6 +318,8 @@ class LinkBudget:
     frame: JSON = opt()
     certificate: JSON = opt()
     critical_curve: JSON = opt()
+    gilbert_elliott: JSON = opt()
+    bursty: JSON = opt()
 
 
 # ----------------------------------------------------------------------------- the record
