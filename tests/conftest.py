@@ -50,3 +50,16 @@ def reports_dir() -> Path:
 def example_files() -> list[Path]:
     """The example system files shipped in ``reports/`` (sweep files excluded)."""
     return sorted(p for p in REPORTS.glob("*.yaml") if not p.name.startswith("sweep-"))
+
+
+@pytest.fixture(scope="session")
+def example_records() -> dict[str, object]:
+    """Every shipped example analysed once per test run (``--quick``), as typed records.
+
+    Shared by the tests that only read records (schema, views, round trips), so the suite pays
+    for each analysis once.
+    """
+    from kfcrit.analysis.record import analyze
+    from kfcrit.analysis.spec import load_spec
+
+    return {p.name: analyze(load_spec(p), quick=True) for p in example_files()}

@@ -231,10 +231,10 @@ def test_merge_keys_are_refused_with_or_without_aliases(tmp_path: Path) -> None:
 def test_loader_refuses_merge_keys_even_without_the_scan() -> None:
     import yaml
 
-    from kfcrit.io.systemfile import _ExactLoader
+    from kfcrit.io.systemfile import ExactLoader
 
     with pytest.raises(InputError, match="merge keys"):
-        yaml.load("a: {<<: {b: 1}, c: 2}\n", Loader=_ExactLoader)  # noqa: S506 - safe subclass
+        yaml.load("a: {<<: {b: 1}, c: 2}\n", Loader=ExactLoader)  # noqa: S506 - safe subclass
 
 
 def test_structure_scan_limits(tmp_path: Path) -> None:

@@ -47,3 +47,21 @@ def check(file: str, max_states: int, debug: bool) -> None:
         channel = spec.channel.model if spec.channel is not None else "no channel"
         click.echo(f"{file}: valid system file: n = {s.n}, m = {s.m}, {channel}")
     sys.exit(0)
+
+
+@click.command()
+@click.option("--json", "as_json", is_flag=True, help="Print the catalogue as JSON.")
+def radios(as_json: bool) -> None:
+    """List the radio models a link budget may name, with their parameters."""
+    from kfcrit.link.radios import radio_catalogue
+
+    entries = [r.to_dict() for r in radio_catalogue()]
+    if as_json:
+        click.echo(json.dumps(entries, indent=2, ensure_ascii=False))
+        return
+    for e in entries:
+        click.echo(f"{e['name']}  ({e['kind']})")
+        click.echo(f"    {e['description']}")
+        params = e.get("parameters") or {}
+        for key, value in (params.items() if isinstance(params, dict) else enumerate(params)):
+            click.echo(f"    {key}: {value}")

@@ -20,7 +20,7 @@ from kfcrit.cli.common import (
     install_sigterm_handler,
     max_states_option,
 )
-from kfcrit.cli.inspect import check, schema
+from kfcrit.cli.inspect import check, radios, schema
 from kfcrit.version import __version__
 
 
@@ -34,6 +34,7 @@ def main() -> None:
 
 main.add_command(check)
 main.add_command(schema)
+main.add_command(radios)
 
 
 @main.command(epilog=EXAMPLES)

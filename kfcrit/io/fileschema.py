@@ -52,8 +52,9 @@ def channel_defs() -> dict[str, Any]:
                      "reference_loss_db": {**num, "description": "PL(d0) in dB"},
                      "frequency_hz": {**num, "description": "carrier frequency (free space)"},
                      "shadowing_sigma_db": {**num, "description": "σ of log-normal shadowing"},
-                     "shadowing": {"enum": ["per-link", "per-packet"],
-                                   "description": "one shadowing draw per link, or per packet"}},
+                     "shadowing": {"enum": ["per-link", "per-packet", "time-correlated"],
+                                   "description": "one shadowing draw per link, per packet, "
+                                                  "or a correlated process in time"}},
                  "required": ["model"], "additionalProperties": False}
     noise = _object({"noise_floor_dbm": {**num, "description": "noise floor (dBm)"},
                      "noise_figure_db": {**num, "description": "receiver noise figure (dB)"},
@@ -77,13 +78,19 @@ def channel_defs() -> dict[str, Any]:
                     "max_outage": {**num, "description": "largest shadowing outage the policy "
                                    "allows, in [0, 0.5]"},
                     "max_retries": {**num, "description": "MAC retransmissions per sample "
-                                    "(0 to 7 for 802.15.4)"},
-                    "coherence_time_s": {**num, "description": "shadowing coherence time"},
-                    "sample_period_s": {**num, "description": "sampling period of the filter"},
-                    "speed_m_s": {**num, "description": "node speed (for a correlation "
-                                  "distance)"},
-                    "correlation_distance_m": {**num, "description": "shadowing decorrelation "
-                                               "distance"}},
+                                    "(0 to 7 for 802.15.4): arrival 1 − PER^(k+1)"},
+                    "mac_overhead_bytes": {**num, "description": "MAC header + FCS bytes added "
+                                           "to the payload (default: the radio's frame, 11 for "
+                                           "802.15.4)"},
+                    "shadowing_correlation": _object({
+                        "sample_period_s": {**num, "description": "sampling period of the filter"},
+                        "coherence_time_s": {**num, "description": "shadowing coherence time"},
+                        "correlation_distance_m": {**num, "description": "shadowing "
+                                                   "decorrelation distance (Gudmundson)"},
+                        "speed_mps": {**num, "description": "node speed"}},
+                        ["sample_period_s"], "time correlation of the shadowing (with "
+                        "path_loss.shadowing: time-correlated), turned into a Gilbert–Elliott "
+                        "chain")},
                    ["model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
                     "noise"], "a radio link: transmit power, distance, packet size, path loss")
     return {"bernoulli": bernoulli, "gilbert_elliott": ge, "trace": trace, "link_budget": link,

@@ -40,7 +40,7 @@ class YamlNumber(str):
 _BaseLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # LibYAML when available
 
 
-class _ExactLoader(_BaseLoader):  # type: ignore[misc, valid-type]
+class ExactLoader(_BaseLoader):  # type: ignore[misc, valid-type]
     """Safe loader that keeps number text and forbids aliases and duplicate keys.
 
     Aliases are detected at construction: a node met a second time can only be an alias (every
@@ -74,8 +74,8 @@ def _number(loader: yaml.SafeLoader, node: yaml.Node) -> YamlNumber:
     return YamlNumber(loader.construct_scalar(node))
 
 
-_ExactLoader.add_constructor("tag:yaml.org,2002:int", _number)
-_ExactLoader.add_constructor("tag:yaml.org,2002:float", _number)
+ExactLoader.add_constructor("tag:yaml.org,2002:int", _number)
+ExactLoader.add_constructor("tag:yaml.org,2002:float", _number)
 
 
 _RESOLVER = yaml.resolver.Resolver()
@@ -265,7 +265,7 @@ def parse_yaml_text(text: str, *, name: str = "file", max_nodes: int = MAX_NODES
     scan_yaml(text, name=repr(name[:60]), max_nodes=max_nodes, matrix_keys=matrix_keys,
               max_items=max_items)
     try:
-        doc = yaml.load(text, Loader=_ExactLoader)  # noqa: S506 - SafeLoader subclass
+        doc = yaml.load(text, Loader=ExactLoader)  # noqa: S506 - SafeLoader subclass
     except InputError:
         raise
     except yaml.YAMLError as exc:
