@@ -1,0 +1,68 @@
+"""One decision, one place: a sweep row and ``analyze`` of the same point agree on the
+stability verdict and the review decision (both come from :mod:`kfcrit.analysis.verdict`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import sympy as sp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import kfcrit
+from kfcrit.analysis import sweep as sweep_mod
+from kfcrit.analysis.spec import spec_from_mapping
+
+GENERAL = {"name": "general", "A": [[1.25, 0], [1, 1.1]], "C": [[1, 1]], "Q": 20, "R": 2.5}
+"""Sinopoli's general example: p_c = 9/25, p_up = 57/121 (MATH §3)."""
+
+THEORY: dict = {}
+
+
+def row_and_record(doc: dict, assignments: list[tuple[str, str]]) -> tuple[dict, dict]:
+    row = sweep_mod.evaluate_point(doc, ".", 1e-9, 400, assignments, THEORY)
+    spec = spec_from_mapping(sweep_mod.apply_point(doc, assignments), base_dir=Path("."))
+    record = kfcrit.analyze(spec, simulate=False).to_dict()
+    return row, record
+
+
+probability = st.fractions(min_value=0, max_value=1, max_denominator=50)
+rate = st.fractions(min_value=sp.Rational(1, 50), max_value=1, max_denominator=50)
+
+
+@settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@given(p=probability)
+def test_bernoulli_grid_points_agree(p) -> None:  # noqa: ANN001
+    doc = {**GENERAL, "channel": {"model": "bernoulli", "arrival_probability": "0"}}
+    row, rec = row_and_record(doc, [("channel.arrival_probability", f"{p.numerator}/"
+                                                                     f"{p.denominator}")])
+    assert row["status"] == "ok"
+    assert row["verdict"] == rec["operating_point"]["verdict"]
+    assert row["decision"] == rec["review"]["decision"]
+    # hand: p > 9/25 is stable, p <= 9/25 unstable (Mo–Sinopoli Thm 4, non-degenerate)
+    assert row["verdict"] == ("mean-stable" if p > sp.Rational(9, 25) else "mean-unstable")
+
+
+@settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@given(f=rate, r=rate)
+def test_gilbert_elliott_grid_points_agree(f, r) -> None:  # noqa: ANN001
+    doc = {**GENERAL, "channel": {"model": "gilbert-elliott", "failure_rate": "1/10",
+                                  "recovery_rate": "1/2"}}
+    row, rec = row_and_record(doc, [("channel.failure_rate", f"{f.numerator}/{f.denominator}"),
+                                    ("channel.recovery_rate", f"{r.numerator}/{r.denominator}")])
+    assert row["status"] == "ok"
+    assert row["verdict"] == rec["operating_point"]["verdict"]
+    assert row["decision"] == rec["review"]["decision"]
+    # necessary burst condition (MATH §10): (1 − r)·ρ(A)² ≥ 1 ⇔ r ≤ 1 − 1/1.5625 = 9/25
+    if r <= sp.Rational(9, 25) and f + r != 1:
+        assert row["verdict"] == "mean-unstable" and row["decision"] == "fail"
+
+
+def test_the_bursty_example_of_the_issue() -> None:
+    """f = 0.1: r = 0.2 gives (1 − r)·ρ² = 1.25 > 1 (mean-unstable, fail) in both views."""
+    doc = {**GENERAL, "channel": {"model": "gilbert-elliott", "failure_rate": 0.1,
+                                  "recovery_rate": 0.5}}
+    for r in ("0.5", "0.2"):
+        row, rec = row_and_record(doc, [("channel.recovery_rate", r)])
+        assert (row["verdict"], row["decision"]) == (rec["operating_point"]["verdict"],
+                                                     rec["review"]["decision"])
+    assert (row["verdict"], row["decision"]) == ("mean-unstable", "fail")
