@@ -121,3 +121,13 @@ def test_check_command(tmp_path: Path) -> None:
     bad.write_text("name: b\nA: [[1, 2]]\nC: [[1]]\nQ: 1\nR: 1\n")
     r = CliRunner().invoke(main, ["check", str(bad)])
     assert r.exit_code == 2 and "A" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_the_file_reference_is_generated_from_the_schemas() -> None:
+    r = CliRunner().invoke(main, ["schema", "--markdown"])
+    assert r.exit_code == 0
+    assert (REPORTS / "REFERENCE.md").read_text() == r.stdout, \
+        "reports/REFERENCE.md is stale: regenerate with `kfcrit schema --markdown`"
+    for key in ("channel.max_retries", "channel.packet_bytes", "requirements.max_mean_error_trace",
+                "grid", "channel.path_loss.shadowing"):
+        assert f"`{key}`" in r.stdout

@@ -10,12 +10,21 @@ from kfcrit.cli.common import debug_option, handle_errors, max_states_option
 
 
 @click.command()
-@click.argument("what", type=click.Choice(["record", "system", "sweep"]))
-def schema(what: str) -> None:
-    """Print the JSON Schema (draft 2020-12) of the analysis record, or of system or sweep files."""
+@click.argument("what", type=click.Choice(["record", "system", "sweep"]), required=False)
+@click.option("--markdown", is_flag=True,
+              help="Print the key reference of system and sweep files (Markdown) instead.")
+def schema(what: str | None, markdown: bool) -> None:
+    """Print the JSON Schema (draft 2020-12) of the analysis record, or of system or sweep
+    files; with --markdown, the file reference generated from them."""
     from kfcrit.analysis.sections import record_schema
     from kfcrit.io.fileschema import sweep_schema, system_schema
+    from kfcrit.views.schemadoc import reference_markdown
 
+    if markdown:
+        click.echo(reference_markdown(system_schema(), sweep_schema()), nl=False)
+        return
+    if what is None:
+        raise click.UsageError("name what to print: record, system or sweep (or --markdown)")
     build = {"record": record_schema, "system": system_schema, "sweep": sweep_schema}[what]
     click.echo(json.dumps(build(), indent=2, ensure_ascii=False))
 
