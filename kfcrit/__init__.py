@@ -30,6 +30,11 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'kfcrit' has no attribute {name!r}")
 
 
+def __dir__() -> list[str]:
+    """The public API (what ``dir(kfcrit)`` and tab completion list)."""
+    return sorted(set(__all__) | {"__version__"})
+
+
 __all__ = ["Analysis", "AnalysisOptions", "ExitCode", "KfcritError", "System", "SystemSpec",
            "__version__", "analyze", "covariance_bounds", "critical_value", "load_spec",
            "load_system", "simulate", "upper_bound"]
