@@ -16,6 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from kfcrit.theory import critical
+from kfcrit.theory.structure import eigen_structure
 from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.exprparse import parse_expression
 from kfcrit.model.system import System
@@ -141,9 +142,8 @@ def test_numeric_path_cross_check():
     # Second method: the float path on the same systems gives the same values to 1e-9.
     for _, A, C, cls, expected in HAND[:8]:
         s = _sys(A, C)
-        st_num = critical.eigen_structure(s, force_numeric=True)
-        critical._CACHE[s] = st_num
-        d = critical.critical_section(s)
+        st_num = eigen_structure(s, force_numeric=True)
+        d = critical.critical_section(s, structure=st_num)
         assert d["structure"]["path"] == "numeric"
         assert d["classification"] == cls
         assert abs(d["critical_value"]["value"] - float(sp.N(parse_expression(expected, "e")))) \
@@ -371,13 +371,8 @@ def test_float_third_turn_reason_shows_computed_modulus():
     assert "1.9999999999999998" in reason
     assert "binary-float input" in reason          # how the decision was made is stated
     # numeric path: the decision tolerance is stated
-    from kfcrit.theory.structure import eigen_structure
     st_num = eigen_structure(s, force_numeric=True)
-    critical._CACHE[s] = st_num
-    try:
-        reason = critical.critical_section(s)["critical_value"]["reason"]
-    finally:
-        critical._CACHE.pop(s, None)
+    reason = critical.critical_section(s, structure=st_num)["critical_value"]["reason"]
     # the numeric path decides with the user's tolerance (default 1e-9)
     assert "relative tolerance 1e-09" in reason and "= 2," not in reason
 

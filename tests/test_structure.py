@@ -292,10 +292,10 @@ def test_certified_stage_decides_surd_system(C, classification):
 def test_certified_stage_hands_over(A, C, why):
     # What balls cannot certify (equal moduli of non-conjugates, roots of unity, multiple
     # eigenvalues, exact zeros) the certified stage refuses; the exact algebra decides it.
-    from kfcrit.theory.structure import _certified_structure, _Fallback
+    from kfcrit.theory.structure import Fallback, certified_structure
     system = _sys(A, C)
-    with pytest.raises(_Fallback, match=why):
-        _certified_structure(system, time.monotonic(), "test")
+    with pytest.raises(Fallback, match=why):
+        certified_structure(system, time.monotonic(), "test")
     assert eigen_structure(system).path == "exact"
 
 
@@ -313,10 +313,10 @@ def test_diag_two_minus_two_handover_keeps_exact_value():
 def test_certified_stage_agrees_with_exact_algebra():
     # 5·e^{±j·atan(4/3)} (φ/2π irrational, C sees one combination: degenerate pair) and a
     # stable real mode: the exact algebra and the certified stage decide the same facts.
-    from kfcrit.theory.structure import _certified_structure
+    from kfcrit.theory.structure import certified_structure
     system = _sys([[3, -4, 0], [4, 3, 0], [0, 0, "1/2"]], [[1, 0, 1]])
     ex = eigen_structure(system)
-    ce = _certified_structure(system, time.monotonic(), "cross-check")
+    ce = certified_structure(system, time.monotonic(), "cross-check")
     assert ex.path == ce.path == "exact" and "certified" in ce.path_reason
     assert [b.size for b in ce.blocks] == [b.size for b in ex.blocks]
     assert [b.rank for b in ce.blocks] == [b.rank for b in ex.blocks]

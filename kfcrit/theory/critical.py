@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 import re
-import weakref
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -37,55 +36,23 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import MAX_DIGITS, exact_text
+from kfcrit.model.system import System
 from kfcrit.theory.structure import (
-    DEFAULT_TOLERANCE,
     MAX_DENOMINATOR,
     NUMERIC_FLOOR,
     NUMERIC_TOLERANCES,
     Structure,
-    _cmp_exact,
-    _numeric_structure,
-    eigen_structure,
+    cmp_exact,
     simplest_rational,
+    structure_at,
+    structure_of,
 )
-from kfcrit.model.system import System
 
 _LONG_LITERAL = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
 _LONG_NUMBER = re.compile(r"\d{13,}")
 
 CLASSIFICATIONS = ("stable", "non-degenerate", "degenerate-second-order", "degenerate",
                    "non-diagonalizable", "not-detectable")
-
-_CACHE: weakref.WeakKeyDictionary[System, Structure] = weakref.WeakKeyDictionary()
-"""The structure of each system at the default tolerance (exact path: tolerance-free)."""
-_AT_TOL: weakref.WeakKeyDictionary[System, dict[float, Structure]] = weakref.WeakKeyDictionary()
-"""Numeric-path structures at other decision tolerances (``--tolerance``)."""
-
-
-def structure_of(system: System, tolerance: float | None = None) -> Structure:
-    """The (cached) eigen-structure of ``system``; see :func:`kfcrit.theory.structure.eigen_structure`.
-
-    The exact path does not depend on ``tolerance``; a numeric-path structure is recomputed
-    (numerically, same path reason) when ``tolerance`` differs from the one it was decided with.
-    """
-    if system not in _CACHE:
-        _CACHE[system] = eigen_structure(system, tolerance=DEFAULT_TOLERANCE)
-    st = _CACHE[system]
-    if st.path != "numeric" or tolerance is None:
-        return st
-    want = max(float(tolerance), NUMERIC_FLOOR)
-    if st.tolerances.get("modulus_relative") == want:
-        return st
-    return _numeric_at(system, st.path_reason, want)
-
-
-def _numeric_at(system: System, reason: str, tol: float) -> Structure:
-    cache = _AT_TOL.setdefault(system, {})
-    if tol not in cache:
-        import time
-        cache[tol] = _numeric_structure(system, time.monotonic(), reason, tol)
-    return cache[tol]
-
 
 # --------------------------------------------------------------------------- numbers
 
@@ -127,7 +94,7 @@ def _above_one(mod2: float, mod2_expr: sp.Expr | None) -> bool:
     """|λ|² > 1, decided exactly when ``mod2_expr`` is given (then max(·, 0) needs no sympy Max)."""
     if mod2_expr is None:
         return mod2 > 1.0
-    return _cmp_exact(mod2_expr, 1) > 0
+    return cmp_exact(mod2_expr, 1) > 0
 
 
 _ZERO = Num(0.0, sp.Integer(0))
@@ -294,9 +261,12 @@ def _lower(st: Structure) -> Num:
     return nondegenerate_value(top.mod2, top.mod2_expr, _eig_above(top, st))
 
 
-def lower_bound(system: System) -> dict[str, Any]:
-    """Sinopoli Thm 3 lower bound p_low = 1 − 1/ρ(A)², 0 when ρ(A) ≤ 1: {value, expression}."""
-    return _lower(structure_of(system)).to_dict()
+def lower_bound(system: System, structure: Structure | None = None) -> dict[str, Any]:
+    """Sinopoli Thm 3 lower bound p_low = 1 − 1/ρ(A)², 0 when ρ(A) ≤ 1: {value, expression}.
+
+    ``structure``: the eigen-structure of ``system`` if already computed
+    (:func:`kfcrit.theory.structure.structure_of`), else it is computed here."""
+    return _lower(structure if structure is not None else structure_of(system)).to_dict()
 
 
 def _pair_num(st: Structure, pair: Any, q: int | None) -> Num:
@@ -514,7 +484,7 @@ def _nearby_mod2(e: Any, tol: float) -> tuple[float, sp.Expr | None]:
 
 def _nearby_pair_value(e: Any, q: int | None, tol: float) -> Num:
     mod2, expr = _nearby_mod2(e, tol)
-    above = _cmp_exact(expr, 1) > 0 if expr is not None else mod2 > 1
+    above = cmp_exact(expr, 1) > 0 if expr is not None else mod2 > 1
     return pair_value(mod2, q, expr, above)
 
 
@@ -609,7 +579,7 @@ def _strict_alternative(system: System, st: Structure, tol: float, value: Num | 
     strict = min(NUMERIC_FLOOR * kmax, 1e-3)
     if strict >= _mtol(st):
         return None
-    st2 = _numeric_at(system, st.path_reason, strict)
+    st2 = structure_at(st, system, strict)
     low2 = _lower(st2)
     cls2, val2, reason2 = _classify(system, st2, low2)
     if cls2 == "not-detectable":
@@ -782,14 +752,15 @@ def _coinciding(system: System, st: Structure, low: Num, blow: Num, bwhy: str
     if blow is None or blow.expr is None:
         return None
     for up, why, theorem in _exact_p_up(system, st, low):
-        if up.expr is not None and _cmp_exact(sp.expand(blow.expr - up.expr), 0) == 0:
+        if up.expr is not None and cmp_exact(sp.expand(blow.expr - up.expr), 0) == 0:
             return (blow, f"the bounds coincide: block lower bound {blow.expression} ({bwhy}) = "
                           f"upper bound p_up = {up.expression} ({why}), so p_c = "
                           f"{blow.expression}", theorem)
     return None
 
 
-def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None) -> CriticalValue:
+def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
+                   structure: Structure | None = None) -> CriticalValue:
     """Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
 
     Parameters
@@ -801,6 +772,10 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
         path also the decision tolerance of the eigen-structure.
     channel : Channel, optional
         The configured channel, for the almost-sure statements in ``theory``.
+    structure : Structure, optional
+        The eigen-structure of ``system`` from
+        :func:`kfcrit.theory.structure.structure_of` (computed here when omitted). A numeric-path
+        structure decided at another tolerance is re-decided at ``tolerance``.
 
     Returns
     -------
@@ -809,7 +784,8 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
     """
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance <= 0.1):
         raise InputError(f"must be a number in [0, 0.1], got {tolerance!r}", field="tolerance")
-    st = structure_of(system, tolerance)
+    st = (structure_at(structure, system, tolerance) if structure is not None
+          else structure_of(system, tolerance))
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)
     reason = reason.replace("= ≈", "≈").replace("|≈ ", "|")
@@ -861,7 +837,7 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
                          theory=theory, warnings=tuple(warnings), basis=basis)
 
 
-def critical_section(system: System, tolerance: float = 1e-9,
-                     channel: Any = None) -> dict[str, Any]:
-    """``critical_value(system, tolerance, channel).to_dict()``."""
-    return critical_value(system, tolerance, channel).to_dict()
+def critical_section(system: System, tolerance: float = 1e-9, channel: Any = None,
+                     structure: Structure | None = None) -> dict[str, Any]:
+    """``critical_value(system, tolerance, channel, structure).to_dict()``."""
+    return critical_value(system, tolerance, channel, structure).to_dict()
