@@ -521,3 +521,62 @@ def test_critical_jordan_block_is_labelled():
     cv = d["critical_value"]
     assert "only for diagonalizable" in cv["reason"]
     assert cv["value"] == 0 and cv["basis"] == "claim"
+
+
+# --------------------------------------------------------------------------- marginal modes
+
+def _tracker(T: str = "1/10") -> System:
+    """Planar constant-velocity tracker: two Jordan blocks at 1, positions measured."""
+    A = [[1, T, 0, 0], [0, 1, 0, 0], [0, 0, 1, T], [0, 0, 0, 1]]
+    return _sys(A, [[1, 0, 0, 0], [0, 0, 1, 0]])
+
+
+def test_marginal_tracker_is_exactly_zero():
+    # MATH §11: ρ(A) = 1 (Jordan blocks at 1), detectable ⇒ p_c = 0 exactly, not a bracket
+    d = critical.critical_section(_tracker())
+    cv = d["critical_value"]
+    assert d["classification"] == "non-diagonalizable"
+    assert cv["value"] == 0.0 and cv["exact"] is True and cv["expression"] == "0"
+    assert "MATH §11" in cv["reason"] and "Iₒ = 2" in cv["reason"]
+    assert "O(t²)" in cv["reason"]      # algebraic 4 − geometric 2 + 1 = 3: ‖Aᵗ‖ = O(t²)
+
+
+def test_marginal_tracker_mare_bounded_at_small_p():
+    # Second method: g_p is concave, so E[P_t] ⪯ V_t with V_{t+1} = g_p(V_t) (Jensen); the
+    # MARE iteration at p = 0.05 converges to a fixed point, so E[P_t] stays bounded there.
+    from kfcrit.theory import riccati
+    s = _tracker()
+    A, C, Q, R = (np.asarray(M, dtype=float) for M in (s.a, s.c, s.q, s.r))
+    V = np.eye(4)
+    for _ in range(20000):
+        V = riccati.g(A, C, Q, R, V, 0.05)
+    resid = np.linalg.norm(riccati.g(A, C, Q, R, V, 0.05) - V) / np.linalg.norm(V)
+    assert np.isfinite(V).all() and resid < 1e-9
+
+
+@pytest.mark.parametrize("A, C, cls", [
+    # 1 and e^{±2πj/3} seen through one output: a degenerate order-3 block on the unit circle
+    ([[1, 0, 0], [0, "-1/2", "-sqrt(3)/2"], [0, "sqrt(3)/2", "-1/2"]], [[1, 1, 0]], "degenerate"),
+    # Jordan block at −1 beside a stable mode
+    ([[-1, 1, 0], [0, -1, 0], [0, 0, "1/2"]], [[1, 0, 1]], "non-diagonalizable"),
+])
+def test_marginal_modes_other_structures(A, C, cls):
+    d = critical.critical_section(_sys(A, C))
+    assert d["classification"] == cls
+    assert d["critical_value"]["expression"] == "0" and d["critical_value"]["exact"] is True
+    assert "MATH §11" in d["critical_value"]["reason"]
+
+
+def test_marginal_undetectable_jordan_is_not_detectable():
+    # A = J₂(1), C = [0, 1]: the eigenvector e₁ has C e₁ = 0 and |λ| = 1: no p_c
+    d = critical.critical_section(_sys([[1, 1], [0, 1]], [[0, 1]]))
+    assert d["classification"] == "not-detectable" and d["critical_value"]["value"] is None
+
+
+def test_marginal_tracker_numeric_path():
+    # a 3-D tracker (n = 6 > binary-float limit) on the numeric path: still 0, argument stated
+    A = np.kron(np.eye(3), np.array([[1.0, 0.1], [0.0, 1.0]]))
+    C = np.kron(np.eye(3), np.array([[1.0, 0.0]]))
+    d = critical.critical_section(System(A, C, np.eye(6), np.eye(3)))
+    assert d["structure"]["path"] == "numeric"
+    assert d["critical_value"]["value"] == 0.0 and "MATH §11" in d["critical_value"]["reason"]

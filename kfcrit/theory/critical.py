@@ -308,6 +308,50 @@ def _single_unstable(st: Structure) -> bool:
 
 # --------------------------------------------------------------------------- decision tree
 
+def _structural_class(st: Structure) -> str:
+    """The Mo–Sinopoli class of a detectable, not stable (A, C), from the structure alone."""
+    if not st.diagonalizable:
+        return "non-diagonalizable"
+    rel_blocks = [b for b in st.blocks if b.relevant]
+    degenerate = [b for b in rel_blocks if not b.one_step_observable]
+    if not degenerate:
+        return "non-degenerate"
+    blk = degenerate[0]
+    if len(rel_blocks) == 1 and len(blk.members) == 2 and blk.size == 2:
+        return "degenerate-second-order"
+    return "degenerate"
+
+
+def _jordan_size(st: Structure) -> int:
+    """Largest possible Jordan block of a unit-modulus eigenvalue: algebraic − geometric + 1."""
+    return max((e.multiplicity - e.geometric + 1 for e in st.eigen if _on_circle(e, st)),
+               default=1)
+
+
+def _marginal_reason(system: System, st: Structure) -> str:
+    """MATH §11, marginal modes: ρ(A) ≤ 1 and (C, A) detectable ⇒ p_c = 0 (any Jordan form)."""
+    k = _jordan_size(st)
+    io = st.observability_index
+    run = (f"Iₒ = {io}" if io is not None else
+           "Iₒ = the observability index of the observable part (the unobservable modes have "
+           "|λ| < 1 by detectability and stay bounded)")
+    growth = ("A is diagonalizable on the unit circle, so ‖Aᵗ‖ is bounded" if k == 1 else
+              f"the largest Jordan block on the unit circle has size ≤ {k}, so ‖Aᵗ‖ = "
+              f"O(t{_sup(k - 1)})")
+    return (f"marginal modes (MATH §11): ρ(A) = {_mod_text(st, 0)} (eigenvalues on the unit "
+            "circle, none outside) and (C, A) detectable, so p_c = 0 whatever the Jordan "
+            "structure. Argument: "
+            f"(1) Pₜ₊₁ ⪯ A Pₜ A' + Q and {growth}, so Pₜ grows at most polynomially in the time "
+            f"since the last useful data; (2) a run of {run} consecutive arrivals puts Pₜ ⪯ M "
+            "whatever Pₜ was before it (the Iₒ-step observability of (C, A) bounds the error of "
+            "the best estimate from those measurements, and the Kalman filter is optimal); "
+            "(3) for every p > 0 the waiting time W for such a run has a geometric tail, "
+            "P(W > w) ≤ (1 − p^Iₒ)^⌊w/Iₒ⌋, so E[Pₜ] ⪯ E[poly(W)]·(‖M‖ + ‖Q‖) < ∞. "
+            "Steps checked mechanically in proofs_checks/check_marginal_modes.py"
+            + _decided_text(system, st, "|λ| = 1"))
+
+
+
 def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None, str]:
     if not st.detectable:
         bad = ", ".join(_eig_text(st, i) for i in st.undetectable)
@@ -318,6 +362,8 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
     if st.stable:
         return ("stable", Num(0.0, sp.Integer(0)),
                 f"ρ(A) = {_mod_text(st, 0)} < 1: E[Pₜ] is bounded for every p, p_c = 0")
+    if not any(_eig_above(e, st) for e in st.eigen):
+        return (_structural_class(st), Num(0.0, sp.Integer(0)), _marginal_reason(system, st))
     if not st.diagonalizable:
         if _c_invertible(system, st):
             return ("non-diagonalizable", low,
@@ -328,14 +374,9 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
                     f"A is not diagonalizable (outside Mo–Sinopoli), but it has a single unstable "
                     f"eigenvalue {_eig_text(st, 0)}: Sinopoli et al. §IV, bounds coincide, "
                     "p_c = 1 − 1/|λ₁|²")
-        critical = not any(_eig_above(e, st) for e in st.eigen)
         return ("non-diagonalizable", None,
                 "A is not diagonalizable: Mo–Sinopoli (H2) fails and the papers give no closed "
-                "form; p_c lies in [block lower bound, LMI upper bound]"
-                + ("; A is critically stable (ρ(A) = 1, no |λ| > 1) with a Jordan block on the "
-                   "unit circle, and the papers state p_c = 0 only for diagonalizable A "
-                   "(Sinopoli Thm 3 / MATH §3), so p_low = 0 is not known to be p_c"
-                   if critical else ""))
+                "form; p_c lies in [block lower bound, LMI upper bound]")
     rel_blocks = [b for b in st.blocks if b.relevant]
     degenerate = [b for b in rel_blocks if not b.one_step_observable]
     if not degenerate:
