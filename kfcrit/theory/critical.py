@@ -337,7 +337,7 @@ def _marginal_reason(system: System, st: Structure) -> str:
            "|λ| < 1 by detectability and stay bounded)")
     growth = ("A is diagonalizable on the unit circle, so ‖Aᵗ‖ is bounded" if k == 1 else
               f"the largest Jordan block on the unit circle has size ≤ {k}, so ‖Aᵗ‖ = "
-              f"O(t{_sup(k - 1)})")
+              f"O(t{_sup(k - 1) if k > 2 else ''})")
     return (f"marginal modes (MATH §11): ρ(A) = {_mod_text(st, 0)} (eigenvalues on the unit "
             "circle, none outside) and (C, A) detectable, so p_c = 0 whatever the Jordan "
             "structure. Argument: "
@@ -425,10 +425,25 @@ class _Sensitivity:
     kappa: tuple[float, ...]
     delta: tuple[float, ...]
 
-    def subspace(self, st: Structure, ids: list[int]) -> float:
-        """First-order bound on how far the invariant subspace span{V_I} turns (≤ 1):
-        δv_i = Σ_{j≠i} v_j (y_j^H E v_i)/((λ_i − λ_j) y_j^H v_j), so its component outside
-        span{V_I} has norm ≤ ‖E‖ Σ_{j∉I} κ_j / |λ_i − λ_j|."""
+    def subspace(self, a: np.ndarray, st: Structure, ids: list[int]) -> float:
+        """Bound on how far the invariant subspace span{V_I} turns under A + E (≤ 1).
+
+        Stewart's theorem on invariant subspaces (Stewart–Sun, Thm V.2.7): in a Schur form
+        A = Z [[T₁₁, T₁₂], [0, T₂₂]] Z^H with the eigenvalues of I in T₁₁, and ‖E‖₂ ≤ ε, put
+        δ = sep(T₁₁, T₂₂) − 2ε, γ = ε, η = ‖T₁₂‖ + ε. If γη/δ² < 1/4, A + E has an invariant
+        subspace span{Z(I; X)} with ‖X‖₂ ≤ 2γ/δ, so the subspace turns by at most that.
+
+        .. math:: \\operatorname{sep}(T_{11}, T_{22}) = \\sigma_{\\min}(I \\otimes T_{22}
+                  - T_{11}^T \\otimes I)
+
+        Only the separation of the two spectral parts enters: a defective eigenvalue *outside*
+        I does not make the subspace of I sensitive unless it is close to I's eigenvalues."""
+        turn = subspace_turn(a, st, ids, self.eps)
+        return turn if turn is not None else self._first_order_turn(st, ids)
+
+    def _first_order_turn(self, st: Structure, ids: list[int]) -> float:
+        """First-order estimate for large blocks: δv_i = Σ_{j∉I} v_j (y_j^H E v_i)/((λ_i − λ_j)
+        y_j^H v_j), norm ≤ ε Σ_{j∉I} κ_j/|λ_i − λ_j| (1.0 when some κ_j is infinite)."""
         tot = 0.0
         for j, ej in enumerate(st.eigen):
             if j in ids:
@@ -438,6 +453,45 @@ class _Sensitivity:
                 return 1.0
             tot += self.kappa[j] / gap
         return min(1.0, self.eps * tot)
+
+
+_SEP_MAX_ORDER = 600
+"""Largest k·(n − k) for which sep(T₁₁, T₂₂) is computed from the Kronecker form."""
+
+
+def subspace_turn(a: np.ndarray, st: Structure, ids: list[int], eps: float) -> float | None:
+    """Stewart's bound 2ε/δ on the turn of span{V_I} (see :meth:`_Sensitivity.subspace`);
+    1.0 when it does not apply (parts not separated), None when sep is too large to compute."""
+    import scipy.linalg as sla
+
+    n = a.shape[0]
+    w = np.linalg.eigvals(a)
+    chosen: list[int] = []
+    for i in ids:
+        e = st.eigen[i]
+        free = sorted((k for k in range(n) if k not in chosen), key=lambda k: abs(w[k] - e.value))
+        chosen.extend(free[:e.multiplicity])
+    k = len(chosen)
+    if k >= n:
+        return 0.0
+    inside, outside = w[chosen], np.delete(w, chosen)
+    gap = float(np.min(np.abs(inside[:, None] - outside[None, :])))
+    if gap == 0.0:
+        return 1.0
+    if k * (n - k) > _SEP_MAX_ORDER:
+        return None
+    T, _, sdim = sla.schur(a.astype(complex), output="complex",
+                           sort=lambda x: bool(np.min(np.abs(inside - x)) < gap / 2))
+    if sdim != k:
+        return 1.0
+    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    S = np.kron(np.eye(k), T22) - np.kron(T11.T, np.eye(n - k))
+    sep = float(np.linalg.svd(S, compute_uv=False).min())
+    delta = sep - 2 * eps
+    eta = float(np.linalg.norm(T12, 2)) + eps
+    if delta <= 0 or eps * eta / delta ** 2 >= 0.25:
+        return 1.0
+    return min(1.0, 2 * eps / delta)
 
 
 def _sensitivity(system: System, st: Structure, tol: float) -> _Sensitivity:
@@ -536,12 +590,13 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
     δ_i/|λ_i|, and σ_min of C on an invariant subspace by ‖C‖·(tol + η_I), η_I the first-order
     turn of that subspace (:meth:`_Sensitivity.subspace`)."""
     c = system.c
+    a = np.asarray(system.a, dtype=float)
     sens = _sensitivity(system, st, tol)
     dl = sens.delta
     normc = max(st.norm_C, np.finfo(float).tiny)
 
     def ctol(ids: list[int]) -> float:
-        return normc * (tol + sens.subspace(st, ids))
+        return normc * (tol + sens.subspace(a, st, ids))
 
     cases: list[tuple[Num, str]] = []
     notes: list[str] = []
@@ -605,28 +660,42 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
     return cases, notes
 
 
-def _strict_alternative(system: System, st: Structure, tol: float, value: Num | None,
-                        blow: Num | None, classification: str) -> dict[str, Any] | None:
-    """Numeric path: the case on the other side of the tolerance decisions.
-
-    The structure at the user's tolerance merges moduli, rank drops and angles that agree within
-    ``tol``; the same computation with strict float64 decisions (tolerance 64 ulp·max κ, the
-    rounding error of the computed eigenvalues) keeps them apart. If the two disagree, both
-    values are reported."""
-    if st.path != "numeric":
-        return None
+def _strict_tolerance(system: System, st: Structure) -> float:
+    """Float64 resolution of the numeric decisions: 64 ulp · max κ (the rounding error of the
+    computed eigenvalues relative to ‖A‖), at most 1e-3."""
     sens = _sensitivity(system, st, NUMERIC_FLOOR)
     kmax = max([k for k in sens.kappa if math.isfinite(k)] or [1.0])
-    strict = min(NUMERIC_FLOOR * kmax, 1e-3)
+    return min(NUMERIC_FLOOR * kmax, 1e-3)
+
+
+def _headline_structure(system: System, st: Structure) -> tuple[Structure, Structure | None]:
+    """The structure behind the headline p_c and, on the numeric path, the one decided at the
+    user's tolerance when that is looser than float64 resolution.
+
+    The headline is the system as entered: on the numeric path its decisions are made at float64
+    resolution (:func:`_strict_tolerance`), so that moduli, ranks and angles which only *agree
+    within the tolerance* are kept apart. What the tolerance merges is a nearby system — it
+    enters the robust value (:func:`_tolerance_alternative`), never the headline."""
+    if st.path != "numeric":
+        return st, None
+    strict = _strict_tolerance(system, st)
     if strict >= _mtol(st):
+        return st, None
+    return structure_at(st, system, strict), st
+
+
+def _tolerance_alternative(system: System, st_tol: Structure | None, value: Num | None,
+                           blow: Num | None, classification: str) -> dict[str, Any] | None:
+    """Numeric path: the case decided with the user's tolerance, when it differs from the
+    headline (decided at float64 resolution): {value, expression, classification, case}."""
+    if st_tol is None:
         return None
-    st2 = structure_at(st, system, strict)
-    low2 = _lower(st2)
-    cls2, val2, reason2 = _classify(system, st2, low2)
+    low2 = _lower(st_tol)
+    cls2, val2, reason2 = _classify(system, st_tol, low2)
     if cls2 == "not-detectable":
         alt: Num | None = Num(1.0, sp.Integer(1))
     else:
-        alt = val2 if val2 is not None else _block_lower(st2, low2)[0]
+        alt = val2 if val2 is not None else _block_lower(st_tol, low2)[0]
     mine = value if value is not None else blow
     if cls2 == classification and alt is not None and mine is not None \
             and abs(alt.value - mine.value) <= 1e-12:
@@ -634,9 +703,10 @@ def _strict_alternative(system: System, st: Structure, tol: float, value: Num | 
     return {"value": alt.value if alt is not None else None,
             "expression": alt.expression if alt is not None else None,
             "classification": cls2,
-            "case": (f"strict float64 decisions (tolerance {strict:.3g} instead of {_mtol(st):g}): "
-                     f"{cls2}" + ("" if val2 is not None or cls2 == "not-detectable"
-                                  else " (block lower bound)") + f"; {reason2}")}
+            "case": (f"decisions at the tolerance {_mtol(st_tol):g} (moduli, ranks and angles "
+                     f"equal within it are merged): {cls2}"
+                     + ("" if val2 is not None or cls2 == "not-detectable"
+                        else " (block lower bound)") + f"; {reason2}")}
 
 
 def _turn_of(z: complex) -> float:
@@ -800,6 +870,50 @@ def _coinciding(system: System, st: Structure, low: Num, blow: Num, bwhy: str
     return None
 
 
+def _robust(system: System, st: Structure, st_tol: Structure | None, tolerance: float,
+            value: Num | None, blow: Num, classification: str,
+            warnings: list[str]) -> dict[str, Any] | None:
+    """The robust critical value: the worst case within ``tolerance`` (``value``, ≥ the
+    headline) and, when some case within it is lower, the least one (``low``); every differing
+    case decided at the user's tolerance in ``alternatives``. ``warnings`` is extended."""
+    base = value if value is not None else blow
+    cases, notes = _nearby_cases(system, st, tolerance)
+    warnings.extend(notes)
+    worse = [(v, d) for v, d in cases if v.value > base.value + 1e-15]
+    lower = [(v, d) for v, d in cases if v.value < base.value - 1e-15]
+    for _v, d in worse + lower:
+        warnings.append(f"within tolerance {tolerance:g} of a different case: {d}")
+    alt = _tolerance_alternative(system, st_tol, value, blow, classification)
+    if alt is not None:
+        warnings.append(f"numeric decision at float64 resolution {_mtol(st):.3g}: "
+                        f"{classification} with "
+                        f"{'p_c' if value is not None else 'block lower bound'} = "
+                        f"{base.expression}; on the other side of the tolerance decisions, "
+                        f"{alt['case']} gives {alt['expression']}")
+        if alt["value"] is not None:
+            num = Num(alt["value"]) if alt["expression"] is None else Num(
+                alt["value"], None, alt["expression"])
+            (worse if alt["value"] > base.value + 1e-15 else
+             lower if alt["value"] < base.value - 1e-15 else []).append((num, alt["case"]))
+    if not (worse or lower or alt):
+        return None
+    top, top_case = max(worse, key=lambda vd: vd[0].value) if worse else (base, "the headline "
+                                                                          "case")
+    robust: dict[str, Any] = {"value": top.value, "tolerance": tolerance,
+                              "expression": _num_text(top), "nearby_case": top_case}
+    if lower:
+        v, d = min(lower, key=lambda vd: vd[0].value)
+        robust["low"] = {"value": v.value, "expression": _num_text(v), "case": d}
+    if alt is not None:
+        robust["alternatives"] = [alt]
+    return robust
+
+
+def _num_text(v: Num) -> str:
+    """The expression of a value that may carry only its text (an alternative's expression)."""
+    return v.text if v.expr is None and v.text is not None else v.expression
+
+
 def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
                    structure: Structure | None = None) -> CriticalValue:
     """Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
@@ -825,8 +939,9 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
     """
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance <= 0.1):
         raise InputError(f"must be a number in [0, 0.1], got {tolerance!r}", field="tolerance")
-    st = (structure_at(structure, system, tolerance) if structure is not None
-          else structure_of(system, tolerance))
+    st_in = (structure_at(structure, system, tolerance) if structure is not None
+             else structure_of(system, tolerance))
+    st, st_tol = _headline_structure(system, st_in)
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)
     reason = reason.replace("= ≈", "≈").replace("|≈ ", "|")
@@ -849,29 +964,7 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
                                 "a claim checked numerically (MATH §3 [beyond]), not a theorem")
     robust = None
     if classification != "not-detectable":
-        base = value if value is not None else blow
-        cases, notes = _nearby_cases(system, st, tolerance)
-        warnings.extend(notes)
-        worse = [(v, d) for v, d in cases if v.value > base.value + 1e-15]
-        for _v, d in worse:
-            warnings.append(f"within tolerance {tolerance:g} of a different case: {d}")
-        alt = _strict_alternative(system, st, tolerance, value, blow, classification)
-        if worse:
-            v, d = max(worse, key=lambda vd: vd[0].value)
-            robust = {"value": v.value, "tolerance": tolerance, "expression": v.expression,
-                      "nearby_case": d}
-        if alt is not None:
-            warnings.append(f"numeric decision at tolerance {_mtol(st):g}: {classification} with "
-                            f"{'p_c' if value is not None else 'block lower bound'} = "
-                            f"{base.expression}; on the other side of the tolerance decisions, "
-                            f"{alt['case']} gives {alt['expression']}")
-            if robust is None:
-                top = base if alt["value"] is None or alt["value"] <= base.value else Num(
-                    alt["value"])
-                robust = {"value": top.value, "tolerance": tolerance,
-                          "expression": top.expression if top is base else alt["expression"],
-                          "nearby_case": alt["case"]}
-            robust["alternatives"] = [alt]
+        robust = _robust(system, st, st_tol, tolerance, value, blow, classification, warnings)
     theory = _theory(system, st, classification, value, channel)
     return CriticalValue(classification=classification, value=value, reason=reason, lower=low,
                          block_lower=blow, block_reason=bwhy, robust=robust, structure=st,
