@@ -623,3 +623,35 @@ def test_subspace_near_a_defective_eigenvalue_is_still_sensitive():
     a = np.array([[1 + 1e-12, 0, 0], [0, 1, 1], [0, 0, 1]])
     i = next(k for k, e in enumerate(st.eigen) if e.multiplicity == 1)
     assert critical.subspace_turn(a, st, [i], 1e-9 * np.linalg.norm(a, 2)) == 1.0
+
+
+# --------------------------------------------------------------------------- exact comparison
+
+@pytest.mark.parametrize("p, v, sign", [
+    # Issue 18 item 3: 9/25 + 10⁻⁴⁰ rounds to the same double as 9/25 but is above it
+    (sp.Rational(9, 25) + sp.Rational(1, 10**40), sp.Rational(9, 25), 1),
+    ("9/25", "9/25", 0),
+    # the double nearest 0.36 is 0.35999999999999998667…, below 9/25
+    (0.36, "9/25", -1),
+    # √2/4 = 0.35355339059327376220…, the double 0.35355339059327373 is …7308575…
+    ("sqrt(2)/4", 0.35355339059327373, 1),
+    # equal irrationals written differently: exact zero test (√2·√3 = √6)
+    ("sqrt(2)*sqrt(3)", "sqrt(6)", 0),
+    ("1 - 2**(-4/3)", "1 - 2**(-4/3)", 0),
+    # an irrational gap of 10⁻⁶⁰ (below float and below 40 digits)
+    ("cos(pi/7)", "cos(pi/7) + 10**-60", -1),
+])
+def test_compare_probability_exact(p, v, sign):
+    from kfcrit.theory.probability import compare_probability
+    assert compare_probability(p, v) == sign
+    assert compare_probability(v, p) == -sign
+
+
+def test_compare_probability_reads_critical_value_records():
+    from kfcrit.theory.probability import compare_probability
+    spec = load_spec(REPORTS / "sinopoli-general.yaml")      # p_c = 9/25 exactly
+    cv = critical.critical_value(spec.system)
+    assert compare_probability(sp.Rational(9, 25) + sp.Rational(1, 10**40), cv.value) == 1
+    assert compare_probability(sp.Rational(9, 25), cv.value) == 0
+    assert compare_probability(sp.Rational(9, 25), cv.to_dict()["critical_value"]["expression"]) \
+        == 0

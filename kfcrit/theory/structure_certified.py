@@ -47,7 +47,7 @@ class _Undecided(Exception):
     """The enclosures at this precision do not decide a fact (retry higher, then hand over)."""
 
 
-def _arb_of(expr: sp.Expr) -> Any:
+def arb_of(expr: sp.Expr) -> Any:
     """A rigorous arb ball containing the real number ``expr`` (sympy expression tree, at the
     current flint precision): rationals, +, ×, integer powers, positive-base rational powers,
     pi, E, cos/sin. Anything else: ``Fallback``."""
@@ -62,36 +62,36 @@ def _arb_of(expr: sp.Expr) -> Any:
     if expr.is_Add:
         out = arb(0)
         for a in expr.args:
-            out = out + _arb_of(a)
+            out = out + arb_of(a)
         return out
     if expr.is_Mul:
         out = arb(1)
         for a in expr.args:
-            out = out * _arb_of(a)
+            out = out * arb_of(a)
         return out
     if expr.is_Pow:
         base, ex = expr.base, expr.exp
         if ex.is_Integer:
-            b = _arb_of(base)
+            b = arb_of(base)
             k = int(ex)
             r = arb(1)
             for _ in range(abs(k)):
                 r = r * b
             return r if k >= 0 else 1 / r
         if ex.is_Rational:
-            b = _arb_of(base)
+            b = arb_of(base)
             if not b > 0:
                 raise Fallback(f"cannot enclose {sp.sstr(expr)} (base not certainly positive)")
             if ex == sp.Rational(1, 2):
                 return b.sqrt()
-            return (b.log() * _arb_of(ex)).exp()
+            return (b.log() * arb_of(ex)).exp()
     if isinstance(expr, (sp.cos, sp.sin)):
         arg = expr.args[0]
         c = arg / sp.pi
         if c.is_Rational:
             f = fmpq(int(c.p), int(c.q))
             return arb.cos_pi_fmpq(f) if isinstance(expr, sp.cos) else arb.sin_pi_fmpq(f)
-        v = _arb_of(arg)
+        v = arb_of(arg)
         return v.cos() if isinstance(expr, sp.cos) else v.sin()
     raise Fallback(f"no certified enclosure for the entry {sp.sstr(expr)[:40]}")
 
@@ -161,8 +161,8 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
     from flint import acb, acb_mat, arb
 
     n, m = A.shape[0], C.shape[0]
-    Ab = acb_mat([[acb(_arb_of(A[i, j])) for j in range(n)] for i in range(n)])
-    Cb = acb_mat([[acb(_arb_of(C[i, j])) for j in range(n)] for i in range(m)])
+    Ab = acb_mat([[acb(arb_of(A[i, j])) for j in range(n)] for i in range(n)])
+    Cb = acb_mat([[acb(arb_of(C[i, j])) for j in range(n)] for i in range(m)])
     if not all(x.is_finite() for x in Ab.entries() + Cb.entries()):
         raise _Undecided("an entry's enclosure is not finite")
     E, R = Ab.eig(right=True)
