@@ -325,3 +325,38 @@ def test_certified_stage_agrees_with_exact_algebra():
     assert np.allclose([e.mod2 for e in ce.eigen], [e.mod2 for e in ex.eigen], rtol=1e-14)
     assert (ce.detectable, ce.diagonalizable, ce.controllable_Q, ce.observable) == (
         ex.detectable, ex.diagonalizable, ex.controllable_Q, ex.observable)
+
+
+# --------------------------------------------------------------------------- float64 resolution
+
+def test_ill_conditioned_cluster_does_not_average_away_instability():
+    # Issue 18 item 4: A = V·diag(6/5, 1/2, 1/3, …, 1/7)·V⁻¹, V = I + 60·(strict upper ones),
+    # cond(V) ≈ 1e13, n = 7 (numeric path). The first-order error bounds 64·ε·‖A‖·κ overlap, so
+    # float64 cannot resolve the spectrum — but the unstable 6/5 must not vanish into a mean.
+    # Hand value: C = [1 … 1], C·v_i = 1 + 60·(i − 1) ≠ 0, a single |λ| > 1: p_c = 1 − (5/6)² = 11/36.
+    from kfcrit.theory import critical
+    n = 7
+    V = np.eye(n) + np.triu(np.full((n, n), 60.0), 1)
+    A = V @ np.diag([6 / 5, 1 / 2, 1 / 3, 1 / 4, 1 / 5, 1 / 6, 1 / 7]) @ np.linalg.inv(V)
+    s = System(A, np.ones((1, n)), np.eye(n), np.eye(1))
+    st_ = eigen_structure(s)
+    assert st_.path == "numeric" and not st_.stable
+    assert st_.unresolved and "not resolved in float64" in st_.unresolved[0]
+    assert abs(st_.eigen[0].modulus - 1.2) < 1e-6
+    d = critical.critical_section(s)
+    assert d["classification"] != "stable"
+    assert abs(d["critical_value"]["value"] - 11 / 36) < 1e-6
+    assert "RESOLUTION FAILED" in d["critical_value"]["reason"]
+    assert any("could not resolve" in w for w in d["warnings"])
+
+
+def test_split_jordan_blocks_stay_one_eigenvalue():
+    # constant-acceleration tracker on two axes (Jordan blocks of size 3 at 1, NumPy input n = 6):
+    # the computed eigenvalues split by ~ε^(1/3) ≈ 6e-6 and are one eigenvalue of multiplicity 6
+    J = np.array([[1.0, 0.1, 0.005], [0.0, 1.0, 0.1], [0.0, 0.0, 1.0]])
+    A = np.kron(np.eye(2), J)
+    s = System(A, np.kron(np.eye(2), np.array([[1.0, 0.0, 0.0]])), np.eye(6), np.eye(2))
+    st_ = eigen_structure(s)
+    assert st_.path == "numeric" and not st_.unresolved
+    assert len(st_.eigen) == 1 and st_.eigen[0].multiplicity == 6 and st_.eigen[0].geometric == 2
+    assert abs(st_.eigen[0].modulus - 1) < 1e-9 and not st_.diagonalizable

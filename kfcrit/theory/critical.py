@@ -819,6 +819,7 @@ def _hypothesis_warnings(system: System, st: Structure) -> list[str]:
     out = []
     if st.path == "numeric":
         out.append(f"eigen-structure decided in floating point ({st.path_reason})")
+    out.extend(f"float64 could not resolve the spectrum: {u}" for u in st.unresolved)
     if not st.controllable_Q:
         out.append("(A, Q^(1/2)) is not controllable: Sinopoli's existence theorem for p_c "
                    "assumes it")
@@ -945,6 +946,10 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)
     reason = reason.replace("= ≈", "≈").replace("|≈ ", "|")
+    if st.unresolved:
+        reason += ("; RESOLUTION FAILED: float64 cannot resolve some eigenvalues of A (their "
+                   "error bounds 64·ε·‖A‖·κ overlap), so this rests on the computed values: "
+                   + "; ".join(st.unresolved))
     warnings = _hypothesis_warnings(system, st)
     if classification == "not-detectable":
         blow, bwhy = None, "not detectable: no finite critical value"

@@ -30,6 +30,71 @@ from kfcrit.theory.structure_records import (
 
 # --------------------------------------------------------------------------- numeric path
 
+_RESOLVED_SPREAD = 1e-4
+"""Largest relative spread of a cluster read as one multiple eigenvalue (a Jordan block of size
+k splits by about ε^{1/k}: 1.5e-8, 6e-6, 1.2e-4 for k = 2, 3, 4 at unit scale)."""
+
+
+def _clusters(a: np.ndarray, w: np.ndarray, norm_a: float, rel: float) -> list[list[int]]:
+    """Groups of computed eigenvalues that float64 cannot tell apart: w_i, w_j join when
+    |w_i − w_j| ≤ r_i + r_j, r_i = 64·ε·‖A‖₂·κ_i (first-order error bound of a backward-stable
+    eigensolver, κ_i = ‖x_i‖‖y_i‖/|y_i^H x_i|), or when |w_i − w_j| ≤ ``rel``·max(1, |w_i|, |w_j|).
+
+    .. math:: |\\hat\\lambda_i - \\lambda_i| \\lesssim \\varepsilon \\|A\\|_2 \\kappa_i
+    """
+    import scipy.linalg as sla
+
+    n = len(w)
+    try:
+        _, yl, xr = sla.eig(a, left=True, right=True)
+        dots = np.abs(np.sum(yl.conj() * xr, axis=0))
+        norms = np.linalg.norm(yl, axis=0) * np.linalg.norm(xr, axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            kappa = np.where(dots > 0, norms / dots, np.inf)
+    except (np.linalg.LinAlgError, ValueError):
+        kappa = np.full(n, np.inf)
+    radius = 64 * np.finfo(float).eps * norm_a * np.minimum(kappa, 1 / np.finfo(float).eps)
+    parent = list(range(n))
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+    gap = np.abs(w[:, None] - w[None, :])
+    size = np.maximum(1.0, np.maximum(np.abs(w)[:, None], np.abs(w)[None, :]))
+    close = (gap <= radius[:, None] + radius[None, :]) | (gap <= rel * size)
+    for i, j in zip(*np.nonzero(np.triu(close, 1))):
+        parent[find(i)] = find(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(find(i), []).append(i)
+    return list(groups.values())
+
+
+def _cluster_values(a: np.ndarray, w: np.ndarray, norm_a: float, rel: float,
+                    unresolved: list[str]) -> list[tuple[list[int], complex]]:
+    """(members, value) per distinct eigenvalue. A cluster of :func:`_clusters` whose relative
+    spread is at most ``_RESOLVED_SPREAD`` is one multiple eigenvalue, valued at its mean (the
+    mean of a split Jordan block is accurate). A wider cluster is not resolved by float64: its
+    members stay separate at their computed values (never averaged, so an unstable eigenvalue
+    is not hidden in a mean), and a sentence saying so is appended to ``unresolved``."""
+    out: list[tuple[list[int], complex]] = []
+    for members in _clusters(a, w, norm_a, rel):
+        ws = w[members]
+        mean = complex(np.mean(ws))
+        spread = float(np.max(np.abs(ws[:, None] - ws[None, :]))) if len(ws) > 1 else 0.0
+        if spread <= max(rel, _RESOLVED_SPREAD) * max(1.0, abs(mean)):
+            out.append((members, mean))
+            continue
+        unresolved.append(
+            f"eigenvalues {', '.join(f'{complex(z):.6g}' for z in ws)} are not resolved in "
+            f"float64 (spread {spread:.3g}, each within the error bound 64·ε·‖A‖·κ of another): "
+            "kept apart at their computed values, which float64 does not guarantee")
+        out.extend(([i], complex(w[i])) for i in members)
+    return out
+
+
 def numeric_structure(system: System, start: float, reason: str,
                        tolerance: float | None = None) -> Structure:
     a, c = system.a, system.c
@@ -39,24 +104,10 @@ def numeric_structure(system: System, start: float, reason: str,
     norm_c = float(np.linalg.norm(c, 2))
     scale = max(1.0, norm_a)
     w, V = np.linalg.eig(a)
-    # Cluster numerically equal eigenvalues (a Jordan block of size 2 splits them by ~√eps).
-    parent = list(range(n))
-
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-    close = np.abs(w[:, None] - w[None, :]) <= tol["eigenvalue_cluster_relative"] * scale
-    for i, j in zip(*np.nonzero(np.triu(close, 1))):
-        parent[find(i)] = find(j)
-    clusters: dict[int, list[int]] = {}
-    for i in range(n):
-        clusters.setdefault(find(i), []).append(i)
-    eigen = []
-    for members in clusters.values():
-        mu = complex(np.mean(w[members]))
-        if abs(mu.imag) <= tol["eigenvalue_cluster_relative"] * scale:
+    eigen, unresolved = [], []
+    for members, mu in _cluster_values(a, w, norm_a, tol["eigenvalue_cluster_relative"],
+                                       unresolved):
+        if abs(mu.imag) <= tol["eigenvalue_cluster_relative"] * max(1.0, abs(mu)):
             mu = complex(mu.real, 0.0)
         if len(members) == 1:
             v = V[:, members[0]]
@@ -130,6 +181,6 @@ def numeric_structure(system: System, start: float, reason: str,
         observability_index=observability_index(a, c),
         observable=all(rank_of([i]) == e.geometric for i, e in enumerate(eigen)),
         norm_A=norm_a, norm_C=norm_c,
-        seconds=time.monotonic() - start)
+        seconds=time.monotonic() - start, unresolved=tuple(unresolved))
 
 

@@ -171,6 +171,8 @@ class Structure:
     standard_form: dict[str, Any] | None = None
     """Diagonal standard form (Mo–Sinopoli): eigenvalues and the columns of C·V per equi-block
     (exact strings on the exact path, [re, im] float pairs on the numeric path)."""
+    unresolved: tuple[str, ...] = ()
+    """Numeric path: eigenvalue groups float64 could not resolve (one sentence each)."""
 
     def relevant(self, i: int) -> bool:
         """Eigenvalue i is unstable or critically stable (|λ| ≥ 1)."""
@@ -207,7 +209,8 @@ class Structure:
                 "equal_modulus_pairs": pairs, "diagonalizable": self.diagonalizable,
                 "detectable": self.detectable, "controllable_Q": self.controllable_Q,
                 "observability_index": self.observability_index, "observable": self.observable,
-                "seconds": round(self.seconds, 4), "standard_form": self.standard_form}
+                "seconds": round(self.seconds, 4), "standard_form": self.standard_form,
+                "unresolved": list(self.unresolved)}
 
     def _first_index(self, i: int) -> int:
         return sum(e.multiplicity for e in self.eigen[:i])
