@@ -16,8 +16,14 @@ import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
-from kfcrit.theory.structure import MAX_DENOMINATOR, eigen_structure, simplest_rational
 from kfcrit.model.system import System
+from kfcrit.theory.structure import (
+    MAX_DENOMINATOR,
+    Fallback,
+    certified_structure,
+    eigen_structure,
+    simplest_rational,
+)
 
 
 def _sys(A, C, Q=None) -> System:
@@ -284,19 +290,46 @@ def test_certified_stage_decides_surd_system(C, classification):
 
 @pytest.mark.parametrize("A, C, why", [
     ([[2, 0], [0, -2]], [[1, 1]], "moduli not separated"),      # 2 = |−2|, not conjugate
-    ([[0, -2], [2, 0]], [[1, 0]], "φ/2π"),                      # z = −1 (q = 2)
-    ([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]], "root of unity not excluded"),   # q = 3
     ([[2, 1], [0, 2]], [[1, 0]], "not isolated"),               # Jordan block
     ([[2, 0], [0, "1/2"]], [[0, 1]], "C·v not certified nonzero"),   # undetectable
 ])
 def test_certified_stage_hands_over(A, C, why):
     # What balls cannot certify (equal moduli of non-conjugates, roots of unity, multiple
     # eigenvalues, exact zeros) the certified stage refuses; the exact algebra decides it.
-    from kfcrit.theory.structure import Fallback, certified_structure
+
     system = _sys(A, C)
     with pytest.raises(Fallback, match=why):
         certified_structure(system, time.monotonic(), "test")
     assert eigen_structure(system).path == "exact"
+
+
+@pytest.mark.parametrize("A, q, mod2", [
+    ([[0, -2], [2, 0]], 2, 4),                         # ±2j: z = −1, |λ|² = 4
+    ([[1, "-sqrt(3)"], ["sqrt(3)", 1]], 3, 4),         # 2e^{±jπ/3}: z = e^{∓2πj/3}
+    ([["2*cos(pi/7)", "-2*sin(pi/7)"], ["2*sin(pi/7)", "2*cos(pi/7)"]], 7, 4),
+    ([["3/2*cos(pi/30)", "-3/2*sin(pi/30)"], ["3/2*sin(pi/30)", "3/2*cos(pi/30)"]], 30,
+     sp.Rational(9, 4)),
+])
+def test_certified_stage_proves_rational_angles(A, q, mod2):
+    # r·R(θ): eigenvalues r e^{±jθ}, z = e^{∓2jθ}, order of e^{2jθ} by hand: θ = π/2 → q = 2,
+    # π/3 → 3, π/7 → 7, π/30 → 30 (2θ = 2π/30); |λ|² = r² (r = 2, 2, 2, 3/2).
+    # Roots of unity are proved in Q(ζ_L), not only excluded.
+    system = _sys(A, [[1, 0]])
+    s = certified_structure(system, time.monotonic(), "test")
+    assert s.path == "exact" and "proved exactly" in s.path_reason
+    assert [p.q for p in s.pairs] == [q] and s.pairs[0].degenerate
+    assert [e.mod2_expr for e in s.eigen] == [mod2, mod2]
+
+
+def test_certified_stage_refutes_a_near_rational_angle():
+    # [[2c, −s], [s, 2c]], c = cos(π/7), s = sin(π/7): eigenvalues 2c ± j·s, not a rotation;
+    # z = λ̄/λ has φ/2π = −2·atan(s/(2c))/2π, irrational; no exact identity may be claimed.
+    system = _sys([["2*cos(pi/7)", "-sin(pi/7)"], ["sin(pi/7)", "2*cos(pi/7)"]], [[1, 0]])
+    s = eigen_structure(system)
+    assert s.path == "exact"
+    assert [p.q for p in s.pairs] == [None]
+    lam = np.linalg.eigvals(system.a.astype(float))
+    assert np.allclose(sorted(e.mod2 for e in s.eigen), sorted(abs(lam) ** 2), rtol=1e-14)
 
 
 def test_diag_two_minus_two_handover_keeps_exact_value():
@@ -313,7 +346,7 @@ def test_diag_two_minus_two_handover_keeps_exact_value():
 def test_certified_stage_agrees_with_exact_algebra():
     # 5·e^{±j·atan(4/3)} (φ/2π irrational, C sees one combination: degenerate pair) and a
     # stable real mode: the exact algebra and the certified stage decide the same facts.
-    from kfcrit.theory.structure import certified_structure
+
     system = _sys([[3, -4, 0], [4, 3, 0], [0, 0, "1/2"]], [[1, 0, 1]])
     ex = eigen_structure(system)
     ce = certified_structure(system, time.monotonic(), "cross-check")
@@ -331,7 +364,8 @@ def test_certified_stage_agrees_with_exact_algebra():
 
 def test_ill_conditioned_cluster_does_not_average_away_instability():
     # Issue 18 item 4: A = V·diag(6/5, 1/2, 1/3, …, 1/7)·V⁻¹, V = I + 60·(strict upper ones),
-    # cond(V) ≈ 1e13, n = 7 (numeric path). The first-order error bounds 64·ε·‖A‖·κ overlap, so
+    # cond(V) ≈ 1e13, n = 7 (numeric path). The first-order error bounds 64·ε·‖A‖·κ overlap,
+    # so
     # float64 cannot resolve the spectrum — but the unstable 6/5 must not vanish into a mean.
     # Hand value: C = [1 … 1], C·v_i = 1 + 60·(i − 1) ≠ 0, a single |λ| > 1: p_c = 1 − (5/6)² = 11/36.
     from kfcrit.theory import critical

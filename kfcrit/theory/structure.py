@@ -63,6 +63,7 @@ import time
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.theory.cyclotomic import cyclotomic_order, trig_form
 from kfcrit.theory.structure_certified import certified_structure
 from kfcrit.theory.structure_exact import cmp_exact, exact_structure
 from kfcrit.theory.structure_numeric import numeric_structure
@@ -92,6 +93,32 @@ __all__ = ["DEFAULT_TOLERANCE", "EXACT_MAX_STATES", "EXACT_MAX_STATES_BINARY_FLO
 
 # --------------------------------------------------------------------------- entry point
 
+CYCLOTOMIC_FIRST_DEGREE = 8
+"""Entries in Q(ζ_L) with φ(L) above this (or unevaluated cos/sin atoms) try the certified
+enclosures with exact cyclotomic proofs before the number-field algebra, which is slow there
+(measured: 2×2 with cos(π/7), 8–55 s; with cos(π/30), over the 8 s budget)."""
+
+
+def _cyclotomic_first(system: System) -> str | None:
+    """Why the certified stage runs first (trigonometric entries of high cyclotomic degree),
+    or None. Only exact input with n ≤ ``EXACT_MAX_STATES``."""
+    if not system.exact or system.n > EXACT_MAX_STATES:
+        return None
+    entries = [trig_form(e) for e in sp.Matrix(system.A)]
+    if all(e.is_Rational for e in entries):
+        return None
+    L = cyclotomic_order(entries)
+    if L is None:
+        return None
+    degree = int(sp.totient(L))
+    if degree <= CYCLOTOMIC_FIRST_DEGREE and not any(
+            e.has(sp.cos, sp.sin) for e in sp.Matrix(system.A)):
+        return None
+    return (f"entries are rational multiples of cos/sin of rational multiples of π, in the "
+            f"cyclotomic field Q(ζ_{L}) of degree {degree}: decided by certified enclosures "
+            "with exact rational-angle proofs, before any number-field algebra")
+
+
 def eigen_structure(system: System, force_numeric: bool = False,
                     tolerance: float | None = None) -> Structure:
     """Eigen-structure of (A, C): exact for small algebraic input, else numeric (see module doc).
@@ -115,6 +142,13 @@ def eigen_structure(system: System, force_numeric: bool = False,
         return numeric_structure(system, start, "numeric float64 path: binary floating-point "
                                   f"input with n > {EXACT_MAX_STATES_BINARY_FLOAT}; decisions use "
                                   "the stated tolerances", tolerance)
+    first = _cyclotomic_first(system)
+    if first is not None:
+        try:
+            return certified_structure(system, start, first)
+        except (Fallback, NotImplementedError, sp.polys.polyerrors.BasePolynomialError,
+                ValueError, TypeError, ArithmeticError):
+            pass                               # the number-field algebra decides what is left
     try:
         return exact_structure(system, start)
     except Fallback as exc:
@@ -123,7 +157,7 @@ def eigen_structure(system: System, force_numeric: bool = False,
             TypeError, ArithmeticError) as exc:  # sympy failed on the algebra: fall back, say why
         prior = f"exact algebra failed ({type(exc).__name__})"
     try:
-        return certified_structure(system, start, prior)
+        return certified_structure(system, start, f"the exact algebra could not run ({prior})")
     except Fallback as exc:
         reason = f"{prior}; certified enclosures: {exc}"
     except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,

@@ -11,6 +11,8 @@ multiples of π. Whatever the balls do not decide raises :class:`Fallback`.
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from fractions import Fraction
 from typing import Any
@@ -19,6 +21,17 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.theory.cyclotomic import MAX_FIELD_DEGREE as CYCLO_MAX_DEGREE
+from kfcrit.theory.cyclotomic import (
+    CycloField,
+    cyclotomic_order,
+    poly_at,
+    shifted_gcd,
+    trig_form,
+)
+from kfcrit.theory.cyclotomic import charpoly as cyclo_charpoly
+from kfcrit.theory.cyclotomic import element as cyclo_element
+from kfcrit.theory.cyclotomic import real_expression as cyclo_real
 from kfcrit.theory.structure_exact import ExactWork, exact_controllable, field_generators
 from kfcrit.theory.structure_records import (
     EXACT_MAX_STATES,
@@ -138,7 +151,10 @@ def certified_structure(system: System, start: float, prior: str) -> Structure:
     if system.n > EXACT_MAX_STATES:
         raise Fallback(f"n = {system.n} > {EXACT_MAX_STATES}")
     A, C = sp.Matrix(system.A), sp.Matrix(system.C)
-    d_lam = system.n * _generator_degree_bound(field_generators(list(A)))
+    A_trig = A.applyfunc(trig_form)
+    L = cyclotomic_order(list(A_trig))
+    d_lam = system.n * (int(sp.totient(L)) if L is not None else
+                        _generator_degree_bound(field_generators(list(A))))
     q_max = 2 * (d_lam * (d_lam - 1)) ** 2 + 2
     old = flint.ctx.prec
     why = ""
@@ -146,7 +162,8 @@ def certified_structure(system: System, start: float, prior: str) -> Structure:
         for prec in CERTIFIED_PRECISIONS:
             flint.ctx.prec = prec
             try:
-                return _certified_at(system, A, C, prec, q_max, d_lam, start, prior)
+                return _certified_at(system, A, C, prec, q_max, d_lam, start, prior,
+                                     (A_trig, L) if L is not None else None)
             except _Undecided as exc:
                 why = str(exc)
             except ValueError as exc:      # acb_mat.eig: eigenvalues not isolated
@@ -157,7 +174,8 @@ def certified_structure(system: System, start: float, prior: str) -> Structure:
 
 
 def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: int,
-                  d_lam: int, start: float, prior: str) -> Structure:
+                  d_lam: int, start: float, prior: str,
+                  cyclo: tuple[sp.Matrix, int] | None = None) -> Structure:
     from flint import acb, acb_mat, arb
 
     n, m = A.shape[0], C.shape[0]
@@ -220,6 +238,7 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
                            basis=float_basis(system.a, v, 1), expr=None, mod2_expr=None,
                            unit_cmp=unit_cmp(i), text=_ball_text(E[i], conj[i] == i)))
     blocks, pairs = [], []
+    cyclotomic_proofs: list[tuple[Fraction, bool]] = []
     for g in groups:
         members = [pos[i] for i in g]
         relevant = eigen[members[0]].unit_cmp >= 0
@@ -242,12 +261,24 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
             if not (0 < lo or hi < 0) or hi - lo > Fraction(1, 4):
                 raise _Undecided("φ/2π not separated from 0")
             frac = simplest_rational(lo + 1, hi + 1) if hi < 0 else simplest_rational(lo, hi)
+            q, mod2_expr = None, None
             if frac.denominator <= q_max:
-                raise _Undecided(f"φ/2π near {frac} (a root of unity not excluded)")
+                if cyclo is None:
+                    raise _Undecided(f"φ/2π near {frac} (a root of unity not excluded)")
+                proved, mod2_expr = _rational_angle(cyclo[0], E, a, b, frac, cyclo[1])
+                if proved is None:
+                    raise _Undecided(f"φ/2π near {frac}: the cyclotomic test did not decide")
+                proved_q = frac.denominator if proved else None
+                q, cyclotomic_proofs = proved_q, cyclotomic_proofs + [(frac, proved)]
+            if mod2_expr is not None:
+                for k in members:
+                    eigen[k] = dataclasses.replace(eigen[k], mod2_expr=mod2_expr)
+                blocks[-1] = dataclasses.replace(blocks[-1], mod2_expr=mod2_expr)
             pairs.append(Pair(a=members[0], b=members[1], rank=rank, size=2,
-                              degenerate=rank < 2, q=None,
-                              turn=turn_of(eigen[members[1]].value / eigen[members[0]].value),
-                              turn_text="irrational"))
+                              degenerate=rank < 2, q=q,
+                              turn=(float(frac) if q is not None else
+                                    turn_of(eigen[members[1]].value / eigen[members[0]].value)),
+                              turn_text=str(frac) if q is not None else "irrational"))
     if time_left(start) < 0:
         raise Fallback(f"exceeded the {EXACT_TIME_BUDGET:g} s budget")
     controllable = _certified_controllable(system, start)
@@ -261,11 +292,15 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
                 for g in groups]}
     return Structure(
         path="exact",
-        path_reason=(f"certified enclosures (python-flint arb, {prec} bits): the exact algebra "
-                     f"could not run ({prior}); all eigenvalues simple and isolated "
+        path_reason=(f"certified enclosures (python-flint arb, {prec} bits): {prior}; all "
+                     "eigenvalues simple and isolated "
                      "(acb_mat.eig), moduli separated by disjoint balls or exactly equal for "
                      "conjugate pairs, |λ| vs 1 and ranks by balls excluding 0, roots of unity "
-                     f"excluded for every order q ≤ {q_max} (degree of λ over Q ≤ {d_lam}); "
+                     f"excluded for every order q ≤ {q_max} (degree of λ over Q ≤ {d_lam})"
+                     + "".join(f"; φ/2π = {fr} {'proved' if ok else 'refuted'} exactly in "
+                               f"Q(ζ_{math.lcm(cyclo[1] if cyclo else 1, fr.denominator)}) "
+                               "(common roots of χ(x) and w⁻ⁿχ(wx), w = e^{2πi·φ/2π})"
+                               for fr, ok in cyclotomic_proofs) + "; "
                      "every decision is rigorous, eigenvalues are given as certified balls"),
         tolerances={"exact": True, "certified_enclosures": True, "precision_bits": prec,
                     "time_budget_seconds": EXACT_TIME_BUDGET, "max_states": EXACT_MAX_STATES},
@@ -274,6 +309,57 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
         observability_index=observability_index(system.a, system.c), observable=True,
         norm_A=float(np.linalg.norm(system.a, 2)), norm_C=float(np.linalg.norm(system.c, 2)),
         seconds=time.monotonic() - start, standard_form=form)
+
+
+def _rational_angle(A: sp.Matrix, E: list[Any], a: int, b: int, frac: Fraction,
+                    L: int) -> tuple[bool | None, sp.Expr | None]:
+    """Is λ_b = w·λ_a exactly, w = e^{2πi·frac}? Entries of A in Q(ζ_L) (``L`` from
+    :func:`~kfcrit.theory.cyclotomic.cyclotomic_order`); E: certified, disjoint eigenvalue balls.
+
+    g = gcd(χ(x), w⁻ⁿχ(wx)) over Q(ζ_M), M = lcm(L, q), has as roots exactly the eigenvalues μ
+    with w·μ an eigenvalue (all simple). The balls E_j with 0 ∈ g(E_j) contain every root; if
+    there are exactly deg g of them, they are the roots. λ_a is then a root or not — and if it is,
+    w·λ_a is the eigenvalue in the only ball it meets, E_b. Returns (True/False, or None when
+    undecided) and |λ_a|² as an exact real expression when g pins it: deg g = 1 (λ_a = −g₀,
+    |λ_a|² = λ_a·λ_b = w·λ_a²) or g = (x − λ_a)(x − λ_b) (|λ_a|² = g₀)."""
+    q = frac.denominator
+    F0 = CycloField.of(L)
+    M = math.lcm(L, q)
+    if int(sp.totient(M)) > CYCLO_MAX_DEGREE:
+        return None, None
+    F = CycloField.of(M)
+    n = A.shape[0]
+    try:
+        rows = [[F0.embed(cyclo_element(F0, A[i, j]), F) for j in range(n)] for i in range(n)]
+    except (ValueError, ZeroDivisionError):
+        return None, None
+    chi = cyclo_charpoly(F, rows)
+    w_power = frac.numerator * (M // q)
+    g = shifted_gcd(F, chi, w_power)
+    deg = len(g) - 1
+    if deg == 0:
+        return False, None
+    roots = [j for j in range(len(E)) if poly_at(F, g, E[j]).contains(0)]
+    if len(roots) != deg:
+        return None, None
+    if a not in roots:
+        return False, None
+    image = E[a] * F.value(F.zeta(w_power))
+    hits = [j for j in range(len(E)) if image.overlaps(E[j])]
+    if hits != [b]:
+        return None, None
+    mod2 = None
+    m2 = None
+    if deg == 1:
+        lam = F.reduce(-g[1])
+        m2 = F.mul(F.zeta(w_power), F.mul(lam, lam))
+    elif deg == 2 and sorted(roots) == sorted((a, b)):
+        m2 = g[2]                               # g = (x − λ_a)(x − λ̄_a): constant |λ_a|²
+    if m2 is not None:
+        mod2 = cyclo_real(F, m2)
+        if not F.value(m2).imag.contains(0):       # |λ|² is real: a failed check is a bug
+            return None, None
+    return True, mod2
 
 
 def _ball_text(z: Any, real: bool) -> str:
