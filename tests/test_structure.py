@@ -367,7 +367,7 @@ def test_ill_conditioned_cluster_does_not_average_away_instability():
     # cond(V) ≈ 1e13, n = 7 (numeric path). The first-order error bounds 64·ε·‖A‖·κ overlap,
     # so
     # float64 cannot resolve the spectrum — but the unstable 6/5 must not vanish into a mean.
-    # Hand value: C = [1 … 1], C·v_i = 1 + 60·(i − 1) ≠ 0, a single |λ| > 1: p_c = 1 − (5/6)² = 11/36.
+    # Hand value: C = [1 … 1], C·v_i = 1 + 60·(i − 1) ≠ 0, one |λ| > 1: 1 − (5/6)² = 11/36.
     from kfcrit.theory import critical
     n = 7
     V = np.eye(n) + np.triu(np.full((n, n), 60.0), 1)

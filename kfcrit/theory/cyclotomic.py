@@ -183,14 +183,17 @@ def charpoly(F: CycloField, A: list[list[Any]]) -> list[Any]:
     return coeffs
 
 
-def _poly_rem(F: CycloField, a: list[Any], b: list[Any]) -> list[Any]:
-    """Remainder of a by b (coefficient lists, leading first) over Q(ζ_L)."""
+def _poly_prem(F: CycloField, a: list[Any], b: list[Any]) -> list[Any]:
+    """Pseudo-remainder of a by b (coefficient lists, leading first) over Q(ζ_L): each step
+    a ← lc(b)·a − lc(a)·x^d·b, so no field inverse is needed (inverses mod Φ_L are the costly
+    operation); the result is a nonzero multiple of the true remainder."""
     a = list(a)
-    lead_inv = F.inv(b[0])
     while len(a) >= len(b) and a:
-        f = F.mul(a[0], lead_inv)
+        la, lb = a[0], b[0]
+        for i in range(len(a)):
+            a[i] = F.mul(a[i], lb)
         for i in range(len(b)):
-            a[i] = F.reduce(a[i] - f * b[i])
+            a[i] = F.reduce(a[i] - F.mul(la, b[i]))
         a.pop(0)
         while a and a[0].is_zero():
             a.pop(0)
@@ -198,11 +201,17 @@ def _poly_rem(F: CycloField, a: list[Any], b: list[Any]) -> list[Any]:
 
 
 def poly_gcd(F: CycloField, a: list[Any], b: list[Any]) -> list[Any]:
-    """Monic gcd of two polynomials over Q(ζ_L) (Euclid; coefficient lists, leading first)."""
+    """A gcd of two polynomials over Q(ζ_L), up to a nonzero constant factor (Euclid with
+    pseudo-remainders; coefficient lists, leading first). Its roots are the common roots."""
     while b:
-        a, b = b, _poly_rem(F, a, b)
-    inv = F.inv(a[0])
-    return [F.mul(c, inv) for c in a]
+        a, b = b, _poly_prem(F, a, b)
+    return a
+
+
+def monic(F: CycloField, g: list[Any]) -> list[Any]:
+    """g divided by its leading coefficient (one field inverse)."""
+    inv = F.inv(g[0])
+    return [F.mul(c, inv) for c in g]
 
 
 def shifted_gcd(F: CycloField, chi: list[Any], w_power: int) -> list[Any]:

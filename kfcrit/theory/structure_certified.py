@@ -31,6 +31,7 @@ from kfcrit.theory.cyclotomic import (
 )
 from kfcrit.theory.cyclotomic import charpoly as cyclo_charpoly
 from kfcrit.theory.cyclotomic import element as cyclo_element
+from kfcrit.theory.cyclotomic import monic as cyclo_monic
 from kfcrit.theory.cyclotomic import real_expression as cyclo_real
 from kfcrit.theory.structure_exact import ExactWork, exact_controllable, field_generators
 from kfcrit.theory.structure_records import (
@@ -350,6 +351,8 @@ def _rational_angle(A: sp.Matrix, E: list[Any], a: int, b: int, frac: Fraction,
         return None, None
     mod2 = None
     m2 = None
+    if deg in (1, 2):
+        g = cyclo_monic(F, g)
     if deg == 1:
         lam = F.reduce(-g[1])
         m2 = F.mul(F.zeta(w_power), F.mul(lam, lam))
