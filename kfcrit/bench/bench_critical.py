@@ -211,7 +211,8 @@ def main() -> None:
             exact = " exact p_c" if (rec["critical_value"] or {}).get("exact") else ""
             print(f"{name:44s} {path:8s} {via:10s} {rec['classification']:24s} "
                   f"{t:8.3f} {t / target:6.3f}{exact}{tag}")
-        print(f"  {name_of_set} ({label} path) target: worst ratio time/target = {worst:.3f} over the {counted} "
+        print(f"  {name_of_set} ({label} path) target: worst ratio time/target = {worst:.3f} "
+              f"over the {counted} "
               f"systems that ran the {label} path (target {target:g} s)" +
               (f"; {certified} of them decided by certified enclosures" if certified else ""))
         if fallbacks:
