@@ -34,6 +34,7 @@ MODULES = (
     "check_misprint_mo_cor2",
     "check_mo_thm8_scaling",
     "check_kar_fractal",
+    "check_marginal_modes",
 )
 """The check modules, in the order of the table."""
 

@@ -16,6 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from kfcrit.theory import critical
+from kfcrit.theory.structure import eigen_structure
 from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.exprparse import parse_expression
 from kfcrit.model.system import System
@@ -141,9 +142,8 @@ def test_numeric_path_cross_check():
     # Second method: the float path on the same systems gives the same values to 1e-9.
     for _, A, C, cls, expected in HAND[:8]:
         s = _sys(A, C)
-        st_num = critical.eigen_structure(s, force_numeric=True)
-        critical._CACHE[s] = st_num
-        d = critical.critical_section(s)
+        st_num = eigen_structure(s, force_numeric=True)
+        d = critical.critical_section(s, structure=st_num)
         assert d["structure"]["path"] == "numeric"
         assert d["classification"] == cls
         assert abs(d["critical_value"]["value"] - float(sp.N(parse_expression(expected, "e")))) \
@@ -371,15 +371,11 @@ def test_float_third_turn_reason_shows_computed_modulus():
     assert "1.9999999999999998" in reason
     assert "binary-float input" in reason          # how the decision was made is stated
     # numeric path: the decision tolerance is stated
-    from kfcrit.theory.structure import eigen_structure
     st_num = eigen_structure(s, force_numeric=True)
-    critical._CACHE[s] = st_num
-    try:
-        reason = critical.critical_section(s)["critical_value"]["reason"]
-    finally:
-        critical._CACHE.pop(s, None)
-    # the numeric path decides with the user's tolerance (default 1e-9)
-    assert "relative tolerance 1e-09" in reason and "= 2," not in reason
+    reason = critical.critical_section(s, structure=st_num)["critical_value"]["reason"]
+    # the numeric path states the tolerance of its headline decisions: float64 resolution
+    # (64 ulp · κ), the user's tolerance only widens the robust neighbourhood
+    assert "relative tolerance 1.42109e-14" in reason and "= 2," not in reason
 
 
 def test_reason_texts_use_unicode_math():
@@ -479,24 +475,38 @@ def test_stable_system_near_the_unit_circle():
 
 def test_numeric_path_names_the_other_side():
     # NumPy input diag(2, −(2 − 1e-12), 0.1, 0.2) goes to the numeric path (binary floats, n > 3).
-    # At tolerance 1e-9 the moduli are merged: degenerate pair, q = 2, p_c = 1 − 2^{−4} = 15/16;
-    # strictly they differ, and Thm 4 gives 1 − 2^{−2} = 3/4. Both must be reported.
+    # As entered the moduli differ: Thm 4 gives 1 − 2^{−2} = 3/4 (the headline). Within the
+    # tolerance 1e-9 they merge: degenerate pair, q = 2, p_c = 1 − 2^{−4} = 15/16 — a nearby
+    # system, so the robust value, never the headline.
     A = np.diag([2.0, -(2 - 1e-12), 0.1, 0.2])
     s = System(A, np.ones((1, 4)), np.eye(4), np.eye(1))
     d = critical.critical_section(s)
     assert d["structure"]["path"] == "numeric"
-    assert d["classification"] == "degenerate-second-order"
-    assert abs(d["critical_value"]["value"] - 15 / 16) <= 1e-9
-    alts = d["robust_critical_value"]["alternatives"]
-    assert any(abs(a["value"] - 0.75) <= 1e-9 and a["classification"] == "non-degenerate"
-               for a in alts)
+    assert d["classification"] == "non-degenerate"
+    assert abs(d["critical_value"]["value"] - 0.75) <= 1e-12
+    rob = d["robust_critical_value"]
+    assert abs(rob["value"] - 15 / 16) <= 1e-12 and "low" not in rob
+    assert any(abs(a["value"] - 15 / 16) <= 1e-9 and a["classification"] ==
+               "degenerate-second-order" for a in rob["alternatives"])
     assert any("other side" in w for w in d["warnings"])
-    # the user's tolerance decides: at 1e-13 the relative gap 5e-13 is not merged (3/4), and a
-    # neighbourhood of relative size 1e-13 (δ = 2e-13 per eigenvalue, κ = 1) cannot close it
+    # at 1e-13 the relative gap 5e-13 is outside every neighbourhood (δ = 2e-13 per eigenvalue,
+    # κ = 1): 3/4, and nothing nearby
     d = critical.critical_section(s, tolerance=1e-13)
     assert d["classification"] == "non-degenerate"
     assert abs(d["critical_value"]["value"] - 0.75) <= 1e-12
-    assert d["structure"]["tolerances"]["modulus_relative"] == 1e-13
+    assert d["robust_critical_value"] is None
+
+
+def test_float_path_issue_case_nearby_is_never_the_headline():
+    # Issue 18 item 2: n = 7 (numeric path), moduli 2 and 1.99999999995, each block one-step
+    # observable as entered. Hand values: as entered Thm 4, 1 − 1/4 = 3/4; within 1e-9 the
+    # moduli merge into a pair with z = −1 (q = 2) seen through one output: 1 − 2^{−4} = 15/16.
+    A = np.diag([2.0, -1.99999999995, 0.5, 0.4, 0.3, 0.2, 0.1])
+    d = critical.critical_section(System(A, np.ones((1, 7)), np.eye(7), np.eye(1)))
+    assert d["classification"] == "non-degenerate"
+    assert abs(d["critical_value"]["value"] - 0.75) <= 1e-12
+    assert abs(d["robust_critical_value"]["value"] - 15 / 16) <= 1e-12
+    # p = 0.85 lies between them: neither stable nor unstable is robust
 
 
 def test_pair_value_text_has_no_unit_denominator():
@@ -518,11 +528,130 @@ def test_almost_sure_text_for_critically_stable_a():
 
 
 def test_critical_jordan_block_is_labelled():
-    # [[1, 1], [0, 1]], C = [1 0]: ρ(A) = 1, not diagonalizable. MATH §3 gives p_c = 0 only for
-    # diagonalizable A. p_low = 0; the single-output claim gives p_up = 1 − 1/(empty product) = 0,
-    # so the bounds coincide at 0 — as a claim, not a theorem.
+    # [[1, 1], [0, 1]], C = [1 0]: ρ(A) = 1, not diagonalizable, detectable. MATH §11 (marginal
+    # modes) gives p_c = 0 for any Jordan structure; the reason states that argument.
     d = critical.critical_section(_sys([[1, 1], [0, 1]], [[1, 0]]))
     assert d["classification"] == "non-diagonalizable"
     cv = d["critical_value"]
-    assert "only for diagonalizable" in cv["reason"]
-    assert cv["value"] == 0 and cv["basis"] == "claim"
+    assert "MATH §11" in cv["reason"] and "O(t)" in cv["reason"]   # J₂: ‖Aᵗ‖ = O(t)
+    assert cv["value"] == 0 and cv["exact"] is True and "basis" not in cv
+
+
+# --------------------------------------------------------------------------- marginal modes
+
+def _tracker(T: str = "1/10") -> System:
+    """Planar constant-velocity tracker: two Jordan blocks at 1, positions measured."""
+    A = [[1, T, 0, 0], [0, 1, 0, 0], [0, 0, 1, T], [0, 0, 0, 1]]
+    return _sys(A, [[1, 0, 0, 0], [0, 0, 1, 0]])
+
+
+def test_marginal_tracker_is_exactly_zero():
+    # MATH §11: ρ(A) = 1 (Jordan blocks at 1), detectable ⇒ p_c = 0 exactly, not a bracket
+    d = critical.critical_section(_tracker())
+    cv = d["critical_value"]
+    assert d["classification"] == "non-diagonalizable"
+    assert cv["value"] == 0.0 and cv["exact"] is True and cv["expression"] == "0"
+    assert "MATH §11" in cv["reason"] and "Iₒ = 2" in cv["reason"]
+    assert "O(t²)" in cv["reason"]      # algebraic 4 − geometric 2 + 1 = 3: ‖Aᵗ‖ = O(t²)
+
+
+def test_marginal_tracker_mare_bounded_at_small_p():
+    # Second method: g_p is concave, so E[P_t] ⪯ V_t with V_{t+1} = g_p(V_t) (Jensen); the
+    # MARE iteration at p = 0.05 converges to a fixed point, so E[P_t] stays bounded there.
+    from kfcrit.theory import riccati
+    s = _tracker()
+    A, C, Q, R = (np.asarray(M, dtype=float) for M in (s.a, s.c, s.q, s.r))
+    V = np.eye(4)
+    for _ in range(20000):
+        V = riccati.g(A, C, Q, R, V, 0.05)
+    resid = np.linalg.norm(riccati.g(A, C, Q, R, V, 0.05) - V) / np.linalg.norm(V)
+    assert np.isfinite(V).all() and resid < 1e-9
+
+
+@pytest.mark.parametrize("A, C, cls", [
+    # 1 and e^{±2πj/3} seen through one output: a degenerate order-3 block on the unit circle
+    ([[1, 0, 0], [0, "-1/2", "-sqrt(3)/2"], [0, "sqrt(3)/2", "-1/2"]], [[1, 1, 0]], "degenerate"),
+    # Jordan block at −1 beside a stable mode
+    ([[-1, 1, 0], [0, -1, 0], [0, 0, "1/2"]], [[1, 0, 1]], "non-diagonalizable"),
+])
+def test_marginal_modes_other_structures(A, C, cls):
+    d = critical.critical_section(_sys(A, C))
+    assert d["classification"] == cls
+    assert d["critical_value"]["expression"] == "0" and d["critical_value"]["exact"] is True
+    assert "MATH §11" in d["critical_value"]["reason"]
+
+
+def test_marginal_undetectable_jordan_is_not_detectable():
+    # A = J₂(1), C = [0, 1]: the eigenvector e₁ has C e₁ = 0 and |λ| = 1: no p_c
+    d = critical.critical_section(_sys([[1, 1], [0, 1]], [[0, 1]]))
+    assert d["classification"] == "not-detectable" and d["critical_value"]["value"] is None
+
+
+def test_marginal_tracker_numeric_path():
+    # a 3-D tracker (n = 6 > binary-float limit) on the numeric path: still 0, argument stated
+    A = np.kron(np.eye(3), np.array([[1.0, 0.1], [0.0, 1.0]]))
+    C = np.kron(np.eye(3), np.array([[1.0, 0.0]]))
+    d = critical.critical_section(System(A, C, np.eye(6), np.eye(3)))
+    assert d["structure"]["path"] == "numeric"
+    assert d["critical_value"]["value"] == 0.0 and "MATH §11" in d["critical_value"]["reason"]
+
+
+def test_defective_stable_eigenvalue_does_not_fake_a_robust_value():
+    # Issue 18 item 1: A = [[3/2, 0, 0], [0, 1/2, 1], [0, 0, 1/2]], C = [1, 0, 1]. One unstable
+    # eigenvalue 3/2 (Sinopoli §IV): p_c = 1 − (2/3)² = 5/9. The Jordan block at 1/2 lies outside
+    # the subspace of 3/2, separated by sep(3/2, J₂(1/2)) = σ_min([[−1, 1], [0, −1]]) = 0.618
+    # (= (√5 − 1)/2), and C v = 1 for v = e₁: nothing within 1e-9 is undetectable.
+    A = [["3/2", 0, 0], [0, "1/2", 1], [0, 0, "1/2"]]
+    d = critical.critical_section(_sys(A, [[1, 0, 1]]))
+    assert d["classification"] == "non-diagonalizable"
+    assert _same(d["critical_value"]["expression"], "5/9")
+    assert d["robust_critical_value"] is None
+    assert not any("unobservable" in w for w in d["warnings"])
+    # the Stewart bound itself: 2ε/(sep − 2ε), ε = 1e-9·‖A‖₂, sep = (√5 − 1)/2
+    st = eigen_structure(_sys(A, [[1, 0, 1]]))
+    a = np.array([[1.5, 0, 0], [0, 0.5, 1], [0, 0, 0.5]])
+    eps = 1e-9 * np.linalg.norm(a, 2)
+    i = next(k for k, e in enumerate(st.eigen) if abs(e.value - 1.5) < 1e-12)
+    turn = critical.subspace_turn(a, st, [i], eps)
+    assert abs(turn - 2 * eps / ((5 ** 0.5 - 1) / 2 - 2 * eps)) <= 1e-6 * turn
+
+
+def test_subspace_near_a_defective_eigenvalue_is_still_sensitive():
+    # the other side: an eigenvalue 1 + 1e-12 next to a Jordan block at 1 is not separated
+    # (sep ≈ 1e-12 < 2ε): the bound says the subspace may turn arbitrarily (1.0)
+    st = eigen_structure(_sys([["1 + 10**-12", 0, 0], [0, 1, 1], [0, 0, 1]], [[1, 1, 1]]))
+    a = np.array([[1 + 1e-12, 0, 0], [0, 1, 1], [0, 0, 1]])
+    i = next(k for k, e in enumerate(st.eigen) if e.multiplicity == 1)
+    assert critical.subspace_turn(a, st, [i], 1e-9 * np.linalg.norm(a, 2)) == 1.0
+
+
+# --------------------------------------------------------------------------- exact comparison
+
+@pytest.mark.parametrize("p, v, sign", [
+    # Issue 18 item 3: 9/25 + 10⁻⁴⁰ rounds to the same double as 9/25 but is above it
+    (sp.Rational(9, 25) + sp.Rational(1, 10**40), sp.Rational(9, 25), 1),
+    ("9/25", "9/25", 0),
+    # the double nearest 0.36 is 0.35999999999999998667…, below 9/25
+    (0.36, "9/25", -1),
+    # √2/4 = 0.35355339059327376220…, the double 0.35355339059327373 is …7308575…
+    ("sqrt(2)/4", 0.35355339059327373, 1),
+    # equal irrationals written differently: exact zero test (√2·√3 = √6)
+    ("sqrt(2)*sqrt(3)", "sqrt(6)", 0),
+    ("1 - 2**(-4/3)", "1 - 2**(-4/3)", 0),
+    # an irrational gap of 10⁻⁶⁰ (below float and below 40 digits)
+    ("cos(pi/7)", "cos(pi/7) + 10**-60", -1),
+])
+def test_compare_probability_exact(p, v, sign):
+    from kfcrit.theory.probability import compare_probability
+    assert compare_probability(p, v) == sign
+    assert compare_probability(v, p) == -sign
+
+
+def test_compare_probability_reads_critical_value_records():
+    from kfcrit.theory.probability import compare_probability
+    spec = load_spec(REPORTS / "sinopoli-general.yaml")      # p_c = 9/25 exactly
+    cv = critical.critical_value(spec.system)
+    assert compare_probability(sp.Rational(9, 25) + sp.Rational(1, 10**40), cv.value) == 1
+    assert compare_probability(sp.Rational(9, 25), cv.value) == 0
+    assert compare_probability(sp.Rational(9, 25), cv.to_dict()["critical_value"]["expression"]) \
+        == 0

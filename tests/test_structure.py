@@ -16,8 +16,14 @@ import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
-from kfcrit.theory.structure import MAX_DENOMINATOR, eigen_structure, simplest_rational
 from kfcrit.model.system import System
+from kfcrit.theory.structure import (
+    MAX_DENOMINATOR,
+    Fallback,
+    certified_structure,
+    eigen_structure,
+    simplest_rational,
+)
 
 
 def _sys(A, C, Q=None) -> System:
@@ -284,19 +290,46 @@ def test_certified_stage_decides_surd_system(C, classification):
 
 @pytest.mark.parametrize("A, C, why", [
     ([[2, 0], [0, -2]], [[1, 1]], "moduli not separated"),      # 2 = |−2|, not conjugate
-    ([[0, -2], [2, 0]], [[1, 0]], "φ/2π"),                      # z = −1 (q = 2)
-    ([[1, "-sqrt(3)"], ["sqrt(3)", 1]], [[1, 0]], "root of unity not excluded"),   # q = 3
     ([[2, 1], [0, 2]], [[1, 0]], "not isolated"),               # Jordan block
     ([[2, 0], [0, "1/2"]], [[0, 1]], "C·v not certified nonzero"),   # undetectable
 ])
 def test_certified_stage_hands_over(A, C, why):
     # What balls cannot certify (equal moduli of non-conjugates, roots of unity, multiple
     # eigenvalues, exact zeros) the certified stage refuses; the exact algebra decides it.
-    from kfcrit.theory.structure import _certified_structure, _Fallback
+
     system = _sys(A, C)
-    with pytest.raises(_Fallback, match=why):
-        _certified_structure(system, time.monotonic(), "test")
+    with pytest.raises(Fallback, match=why):
+        certified_structure(system, time.monotonic(), "test")
     assert eigen_structure(system).path == "exact"
+
+
+@pytest.mark.parametrize("A, q, mod2", [
+    ([[0, -2], [2, 0]], 2, 4),                         # ±2j: z = −1, |λ|² = 4
+    ([[1, "-sqrt(3)"], ["sqrt(3)", 1]], 3, 4),         # 2e^{±jπ/3}: z = e^{∓2πj/3}
+    ([["2*cos(pi/7)", "-2*sin(pi/7)"], ["2*sin(pi/7)", "2*cos(pi/7)"]], 7, 4),
+    ([["3/2*cos(pi/30)", "-3/2*sin(pi/30)"], ["3/2*sin(pi/30)", "3/2*cos(pi/30)"]], 30,
+     sp.Rational(9, 4)),
+])
+def test_certified_stage_proves_rational_angles(A, q, mod2):
+    # r·R(θ): eigenvalues r e^{±jθ}, z = e^{∓2jθ}, order of e^{2jθ} by hand: θ = π/2 → q = 2,
+    # π/3 → 3, π/7 → 7, π/30 → 30 (2θ = 2π/30); |λ|² = r² (r = 2, 2, 2, 3/2).
+    # Roots of unity are proved in Q(ζ_L), not only excluded.
+    system = _sys(A, [[1, 0]])
+    s = certified_structure(system, time.monotonic(), "test")
+    assert s.path == "exact" and "proved exactly" in s.path_reason
+    assert [p.q for p in s.pairs] == [q] and s.pairs[0].degenerate
+    assert [e.mod2_expr for e in s.eigen] == [mod2, mod2]
+
+
+def test_certified_stage_refutes_a_near_rational_angle():
+    # [[2c, −s], [s, 2c]], c = cos(π/7), s = sin(π/7): eigenvalues 2c ± j·s, not a rotation;
+    # z = λ̄/λ has φ/2π = −2·atan(s/(2c))/2π, irrational; no exact identity may be claimed.
+    system = _sys([["2*cos(pi/7)", "-sin(pi/7)"], ["sin(pi/7)", "2*cos(pi/7)"]], [[1, 0]])
+    s = eigen_structure(system)
+    assert s.path == "exact"
+    assert [p.q for p in s.pairs] == [None]
+    lam = np.linalg.eigvals(system.a.astype(float))
+    assert np.allclose(sorted(e.mod2 for e in s.eigen), sorted(abs(lam) ** 2), rtol=1e-14)
 
 
 def test_diag_two_minus_two_handover_keeps_exact_value():
@@ -313,10 +346,10 @@ def test_diag_two_minus_two_handover_keeps_exact_value():
 def test_certified_stage_agrees_with_exact_algebra():
     # 5·e^{±j·atan(4/3)} (φ/2π irrational, C sees one combination: degenerate pair) and a
     # stable real mode: the exact algebra and the certified stage decide the same facts.
-    from kfcrit.theory.structure import _certified_structure
+
     system = _sys([[3, -4, 0], [4, 3, 0], [0, 0, "1/2"]], [[1, 0, 1]])
     ex = eigen_structure(system)
-    ce = _certified_structure(system, time.monotonic(), "cross-check")
+    ce = certified_structure(system, time.monotonic(), "cross-check")
     assert ex.path == ce.path == "exact" and "certified" in ce.path_reason
     assert [b.size for b in ce.blocks] == [b.size for b in ex.blocks]
     assert [b.rank for b in ce.blocks] == [b.rank for b in ex.blocks]
@@ -325,3 +358,39 @@ def test_certified_stage_agrees_with_exact_algebra():
     assert np.allclose([e.mod2 for e in ce.eigen], [e.mod2 for e in ex.eigen], rtol=1e-14)
     assert (ce.detectable, ce.diagonalizable, ce.controllable_Q, ce.observable) == (
         ex.detectable, ex.diagonalizable, ex.controllable_Q, ex.observable)
+
+
+# --------------------------------------------------------------------------- float64 resolution
+
+def test_ill_conditioned_cluster_does_not_average_away_instability():
+    # Issue 18 item 4: A = V·diag(6/5, 1/2, 1/3, …, 1/7)·V⁻¹, V = I + 60·(strict upper ones),
+    # cond(V) ≈ 1e13, n = 7 (numeric path). The first-order error bounds 64·ε·‖A‖·κ overlap,
+    # so
+    # float64 cannot resolve the spectrum — but the unstable 6/5 must not vanish into a mean.
+    # Hand value: C = [1 … 1], C·v_i = 1 + 60·(i − 1) ≠ 0, one |λ| > 1: 1 − (5/6)² = 11/36.
+    from kfcrit.theory import critical
+    n = 7
+    V = np.eye(n) + np.triu(np.full((n, n), 60.0), 1)
+    A = V @ np.diag([6 / 5, 1 / 2, 1 / 3, 1 / 4, 1 / 5, 1 / 6, 1 / 7]) @ np.linalg.inv(V)
+    s = System(A, np.ones((1, n)), np.eye(n), np.eye(1))
+    st_ = eigen_structure(s)
+    assert st_.path == "numeric" and not st_.stable
+    assert st_.unresolved and "not resolved in float64" in st_.unresolved[0]
+    assert abs(st_.eigen[0].modulus - 1.2) < 1e-6
+    d = critical.critical_section(s)
+    assert d["classification"] != "stable"
+    assert abs(d["critical_value"]["value"] - 11 / 36) < 1e-6
+    assert "RESOLUTION FAILED" in d["critical_value"]["reason"]
+    assert any("could not resolve" in w for w in d["warnings"])
+
+
+def test_split_jordan_blocks_stay_one_eigenvalue():
+    # constant-acceleration tracker on two axes (Jordan blocks of size 3 at 1, NumPy input n = 6):
+    # the computed eigenvalues split by ~ε^(1/3) ≈ 6e-6 and are one eigenvalue of multiplicity 6
+    J = np.array([[1.0, 0.1, 0.005], [0.0, 1.0, 0.1], [0.0, 0.0, 1.0]])
+    A = np.kron(np.eye(2), J)
+    s = System(A, np.kron(np.eye(2), np.array([[1.0, 0.0, 0.0]])), np.eye(6), np.eye(2))
+    st_ = eigen_structure(s)
+    assert st_.path == "numeric" and not st_.unresolved
+    assert len(st_.eigen) == 1 and st_.eigen[0].multiplicity == 6 and st_.eigen[0].geometric == 2
+    assert abs(st_.eigen[0].modulus - 1) < 1e-9 and not st_.diagonalizable

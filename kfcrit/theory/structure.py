@@ -31,8 +31,9 @@ These decisions are discontinuous in the data, so for exact input they are made 
     when the algebra above falls back (e.g. an eigenvalue of degree ≥ 3 over an irrational K,
     such as 6×6 ``a + b*sqrt(2)`` matrices with a degree-12 eigenvalue), the entries are
     enclosed in python-flint balls and ``acb_mat.eig`` certifies simple isolated eigenvalues
-    with eigenvector balls. Decisions are rigorous (see :func:`_certified_structure`): exactly
-    conjugate pairs have equal moduli, all other moduli must be separated, ranks and C·v ≠ 0
+    with eigenvector balls. Decisions are rigorous (see
+    :func:`~kfcrit.theory.structure_certified.certified_structure`): exactly conjugate
+    pairs have equal moduli, all other moduli must be separated, ranks and C·v ≠ 0
     by balls excluding 0, roots of unity excluded up to the order bound of the degree of λ.
     Whatever the balls do not decide (equal moduli of non-conjugates, rational φ/2π, multiple
     eigenvalues, exact zeros) goes to the numeric path. Eigenvalues are reported as certified
@@ -43,1293 +44,80 @@ These decisions are discontinuous in the data, so for exact input they are made 
   either. The same decisions are made in
   float64 with the tolerances in ``NUMERIC_TOLERANCES`` (reported in the record).
 
+Modules: records and constants in :mod:`~kfcrit.theory.structure_records`, the number-field
+algebra in :mod:`~kfcrit.theory.structure_exact`, the ball arithmetic in
+:mod:`~kfcrit.theory.structure_certified` (with exact rational-angle proofs from
+:mod:`~kfcrit.theory.cyclotomic`), float64 in :mod:`~kfcrit.theory.structure_numeric`; this
+module chooses the path. Nothing is cached: :func:`structure_of` computes the structure each
+time it is called, and callers pass the result on (``critical_value(..., structure=st)``).
+
 Invariant: whichever path ran, every distinct eigenvalue carries a float64 value, its geometric
 multiplicity and an orthonormal basis of its eigenspace (float), so that the robustness analysis
 in :mod:`kfcrit.theory.critical` treats both paths alike.
 """
+
 from __future__ import annotations
 
-import math
-import os
 import time
-from dataclasses import dataclass, field
-from fractions import Fraction
-from typing import Any
 
-import numpy as np
 import sympy as sp
-from sympy.polys.matrices import DomainMatrix
 
 from kfcrit.model.system import System
-
-EXACT_MAX_STATES = 6
-"""Largest n for the exact path (beyond it the number-field arithmetic grows too fast)."""
-EXACT_MAX_STATES_BINARY_FLOAT = 3
-"""Largest n for the exact path when the input holds binary floats (NumPy arrays)."""
-def _time_budget_from_environment(default: float = 8.0) -> float:
-    """The exact-path time budget: ``KFCRIT_EXACT_TIME_BUDGET`` seconds if set and valid."""
-    text = os.environ.get("KFCRIT_EXACT_TIME_BUDGET", "")
-    try:
-        value = float(text)
-    except ValueError:
-        return default
-    return value if math.isfinite(value) and value > 0 else default
-
-
-EXACT_TIME_BUDGET = _time_budget_from_environment()
-"""Seconds the exact path may use (checked between steps; beyond it the numeric path runs).
-
-Typical exact analyses of n ≤ 6 take 0.01–1.3 s (see ``kfcrit.bench.bench_critical``); the
-default of 8 s is kept well above that so that results rarely depend on machine load. The
-environment variable ``KFCRIT_EXACT_TIME_BUDGET`` overrides it (the test suite sets 120 s so
-that assertions on exact results hold on a heavily loaded machine)."""
-EXACT_MAX_FIELD_DEGREE = 16
-"""Largest degree over Q of the entry field K for the exact path."""
-MAX_DENOMINATOR = 1000
-"""Largest q for which a floating-point angle φ/2π is matched to a rational r/q."""
-DEFAULT_TOLERANCE = 1e-9
-"""Default decision tolerance of the numeric path (= the default ``--tolerance``)."""
-NUMERIC_FLOOR = 64 * float(np.finfo(float).eps)
-"""Least numeric decision tolerance: below ~64 ulp a float64 comparison decides nothing."""
-NUMERIC_TOLERANCES = {
-    "modulus_relative": DEFAULT_TOLERANCE,
-    "rank_relative": DEFAULT_TOLERANCE,
-    "turn_absolute": DEFAULT_TOLERANCE,
-    "eigenvalue_cluster_relative": 1e-6,
-    "geometric_multiplicity_relative": 1e-6,
-    "max_denominator": MAX_DENOMINATOR,
-}
-"""Decision tolerances of the numeric path (relative to ‖A‖₂ or ‖C‖₂ where it applies) at the
-default tolerance; :func:`numeric_tolerances` replaces the first three by the user's tolerance."""
-
-
-def numeric_tolerances(tolerance: float | None = None) -> dict[str, Any]:
-    """The numeric path's decision tolerances for a user ``tolerance`` (``--tolerance``):
-    moduli equal within relative ``tolerance``, rank within ``tolerance``·‖C‖, φ/2π matched to
-    r/q within ``tolerance`` (each at least ``NUMERIC_FLOOR``)."""
-    tol = dict(NUMERIC_TOLERANCES)
-    if tolerance is not None:
-        t = max(float(tolerance), NUMERIC_FLOOR)
-        tol.update(modulus_relative=t, rank_relative=t, turn_absolute=t)
-    return tol
-
-_X = sp.Symbol("x")
-_Y = sp.Symbol("y")
-_ZERO_PROBE_DIGITS = 40
-
-
-class _Fallback(Exception):
-    """The exact path cannot (or may not, in the time budget) decide; use the numeric path."""
-
-
-# --------------------------------------------------------------------------- records
-
-@dataclass(frozen=True)
-class Eigen:
-    """One distinct eigenvalue λ with its multiplicities and eigenspace.
-
-    ``expr`` and ``mod2_expr`` (= |λ|²) are exact sympy numbers on the exact path, None on the
-    numeric path. ``basis`` is an orthonormal float basis of ker(A − λI) (n × geometric).
-    """
-
-    value: complex
-    multiplicity: int
-    geometric: int
-    mod2: float
-    basis: np.ndarray = field(repr=False)
-    expr: sp.Expr | None = None
-    mod2_expr: sp.Expr | None = None
-    unit_cmp: int | None = None
-    """Sign of |λ| − 1 decided exactly (exact path), None on the numeric path."""
-    text: str | None = None
-    """Exact label when ``expr`` is None on the exact path (``CRootOf(P, i)``)."""
-
-    @property
-    def modulus(self) -> float:
-        """|λ| as a float."""
-        return math.sqrt(self.mod2)
-
-
-@dataclass(frozen=True)
-class Pair:
-    """Two distinct eigenvalues of equal modulus, λ_b = λ_a·z (a block of Mo–Sinopoli Thm 5).
-
-    ``degenerate``: the pair's columns of C·V are rank deficient (rank < size). ``q``: order of
-    z as a root of unity (None: not a root of unity, i.e. φ/2π irrational on the exact path, or
-    no r/q with q ≤ ``MAX_DENOMINATOR`` within the turn tolerance on the numeric path).
-    """
-
-    a: int
-    b: int
-    rank: int
-    size: int
-    degenerate: bool
-    q: int | None
-    turn: float
-    turn_text: str
-
-
-@dataclass(frozen=True)
-class EquiBlock:
-    """Maximal set of distinct eigenvalues with equal modulus (Mo–Sinopoli Definition 2)."""
-
-    members: tuple[int, ...]
-    indices: tuple[int, ...]
-    mod2: float
-    mod2_expr: sp.Expr | None
-    rank: int
-    size: int
-    relevant: bool
-
-    @property
-    def one_step_observable(self) -> bool:
-        """Full column rank of the block's columns of C·V (Definition 4)."""
-        return self.rank == self.size
-
-
-@dataclass(frozen=True)
-class Structure:
-    """The eigen-structure of (A, C) and the facts the critical-value theorems need."""
-
-    path: str
-    path_reason: str
-    tolerances: dict[str, Any]
-    eigen: tuple[Eigen, ...]
-    blocks: tuple[EquiBlock, ...]
-    pairs: tuple[Pair, ...]
-    diagonalizable: bool
-    detectable: bool
-    undetectable: tuple[int, ...]
-    controllable_Q: bool
-    observability_index: int | None
-    observable: bool
-    norm_A: float
-    norm_C: float
-    seconds: float
-    standard_form: dict[str, Any] | None = None
-    """Diagonal standard form (Mo–Sinopoli): eigenvalues and the columns of C·V per equi-block
-    (exact strings on the exact path, [re, im] float pairs on the numeric path)."""
-
-    def relevant(self, i: int) -> bool:
-        """Eigenvalue i is unstable or critically stable (|λ| ≥ 1)."""
-        return _relevant(self.eigen[i], self.tolerances)
-
-    @property
-    def stable(self) -> bool:
-        """ρ(A) < 1."""
-        return not any(self.relevant(i) for i in range(len(self.eigen)))
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON data: eigenvalues in modulus order, equi-blocks, the decided facts."""
-        eigs = []
-        for e in self.eigen:
-            for _ in range(e.multiplicity):
-                eigs.append({
-                    "value": (sp.sstr(e.expr) if e.expr is not None else
-                              e.text if e.text is not None else _complex_text(e.value)),
-                    "re": float(e.value.real), "im": float(e.value.imag),
-                    "modulus": e.modulus,
-                    "modulus_expression": (sp.sstr(_modulus_expr(e.mod2_expr))
-                                           if e.mod2_expr is not None else repr(e.modulus)),
-                })
-        blocks = [{"indices": list(b.indices), "modulus": math.sqrt(b.mod2),
-                   "modulus_expression": (sp.sstr(_modulus_expr(b.mod2_expr))
-                                          if b.mod2_expr is not None else repr(math.sqrt(b.mod2))),
-                   "one_step_observable": b.one_step_observable, "rank": b.rank, "size": b.size,
-                   "unstable_or_critical": b.relevant} for b in self.blocks]
-        pairs = [{"indices": [self._first_index(p.a), self._first_index(p.b)],
-                  "rank": p.rank, "size": p.size, "degenerate": p.degenerate, "q": p.q,
-                  "turn": p.turn, "turn_expression": p.turn_text} for p in self.pairs]
-        return {"path": self.path, "path_reason": self.path_reason,
-                "tolerances": dict(self.tolerances), "eigenvalues": eigs, "equi_blocks": blocks,
-                "equal_modulus_pairs": pairs, "diagonalizable": self.diagonalizable,
-                "detectable": self.detectable, "controllable_Q": self.controllable_Q,
-                "observability_index": self.observability_index, "observable": self.observable,
-                "seconds": round(self.seconds, 4), "standard_form": self.standard_form}
-
-    def _first_index(self, i: int) -> int:
-        return sum(e.multiplicity for e in self.eigen[:i])
-
-
-def _modulus_expr(mod2: sp.Expr) -> sp.Expr:
-    return sp.sqrt(mod2)
-
-
-def _complex_text(z: complex) -> str:
-    if z.imag == 0:
-        return repr(float(z.real))
-    sign = "+" if z.imag >= 0 else "-"
-    return f"{z.real!r} {sign} {abs(z.imag)!r}*I"
-
-
-def _relevant(e: Eigen, tolerances: dict[str, Any] | None = None) -> bool:
-    """|λ| ≥ 1: exact sign on the exact path; within the modulus tolerance on the numeric path."""
-    if e.unit_cmp is not None:
-        return e.unit_cmp >= 0
-    tol = (tolerances or {}).get("modulus_relative", NUMERIC_TOLERANCES["modulus_relative"])
-    return e.mod2 >= 1 - tol
-
-
-# --------------------------------------------------------------------------- exact helpers
-
-def _is_zero(expr: sp.Expr) -> bool:
-    """Exact zero test of an algebraic number: numerics exclude 0, the minimal polynomial proves it.
-
-    A nonzero value is certified by a 40-digit evaluation whose magnitude clearly exceeds its
-    error; otherwise ``minimal_polynomial(expr) == x`` decides (exact).
-    """
-    expr = sp.nsimplify(expr) if isinstance(expr, sp.Float) else expr
-    if expr.is_Rational:
-        return expr == 0
-    v = sp.N(expr, _ZERO_PROBE_DIGITS)
-    if abs(complex(v)) > 1e-25:
-        return False
-    return sp.minimal_polynomial(expr, _X) == _X
-
-
-def _cmp_exact(a: sp.Expr, b: sp.Expr | int) -> int:
-    """Sign of a − b for real algebraic numbers (exact zero test, then a certified sign)."""
-    d = sp.expand(a - b)
-    if _is_zero(d):
-        return 0
-    return 1 if float(sp.re(sp.N(d, _ZERO_PROBE_DIGITS))) > 0 else -1
-
-
-def _field_generators(entries: list[sp.Expr]) -> list[sp.Expr]:
-    """Generators of the field of the entries: their radical atoms (``sqrt(5)``, nested
-    ``sqrt(5/8 + sqrt(5)/8)``) when each entry is a rational expression in them, else the
-    entry itself (if it is a real algebraic number)."""
-    gens: dict[str, sp.Expr] = {}
-    for e in entries:
-        if e.is_Rational:
-            continue
-        if e.is_algebraic is not True or not e.is_real:
-            raise _Fallback(f"entry {sp.sstr(e)} is not a real algebraic number")
-        pows = sorted((a for a in e.atoms(sp.Pow)
-                       if a.exp.is_Rational and not a.exp.is_Integer), key=sp.default_sort_key)
-        rest = e.subs({a: sp.Dummy() for a in pows})
-        if pows and not (rest.atoms(sp.Function) or rest.has(sp.pi, sp.E, sp.I)):
-            for a in pows:
-                gens.setdefault(sp.srepr(a), a)
-        elif not any(_is_zero(e - g) or _is_zero(e + g) for g in gens.values()):
-            gens[sp.srepr(e)] = e
-    return list(gens.values())
-
-
-def _quadratic_roots(coeffs: list[sp.Expr]) -> tuple[list[sp.Expr], sp.Expr, bool]:
-    """Roots of a x² + b x + c (real coefficients); returns roots, discriminant, complex?"""
-    a, b, c = coeffs
-    disc = sp.expand(b * b - 4 * a * c)
-    neg = _cmp_exact(disc, 0) < 0
-    s = sp.I * sp.sqrt(-disc) if neg else sp.sqrt(disc)
-    return [sp.expand((-b + s) / (2 * a)), sp.expand((-b - s) / (2 * a))], disc, neg
-
-
-@dataclass
-class _ExactEigen:
-    expr: sp.Expr
-    mult: int
-    mod2: sp.Expr
-    field_gens: tuple[sp.Expr, ...]   # extra generator (sqrt of discriminant or the root)
-    factor: int
-    poly: sp.Poly | None = None        # the irreducible factor over QQ (rational entries only)
-    conj: int | None = None            # index (within the factor) of the complex conjugate
-    index: int = 0                     # index of this root within its factor
-    hp: Any = None                     # 60-digit mpmath value (degree ≥ 3 roots only)
-    text: str | None = None            # exact label ``CRootOf(P, i)`` (degree ≥ 3 roots only)
-
-    @property
-    def algebraic(self) -> bool:
-        """Root of an irreducible factor of degree ≥ 3 (a CRootOf, not a radical)."""
-        return self.hp is not None
-
-
-class _ExactWork:
-    """State of one exact computation (number fields cached per set of generators)."""
-
-    def __init__(self, A: sp.Matrix, C: sp.Matrix, start: float) -> None:
-        self.A, self.C, self.start = A, C, start
-        self.n = A.shape[0]
-        self.gens = _field_generators(list(A) + list(C))
-        self._fields: dict[tuple, Any] = {}
-        self._null: dict[tuple, DomainMatrix] = {}
-        self._conv: dict[tuple, Any] = {}
-        self._prod: dict[str, sp.Poly] = {}
-        self._tables: dict[str, dict[str, Any]] = {}
-
-    def check_time(self, step: str) -> None:
-        if time.monotonic() - self.start > EXACT_TIME_BUDGET:
-            raise _Fallback(f"exact path exceeded its {EXACT_TIME_BUDGET:g} s budget ({step})")
-
-    def field(self, extra: tuple[sp.Expr, ...]) -> Any:
-        key = tuple(sp.srepr(g) for g in extra)
-        if key not in self._fields:
-            gens = list(self.gens) + list(extra)
-            K = sp.QQ.algebraic_field(*gens) if gens else sp.QQ
-            self._fields[key] = K
-            if K != sp.QQ and K.ext.minpoly.degree() > EXACT_MAX_FIELD_DEGREE:
-                raise _Fallback("number field degree above the exact-path limit")
-            self._tables[str(K)] = self._generator_table(K, gens)
-        return self._fields[key]
-
-    def _generator_table(self, K: Any, gens: list[sp.Expr]) -> dict[str, Any]:
-        """Each generator as an element of K (polynomial in the primitive element θ = Σ g_i),
-        from ``primitive_element(..., ex=True)``: converting entries is then plain field
-        arithmetic instead of sympy's general (slow) field-isomorphism search."""
-        from sympy.polys.numberfields.subfield import primitive_element
-
-        if K == sp.QQ:
-            return {}
-        minpoly, coeffs, reps = primitive_element(gens, _X, ex=True)
-        if list(coeffs) != [1] * len(gens) or sp.Poly(minpoly, _X).monic().all_coeffs() != \
-                sp.Poly(K.ext.minpoly.as_expr(), K.ext.minpoly.gen).monic().all_coeffs():
-            return {}
-        table = {}
-        for g, rep in zip(gens, reps):
-            elem = K.new([K.dom.convert(sp.Rational(c)) for c in rep])
-            table[sp.srepr(g)] = elem
-            coeff, rest = g.as_coeff_Mul()       # sympy may pull square factors out of roots
-            if coeff != 1 and rest != 1:
-                table.setdefault(sp.srepr(rest), K.quo(elem, K.convert(K.dom.convert(coeff))))
-        return table
-
-    def products_poly(self, P: sp.Poly) -> sp.Poly:
-        key = sp.srepr(P.as_expr())
-        if key not in self._prod:
-            self._prod[key] = _products_poly(P)
-        return self._prod[key]
-
-    def same_mod2(self, a: _ExactEigen, b: _ExactEigen) -> bool:
-        """|λ_a|² = |λ_b|² exactly: minimal polynomial for radicals; for CRootOf, both are real
-        roots of sqf(g_a·g_b) (g: products polynomial) and equal iff in the same isolating
-        interval."""
-        if not (a.algebraic or b.algebraic):
-            return _is_zero(sp.expand(a.mod2 - b.mod2))
-        if a.factor == b.factor and (a.index == b.conj or a.index == b.index):
-            return True
-        ga, gb = self.products_poly(a.poly), self.products_poly(b.poly)
-        G = (ga * gb).sqf_part()
-        return _isolated_index(G, self.mod2_hp(a)) == _isolated_index(G, self.mod2_hp(b))
-
-    def mod2_hp(self, e: _ExactEigen) -> Any:
-        """|λ|² to 50 digits (from the radical expression or the mpmath root)."""
-        import mpmath
-
-        if e.hp is not None:
-            return _mod2_hp(e)
-        with mpmath.workdps(50):
-            return mpmath.mpf(str(sp.re(sp.N(e.mod2, 50))))
-
-    def unit_cmp(self, e: _ExactEigen) -> int:
-        """Sign of |λ|² − 1, exact."""
-        if not e.algebraic:
-            return _cmp_exact(e.mod2, 1)
-        g = self.products_poly(e.poly)
-        hv = _mod2_hp(e)
-        v = float(hv)
-        if g.eval(1) != 0 or abs(v - 1) > 1e-30:
-            return 1 if v > 1 else -1
-        gs = g.sqf_part()
-        return 0 if _isolated_index(gs, hv) == _isolated_index(gs, sp.Integer(1)) else (
-            1 if v > 1 else -1)
-
-    def block_rank(self, eigs: list[_ExactEigen], ids: list[int]) -> int:
-        """Rank over ℂ of C·V_I: exact in a number field, or certified at 50 digits when the
-        block mixes degree ≥ 3 eigenvalues (no compositum field is built)."""
-        if len(ids) == 1 or not any(eigs[i].algebraic for i in ids):
-            return self.images(eigs, ids)[1].rank()
-        import mpmath
-        cols: list[list[Any]] = []
-        with mpmath.workdps(50):
-            for i in ids:
-                K, CV = self.images(eigs, [i])
-                theta = self.theta_hp(K, eigs, i)
-                rows = CV.to_list()
-                for j in range(CV.shape[1]):
-                    cols.append([_anp_value(K, r[j], theta) for r in rows])
-            m, k = self.C.shape[0], len(cols)
-            M = [[cols[j][i] for j in range(k)] for i in range(m)]
-        return _cert_rank(M, m, k)
-
-    def theta_hp(self, K: Any, eigs: list[_ExactEigen], i: int) -> Any:
-        """50-digit value of the primitive element of K (the eigenvalue for a CRootOf field)."""
-        e = eigs[i]
-        if e.hp is not None:
-            return e.hp
-        if K == sp.QQ:
-            return None
-        return _mp(K.ext.as_expr())
-
-    def to_field(self, K: Any, expr: sp.Expr) -> Any:
-        """Element of K for an exact number (cached: conversions are the costly step)."""
-        key = (str(K), sp.srepr(expr))
-        if key not in self._conv:
-            self._conv[key] = self._convert(K, self._tables.get(str(K), {}), expr)
-        return self._conv[key]
-
-    def _convert(self, K: Any, table: dict[str, Any], expr: sp.Expr) -> Any:
-        """Field arithmetic on the expression tree over the generator table (fallback:
-        sympy's ``from_sympy`` for anything else)."""
-        if K == sp.QQ:
-            return K.from_sympy(expr)
-        key = sp.srepr(expr)
-        if key in table:
-            return table[key]
-        if expr.is_Rational:
-            return K.convert(K.dom.convert(expr))
-        if expr.is_Add:
-            out = K.zero
-            for a in expr.args:
-                out = out + self._convert(K, table, a)
-            return out
-        if expr.is_Mul:
-            coeff, rest = expr.as_coeff_Mul()
-            if coeff != 1 and sp.srepr(rest) in table:
-                return K.convert(K.dom.convert(coeff)) * table[sp.srepr(rest)]
-            out = K.one
-            for a in expr.args:
-                out = out * self._convert(K, table, a)
-            return out
-        if expr.is_Pow and expr.exp.is_Integer:
-            b = self._convert(K, table, expr.base)
-            n = int(expr.exp)
-            r = K.one
-            for _ in range(abs(n)):
-                r = r * b
-            return r if n >= 0 else K.quo(K.one, r)
-        return K.from_sympy(expr)
-
-    def matrix(self, K: Any, M: sp.Matrix) -> DomainMatrix:
-        """``M`` as a DomainMatrix over K, entry by entry through the conversion cache."""
-        rows = [[self.to_field(K, e) for e in M.row(i)] for i in range(M.shape[0])]
-        return DomainMatrix(rows, M.shape, K)
-
-    def images(self, eigs: list[_ExactEigen], ids: list[int]) -> tuple[Any, DomainMatrix]:
-        """C·V for the eigenvalues ``ids`` (V: exact eigenspace bases) in one common field."""
-        extra: list[sp.Expr] = []
-        for i in ids:
-            for g in eigs[i].field_gens:
-                if g not in extra:
-                    extra.append(g)
-        K = self.field(tuple(extra))
-        cols = []
-        for i in ids:
-            key = (i, tuple(sp.srepr(g) for g in extra))
-            if key not in self._null:
-                Ad = self.matrix(K, self.A)
-                lam = (K.new([1, 0]) if eigs[i].algebraic   # θ: a root of the factor
-                       else self.to_field(K, eigs[i].expr))
-                M = Ad - DomainMatrix.eye(self.n, K).mul(lam)
-                self._null[key] = M.nullspace().transpose()
-            cols.append(self._null[key])
-        V = cols[0].hstack(*cols[1:]) if len(cols) > 1 else cols[0]
-        return K, self.matrix(K, self.C).matmul(V)
-
-
-def _exact_eigenvalues(work: _ExactWork) -> tuple[list[_ExactEigen], bool]:
-    """Distinct eigenvalues as radicals, and diagonalizability (sqf part of χ annihilates A)."""
-    A = work.A
-    if work.gens:
-        _norm_precheck(work)
-    charpoly = A.charpoly(_X).as_expr()
-    if work.gens:
-        _, factors = sp.factor_list(sp.expand(charpoly), _X, extension=work.gens)
-    else:
-        _, factors = sp.factor_list(sp.Poly(charpoly, _X, domain=sp.QQ))
-    work.check_time("factoring the characteristic polynomial")
-    eigs: list[_ExactEigen] = []
-    sqf = sp.Integer(1)
-    for k, (f, mult) in enumerate(factors):
-        P = sp.Poly(f, _X)
-        coeffs = [sp.expand(c) for c in P.all_coeffs()]
-        if P.degree() == 1:
-            root = sp.expand(-coeffs[1] / coeffs[0])
-            eigs.append(_ExactEigen(root, mult, sp.expand(root**2), (), k))
-        elif P.degree() == 2:
-            roots, disc, neg = _quadratic_roots(coeffs)
-            s = sp.I * sp.sqrt(-disc) if neg else sp.sqrt(disc)
-            for r in roots:
-                mod2 = sp.expand(coeffs[2] / coeffs[0]) if neg else sp.expand(r**2)
-                eigs.append(_ExactEigen(r, mult, mod2, (s,), k))
-        elif not work.gens:
-            eigs.extend(_rootof_eigenvalues(P, mult, k))
-        else:
-            raise _Fallback(f"irreducible factor of degree {P.degree()} over the entry field "
-                            "(eigenvalues are not explicit radicals and the entries are not "
-                            "rational)")
-        if P.degree() <= 2 and not work.gens:
-            for e in eigs:
-                if e.factor == k:
-                    e.poly = P
-        sqf = sqf * P.as_expr()
-    # Diagonalizable iff the square-free part of the characteristic polynomial annihilates A.
-    K = work.field(())
-    Ad = DomainMatrix.from_Matrix(A).convert_to(K)
-    S = sp.Poly(sp.expand(sqf), _X)
-    acc = DomainMatrix.zeros((work.n, work.n), K)
-    for c in S.all_coeffs():
-        acc = acc.matmul(Ad) + DomainMatrix.eye(work.n, K).mul(K.from_sympy(c))
-    diagonalizable = acc.is_zero_matrix
-    work.check_time("diagonalizability")
-    return eigs, diagonalizable
-
-
-def _norm_precheck(work: _ExactWork) -> None:
-    """Cheap test before factoring over K (slow in sympy): the characteristic polynomial of the
-    rational (n·D)×(n·D) matrix replacing each entry by its multiplication matrix on K (D = [K:Q])
-    is the norm N(χ_A). An eigenvalue of degree e over K has degree ≤ e·D over Q, so an
-    irreducible Q-factor of N(χ_A) of degree > 2D proves an eigenvalue of degree ≥ 3 over K."""
-    K = work.field(())
-    D = K.ext.minpoly.degree()
-    theta = K.new([1, 0])
-    powers = [K.one]
-    for _ in range(D - 1):
-        powers.append(powers[-1] * theta)
-    n = work.n
-    big = [[sp.Integer(0)] * (n * D) for _ in range(n * D)]
-    for i in range(n):
-        for j in range(n):
-            a = work.to_field(K, work.A[i, j])
-            for c, pw in enumerate(powers):
-                col = (a * pw).to_list()
-                col = [sp.Integer(0)] * (D - len(col)) + [K.dom.to_sympy(v) for v in col]
-                for r in range(D):               # coefficient of θ^r
-                    big[i * D + r][j * D + c] = col[D - 1 - r]
-    chi = DomainMatrix.from_Matrix(sp.Matrix(big)).convert_to(sp.QQ).charpoly()
-    _, factors = sp.Poly(chi, _X, domain=sp.QQ).factor_list()
-    worst = max(f.degree() for f, _ in factors)
-    if worst > 2 * D:
-        raise _Fallback(f"an eigenvalue has degree ≥ 3 over the entry field (the norm of the "
-                        f"characteristic polynomial has an irreducible factor of degree {worst} "
-                        f"> 2·[K:Q] = {2 * D})")
-    work.check_time("norm pre-check")
-
-
-def _rootof_eigenvalues(P: sp.Poly, mult: int, k: int) -> list[_ExactEigen]:
-    """Roots of an irreducible rational factor P of degree ≥ 3, |λ|² = λ·λ̄.
-
-    Each root is the generator θ of the same number field Q[x]/(P) (its eigenvectors are
-    polynomials in θ, identical for all roots), evaluated at that root's 60-digit value from
-    ``mpmath.polyroots``; the number of real roots is exact (Sturm). Roots are labelled
-    ``CRootOf(P, i)`` in sympy's order (real ascending, then complex by real and imaginary part).
-    """
-    import mpmath
-
-    n_real = int(P.count_roots())
-    with mpmath.workdps(60):
-        coeffs = [mpmath.mpf(sp.Rational(c).p) / sp.Rational(c).q for c in P.all_coeffs()]
-        hps = list(mpmath.polyroots(coeffs, maxsteps=400, extraprec=300))
-        by_imag = sorted(range(len(hps)), key=lambda t: abs(mpmath.im(hps[t])))
-        real = set(by_imag[:n_real])
-        hps = [mpmath.mpc(mpmath.re(h), 0) if t in real else h for t, h in enumerate(hps)]
-        order = sorted(range(len(hps)), key=lambda t: (t not in real, float(mpmath.re(hps[t])),
-                                                      float(mpmath.im(hps[t]))))
-    gen = sp.CRootOf(P.as_expr(), 0)
-    poly_text = sp.sstr(P.as_expr())
-    out = []
-    for idx, t in enumerate(order):
-        out.append(_ExactEigen(None, mult, None, (gen,), k, P, idx, idx, hp=hps[t],
-                               text=f"CRootOf({poly_text}, {idx})"))
-    for e in out:
-        if mpmath.im(e.hp) != 0:
-            e.conj = min((t for t in range(len(out)) if t != e.index),
-                         key=lambda t: abs(complex(out[t].hp) - complex(e.hp).conjugate()))
-    return out
-
-
-def _mod2_hp(e: _ExactEigen) -> Any:
-    import mpmath
-
-    with mpmath.workdps(50):
-        return abs(e.hp) ** 2
-
-
-def _products_poly(P: sp.Poly) -> sp.Poly:
-    """g(y) = Res_x(P(x), x^d P(y/x)): its roots are all products λ_i λ_j of roots of P."""
-    d = P.degree()
-    rev = sp.expand(_X**d * P.as_expr().subs(_X, _Y / _X))
-    return sp.Poly(sp.resultant(P.as_expr(), rev, _X), _Y)
-
-
-def _isolated_index(G: sp.Poly, value: Any) -> int:
-    """Index of the isolating interval (width < 1e-40) of a real root of G containing ``value``
-    (a 50-digit mpmath real, or an exact rational)."""
-    import mpmath
-
-    if isinstance(value, sp.Rational):
-        v = value
-    else:
-        with mpmath.workdps(50):
-            v = sp.Rational(mpmath.nstr(mpmath.re(value), 50, min_fixed=-1, max_fixed=2))
-    slack = sp.Rational(1, 10**45)
-    hits = [i for i, ((lo, hi), _) in enumerate(G.intervals(eps=sp.Rational(1, 10**40)))
-            if lo - slack <= v <= hi + slack]
-    if len(hits) != 1:
-        raise _Fallback("could not isolate |λ|² among the roots of its resultant polynomial")
-    return hits[0]
-
-
-def _mp(expr: sp.Expr) -> Any:
-    """50-digit mpmath complex value of an exact algebraic number."""
-    import mpmath
-
-    v = sp.N(expr, 50)
-    return mpmath.mpc(mpmath.mpf(str(sp.re(v))), mpmath.mpf(str(sp.im(v))))
-
-
-def _anp_value(K: Any, a: Any, theta: Any) -> Any:
-    """Value of a field element (polynomial in the primitive element θ) at 50 digits."""
-    import mpmath
-
-    if K == sp.QQ:
-        r = sp.Rational(a)
-        return mpmath.mpc(mpmath.mpf(r.p) / r.q)
-    coeffs = [mpmath.mpf(sp.Rational(c).p) / sp.Rational(c).q for c in K.to_list(a)] \
-        if hasattr(K, "to_list") else [mpmath.mpf(sp.Rational(c).p) / sp.Rational(c).q
-                                       for c in a.to_list()]
-    return mpmath.polyval(coeffs, theta) if coeffs else mpmath.mpc(0)
-
-
-def _cert_rank(M: list[list[Any]], m: int, k: int) -> int:
-    """Rank of an m×k complex matrix given to 50 digits: full rank min(m, k) is certified by
-    its least singular value exceeding 1e-30 (entries are exact algebraic numbers evaluated to
-    50 digits); anything else falls back to the numeric path."""
-    import mpmath
-
-    if k == 0:
-        return 0
-    with mpmath.workdps(50):
-        s = mpmath.svd_c(mpmath.matrix(M), compute_uv=False)
-        r = min(m, k)
-        if min(abs(s[i]) for i in range(r)) > mpmath.mpf("1e-30"):
-            return r
-    raise _Fallback("rank of a block with degree ≥ 3 eigenvalues is not certified")
-
-
-def _real_power_certified(P: sp.Poly, lam: Any, q: int) -> bool:
-    """Is λ^q real?  β = λ^q is a root of p_β(y) = Res_x(P(x), y − x^q). β is real iff it is
-    the root of sqf(p_β) inside an exact isolating interval of a real root, and no other root of
-    sqf(p_β) lies within 1e-20 of β (roots of p_β computed to 50 digits)."""
-    import mpmath
-
-    pb = sp.Poly(sp.resultant(P.as_expr(), _Y - _X**q, _X), _Y).sqf_part()
-    with mpmath.workdps(50):
-        beta = lam**q
-        scale = max(mpmath.mpf(1), abs(beta))
-        if abs(mpmath.im(beta)) > mpmath.mpf("1e-25") * scale:
-            return False
-        coeffs = [mpmath.mpf(sp.Rational(c).p) / sp.Rational(c).q for c in pb.all_coeffs()]
-        roots = mpmath.polyroots(coeffs, maxsteps=400, extraprec=300)
-        near = [r for r in roots if abs(r - beta) < mpmath.mpf("1e-20") * scale]
-        if len(near) != 1:
-            raise _Fallback("roots too close to certify a root of unity")
-        v = sp.Rational(mpmath.nstr(mpmath.re(beta), 45, min_fixed=-1, max_fixed=2))
-    slack = sp.Rational(1, 10**30)
-    return any(lo - slack <= v <= hi + slack
-               for (lo, hi), _ in pb.intervals(eps=sp.Rational(1, 10**35)))
-
-
-def _rootof_pair_order(a: _ExactEigen, b: _ExactEigen) -> int | None:
-    """Order of z = λ_b/λ_a for a conjugate pair of CRootOf eigenvalues, certified.
-
-    z has degree D ≤ d(d − 1) over Q, so its order q, if finite, has φ(q) ≤ D and q ≤ 2D² + 2.
-    If no r/q with such q lies within 1e-40 of φ/2π (50-digit value), z is not a root of
-    unity. Otherwise z^q = 1 ⇔ λ^q = λ̄^q ⇔ λ^q is real, which is certified exactly.
-    """
-    import mpmath
-
-    if not (a.factor == b.factor and a.conj == b.index):
-        raise _Fallback("equal moduli between non-conjugate eigenvalues of degree ≥ 3")
-    d = a.poly.degree()
-    bound = 2 * (d * (d - 1)) ** 2 + 2
-    with mpmath.workdps(50):
-        za, zb = a.hp, b.hp
-        t = mpmath.arg(zb / za) / (2 * mpmath.pi)
-        t = t + 1 if t < 0 else t
-        eps = mpmath.mpf("1e-40")
-        lo = Fraction(str(mpmath.nstr(t - eps, 48, min_fixed=-1, max_fixed=2)))
-        hi = Fraction(str(mpmath.nstr(t + eps, 48, min_fixed=-1, max_fixed=2)))
-    frac = simplest_rational(lo, hi)
-    if frac.denominator > bound:
-        return None
-    q = frac.denominator
-    if q > 64:
-        raise _Fallback(f"candidate root of unity of order {q} too large to certify")
-    return q if _real_power_certified(a.poly, a.hp, q) else None
-
-
-def _exact_root_of_unity_order(z: sp.Expr) -> int | None:
-    """Order q of z as a root of unity (minimal polynomial = q-th cyclotomic), else None."""
-    mp = sp.Poly(sp.minimal_polynomial(z, _X), _X)
-    if not mp.is_cyclotomic:
-        return None
-    d = mp.degree()
-    for q in range(1, 2 * d * d + 3):
-        if sp.totient(q) == d and sp.Poly(sp.cyclotomic_poly(q, _X), _X) == mp:
-            return q
-    raise _Fallback("cyclotomic index not found")  # pragma: no cover - unreachable
-
-
-def _turn(z: complex) -> float:
-    """φ/2π ∈ [0, 1) for z = e^{jφ}·|z|."""
-    t = math.atan2(z.imag, z.real) / (2 * math.pi)
-    return t + 1.0 if t < 0 else t
-
-
-def _exact_structure(system: System, start: float) -> Structure:
-    if system.n > EXACT_MAX_STATES:
-        raise _Fallback(f"n = {system.n} > {EXACT_MAX_STATES}")
-    A, C = sp.Matrix(system.A), sp.Matrix(system.C)
-    work = _ExactWork(A, C, start)
-    xeigs, diagonalizable = _exact_eigenvalues(work)
-    # Order by modulus (descending), then by argument, numerically; ties are decided exactly.
-    vals = [complex(e.hp) if e.algebraic else complex(sp.N(e.expr, 30)) for e in xeigs]
-    order = sorted(range(len(xeigs)), key=lambda i: (-abs(vals[i]), _turn(vals[i])))
-    xeigs = [xeigs[i] for i in order]
-    vals = [vals[i] for i in order]
-    eigen = []
-    for e, v in zip(xeigs, vals):
-        _, CV = work.images(xeigs, [xeigs.index(e)])
-        g = CV.shape[1]
-        eigen.append(Eigen(value=v, multiplicity=e.mult, geometric=g,
-                           mod2=float(work.mod2_hp(e)),
-                           basis=_float_basis(system.a, v, g), expr=e.expr, text=e.text,
-                           mod2_expr=None if e.algebraic else e.mod2,
-                           unit_cmp=work.unit_cmp(e)))
-    work.check_time("eigenvectors")
-    # Equi-blocks: group equal |λ|² exactly (numerically distant moduli are certainly unequal).
-    groups: list[list[int]] = []
-    for i, e in enumerate(xeigs):
-        for grp in groups:
-            j = grp[0]
-            if abs(eigen[i].mod2 - eigen[j].mod2) <= 1e-12 * max(1.0, eigen[j].mod2) \
-                    and work.same_mod2(e, xeigs[j]):
-                grp.append(i)
-                break
-        else:
-            groups.append([i])
-    work.check_time("equal moduli")
-    blocks, pairs = [], []
-    undetectable = []
-    for i, e in enumerate(eigen):
-        if _relevant(e) and work.block_rank(xeigs, [i]) < e.geometric:
-            undetectable.append(i)
-    for grp in groups:
-        relevant = _relevant(eigen[grp[0]])
-        size = sum(eigen[i].geometric for i in grp)
-        blocks.append(EquiBlock(members=tuple(grp), indices=_indices(eigen, grp),
-                                mod2=eigen[grp[0]].mod2, mod2_expr=eigen[grp[0]].mod2_expr,
-                                rank=work.block_rank(xeigs, grp), size=size, relevant=relevant))
-        if not relevant:
-            continue
-        for ia in range(len(grp)):
-            for ib in range(ia + 1, len(grp)):
-                a, b = grp[ia], grp[ib]
-                psize = eigen[a].geometric + eigen[b].geometric
-                prank = work.block_rank(xeigs, [a, b])
-                turn = _turn(vals[b] / vals[a])
-                if xeigs[a].algebraic or xeigs[b].algebraic:
-                    q = _rootof_pair_order(xeigs[a], xeigs[b])
-                else:
-                    q = _exact_root_of_unity_order(sp.expand(xeigs[b].expr / xeigs[a].expr))
-                if q is not None:
-                    r = round(turn * q) % q
-                    text = sp.sstr(sp.Rational(r, q))
-                    turn = r / q
-                else:
-                    text = "irrational"
-                pairs.append(Pair(a=a, b=b, rank=prank, size=psize, degenerate=prank < psize,
-                                  q=q, turn=turn, turn_text=text))
-                work.check_time("equal-modulus pairs")
-    controllable = _exact_controllable(system, work)
-    form = {"eigenvalues": [sp.sstr(e.expr) if e.expr is not None else e.text for e in eigen],
-            "basis": "V: exact bases of ker(A − λI) (sympy nullspace), C·V over ℂ",
-            "equi_blocks": []}
-    for grp in groups:
-        _, CV = work.images(xeigs, grp)
-        M = CV.to_Matrix()
-        form["equi_blocks"].append({
-            "indices": list(_indices(eigen, grp)),
-            "eigenvalues": [form["eigenvalues"][i] for i in grp],
-            "C_columns": [[sp.sstr(M[r, k]) for r in range(M.shape[0])]
-                          for k in range(M.shape[1])]})
-    work.check_time("standard form")
-    return Structure(
-        path="exact",
-        path_reason=("exact algebraic arithmetic: entries in " +
-                     (f"QQ({', '.join(sp.sstr(g) for g in work.gens)})" if work.gens else "QQ") +
-                     (", eigenvalues as radicals" if not any(e.algebraic for e in xeigs) else
-                      ", eigenvalues as radicals and CRootOf (moduli by resultant root "
-                      "isolation, ranks of mixed blocks certified at 50 digits)") +
-                     ", zero tests by minimal polynomials"),
-        tolerances={"exact": True, "time_budget_seconds": EXACT_TIME_BUDGET,
-                    "max_states": EXACT_MAX_STATES},
-        eigen=tuple(eigen), blocks=tuple(blocks), pairs=tuple(pairs),
-        diagonalizable=bool(diagonalizable), detectable=not undetectable,
-        undetectable=tuple(undetectable), controllable_Q=controllable,
-        observability_index=_observability_index(system.a, system.c),
-        observable=all(work.block_rank(xeigs, [i]) == e.geometric for i, e in enumerate(eigen)),
-        norm_A=float(np.linalg.norm(system.a, 2)), norm_C=float(np.linalg.norm(system.c, 2)),
-        seconds=time.monotonic() - start, standard_form=form)
-
-
-def _exact_controllable(system: System, work: _ExactWork) -> bool:
-    """(A, Q^{1/2}) controllable iff rank [Q, AQ, …, A^{n−1}Q] = n (range Q = range Q^{1/2})."""
-    qgens = _field_generators(list(system.Q))
-    K = sp.QQ.algebraic_field(*(work.gens + qgens)) if (work.gens or qgens) else sp.QQ
-    A = DomainMatrix.from_Matrix(sp.Matrix(system.A)).convert_to(K)
-    blk = DomainMatrix.from_Matrix(sp.Matrix(system.Q)).convert_to(K)
-    cols = [blk]
-    for _ in range(work.n - 1):
-        blk = A.matmul(blk)
-        cols.append(blk)
-    return cols[0].hstack(*cols[1:]).rank() == work.n if len(cols) > 1 else cols[0].rank() == 1
-
-
-def _indices(eigen: list[Eigen], members: list[int]) -> tuple[int, ...]:
-    out = []
-    for i in members:
-        start = sum(e.multiplicity for e in eigen[:i])
-        out.extend(range(start, start + eigen[i].multiplicity))
-    return tuple(out)
-
-
-def _float_basis(a: np.ndarray, lam: complex, g: int) -> np.ndarray:
-    """Orthonormal float basis of ker(a − λI) of known dimension g (last right singular vectors)."""
-    n = a.shape[0]
-    _, _, vh = np.linalg.svd(a.astype(complex) - lam * np.eye(n))
-    return vh[n - g:].conj().T if g > 0 else np.zeros((n, 0), complex)
-
-
-# --------------------------------------------------------------------------- certified enclosures
-
-CERTIFIED_PRECISIONS = (128, 256, 512)
-"""Working precisions (bits) of the certified-enclosure stage, tried in turn."""
-
-
-class _Undecided(Exception):
-    """The enclosures at this precision do not decide a fact (retry higher, then hand over)."""
-
-
-def _arb_of(expr: sp.Expr) -> Any:
-    """A rigorous arb ball containing the real number ``expr`` (sympy expression tree, at the
-    current flint precision): rationals, +, ×, integer powers, positive-base rational powers,
-    pi, E, cos/sin. Anything else: ``_Fallback``."""
-    from flint import arb, fmpq
-
-    if expr.is_Rational:
-        return arb(fmpq(int(expr.p), int(expr.q)))
-    if expr is sp.pi:
-        return arb.pi()
-    if expr is sp.E:
-        return arb(1).exp()
-    if expr.is_Add:
-        out = arb(0)
-        for a in expr.args:
-            out = out + _arb_of(a)
-        return out
-    if expr.is_Mul:
-        out = arb(1)
-        for a in expr.args:
-            out = out * _arb_of(a)
-        return out
-    if expr.is_Pow:
-        base, ex = expr.base, expr.exp
-        if ex.is_Integer:
-            b = _arb_of(base)
-            k = int(ex)
-            r = arb(1)
-            for _ in range(abs(k)):
-                r = r * b
-            return r if k >= 0 else 1 / r
-        if ex.is_Rational:
-            b = _arb_of(base)
-            if not b > 0:
-                raise _Fallback(f"cannot enclose {sp.sstr(expr)} (base not certainly positive)")
-            if ex == sp.Rational(1, 2):
-                return b.sqrt()
-            return (b.log() * _arb_of(ex)).exp()
-    if isinstance(expr, (sp.cos, sp.sin)):
-        arg = expr.args[0]
-        c = arg / sp.pi
-        if c.is_Rational:
-            f = fmpq(int(c.p), int(c.q))
-            return arb.cos_pi_fmpq(f) if isinstance(expr, sp.cos) else arb.sin_pi_fmpq(f)
-        v = _arb_of(arg)
-        return v.cos() if isinstance(expr, sp.cos) else v.sin()
-    raise _Fallback(f"no certified enclosure for the entry {sp.sstr(expr)[:40]}")
-
-
-def _arb_fraction(x: Any) -> tuple[Fraction, Fraction]:
-    """Exact rational bounds [mid − rad, mid + rad] of an arb ball."""
-    m, e = x.mid().man_exp()
-    r, f = x.rad().man_exp()
-    mid = Fraction(int(m)) * Fraction(2) ** int(e)
-    rad = Fraction(int(r)) * Fraction(2) ** int(f)
-    return mid - rad, mid + rad
-
-
-def _generator_degree_bound(gens: list[sp.Expr]) -> int:
-    """An upper bound on [K:Q] for K = Q(gens): the product of the generators' degrees."""
-    d = 1
-    for g in gens:
-        d *= sp.Poly(sp.minimal_polynomial(g, _X), _X).degree()
-    return d
-
-
-def _certified_structure(system: System, start: float, prior: str) -> Structure:
-    """The eigen-structure decided by rigorous ball arithmetic (python-flint arb/acb).
-
-    Used when the exact algebra falls back (e.g. an eigenvalue of degree ≥ 3 over a
-    quadratic entry field). Every decision is a theorem about the exact input:
-
-    * ``acb_mat.eig`` certifies that every eigenvalue is simple and lies in its own ball (so A
-      is diagonalizable) and encloses an eigenvector for each.
-    * A is real, so the conjugate of an eigenvalue is an eigenvalue; if the conjugate of ball i
-      meets exactly one ball j, then λ_j = conj(λ_i) exactly (j = i: λ_i is real), and the pair
-      has exactly equal moduli. Every other pair of moduli must be certified distinct (disjoint
-      |λ| balls); and |λ| vs 1 must be certified (the ball of |λ| excludes 1).
-    * C·v ≠ 0 when a component's ball excludes 0; a pair block has rank 2 when a 2×2 minor's
-      ball excludes 0, rank 1 when C has one row.
-    * For an equal-modulus pair, z = λ̄/λ has degree D ≤ d(d − 1) over Q, d ≤ n·[K:Q] the degree
-      of λ; a root of unity of order q has φ(q) ≤ D, so q ≤ 2D² (φ(q) ≥ √(q/2)). If the ball of
-      φ/2π holds no fraction with such a denominator, z is not a root of unity.
-
-    Anything the balls do not decide (after ``CERTIFIED_PRECISIONS``) raises ``_Fallback``.
-    """
-    import flint
-
-    if system.n > EXACT_MAX_STATES:
-        raise _Fallback(f"n = {system.n} > {EXACT_MAX_STATES}")
-    A, C = sp.Matrix(system.A), sp.Matrix(system.C)
-    d_lam = system.n * _generator_degree_bound(_field_generators(list(A)))
-    q_max = 2 * (d_lam * (d_lam - 1)) ** 2 + 2
-    old = flint.ctx.prec
-    why = ""
-    try:
-        for prec in CERTIFIED_PRECISIONS:
-            flint.ctx.prec = prec
-            try:
-                return _certified_at(system, A, C, prec, q_max, d_lam, start, prior)
-            except _Undecided as exc:
-                why = str(exc)
-            except ValueError as exc:      # acb_mat.eig: eigenvalues not isolated
-                why = f"eigenvalues not isolated ({exc})"
-    finally:
-        flint.ctx.prec = old
-    raise _Fallback(f"undecided at {CERTIFIED_PRECISIONS[-1]} bits: {why}")
-
-
-def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: int,
-                  d_lam: int, start: float, prior: str) -> Structure:
-    from flint import acb, acb_mat, arb
-
-    n, m = A.shape[0], C.shape[0]
-    Ab = acb_mat([[acb(_arb_of(A[i, j])) for j in range(n)] for i in range(n)])
-    Cb = acb_mat([[acb(_arb_of(C[i, j])) for j in range(n)] for i in range(m)])
-    if not all(x.is_finite() for x in Ab.entries() + Cb.entries()):
-        raise _Undecided("an entry's enclosure is not finite")
-    E, R = Ab.eig(right=True)
-    E = list(E)
-    CV = Cb * R
-    # conjugate partners (exact: each ball holds exactly one eigenvalue, the spectrum of a real
-    # matrix is closed under conjugation)
-    conj = []
-    for i in range(n):
-        hits = [j for j in range(n) if E[j].overlaps(E[i].conjugate())]
-        if len(hits) != 1:
-            raise _Undecided(f"conjugate of eigenvalue {i} not isolated")
-        conj.append(hits[0])
-    mods = [abs(z) for z in E]
-    groups: list[list[int]] = []
-    seen: set[int] = set()
-    for i in range(n):
-        if i in seen:
-            continue
-        grp = [i] if conj[i] == i else [i, conj[i]]
-        seen.update(grp)
-        groups.append(grp)
-    for a in range(len(groups)):
-        for b in range(a + 1, len(groups)):
-            if mods[groups[a][0]].overlaps(mods[groups[b][0]]):
-                raise _Undecided("two moduli not separated (possibly equal, not conjugate)")
-    groups.sort(key=lambda g: -float(mods[g[0]].mid()))
-    for a in range(len(groups) - 1):
-        if not mods[groups[a][0]] > mods[groups[a + 1][0]]:
-            raise _Undecided("modulus order not certified")   # pragma: no cover - disjoint
-    for g in groups:
-        g.sort(key=lambda i: _turn(complex(E[i].mid())))
-    order = [i for g in groups for i in g]
-    pos = {i: k for k, i in enumerate(order)}
-
-    def unit_cmp(i: int) -> int:
-        if mods[i] > 1:
-            return 1
-        if mods[i] < 1:
-            return -1
-        raise _Undecided("|λ| = 1 not excluded")
-
-    def nonzero(i: int) -> bool:
-        return any(not CV[r, i].contains(0) for r in range(m))
-
-    eigen = []
-    for i in order:
-        v = complex(E[i].mid())
-        if conj[i] == i:
-            v = complex(v.real, 0.0)
-        if not nonzero(i):
-            raise _Undecided("C·v not certified nonzero")
-        mod2 = mods[i] * mods[i]
-        eigen.append(Eigen(value=v, multiplicity=1, geometric=1, mod2=float(mod2.mid()),
-                           basis=_float_basis(system.a, v, 1), expr=None, mod2_expr=None,
-                           unit_cmp=unit_cmp(i), text=_ball_text(E[i], conj[i] == i)))
-    blocks, pairs = [], []
-    for g in groups:
-        members = [pos[i] for i in g]
-        relevant = eigen[members[0]].unit_cmp >= 0
-        if len(g) == 1:
-            rank = 1
-        elif any(not (CV[r, g[0]] * CV[s, g[1]] - CV[s, g[0]] * CV[r, g[1]]).contains(0)
-                 for r in range(m) for s in range(r + 1, m)):
-            rank = 2
-        elif m == 1:
-            rank = 1
-        else:
-            raise _Undecided("rank of an equal-modulus pair not certified")
-        blocks.append(EquiBlock(members=tuple(members), indices=tuple(members),
-                                mod2=eigen[members[0]].mod2, mod2_expr=None, rank=rank,
-                                size=len(g), relevant=relevant))
-        if relevant and len(g) == 2:
-            a, b = g
-            # arg ∈ (−π, π]: a ball meeting 0 or ±1/2 turn decides nothing (z ≈ ±1)
-            lo, hi = _arb_fraction((E[b] / E[a]).arg() / (2 * arb.pi()))
-            if not (0 < lo or hi < 0) or hi - lo > Fraction(1, 4):
-                raise _Undecided("φ/2π not separated from 0")
-            frac = simplest_rational(lo + 1, hi + 1) if hi < 0 else simplest_rational(lo, hi)
-            if frac.denominator <= q_max:
-                raise _Undecided(f"φ/2π near {frac} (a root of unity not excluded)")
-            pairs.append(Pair(a=members[0], b=members[1], rank=rank, size=2,
-                              degenerate=rank < 2, q=None,
-                              turn=_turn(eigen[members[1]].value / eigen[members[0]].value),
-                              turn_text="irrational"))
-    if _time_left(start) < 0:
-        raise _Fallback(f"exceeded the {EXACT_TIME_BUDGET:g} s budget")
-    controllable = _certified_controllable(system, start)
-    form = {"eigenvalues": [e.text for e in eigen],
-            "basis": (f"V: certified eigenvector enclosures (python-flint acb_mat.eig, {prec} "
-                      "bits); C·V entries as balls"),
-            "equi_blocks": [{
-                "indices": [pos[i] for i in g],
-                "eigenvalues": [eigen[pos[i]].text for i in g],
-                "C_columns": [[CV[r, i].str(radius=True) for r in range(m)] for i in g]}
-                for g in groups]}
-    return Structure(
-        path="exact",
-        path_reason=(f"certified enclosures (python-flint arb, {prec} bits): the exact algebra "
-                     f"could not run ({prior}); all eigenvalues simple and isolated "
-                     "(acb_mat.eig), moduli separated by disjoint balls or exactly equal for "
-                     "conjugate pairs, |λ| vs 1 and ranks by balls excluding 0, roots of unity "
-                     f"excluded for every order q ≤ {q_max} (degree of λ over Q ≤ {d_lam}); "
-                     "every decision is rigorous, eigenvalues are given as certified balls"),
-        tolerances={"exact": True, "certified_enclosures": True, "precision_bits": prec,
-                    "time_budget_seconds": EXACT_TIME_BUDGET, "max_states": EXACT_MAX_STATES},
-        eigen=tuple(eigen), blocks=tuple(blocks), pairs=tuple(pairs),
-        diagonalizable=True, detectable=True, undetectable=(), controllable_Q=controllable,
-        observability_index=_observability_index(system.a, system.c), observable=True,
-        norm_A=float(np.linalg.norm(system.a, 2)), norm_C=float(np.linalg.norm(system.c, 2)),
-        seconds=time.monotonic() - start, standard_form=form)
-
-
-def _ball_text(z: Any, real: bool) -> str:
-    """A certified eigenvalue ball as text: ``[mid +/- rad]`` (real, certified) or
-    ``[re +/- r] + [im +/- r]*I``."""
-    if real:
-        return f"real eigenvalue in {z.real.str(radius=True)}"
-    return f"eigenvalue in {z.str(radius=True).replace('j', '*I')}"
-
-
-def _time_left(start: float) -> float:
-    return EXACT_TIME_BUDGET - (time.monotonic() - start)
-
-
-def _certified_controllable(system: System, start: float) -> bool:
-    """(A, Q^{1/2}) controllable: trivially when Q ≻ 0 (exact Cholesky test), else the exact
-    Krylov rank over the entry field."""
-    Q = sp.Matrix(system.Q)
-    if all(v.is_Rational for v in Q) and Q.is_positive_definite:
-        return True
-    work = _ExactWork(sp.Matrix(system.A), sp.Matrix(system.C), start)
-    return _exact_controllable(system, work)
-
-
-# --------------------------------------------------------------------------- numeric path
-
-def _numeric_structure(system: System, start: float, reason: str,
-                       tolerance: float | None = None) -> Structure:
-    a, c = system.a, system.c
-    n = a.shape[0]
-    tol = numeric_tolerances(tolerance)
-    norm_a = float(np.linalg.norm(a, 2))
-    norm_c = float(np.linalg.norm(c, 2))
-    scale = max(1.0, norm_a)
-    w, V = np.linalg.eig(a)
-    # Cluster numerically equal eigenvalues (a Jordan block of size 2 splits them by ~√eps).
-    parent = list(range(n))
-
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-    close = np.abs(w[:, None] - w[None, :]) <= tol["eigenvalue_cluster_relative"] * scale
-    for i, j in zip(*np.nonzero(np.triu(close, 1))):
-        parent[find(i)] = find(j)
-    clusters: dict[int, list[int]] = {}
-    for i in range(n):
-        clusters.setdefault(find(i), []).append(i)
-    eigen = []
-    for members in clusters.values():
-        mu = complex(np.mean(w[members]))
-        if abs(mu.imag) <= tol["eigenvalue_cluster_relative"] * scale:
-            mu = complex(mu.real, 0.0)
-        if len(members) == 1:
-            v = V[:, members[0]]
-            basis = (v / np.linalg.norm(v))[:, None]
-            g = 1
-        else:
-            _, s, vh = np.linalg.svd(a.astype(complex) - mu * np.eye(n))
-            g = int(np.sum(s <= tol["geometric_multiplicity_relative"] * scale))
-            g = max(1, min(g, len(members)))
-            basis = vh[n - g:].conj().T
-        eigen.append(Eigen(value=mu, multiplicity=len(members), geometric=g,
-                           mod2=abs(mu) ** 2, basis=basis))
-    eigen.sort(key=lambda e: (-e.modulus, _turn(e.value)))
-    diagonalizable = all(e.geometric == e.multiplicity for e in eigen)
-    rank_tol = tol["rank_relative"] * max(norm_c, np.finfo(float).tiny)
-
-    def rank_of(ids: list[int]) -> int:
-        M = c @ np.hstack([eigen[i].basis for i in ids])
-        if M.size == 0:
-            return 0
-        return int(np.sum(np.linalg.svd(M, compute_uv=False) > rank_tol))
-    groups: list[list[int]] = []
-    for i, e in enumerate(eigen):
-        if groups and abs(eigen[groups[-1][0]].modulus - e.modulus) \
-                <= tol["modulus_relative"] * max(eigen[groups[-1][0]].modulus, 1e-300):
-            groups[-1].append(i)
-        else:
-            groups.append([i])
-    undetectable = [i for i, e in enumerate(eigen)
-                    if _relevant(e, tol) and rank_of([i]) < e.geometric]
-    blocks, pairs = [], []
-    for grp in groups:
-        relevant = _relevant(eigen[grp[0]], tol)
-        size = sum(eigen[i].geometric for i in grp)
-        blocks.append(EquiBlock(members=tuple(grp), indices=_indices(eigen, grp),
-                                mod2=eigen[grp[0]].mod2, mod2_expr=None,
-                                rank=rank_of(grp), size=size, relevant=relevant))
-        if not relevant:
-            continue
-        for ia in range(len(grp)):
-            for ib in range(ia + 1, len(grp)):
-                ea, eb = eigen[grp[ia]], eigen[grp[ib]]
-                turn = _turn(eb.value / ea.value)
-                frac = simplest_rational(turn - tol["turn_absolute"], turn + tol["turn_absolute"])
-                q = frac.denominator if frac.denominator <= MAX_DENOMINATOR else None
-                if q is not None:
-                    frac = Fraction(frac.numerator % q, q)
-                psize = ea.geometric + eb.geometric
-                prank = rank_of([grp[ia], grp[ib]])
-                pairs.append(Pair(a=grp[ia], b=grp[ib], rank=prank, size=psize,
-                                  degenerate=prank < psize, q=q,
-                                  turn=float(frac) if q else turn,
-                                  turn_text=(str(frac) if q else
-                                             f"no r/q with q <= {MAX_DENOMINATOR} within "
-                                             f"{tol['turn_absolute']:g}")))
-    form = {"eigenvalues": [[float(e.value.real), float(e.value.imag)] for e in eigen],
-            "basis": "V: orthonormal float bases of ker(A − λI); entries of C·V as [re, im]",
-            "equi_blocks": [{
-                "indices": list(_indices(eigen, grp)),
-                "eigenvalues": [[float(eigen[i].value.real), float(eigen[i].value.imag)]
-                                for i in grp],
-                "C_columns": [[[float(z.real), float(z.imag)] for z in col]
-                              for col in (c @ np.hstack([eigen[i].basis for i in grp])).T]}
-                for grp in groups]}
-    return Structure(
-        standard_form=form, path="numeric", path_reason=reason, tolerances=dict(tol),
-        eigen=tuple(eigen),
-        blocks=tuple(blocks), pairs=tuple(pairs), diagonalizable=diagonalizable,
-        detectable=not undetectable, undetectable=tuple(undetectable),
-        controllable_Q=_numeric_controllable(a, system.q),
-        observability_index=_observability_index(a, c),
-        observable=all(rank_of([i]) == e.geometric for i, e in enumerate(eigen)),
-        norm_A=norm_a, norm_C=norm_c,
-        seconds=time.monotonic() - start)
-
-
-def _numeric_controllable(a: np.ndarray, q: np.ndarray) -> bool:
-    """PBH: (A, Q^{1/2}) controllable iff no left eigenvector w of A has w^H Q w = 0."""
-    nq = float(np.linalg.norm(q, 2))
-    if nq == 0:
-        return False
-    if np.linalg.eigvalsh(0.5 * (q + q.T)).min() > NUMERIC_TOLERANCES["rank_relative"] * nq:
-        return True
-    _, W = np.linalg.eig(a.T)
-    W = W / np.linalg.norm(W, axis=0)
-    vals = np.real(np.einsum("ij,ik,kj->j", W.conj(), q, W))
-    return bool(np.all(vals > NUMERIC_TOLERANCES["rank_relative"] * nq))
-
-
-def _observability_index(a: np.ndarray, c: np.ndarray) -> int | None:
-    """Least k with [C; CA; …; CA^{k−1}] of full column rank (None: not observable), float64.
-
-    Incremental: an orthonormal basis of the row space grows by the part of C·A^{k−1} (rows
-    normalised) orthogonal to it (projected twice for stability); relative tolerance 1e-9.
-    """
-    n = a.shape[0]
-    basis = np.zeros((0, n))
-    block = c.astype(float)
-    for k in range(1, n + 1):
-        norms = np.linalg.norm(block, axis=1, keepdims=True)
-        rows = block / np.where(norms > 0, norms, 1.0)
-        for _ in range(2):
-            if basis.shape[0]:
-                rows = rows - (rows @ basis.T) @ basis
-        _, s, vh = np.linalg.svd(rows, full_matrices=False)
-        new = vh[s > 1e-9]
-        if new.shape[0]:
-            if basis.shape[0]:
-                new = new - (new @ basis.T) @ basis
-                new = new / np.linalg.norm(new, axis=1, keepdims=True)
-            basis = np.vstack([basis, new])
-        if basis.shape[0] >= n:
-            return k
-        block = block @ a
-    return None
-
-
-# --------------------------------------------------------------------------- rationals
-
-def simplest_rational(lo: float | Fraction, hi: float | Fraction) -> Fraction:
-    """The rational with the least denominator in [lo, hi] (Stern–Brocot / continued fractions).
-
-    Parameters
-    ----------
-    lo, hi : float or Fraction
-        Interval ends, lo ≤ hi (floats are read exactly).
-    """
-    lo, hi = Fraction(lo), Fraction(hi)
-    if lo > hi:
-        lo, hi = hi, lo
-    fl = math.floor(lo)
-    if fl + 1 <= hi or lo == fl:
-        return Fraction(math.ceil(lo))
-    # lo, hi in (fl, fl+1): recurse on the reciprocals of the fractional parts.
-    inner = simplest_rational(1 / (hi - fl), 1 / (lo - fl))
-    return fl + 1 / inner
+from kfcrit.theory.cyclotomic import cyclotomic_order, trig_form
+from kfcrit.theory.structure_certified import certified_structure
+from kfcrit.theory.structure_exact import cmp_exact, exact_structure
+from kfcrit.theory.structure_numeric import numeric_structure
+from kfcrit.theory.structure_records import (
+    DEFAULT_TOLERANCE,
+    EXACT_MAX_STATES,
+    EXACT_MAX_STATES_BINARY_FLOAT,
+    EXACT_TIME_BUDGET,
+    MAX_DENOMINATOR,
+    NUMERIC_FLOOR,
+    NUMERIC_TOLERANCES,
+    Eigen,
+    EquiBlock,
+    Fallback,
+    Pair,
+    Structure,
+    numeric_tolerances,
+    simplest_rational,
+)
+
+__all__ = ["DEFAULT_TOLERANCE", "EXACT_MAX_STATES", "EXACT_MAX_STATES_BINARY_FLOAT",
+           "EXACT_TIME_BUDGET", "MAX_DENOMINATOR", "NUMERIC_FLOOR", "NUMERIC_TOLERANCES", "Eigen",
+           "EquiBlock", "Fallback", "Pair", "Structure", "certified_structure", "cmp_exact",
+           "eigen_structure", "numeric_structure", "numeric_tolerances", "simplest_rational",
+           "structure_at", "structure_of"]
 
 
 # --------------------------------------------------------------------------- entry point
+
+CYCLOTOMIC_FIRST_DEGREE = 8
+"""Entries in Q(ζ_L) with φ(L) above this (or unevaluated cos/sin atoms) try the certified
+enclosures with exact cyclotomic proofs before the number-field algebra, which is slow there
+(measured: 2×2 with cos(π/7), 8–55 s; with cos(π/30), over the 8 s budget)."""
+
+
+def _cyclotomic_first(system: System) -> str | None:
+    """Why the certified stage runs first (trigonometric entries of high cyclotomic degree),
+    or None. Only exact input with n ≤ ``EXACT_MAX_STATES``."""
+    if not system.exact or system.n > EXACT_MAX_STATES:
+        return None
+    entries = [trig_form(e) for e in sp.Matrix(system.A)]
+    if all(e.is_Rational for e in entries):
+        return None
+    L = cyclotomic_order(entries)
+    if L is None:
+        return None
+    degree = int(sp.totient(L))
+    if degree <= CYCLOTOMIC_FIRST_DEGREE and not any(
+            e.has(sp.cos, sp.sin) for e in sp.Matrix(system.A)):
+        return None
+    return (f"entries are rational multiples of cos/sin of rational multiples of π, in the "
+            f"cyclotomic field Q(ζ_{L}) of degree {degree}: decided by certified enclosures "
+            "with exact rational-angle proofs, before any number-field algebra")
+
 
 def eigen_structure(system: System, force_numeric: bool = False,
                     tolerance: float | None = None) -> Structure:
@@ -1347,27 +135,61 @@ def eigen_structure(system: System, force_numeric: bool = False,
     """
     start = time.monotonic()
     if force_numeric:
-        return _numeric_structure(system, start, "numeric path requested", tolerance)
+        return numeric_structure(system, start, "numeric path requested", tolerance)
     if not system.exact and system.n > EXACT_MAX_STATES_BINARY_FLOAT:
         # binary floats (NumPy input) are rationals with 2^52 denominators: beyond small n the
         # exact algebra on them takes tens of seconds (measured: n = 4, 30–40 s)
-        return _numeric_structure(system, start, "numeric float64 path: binary floating-point "
+        return numeric_structure(system, start, "numeric float64 path: binary floating-point "
                                   f"input with n > {EXACT_MAX_STATES_BINARY_FLOAT}; decisions use "
                                   "the stated tolerances", tolerance)
+    first = _cyclotomic_first(system)
+    if first is not None:
+        try:
+            return certified_structure(system, start, first)
+        except (Fallback, NotImplementedError, sp.polys.polyerrors.BasePolynomialError,
+                ValueError, TypeError, ArithmeticError):
+            pass                               # the number-field algebra decides what is left
     try:
-        return _exact_structure(system, start)
-    except _Fallback as exc:
+        return exact_structure(system, start)
+    except Fallback as exc:
         prior = str(exc)
     except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,
             TypeError, ArithmeticError) as exc:  # sympy failed on the algebra: fall back, say why
         prior = f"exact algebra failed ({type(exc).__name__})"
     try:
-        return _certified_structure(system, start, prior)
-    except _Fallback as exc:
+        return certified_structure(system, start, f"the exact algebra could not run ({prior})")
+    except Fallback as exc:
         reason = f"{prior}; certified enclosures: {exc}"
     except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,
             TypeError, ArithmeticError) as exc:
         reason = f"{prior}; certified enclosures failed ({type(exc).__name__})"
-    return _numeric_structure(system, time.monotonic(),
+    return numeric_structure(system, time.monotonic(),
                               f"numeric float64 path: {reason}; decisions use the stated "
                               "tolerances", tolerance)
+
+
+def structure_of(system: System, tolerance: float | None = None) -> Structure:
+    """The eigen-structure of (A, C), computed afresh (no cache): compute it once per analysis
+    and pass it to :func:`kfcrit.theory.critical.critical_value` and the upper-bound code.
+
+    Parameters
+    ----------
+    system : System
+        The system.
+    tolerance : float, optional
+        Decision tolerance of the numeric path (``--tolerance``; default ``DEFAULT_TOLERANCE``);
+        the exact path does not depend on it.
+    """
+    return eigen_structure(system, tolerance=tolerance)
+
+
+def structure_at(structure: Structure, system: System, tolerance: float | None) -> Structure:
+    """``structure`` itself when it does not depend on ``tolerance`` (exact path, or the same
+    numeric tolerance), else the numeric path of ``system`` re-decided at ``tolerance`` (same path
+    reason). ``max(tolerance, NUMERIC_FLOOR)`` is the effective tolerance."""
+    if structure.path != "numeric" or tolerance is None:
+        return structure
+    want = max(float(tolerance), NUMERIC_FLOOR)
+    if structure.tolerances.get("modulus_relative") == want:
+        return structure
+    return numeric_structure(system, time.monotonic(), structure.path_reason, want)
