@@ -372,7 +372,7 @@ def float_up(x: Fraction) -> float:
     return f if Fraction(f) >= x else math.nextafter(f, math.inf)
 
 
-def _arb_exact(x: flint.arb) -> Fraction:
+def arb_exact(x: flint.arb) -> Fraction:
     """The exact value of an exact (zero-radius) arb as a Fraction."""
     man, exp = x.mid().man_exp()
     man, exp = int(man), int(exp)
@@ -413,7 +413,7 @@ def spectral_radius2_bounds(system: System) -> tuple[Fraction, Fraction] | None:
         m2 = z.real * z.real + z.imag * z.imag
         if not m2.is_finite():
             return None
-        a, b = _arb_exact(m2.lower()), _arb_exact(m2.upper())
+        a, b = arb_exact(m2.lower()), arb_exact(m2.upper())
         lo, hi = max(lo, max(a, Fraction(0))), max(hi, b)
     return lo, hi
 
