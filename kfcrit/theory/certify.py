@@ -424,3 +424,62 @@ def exact_product(M: np.ndarray, B: sp.MatrixBase) -> np.ndarray:
     float64 (no cancellation error from the float product)."""
     P = arb_from_float(M) * arb_from_sympy(B)
     return np.array([[float(e.mid()) for e in row] for row in P.tolist()])
+
+
+def arb_exact_number(x: sp.Expr | Fraction | int) -> flint.arb:
+    """A ball containing the exact number ``x`` (a point ball when ``x`` is rational)."""
+    if isinstance(x, Fraction | int):
+        return flint.arb(flint.fmpq(Fraction(x).numerator, Fraction(x).denominator))
+    return _arb_number(x)
+
+
+@_with_precision
+def verify_markov_jump(system: System, failure_rate: sp.Expr, recovery_rate: sp.Expr,
+                       X0: np.ndarray, X1: np.ndarray, K: np.ndarray) -> CheckResult:
+    r"""Prove mean-square stability of the Gilbert–Elliott fixed-gain error system, in balls.
+
+    With the chain state γ ∈ {0 (lost), 1 (received)}, T = [[1−r, r], [f, 1−f]]
+    (T_ij = P(next j | now i)), F_0 = A, F_1 = A + K C, the checked inequalities are
+
+    .. math::
+
+        X_i \succ 0,\qquad X_i - F_i' \Bigl(\sum_j T_{ij} X_j\Bigr) F_i \succ 0 \quad (i = 0, 1),
+
+    the coupled Lyapunov inequalities of the adjoint of the positive map
+    (Y_0, Y_1) ↦ (Σ_i T_i0 F_i Y_i F_i', Σ_i T_i1 F_i Y_i F_i'); they hold iff its spectral
+    radius is < 1 (a positive linear map on a cone with an interior point X ≻ M*(X)).
+    A, C, f, r are the exact numbers (rationals as point balls), X_0, X_1, K the floats as
+    given. The result's ``p`` is the stationary arrival probability r/(f + r).
+    """
+    kind = "markov: X_i > 0 and X_i - F_i' (sum_j T_ij X_j) F_i > 0, i = 0, 1"
+    # the check's p is the chain's stationary arrival probability r/(f + r) (for the record)
+    fr = sp.sympify(failure_rate) + sp.sympify(recovery_rate)
+    p_stat = float(sp.sympify(recovery_rate) / fr) if fr != 0 else 0.0
+    n, m = system.n, system.m
+    try:
+        A = arb_from_sympy(system.A)
+        C = arb_from_sympy(system.C)
+        f = arb_exact_number(failure_rate)
+        r = arb_exact_number(recovery_rate)
+        Xa = [arb_from_float(np.asarray(X, dtype=float)) for X in (X0, X1)]
+        Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, m))
+    except (ValueError, TypeError) as exc:
+        return CheckResult(False, kind, p_stat, None, None, f"bad certificate: {exc}")
+    if any(X.nrows() != n or X.ncols() != n for X in Xa):
+        return CheckResult(False, kind, p_stat, None, None, "bad shape")
+    one = flint.arb(1)
+    Xs = [(X + X.transpose()) * flint.arb(0.5) for X in Xa]
+    margins_x = [definite_margin(X) for X in Xs]
+    if any(mx is None for mx in margins_x):
+        return CheckResult(False, kind, p_stat, None, None,
+                           "X_0 or X_1 is not proven positive definite")
+    F = [A, A + Ka * C]
+    S = [(one - r) * Xs[0] + r * Xs[1], f * Xs[0] + (one - f) * Xs[1]]
+    margins = []
+    for i in (0, 1):
+        mm = definite_margin(Xs[i] - F[i].transpose() * S[i] * F[i])
+        if mm is None:
+            return CheckResult(False, kind, p_stat, min(margins_x), None,
+                               f"X_{i} - F_{i}' S_{i} F_{i} is not proven positive definite")
+        margins.append(mm)
+    return CheckResult(True, kind, p_stat, min(margins_x), min(margins), "proven")
