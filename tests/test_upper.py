@@ -665,3 +665,14 @@ def test_upper_bound_does_not_depend_on_call_order(tmp_path):
     assert given_st.lower_evidence.get("expression") == "2/3"
     d = upper_section(second, tol=1e-9, structure=st)
     assert d["interval"] == [lo, hi]
+
+
+def test_tiny_output_scale_does_not_bias_the_lower_end():
+    # A = 2·rotation(1), one output: p_up = 1 − 1/Π|λ_u|² = 1 − 1/16 = 15/16 (closed form);
+    # C = [[0, 2^-14]] makes C X C' ~ 4e-9 tr X, where the homogeneous regulariser once moved
+    # the (numerical) lower end 3.6e-7 above 15/16
+    th = 1.0
+    A = 2.0 * np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
+    ub = upper_bound(make(A, [[0.0, 2.0 ** -14]]), tol=1e-9)
+    lo, hi = ub.interval
+    assert ub.certified and lo <= 15 / 16 <= hi and hi - lo <= 1e-9 + 1e-15

@@ -60,6 +60,13 @@ OUTPUT_CONDITION_LIMIT = 1e4
 dependent rows) the methods work with the compressed output M C (see :func:`reduce_system`)."""
 
 
+OUTPUT_SCALE_FLOOR = 1e-2
+"""Scale rule for the reduced output: a least singular value of C Z_u below this is compressed
+too. The regulariser 1e-15·tr X added to C X C' is relative to tr X, so against C X C' ~ σ² tr X
+it biases the map by ~1e-15/σ² (seen: C = [[0, 6.1e-5]] moved the Newton root 3.6e-7 above
+p_up = 15/16 for A = 2·rotation(1))."""
+
+
 def reduce_system(system: System, tol: float = UNSTABLE_TOL) -> Reduced:
     """:func:`reduce_unstable` of (A, C), with the output compressed when C Z_u is
     ill-conditioned.
@@ -69,9 +76,10 @@ def reduce_system(system: System, tol: float = UNSTABLE_TOL) -> Reduced:
     regulariser (1e-15·tr X added to C X C') and by the LMI solver's tolerances, so an
     ill-conditioned output behaves as if it had fewer rows — the audit case A = [[0,−2],[2,0]],
     C = diag(1, 1e-12) gave a "determined" bracket around 0.9375 for p_up = 0.75.
-    Conditioning rule: when σ_max/σ_min of C Z_u exceeds ``OUTPUT_CONDITION_LIMIT``, or its
-    rows are dependent (numerical rank r < m by NumPy's rule σ_i > max(m, k)·eps·σ_max), the
-    methods use M C with M = diag(1/σ_1..1/σ_r) U_r' (then M C Z_u has orthonormal rows).
+    Conditioning rule: when σ_max/σ_min of C Z_u exceeds ``OUTPUT_CONDITION_LIMIT``, or σ_min
+    is below ``OUTPUT_SCALE_FLOOR``, or its rows are dependent (numerical rank r < m by NumPy's
+    rule σ_i > max(m, k)·eps·σ_max), the methods use M C with M = diag(1/σ_1..1/σ_r) U_r'
+    (then M C Z_u has orthonormal rows).
     M C is formed exactly in balls from the exact C and rounded once, and every certificate
     is checked with the gain K_w M on the exact C (:func:`kfcrit.theory.certify.verify_upper`,
     ``output_map``), so the compression never enters a proof.
@@ -85,7 +93,8 @@ def reduce_system(system: System, tol: float = UNSTABLE_TOL) -> Reduced:
     if sv.size == 0 or sv[0] == 0:
         return red
     r = int(np.sum(sv > max(m, k) * np.finfo(float).eps * sv[0]))
-    if r == m and sv[r - 1] * OUTPUT_CONDITION_LIMIT >= sv[0]:
+    well_scaled = sv[r - 1] >= OUTPUT_SCALE_FLOOR
+    if r == m and sv[r - 1] * OUTPUT_CONDITION_LIMIT >= sv[0] and well_scaled:
         return red
     M = (U[:, :r] / sv[:r]).T
     Cw = certify.exact_product(M, system.C)

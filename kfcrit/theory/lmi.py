@@ -189,8 +189,8 @@ class PsiProblem:
         feasible. Clarabel's INFEASIBLE status for it is *not* trusted (near the threshold it
         is wrong: random_system(20, 6, 0) gave "infeasible" at 0.4082897 > p_up): "infeasible"
         needs ``self.confirm(p)`` (:func:`~kfcrit.theory.upper_certs.cone_lower_check`), the cone
-        spectral radius r(p) ≥ 1 of the noise-free MARE map on the unstable block — proven in balls when
-        possible, else numerical — and is otherwise undetermined.
+        spectral radius r(p) ≥ 1 of the noise-free MARE map on the unstable block — proven in
+        balls when possible, else numerical — and is otherwise undetermined.
         """
         cp = self.cp
         t0 = time.perf_counter()

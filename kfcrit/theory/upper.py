@@ -49,8 +49,8 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.model.system import System
-from kfcrit.theory.cone import reduce_system
 from kfcrit.theory import lmi
+from kfcrit.theory.cone import reduce_system
 from kfcrit.theory.newton import newton_method
 from kfcrit.theory.plow import PLow, c_invertible, p_low_bounds, p_low_from_structure, p_low_of
 from kfcrit.theory.upper_certs import invariant_block_of
