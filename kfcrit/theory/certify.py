@@ -483,3 +483,106 @@ def verify_markov_jump(system: System, failure_rate: sp.Expr, recovery_rate: sp.
                                f"X_{i} - F_{i}' S_{i} F_{i} is not proven positive definite")
         margins.append(mm)
     return CheckResult(True, kind, p_stat, min(margins_x), min(margins), "proven")
+
+
+def _arb_trace(M: flint.arb_mat) -> flint.arb:
+    return sum((M[i, i] for i in range(M.nrows())), flint.arb(0))
+
+
+@_with_precision
+def verify_lyapunov_below(system: System, p: Fraction, S: np.ndarray,
+                          level: Fraction) -> CheckResult:
+    r"""Prove tr S̄(p) ≥ ``level`` from S with (1−p) A S A' + Q − S ≻ 0 and tr S ≥ level.
+
+    .. math::
+
+        \bar S - S = \sum_{k \ge 0} \mathcal L^k\bigl(Q + \mathcal L(S) - S\bigr) \succeq 0,
+        \qquad \mathcal L(X) = (1-p) A X A',
+
+    whenever S̄ exists (ρ(𝓛) < 1); otherwise E[P_t] is unbounded, which is stronger. A, Q, p
+    and ``level`` are exact, S the floats as given.
+    """
+    kind = "lyapunov: (1-p) A S A' + Q - S > 0 and tr S >= L, so tr S_bar(p) >= L"
+    try:
+        A, Q = arb_from_sympy(system.A), arb_from_sympy(system.Q)
+        Sa = arb_from_float(np.asarray(S, dtype=float))
+    except (ValueError, TypeError) as exc:
+        return CheckResult(False, kind, float(p), None, None, f"bad certificate: {exc}")
+    pa = arb_exact_number(Fraction(p))
+    Sa = (Sa + Sa.transpose()) * flint.arb(0.5)
+    mm = definite_margin((1 - pa) * (A * Sa * A.transpose()) + Q - Sa)
+    if mm is None:
+        return CheckResult(False, kind, float(p), None, None,
+                           "(1-p) A S A' + Q - S is not proven positive definite")
+    if not (_arb_trace(Sa) - arb_exact_number(Fraction(level))) >= 0:
+        return CheckResult(False, kind, float(p), None, mm, "tr S >= L not proven")
+    return CheckResult(True, kind, float(p), None, mm, "proven")
+
+
+@_with_precision
+def verify_mare_above(system: System, p: Fraction, V: np.ndarray, K: np.ndarray,
+                      level: Fraction) -> CheckResult:
+    r"""Prove tr V̄(p) ≤ ``level`` from (V, K) with V − φ(K, V) ≻ 0 and tr V ≤ level.
+
+    .. math::
+
+        \varphi(K, V) = (1-p)(A V A' + Q) + p\,(F V F' + Q + K R K') \succeq g_p(V),
+        \quad F = A + K C \quad\text{(Sinopoli Lemma 1(b))},
+
+    so the MARE iterates from 0 stay below V (g_p monotone): V̄(p) ⪯ V.
+    """
+    kind = "mare: V - phi(K, V) > 0 and tr V <= L, so tr V_bar(p) <= L"
+    n, m = system.n, system.m
+    try:
+        A, C = arb_from_sympy(system.A), arb_from_sympy(system.C)
+        Q, R = arb_from_sympy(system.Q), arb_from_sympy(system.R)
+        Va = arb_from_float(np.asarray(V, dtype=float))
+        Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, m))
+    except (ValueError, TypeError) as exc:
+        return CheckResult(False, kind, float(p), None, None, f"bad certificate: {exc}")
+    pa = arb_exact_number(Fraction(p))
+    Va = (Va + Va.transpose()) * flint.arb(0.5)
+    F = A + Ka * C
+    phi = (1 - pa) * (A * Va * A.transpose() + Q) + pa * (F * Va * F.transpose() + Q
+                                                         + Ka * R * Ka.transpose())
+    mm = definite_margin(Va - phi)
+    if mm is None:
+        return CheckResult(False, kind, float(p), None, None,
+                           "V - phi(K, V) is not proven positive definite")
+    if not (arb_exact_number(Fraction(level)) - _arb_trace(Va)) >= 0:
+        return CheckResult(False, kind, float(p), None, mm, "tr V <= L not proven")
+    return CheckResult(True, kind, float(p), None, mm, "proven")
+
+
+@_with_precision
+def riccati_floor_exceeds(system: System, level: Fraction,
+                          max_steps: int = 400) -> tuple[bool, int]:
+    r"""Prove tr P_∞ > ``level`` for the stabilising DARE solution P_∞ (the error with every
+    packet delivered) by the Riccati iterates from 0 in balls, which increase to P_∞:
+
+    .. math::
+
+        P_{k+1} = A P_k A' + Q - A P_k C' (C P_k C' + R)^{-1} C P_k A', \quad P_0 = 0 .
+
+    Returns (proven, steps). Since lim E[P_t] ⪰ P_∞ for every arrival probability, a proof
+    means the requirement lim E[tr P] ≤ level is out of reach.
+    """
+    A, C = arb_from_sympy(system.A), arb_from_sympy(system.C)
+    Q, R = arb_from_sympy(system.Q), arb_from_sympy(system.R)
+    L = arb_exact_number(Fraction(level))
+    P = flint.arb_mat(system.n, system.n)
+    for k in range(1, max_steps + 1):
+        AP = A * P
+        S = C * P * C.transpose() + R
+        try:
+            G = AP * C.transpose() * S.inv()
+        except (ZeroDivisionError, ValueError):
+            return False, k
+        P = AP * A.transpose() + Q - G * C * P * A.transpose()
+        P = (P + P.transpose()) * flint.arb(0.5)
+        tr = _arb_trace(P)
+        if not tr.is_finite():
+            return False, k
+        if tr > L:
+            return True, k
+    return False, max_steps
