@@ -250,7 +250,8 @@ def perron_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float, eps: f
 
 
 def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray,
-                     p: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     p: float, Ys: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Full-state certificate (Z, X_z, K_z) from a reduced one X_u ≻ L_{K_u,p}(X_u).
 
     The full-state certificate is X = Z X_z Z', K = Z K_z (formed exactly by the checker).
@@ -270,7 +271,7 @@ def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray
     else:
         Tss, Tus = red.T[k:, k:], red.T[:k, k:]
         Cs = C @ red.Z[:, k:]
-        Ys = sla.solve_discrete_lyapunov(Tss, np.eye(n - k))
+        Ys = stable_gramian(red) if Ys is None else Ys
         B = Tus + Ku @ Cs
         a = (1 - p) * Tus @ Ys @ Tus.T + p * B @ Ys @ B.T
         b = ((1 - p) * Tus + p * B) @ Ys @ Tss.T
@@ -283,6 +284,13 @@ def lift_certificate(red: Reduced, C: np.ndarray, Xu: np.ndarray, Ku: np.ndarray
         Kz = np.zeros((n, Ku.shape[1]))
         Kz[:k] = Ku
     return red.Z, symmetrize(Xz), Kz
+
+
+def stable_gramian(red: Reduced) -> np.ndarray:
+    """Y_s = T_ss Y_s T_ss' + I of the stable Schur block (the same for every lift of one
+    reduction: pass it to :func:`lift_certificate` when lifting many times)."""
+    k, n = red.k, red.T.shape[0]
+    return sla.solve_discrete_lyapunov(red.T[k:, k:], np.eye(n - k))
 
 
 MARGINAL_TOL = 1e-6
@@ -402,3 +410,32 @@ def balanced_reduction(red: Reduced, X: np.ndarray) -> tuple[Reduced, np.ndarray
     return Reduced(Tn, Zn, k, Tn[:k, :k], red.Cu @ Tb, red.Cw, red.M), Tb
 
 
+
+
+FLOAT_SCREEN_MARGIN = 1e-10
+"""Least equilibrated float64 margin of X − L_{K,p}(X) for a certificate to go to the ball check."""
+
+
+def float_upper_margin(system: System, p: float, Z: np.ndarray, Xz: np.ndarray,
+                       Kz: np.ndarray, output_map: np.ndarray | None = None) -> float:
+    r"""λ_min(D (X − L_{K,p}(X)) D) in float64, X = Z X_z Z', K = Z K_z (M), D = diag^{-1/2}:
+    a cheap screen before the ball check (−inf when X is not positive definite).
+
+    .. math::
+
+        X - (1-p) A X A' - p F X F', \qquad F = A + K C
+    """
+    A, C = system.a, system.c
+    X = symmetrize(Z @ Xz @ Z.T)
+    K = Z @ Kz if output_map is None else Z @ Kz @ output_map
+    F = A + K @ C
+    D = symmetrize(X - (1 - p) * A @ X @ A.T - p * F @ X @ F.T)
+    for M in (X, D):
+        d = np.diag(M)
+        if not (np.all(np.isfinite(M)) and np.all(d > 0)):
+            return float("-inf")
+    s = 1.0 / np.sqrt(np.diag(D))
+    sx = 1.0 / np.sqrt(np.diag(X))
+    if float(np.linalg.eigvalsh(sx[:, None] * X * sx[None, :]).min()) <= 0:
+        return float("-inf")
+    return float(np.linalg.eigvalsh(s[:, None] * D * s[None, :]).min())
