@@ -3,8 +3,9 @@
     python -m kfcrit.bench.bench_upper [--quick] [--reference-seconds S]
 
 Times ``upper_bound`` of ``../shared/bench/reference_lmi.py`` (cvxpy + Clarabel, bisection to
-width 1e-6) and ``kfcrit.theory.upper.upper_bound`` (default method) on ``random_system(n, m, seed)``
-from ``../shared/bench/systems.py``, and prints the brackets and the ratios. Targets (issue 9):
+width 1e-6) and ``kfcrit.theory.upper.upper_bound`` (default method) on
+``random_system(n, m, seed)`` from ``../shared/bench/systems.py``, and prints the brackets and
+the ratios. Targets (issue 9):
 (20, 6) ≥ 50× faster at width 1e-6; (50, 10) faster than the reference at (20, 6); width 1e-9
 reachable. ``--reference-seconds`` skips the (slow) reference run and uses a given time.
 For stable timings on a loaded machine run with OPENBLAS_NUM_THREADS=1 (applies to both).
@@ -30,8 +31,8 @@ def shared_bench() -> Path:
 def _ours(n: int, m: int, seed: int, tol: float, repeat: int):
     from systems import random_system
 
-    from kfcrit.theory import upper
     from kfcrit.model.system import System
+    from kfcrit.theory import upper
     from kfcrit.theory.upper import upper_bound
 
     A, C, Q, R = random_system(n, m, seed)
