@@ -676,3 +676,27 @@ def test_tiny_output_scale_does_not_bias_the_lower_end():
     ub = upper_bound(make(A, [[0.0, 2.0 ** -14]]), tol=1e-9)
     lo, hi = ub.interval
     assert ub.certified and lo <= 15 / 16 <= hi and hi - lo <= 1e-9 + 1e-15
+
+
+def test_power_bisection_checks_once_in_balls_and_defers_beyond_the_size_limit(monkeypatch):
+    # random_system(8, 2, 1) through the large-block path (NEWTON_MAX_REDUCED lowered): the
+    # bracket must contain the Newton path's certified p_up; with the ball check deferred the
+    # upper end is labelled numerical (not certified), never silently "proven"
+    from kfcrit.theory import newton, upper
+
+    s = System(*random_system(8, 2, 1))
+    upper.clear_memo()
+    ref = upper_bound(s, tol=1e-9)
+    assert ref.certified
+    monkeypatch.setattr(newton, "NEWTON_MAX_REDUCED", 1)
+    upper.clear_memo()
+    big = upper_bound(s, tol=1e-9, method="newton")
+    assert big.certified and big.solver["certificate_checks"] <= 3
+    assert big.interval[0] <= ref.interval[1] and ref.interval[0] <= big.interval[1]
+    monkeypatch.setattr(newton, "BALL_CHECK_MAX_STATES", 0)
+    upper.clear_memo()
+    deferred = upper_bound(s, tol=1e-9, method="newton")
+    assert not deferred.certified and deferred.status == "undetermined"
+    assert deferred.solver["certificate_checks"] == 0
+    assert any("deferred" in w for w in deferred.warnings)
+    upper.clear_memo()
