@@ -98,6 +98,7 @@ def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
     # "undetermined" with the bracket obtained so far [p_low, 1] — never exit 4, never a guess
     import numpy as np
 
+    import kfcrit.theory.newton as newton
     import kfcrit.theory.upper as upper
 
     def newton_fails(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
@@ -106,9 +107,9 @@ def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
     def lmi_fails(self, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
         raise cp.error.SolverError("injected solver failure")
 
-    monkeypatch.setattr(upper, "threshold_newton", newton_fails)
+    monkeypatch.setattr(newton, "threshold_newton", newton_fails)
     monkeypatch.setattr(cp.Problem, "solve", lmi_fails)
-    monkeypatch.setattr(upper, "_CACHE", {})
+    upper.clear_memo()
     p = tmp_path / "s.yaml"
     p.write_text("name: general\nA: [[1.25, 0], [1, 1.1]]\nC: [[1, 1]]\nQ: 20\nR: 2.5\n")
     r = CliRunner().invoke(main, ["analyze", str(p), "--json", "--no-simulate"])

@@ -165,13 +165,13 @@ def test_undetectable_is_undetermined_not_an_error():
 
 
 def test_upper_section_never_raises(monkeypatch):
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
 
     def boom(*_a, **_k):
         raise np.linalg.LinAlgError("singular matrix")
 
-    monkeypatch.setattr(upper, "_newton_method", boom)
-    monkeypatch.setattr(upper, "_CACHE", {})
+    monkeypatch.setattr(upper, "newton_method", boom)
+    upper.clear_memo()
     # C not square (the exact C-invertible case does not reach the Newton method)
     d = upper_section(make([[2.0, 0.0], [0.0, 0.5]], [[1.0, 1.0]]))
     assert d["status"] == "undetermined" and d["interval"] == [0.75, 1.0]
@@ -537,10 +537,10 @@ def _raise(exc):
                                  ZeroDivisionError("division by zero (injected)"),
                                  ValueError("array must not contain infs or NaNs (injected)")])
 def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
 
-    monkeypatch.setattr(upper, "_CACHE", {})
-    monkeypatch.setattr(upper, "threshold_newton", _raise(exc))
+    upper.clear_memo()
+    monkeypatch.setattr(newton, "threshold_newton", _raise(exc))
     s = System(*random_system(8, 2, 1))
     ub = upper_bound(s, tol=1e-9)
     assert ub.status == "undetermined" and not ub.certified and ub.value is None
@@ -550,16 +550,14 @@ def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
     assert any(type(exc).__name__ in w and "bracket" in w for w in ub.warnings)
     assert ub.solver["failure"] == type(exc).__name__
     json.dumps(ub.to_dict(), allow_nan=False)
-    assert not upper._CACHE                   # a failure is not memoised
-    monkeypatch.undo()
-    upper._CACHE.clear()
+    monkeypatch.undo()                        # a failure is not memoised:
     assert upper_bound(s, tol=1e-9).status == "determined"
 
 
 def test_numpy_solve_failure_is_undetermined(monkeypatch):
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
 
-    monkeypatch.setattr(upper, "_CACHE", {})
+    upper.clear_memo()
     monkeypatch.setattr(np.linalg, "solve", _raise(np.linalg.LinAlgError("Singular matrix")))
     ub = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]]))
     assert ub.status == "undetermined" and ub.interval[1] == 1.0
@@ -570,9 +568,9 @@ def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
     import cvxpy
 
     from kfcrit.theory import lmi
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
 
-    monkeypatch.setattr(upper, "_CACHE", {})
+    upper.clear_memo()
     monkeypatch.setattr(lmi, "lmi_upper_bound", _raise(cvxpy.error.SolverError("Clarabel")))
     ub = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]]), tol=1e-7, method="lmi")
     assert ub.status == "undetermined" and ub.method == "lmi"
@@ -580,10 +578,10 @@ def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
 
 
 def test_programming_errors_are_not_swallowed(monkeypatch):
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
 
-    monkeypatch.setattr(upper, "_CACHE", {})
-    monkeypatch.setattr(upper, "threshold_newton", _raise(TypeError("a bug")))
+    upper.clear_memo()
+    monkeypatch.setattr(newton, "threshold_newton", _raise(TypeError("a bug")))
     with pytest.raises(TypeError):
         upper_bound(System(*random_system(8, 2, 1)), tol=1e-9)
 
@@ -600,13 +598,13 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
     from click.testing import CliRunner
 
     import kfcrit
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
     from kfcrit.cli.main import main
 
     path = tmp_path / "no-channel.yaml"
     path.write_text(NO_CHANNEL)
-    monkeypatch.setattr(upper, "_CACHE", {})
-    monkeypatch.setattr(upper, "threshold_newton",
+    upper.clear_memo()
+    monkeypatch.setattr(newton, "threshold_newton",
                         _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
     rec = kfcrit.analyze(load_spec(path), simulate=False).to_dict()
     assert rec["upper_bound"]["status"] == "undetermined"
@@ -619,10 +617,10 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
 
 
 def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
-    from kfcrit.theory import upper
+    from kfcrit.theory import newton, upper
 
-    monkeypatch.setattr(upper, "_CACHE", {})
-    monkeypatch.setattr(upper, "threshold_newton",
+    upper.clear_memo()
+    monkeypatch.setattr(newton, "threshold_newton",
                         _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
     s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
     cb = bounds.covariance_bounds(s, 0.9)
@@ -631,3 +629,74 @@ def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
     assert len(pt["p"]) == len(pt["trace_upper"])
     sg = bounds.static_gain(s, 0.9)
     assert sg["best"] == {"available": False}
+
+
+SQRT3_SYSTEM = """name: exact sqrt(3)
+A: [["sqrt(3)", 1, 0], [0, "1/2", 0], [0, 0, "1/3"]]
+C: [[1, 1, 1]]
+Q: [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+R: [[1]]
+"""
+
+
+def _sqrt3_system(tmp_path, name):
+    path = tmp_path / name
+    path.write_text(SQRT3_SYSTEM)
+    return load_spec(path).system
+
+
+def test_upper_bound_does_not_depend_on_call_order(tmp_path):
+    # one unstable mode sqrt(3) seen by C: p_up = p_c = p_low = 1 - 1/3 = 2/3 (single mode)
+    from kfcrit.theory import critical, upper
+
+    first = _sqrt3_system(tmp_path, "a.yaml")
+    upper.clear_memo()
+    before = upper_bound(first, tol=1e-9)
+    second = _sqrt3_system(tmp_path, "b.yaml")
+    critical.critical_value(second)            # runs (and memoises) the structure analysis
+    upper.clear_memo()
+    after = upper_bound(second, tol=1e-9)
+    assert after.interval == before.interval and after.lower_evidence == before.lower_evidence
+    # the structure passed explicitly: the exact p_low 2/3 is enclosed by the interval
+    st = critical.structure_of(second, 1e-9)
+    given_st = upper_bound(second, tol=1e-9, structure=st)
+    lo, hi = given_st.interval
+    assert Fraction(lo) <= Fraction(2, 3) <= Fraction(hi) and hi - lo <= 1e-9
+    assert given_st.lower_evidence.get("expression") == "2/3"
+    d = upper_section(second, tol=1e-9, structure=st)
+    assert d["interval"] == [lo, hi]
+
+
+def test_tiny_output_scale_does_not_bias_the_lower_end():
+    # A = 2·rotation(1), one output: p_up = 1 − 1/Π|λ_u|² = 1 − 1/16 = 15/16 (closed form);
+    # C = [[0, 2^-14]] makes C X C' ~ 4e-9 tr X, where the homogeneous regulariser once moved
+    # the (numerical) lower end 3.6e-7 above 15/16
+    th = 1.0
+    A = 2.0 * np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
+    ub = upper_bound(make(A, [[0.0, 2.0 ** -14]]), tol=1e-9)
+    lo, hi = ub.interval
+    assert ub.certified and lo <= 15 / 16 <= hi and hi - lo <= 1e-9 + 1e-15
+
+
+def test_power_bisection_checks_once_in_balls_and_defers_beyond_the_size_limit(monkeypatch):
+    # random_system(8, 2, 1) through the large-block path (NEWTON_MAX_REDUCED lowered): the
+    # bracket must contain the Newton path's certified p_up; with the ball check deferred the
+    # upper end is labelled numerical (not certified), never silently "proven"
+    from kfcrit.theory import newton, upper
+
+    s = System(*random_system(8, 2, 1))
+    upper.clear_memo()
+    ref = upper_bound(s, tol=1e-9)
+    assert ref.certified
+    monkeypatch.setattr(newton, "NEWTON_MAX_REDUCED", 1)
+    upper.clear_memo()
+    big = upper_bound(s, tol=1e-9, method="newton")
+    assert big.certified and big.solver["certificate_checks"] <= 3
+    assert big.interval[0] <= ref.interval[1] and ref.interval[0] <= big.interval[1]
+    monkeypatch.setattr(newton, "BALL_CHECK_MAX_STATES", 0)
+    upper.clear_memo()
+    deferred = upper_bound(s, tol=1e-9, method="newton")
+    assert not deferred.certified and deferred.status == "undetermined"
+    assert deferred.solver["certificate_checks"] == 0
+    assert any("deferred" in w for w in deferred.warnings)
+    upper.clear_memo()

@@ -25,8 +25,10 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from kfcrit.theory.riccati import g, optimal_gain, solve_generalized_stein, stein_matrix, symmetrize
 from kfcrit.model.system import System
+from kfcrit.theory import plow
+from kfcrit.theory import upper as upper_module
+from kfcrit.theory.riccati import g, optimal_gain, solve_generalized_stein, stein_matrix, symmetrize
 
 NEWTON_MAX_STATES = 60
 """Newton–Kleinman (a dense solve in n(n+1)/2 unknowns) is used up to this state dimension."""
@@ -47,7 +49,7 @@ def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
     return None if M is None else [[float(v) for v in row] for row in M]
 
 
-def _summary(M: np.ndarray | None) -> dict[str, Any]:
+def covariance_summary(M: np.ndarray | None) -> dict[str, Any]:
     if M is None:
         return {"exists": False, "trace": None, "max_eig": None, "matrix": None}
     with np.errstate(all="ignore"):
@@ -235,23 +237,21 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
         bounds exist (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9 ‖V̄‖), None otherwise. ``residual``
         is the relative MARE residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
     """
-    from kfcrit.theory.upper import upper_bound
-
     p = float(p)
     S = lower_covariance(system.a, system.q, p)
     if upper is None:
-        ub = upper_bound(system)
+        ub = upper_module.upper_bound(system)
         lo_up, gains = ub.interval[0], ([ub.extras["K"]] if "K" in ub.extras else [])
     else:
         lo_up, gains = float(upper["interval"][0]), []
     if p <= lo_up:
-        out_up = {**_summary(None), "residual": None, "method": "none: p <= p_up (Thm 3)",
+        out_up = {**covariance_summary(None), "residual": None, "method": "none: p <= p_up (Thm 3)",
                   "iterations": 0}
         V = None
     else:
         res = upper_covariance(system, p, gains)
         V = res["V"]
-        out_up = {**_summary(V), "residual": res["residual"], "method": res["method"],
+        out_up = {**covariance_summary(V), "residual": res["residual"], "method": res["method"],
                   "iterations": res["iterations"]}
         if V is None:
             out_up["not_reached"] = True
@@ -263,7 +263,7 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
             if np.isfinite(scale) and scale > 0:
                 ordered = bool(np.linalg.eigvalsh((V - S) / scale).min()
                                >= -1e-9 * np.linalg.norm(V / scale))
-    low = _summary(S)
+    low = covariance_summary(S)
     for name, summ in (("S̄ (lower bound)", low), ("V̄ (upper bound)", out_up)):
         if summ.get("beyond_float64"):
             warnings.append(f"covariance bound {name} at p = {p:.6g}: its trace or largest "
@@ -347,13 +347,11 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     V̄ curve stops after ``time_budget`` seconds (:data:`PHASE_TIME_BUDGET`); both are stated
     in ``warnings`` and ``limits``.
     """
-    from kfcrit.theory.upper import p_low_of, upper_bound
-
     budget = PHASE_TIME_BUDGET if time_budget is None else float(time_budget)
     markers = dict(markers or {})
     p_low = markers.get("p_low")
-    p_low = p_low_of(system.a) if p_low is None else float(p_low)
-    ub = upper_bound(system)
+    p_low = plow.p_low_of(system.a) if p_low is None else float(p_low)
+    ub = upper_module.upper_bound(system)
     p_up = markers.get("p_up")
     p_up = (ub.value if p_up is None else float(p_up))
     lo_up = ub.interval[0] if ub.value is not None else 1.0
@@ -467,11 +465,9 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
 
     * steady Kalman gain K_∞ = −A P C'(C P C' + R)^{-1}, P the stabilising DARE solution (the
       filter with no losses); its critical value p_{K_∞} ≥ p_up, covariance Σ_∞(p) if p > p_{K_∞}.
-    * best static gain: the gain K* of the p_up certificate (:mod:`kfcrit.theory.upper`); its critical
-      value equals p_up to within the certificate's width — shown by ``difference``.
+    * best static gain: the gain K* of the p_up certificate (:mod:`kfcrit.theory.upper`); its
+      critical value equals p_up to within the certificate's width — shown by ``difference``.
     """
-    from kfcrit.theory.upper import upper_bound
-
     A, C, Q, R = system.a, system.c, system.q, system.r
     p = float(p)
     out: dict[str, Any] = {"p": p}
@@ -491,7 +487,7 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
         K_kf = optimal_gain(A, C, R, P) if np.all(np.isfinite(P)) else None
     except (np.linalg.LinAlgError, ValueError):
         K_kf = None
-    ub = upper_bound(system)
+    ub = upper_module.upper_bound(system)
     rows = [("kalman", K_kf)]
     rows.append(("best", ub.extras.get("K")))
     for name, K in rows:
@@ -501,7 +497,7 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
         crit = ms_critical_value(A, C, K)
         Sigma = stabilising_solution(A, C, Q, R, K, p)
         entry = {"available": True, **crit, **{f"covariance_{k}": v for k, v in
-                                              _summary(Sigma).items()}}
+                                              covariance_summary(Sigma).items()}}
         if system.n <= 6:
             entry["gain"] = _matrix(K)
         out[name] = entry
@@ -513,3 +509,7 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
         best["equals_p_up"] = bool(ub.interval[0] - 1e-9 <= best["critical_value"]
                                    <= ub.interval[1] + 1e-9)
     return out
+
+
+_summary = covariance_summary
+"""Alias kept until :mod:`kfcrit.analysis.record` calls :func:`covariance_summary`."""

@@ -372,7 +372,7 @@ def float_up(x: Fraction) -> float:
     return f if Fraction(f) >= x else math.nextafter(f, math.inf)
 
 
-def _arb_exact(x: flint.arb) -> Fraction:
+def arb_exact(x: flint.arb) -> Fraction:
     """The exact value of an exact (zero-radius) arb as a Fraction."""
     man, exp = x.mid().man_exp()
     man, exp = int(man), int(exp)
@@ -413,7 +413,7 @@ def spectral_radius2_bounds(system: System) -> tuple[Fraction, Fraction] | None:
         m2 = z.real * z.real + z.imag * z.imag
         if not m2.is_finite():
             return None
-        a, b = _arb_exact(m2.lower()), _arb_exact(m2.upper())
+        a, b = arb_exact(m2.lower()), arb_exact(m2.upper())
         lo, hi = max(lo, max(a, Fraction(0))), max(hi, b)
     return lo, hi
 
@@ -424,3 +424,165 @@ def exact_product(M: np.ndarray, B: sp.MatrixBase) -> np.ndarray:
     float64 (no cancellation error from the float product)."""
     P = arb_from_float(M) * arb_from_sympy(B)
     return np.array([[float(e.mid()) for e in row] for row in P.tolist()])
+
+
+def arb_exact_number(x: sp.Expr | Fraction | int) -> flint.arb:
+    """A ball containing the exact number ``x`` (a point ball when ``x`` is rational)."""
+    if isinstance(x, Fraction | int):
+        return flint.arb(flint.fmpq(Fraction(x).numerator, Fraction(x).denominator))
+    return _arb_number(x)
+
+
+@_with_precision
+def verify_markov_jump(system: System, failure_rate: sp.Expr, recovery_rate: sp.Expr,
+                       X0: np.ndarray, X1: np.ndarray, K: np.ndarray) -> CheckResult:
+    r"""Prove mean-square stability of the Gilbert–Elliott fixed-gain error system, in balls.
+
+    With the chain state γ ∈ {0 (lost), 1 (received)}, T = [[1−r, r], [f, 1−f]]
+    (T_ij = P(next j | now i)), F_0 = A, F_1 = A + K C, the checked inequalities are
+
+    .. math::
+
+        X_i \succ 0,\qquad X_i - F_i' \Bigl(\sum_j T_{ij} X_j\Bigr) F_i \succ 0 \quad (i = 0, 1),
+
+    the coupled Lyapunov inequalities of the adjoint of the positive map
+    (Y_0, Y_1) ↦ (Σ_i T_i0 F_i Y_i F_i', Σ_i T_i1 F_i Y_i F_i'); they hold iff its spectral
+    radius is < 1 (a positive linear map on a cone with an interior point X ≻ M*(X)).
+    A, C, f, r are the exact numbers (rationals as point balls), X_0, X_1, K the floats as
+    given. The result's ``p`` is the stationary arrival probability r/(f + r).
+    """
+    kind = "markov: X_i > 0 and X_i - F_i' (sum_j T_ij X_j) F_i > 0, i = 0, 1"
+    # the check's p is the chain's stationary arrival probability r/(f + r) (for the record)
+    fr = sp.sympify(failure_rate) + sp.sympify(recovery_rate)
+    p_stat = float(sp.sympify(recovery_rate) / fr) if fr != 0 else 0.0
+    n, m = system.n, system.m
+    try:
+        A = arb_from_sympy(system.A)
+        C = arb_from_sympy(system.C)
+        f = arb_exact_number(failure_rate)
+        r = arb_exact_number(recovery_rate)
+        Xa = [arb_from_float(np.asarray(X, dtype=float)) for X in (X0, X1)]
+        Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, m))
+    except (ValueError, TypeError) as exc:
+        return CheckResult(False, kind, p_stat, None, None, f"bad certificate: {exc}")
+    if any(X.nrows() != n or X.ncols() != n for X in Xa):
+        return CheckResult(False, kind, p_stat, None, None, "bad shape")
+    one = flint.arb(1)
+    Xs = [(X + X.transpose()) * flint.arb(0.5) for X in Xa]
+    margins_x = [definite_margin(X) for X in Xs]
+    if any(mx is None for mx in margins_x):
+        return CheckResult(False, kind, p_stat, None, None,
+                           "X_0 or X_1 is not proven positive definite")
+    F = [A, A + Ka * C]
+    S = [(one - r) * Xs[0] + r * Xs[1], f * Xs[0] + (one - f) * Xs[1]]
+    margins = []
+    for i in (0, 1):
+        mm = definite_margin(Xs[i] - F[i].transpose() * S[i] * F[i])
+        if mm is None:
+            return CheckResult(False, kind, p_stat, min(margins_x), None,
+                               f"X_{i} - F_{i}' S_{i} F_{i} is not proven positive definite")
+        margins.append(mm)
+    return CheckResult(True, kind, p_stat, min(margins_x), min(margins), "proven")
+
+
+def _arb_trace(M: flint.arb_mat) -> flint.arb:
+    return sum((M[i, i] for i in range(M.nrows())), flint.arb(0))
+
+
+@_with_precision
+def verify_lyapunov_below(system: System, p: Fraction, S: np.ndarray,
+                          level: Fraction) -> CheckResult:
+    r"""Prove tr S̄(p) ≥ ``level`` from S with (1−p) A S A' + Q − S ≻ 0 and tr S ≥ level.
+
+    .. math::
+
+        \bar S - S = \sum_{k \ge 0} \mathcal L^k\bigl(Q + \mathcal L(S) - S\bigr) \succeq 0,
+        \qquad \mathcal L(X) = (1-p) A X A',
+
+    whenever S̄ exists (ρ(𝓛) < 1); otherwise E[P_t] is unbounded, which is stronger. A, Q, p
+    and ``level`` are exact, S the floats as given.
+    """
+    kind = "lyapunov: (1-p) A S A' + Q - S > 0 and tr S >= L, so tr S_bar(p) >= L"
+    try:
+        A, Q = arb_from_sympy(system.A), arb_from_sympy(system.Q)
+        Sa = arb_from_float(np.asarray(S, dtype=float))
+    except (ValueError, TypeError) as exc:
+        return CheckResult(False, kind, float(p), None, None, f"bad certificate: {exc}")
+    pa = arb_exact_number(Fraction(p))
+    Sa = (Sa + Sa.transpose()) * flint.arb(0.5)
+    mm = definite_margin((1 - pa) * (A * Sa * A.transpose()) + Q - Sa)
+    if mm is None:
+        return CheckResult(False, kind, float(p), None, None,
+                           "(1-p) A S A' + Q - S is not proven positive definite")
+    if not (_arb_trace(Sa) - arb_exact_number(Fraction(level))) >= 0:
+        return CheckResult(False, kind, float(p), None, mm, "tr S >= L not proven")
+    return CheckResult(True, kind, float(p), None, mm, "proven")
+
+
+@_with_precision
+def verify_mare_above(system: System, p: Fraction, V: np.ndarray, K: np.ndarray,
+                      level: Fraction) -> CheckResult:
+    r"""Prove tr V̄(p) ≤ ``level`` from (V, K) with V − φ(K, V) ≻ 0 and tr V ≤ level.
+
+    .. math::
+
+        \varphi(K, V) = (1-p)(A V A' + Q) + p\,(F V F' + Q + K R K') \succeq g_p(V),
+        \quad F = A + K C \quad\text{(Sinopoli Lemma 1(b))},
+
+    so the MARE iterates from 0 stay below V (g_p monotone): V̄(p) ⪯ V.
+    """
+    kind = "mare: V - phi(K, V) > 0 and tr V <= L, so tr V_bar(p) <= L"
+    n, m = system.n, system.m
+    try:
+        A, C = arb_from_sympy(system.A), arb_from_sympy(system.C)
+        Q, R = arb_from_sympy(system.Q), arb_from_sympy(system.R)
+        Va = arb_from_float(np.asarray(V, dtype=float))
+        Ka = arb_from_float(np.asarray(K, dtype=float).reshape(n, m))
+    except (ValueError, TypeError) as exc:
+        return CheckResult(False, kind, float(p), None, None, f"bad certificate: {exc}")
+    pa = arb_exact_number(Fraction(p))
+    Va = (Va + Va.transpose()) * flint.arb(0.5)
+    F = A + Ka * C
+    phi = (1 - pa) * (A * Va * A.transpose() + Q) + pa * (F * Va * F.transpose() + Q
+                                                         + Ka * R * Ka.transpose())
+    mm = definite_margin(Va - phi)
+    if mm is None:
+        return CheckResult(False, kind, float(p), None, None,
+                           "V - phi(K, V) is not proven positive definite")
+    if not (arb_exact_number(Fraction(level)) - _arb_trace(Va)) >= 0:
+        return CheckResult(False, kind, float(p), None, mm, "tr V <= L not proven")
+    return CheckResult(True, kind, float(p), None, mm, "proven")
+
+
+@_with_precision
+def riccati_floor_exceeds(system: System, level: Fraction,
+                          max_steps: int = 400) -> tuple[bool, int]:
+    r"""Prove tr P_∞ > ``level`` for the stabilising DARE solution P_∞ (the error with every
+    packet delivered) by the Riccati iterates from 0 in balls, which increase to P_∞:
+
+    .. math::
+
+        P_{k+1} = A P_k A' + Q - A P_k C' (C P_k C' + R)^{-1} C P_k A', \quad P_0 = 0 .
+
+    Returns (proven, steps). Since lim E[P_t] ⪰ P_∞ for every arrival probability, a proof
+    means the requirement lim E[tr P] ≤ level is out of reach.
+    """
+    A, C = arb_from_sympy(system.A), arb_from_sympy(system.C)
+    Q, R = arb_from_sympy(system.Q), arb_from_sympy(system.R)
+    L = arb_exact_number(Fraction(level))
+    P = flint.arb_mat(system.n, system.n)
+    for k in range(1, max_steps + 1):
+        AP = A * P
+        S = C * P * C.transpose() + R
+        try:
+            G = AP * C.transpose() * S.inv()
+        except (ZeroDivisionError, ValueError):
+            return False, k
+        P = AP * A.transpose() + Q - G * C * P * A.transpose()
+        P = (P + P.transpose()) * flint.arb(0.5)
+        tr = _arb_trace(P)
+        if not tr.is_finite():
+            return False, k
+        if tr > L:
+            return True, k
+    return False, max_steps

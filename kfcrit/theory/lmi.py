@@ -22,7 +22,8 @@ Each solve is classified, never guessed:
   *and* X = T Y^{-1} T, K = T Y^{-1} Z pass :func:`kfcrit.theory.certify.verify_upper` (balls);
 * infeasible — status optimal and t* ≤ ``INFEASIBLE_MARGIN``, *and independently confirmed*:
   the cone spectral radius r(p) of the noise-free MARE map on the unstable block is ≥ 1
-  (power iteration + Newton, :func:`kfcrit.theory.upper.cone_lower_check`); the confirmation is a proof
+  (power iteration + Newton, :func:`~kfcrit.theory.upper_certs.cone_lower_check`); the
+  confirmation is a proof
   when X_u ≻ 0 with G_p(X_u) ≻ X_u passes in balls on an exactly invariant subspace, else it is
   labelled numerical. Clarabel's INFEASIBLE status for the unit form Ψ_p ⪰ I is recorded but
   never trusted alone (measured: it is wrong near the threshold, see below);
@@ -47,8 +48,20 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from kfcrit.theory import certify
 from kfcrit.model.system import System
+from kfcrit.theory import certify
+from kfcrit.theory.cone import lift_certificate, reduce_system
+from kfcrit.theory.newton import newton_method
+from kfcrit.theory.plow import p_low_of
+from kfcrit.theory.upper_certs import cone_lower_check
+from kfcrit.theory.upper_record import (
+    RECORD_MATRIX_MAX,
+    UpperBound,
+    certificate_summary,
+    compression_note,
+    evidence_p_low,
+    matrix_list,
+)
 
 INFEASIBLE_MARGIN = 1e-10
 """Optimal margins t* at or below this are read as t* = 0 (infeasible, numerically)."""
@@ -93,8 +106,8 @@ class PsiProblem:
         self.solves = 0
         self.seconds = 0.0
         self.confirm = None
-        """``confirm(p)`` → :func:`kfcrit.theory.upper.cone_lower_check`-style dict (set by the caller);
-        without it a margin t* ≈ 0 is never read as infeasible."""
+        """``confirm(p)`` → a :func:`~kfcrit.theory.upper_certs.cone_lower_check`-style dict (set
+        by the caller); without it a margin t* ≈ 0 is never read as infeasible."""
 
     def _gain(self, K: np.ndarray) -> np.ndarray:
         """The gain for the original C (rounded copy K M when the output is compressed)."""
@@ -175,9 +188,9 @@ class PsiProblem:
         First the unit form Ψ_p ⪰ I is solved: a solution that passes the ball check makes p
         feasible. Clarabel's INFEASIBLE status for it is *not* trusted (near the threshold it
         is wrong: random_system(20, 6, 0) gave "infeasible" at 0.4082897 > p_up): "infeasible"
-        needs ``self.confirm(p)`` (:func:`kfcrit.theory.upper.cone_lower_check`), the cone spectral
-        radius r(p) ≥ 1 of the noise-free MARE map on the unstable block — proven in balls when
-        possible, else numerical — and is otherwise undetermined.
+        needs ``self.confirm(p)`` (:func:`~kfcrit.theory.upper_certs.cone_lower_check`), the cone
+        spectral radius r(p) ≥ 1 of the noise-free MARE map on the unstable block — proven in
+        balls when possible, else numerical — and is otherwise undetermined.
         """
         cp = self.cp
         t0 = time.perf_counter()
@@ -225,27 +238,14 @@ class PsiProblem:
 def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
     """Bisection on p over the margin LMI from [p_low, 1] to width ``tol`` (stops if undetermined).
 
-    Returns an :class:`kfcrit.theory.upper.UpperBound` with method "lmi".
+    Returns an :class:`kfcrit.theory.upper_record.UpperBound` with method "lmi".
     """
-    from kfcrit.theory.upper import (
-        UpperBound,
-        _certificate_summary,
-        _compression_note,
-        _evidence_p_low,
-        _matrix_list,
-        cone_lower_check,
-        lift_certificate,
-        p_low_of,
-        reduce_system,
-    )
-
     t0 = time.perf_counter()
     A, C = system.a, system.c
     p_low = p_low_of(A)
     red = reduce_system(system)      # output compressed when C Z_u is ill-conditioned
     if red.k == 0:
-        from kfcrit.theory.upper import _newton_method
-        return _newton_method(system, tol)
+        return newton_method(system, tol)
 
     def lift(Xu, Ku, p):
         return lift_certificate(red, C, Xu, Ku, p)
@@ -253,9 +253,10 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
     problem = PsiProblem(red.Au, red.Cu, red.M)
     warm: dict[str, Any] = {"X": None}
     cone_stats: dict[str, Any] = {}
+    block_memo: dict[str, Any] = {}
 
     def confirm(p):
-        conf = cone_lower_check(system, red, p, warm["X"], cone_stats)
+        conf = cone_lower_check(system, red, p, warm["X"], cone_stats, block_memo)
         if conf["X"] is not None and conf["numerical"]:
             warm["X"] = conf["X"]
         return conf
@@ -289,20 +290,20 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
               "reduced_states": red.k,
               "balancing": "diagonal similarity (scipy matrix_balance) of the unstable block"}
     if red.M is not None:
-        solver["output_compression"] = _compression_note(red)
+        solver["output_compression"] = compression_note(red)
     if cone_stats:
         solver["cone_checks"] = cone_stats
     cert = None
     if best is not None:
         check = best["check"]
-        cert = _certificate_summary(
+        cert = certificate_summary(
             system, check, best["X"], best["K"],
             "LMI solution (Y, Z) of the balanced unstable block, X_u = D Y^-1 D, "
             "K_u = D Y^-1 Z, lifted to the full state",
             (best["basis"], best["X_basis"], best["K_basis"]), red.M)
         cert["lmi_margin"] = best["margin"]
     if last_infeasible is None:
-        lower = _evidence_p_low(p_low)
+        lower = evidence_p_low(p_low)
     else:
         conf = last_infeasible["confirmation"]
         proven = last_infeasible["evidence"] == "certificate"
@@ -320,9 +321,9 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
                  "p_low_theorem": p_low}
         if proven:
             lower["check"] = conf["check"].to_dict()
-            if system.n <= 60:
-                lower["X_u"] = _matrix_list(conf["X"])
-                lower["basis"] = _matrix_list(red.Z)
+            if system.n <= RECORD_MATRIX_MAX:
+                lower["X_u"] = matrix_list(conf["X"])
+                lower["basis"] = matrix_list(red.Z)
                 lower["reduced_states"] = red.k
     ends = ("upper end proven (ball-checked certificate)" if best is not None else
             "upper end not proven (no verified feasible point)")
