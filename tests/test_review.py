@@ -65,15 +65,18 @@ def test_decisions_and_exit_codes(case: str, tmp_path: Path) -> None:
     assert got_code == code
 
 
-def test_accuracy_requirement_below_the_lyapunov_bound_fails(tmp_path: Path) -> None:
-    # p = 0.8: S̄ = q / (1 − (1 − p) a²) = 1 / (1 − 0.2 · 25/16) = 16/11 ≈ 1.4545 > L = 1
+def test_accuracy_requirement_below_the_no_loss_floor_fails(tmp_path: Path) -> None:
+    # even with every packet delivered the prediction covariance is the DARE solution
+    # P* = (77 + √16169)/64 ≈ 3.190 (Kar–Sinopoli–Moura's example constant) > L = 3: impossible
     path = write(tmp_path, "acc", SCALAR.format(name="acc") +
                  "channel: {model: bernoulli, arrival_probability: 0.8}\n"
-                 "requirements: {max_mean_error_trace: 1}\n")
+                 "requirements: {max_mean_error_trace: 3}\n")
     code, rec = run(path, "--no-simulate")
     item = rec["requirements"]["assessments"][0]
-    assert item["status"] == "not met" and "16" not in item["requirement"]
-    assert item["interval"][0] == pytest.approx(16 / 11, rel=1e-9)
+    req = rec["design"]["required_arrival_probability"]
+    assert req["status"] == "impossible"
+    assert req["floor_trace"] == pytest.approx((77 + 16169 ** 0.5) / 64, rel=1e-9)
+    assert item["status"] == "not met"
     assert rec["review"]["decision"] == "fail" and code == 5
 
 
@@ -99,3 +102,18 @@ def test_no_channel_has_nothing_to_fail(tmp_path: Path) -> None:
     assert rec["review"]["decision"] == "pass"
     assert rec["review"]["reasons"][0]["status"] == "not applicable"
     assert code == 0
+
+
+def test_required_arrival_interval_in_the_record(tmp_path: Path) -> None:
+    """L = 10 for a = −5/4, q = 1, r = 5/2 (MATH §11): tr S̄(p_S) = L gives
+    1/(1 − (1 − p)·25/16) = 10 ⇒ p_S = 1 − 0.9·16/25 = 0.424; tr V̄(p_V) = L with the scalar
+    MARE v = a²v + q − p a² v²/(v + r) ⇒ p_V = (a²v + q − v)(v + r)/(a² v²) = 0.53."""
+    path = write(tmp_path, "design", SCALAR.format(name="design") +
+                 "channel: {model: bernoulli, arrival_probability: 0.8}\n"
+                 "requirements: {max_mean_error_trace: 10}\n")
+    code, rec = run(path, "--no-simulate")
+    req = rec["design"]["required_arrival_probability"]
+    assert req["status"] == "interval"
+    p_s, p_v = req["interval"]
+    assert p_s == pytest.approx(0.424, abs=1e-6) and p_v == pytest.approx(0.53, abs=1e-6)
+    assert rec["review"]["decision"] == "pass" and code == 0    # p = 0.8 ≥ p_V

@@ -71,6 +71,8 @@ class TheorySections:
     warnings: tuple[str, ...]
     critical_exact: Any = None
     p_low_exact: Any = None
+    structure: Any = None
+    """The eigen-structure (:func:`kfcrit.theory.structure.structure_of`) the sections used."""
 
 
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
@@ -149,8 +151,10 @@ def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInput
         basis = (f"Gilbert–Elliott condition {cond.get('expression')} = {cond.get('value'):.6g} "
                  f"< 1 ({cond.get('status')})")
     cert = (link or {}).get("certificate")
-    if sufficient is None and isinstance(cert, dict) and cert.get("certified") is True:
-        sufficient, basis = True, cert.get("statement") or "coupled fixed-gain certificate"
+    if sufficient is None and isinstance(cert, dict) and cert.get("verdict") == "mean-stable":
+        sufficient, basis = True, cert.get("basis") or "coupled fixed-gain certificate"
+    elif sufficient is None and isinstance(cert, dict) and cert.get("basis"):
+        basis = cert["basis"]
     elif sufficient is None and cond.get("status"):
         basis = f"the condition {cond.get('expression')} is labelled: {cond.get('status')}"
     return vd.BurstInputs(recovery=ge.recovery_rate, failure=ge.failure_rate,
@@ -217,9 +221,11 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     enter Ψ_p, MATH §3), so a sweep over noise parameters computes it once.
     """
     from kfcrit.theory import critical, upper
+    from kfcrit.theory.structure import structure_of
 
     opts = options or AnalysisOptions()
-    crit = critical.critical_value(system, opts.tolerance, channel=channel)
+    structure = structure_of(system, opts.tolerance)
+    crit = critical.critical_value(system, opts.tolerance, channel=channel, structure=structure)
     d = crit.to_dict()
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])
@@ -227,7 +233,7 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
         sec["upper_bound"] = not_detectable_upper()
     else:
         ub = upper_bound if upper_bound is not None else upper.upper_section(
-            system, tol=opts.upper_tol)
+            system, tol=opts.upper_tol, structure=structure)
         sec["upper_bound"] = ub
         warnings.extend(ub.get("warnings") or [])
     close_bracket(sec)
@@ -235,7 +241,7 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     lower = getattr(crit, "lower", None)
     return TheorySections(sections=sec, warnings=tuple(warnings),
                           critical_exact=getattr(value, "expr", None),
-                          p_low_exact=getattr(lower, "expr", None))
+                          p_low_exact=getattr(lower, "expr", None), structure=structure)
 
 
 def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
@@ -273,9 +279,11 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sec["system"] = system_section(spec)
     warnings: list[str] = conditioning_warnings(s) + list(theory.warnings)
 
-    _link_sections(spec, opts, sec, warnings)
+    _link_sections(spec, opts, sec, warnings, theory)
     sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     reqs = spec.requirements
+    _design_sections(spec, theory, sec, warnings)
+    _tail_section(spec, theory, sec)
     if opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
         _bounds_sections(spec, sec, warnings, curves=opts.details)
     tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
@@ -284,7 +292,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sec["requirements"] = requirement_assessment(reqs.to_dict() if reqs else None,
                                                  sec.get("simulation"),
                                                  sec.get("covariance_bounds"),
-                                                 sec.get("operating_point"))
+                                                 sec.get("operating_point"), sec.get("design"))
     sec["verification"] = verification(sec, warnings)
     op = sec.get("operating_point") or {}
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
@@ -362,8 +370,8 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
         if p is not None:
             S = bounds.lower_covariance(s.a, s.q, p)
             sec["covariance_bounds"] = {
-                "p": p, "lower": bounds._summary(S),
-                "upper": {**bounds._summary(None), "residual": None, "method": NOT_DETECTABLE,
+                "p": p, "lower": bounds.covariance_summary(S),
+                "upper": {**bounds.covariance_summary(None), "residual": None, "method": NOT_DETECTABLE,
                           "iterations": 0},
                 "ordered": None, "applicable": False, "reason": NOT_DETECTABLE}
             na = {"available": False, "reason": NOT_DETECTABLE}
@@ -417,17 +425,41 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     warnings.extend((sim or {}).get("warnings") or [])
 
 
+def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
+                        ge: Any) -> dict[str, Any]:
+    """The Gilbert–Elliott section of a bursty chain: the conditions of MATH §7 (scalar) and
+    §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
+    :func:`kfcrit.theory.markov.burst_verdict`) and, with ``details``, the critical curve in the
+    (failure rate, recovery rate) plane."""
+    from kfcrit.analysis.bursty import gilbert_elliott_section
+    from kfcrit.theory import markov
+
+    s = spec.system
+    out = gilbert_elliott_section(s, ge, seed=opts.seed, simulate=opts.details)
+    cls = theory.sections.get("classification")
+    if cls == "not-detectable":
+        return out
+    bv = markov.burst_verdict(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
+                              classification=cls)
+    out["certificate"] = bv.to_dict()
+    if opts.details and s.n <= 12 and cls != "stable":
+        curve = markov.critical_curve(
+            s, points=5 if opts.quick else 9, tol=1e-2 if opts.quick else 1e-3,
+            operating=(float(ge.failure_rate), float(ge.recovery_rate)),
+            structure=theory.structure)
+        out["critical_curve"] = curve.to_dict()
+    return out
+
+
 def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                   warnings: list[str]) -> None:
+                   warnings: list[str], theory: TheorySections) -> None:
     ch = spec.channel
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
-    from kfcrit.analysis.bursty import gilbert_elliott_section
     from kfcrit.link import linkbudget
 
     if ch.model == "gilbert-elliott":
-        sec["link_budget"] = gilbert_elliott_section(spec.system, ch, seed=opts.seed,
-                                                     simulate=opts.details)
+        sec["link_budget"] = bursty_link_section(spec, opts, theory, ch)
         return
     crit = sec.get("critical_value") or {}
     blb = (sec.get("block_lower_bound") or {}).get("value")
@@ -443,9 +475,43 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
         sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
         ge = bursty_channel(ch)
         if ge is not None:
-            sec["link_budget"]["bursty"] = gilbert_elliott_section(
-                spec.system, ge, seed=opts.seed, simulate=opts.details)
+            sec["link_budget"]["bursty"] = bursty_link_section(spec, opts, theory, ge)
     warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
+
+
+def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any],
+                     warnings: list[str]) -> None:
+    """The accuracy requirement turned into a required arrival probability [p_S, p_V] (MATH
+    §11) and, for a link budget, into the radio: distance, transmit power, payload, retries."""
+    level = getattr(spec.requirements, "max_mean_error_trace", None)
+    if level is None or sec.get("classification") == "not-detectable":
+        return
+    from kfcrit.theory.design import required_arrival
+
+    req = required_arrival(spec.system, level, structure=theory.structure).to_dict()
+    out: dict[str, Any] = {"requirement": f"lim E[tr P] ≤ {level:g}",
+                           "required_arrival_probability": req}
+    ch = spec.channel
+    if ch is not None and ch.model == "link-budget" and req.get("status") == "interval":
+        from kfcrit.link.design import link_design
+
+        p_s, p_v = req["interval"]
+        try:
+            out["radio"] = link_design(ch, p_s, p_v).to_dict()
+        except (ValueError, ArithmeticError) as exc:
+            warnings.append(f"link design for the accuracy requirement not computed: {exc}")
+    sec["design"] = out
+
+
+def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any]) -> None:
+    """The power-law tail exponent of tr P at the operating point (a labelled claim)."""
+    if spec.channel is None or not spec.channel.iid or spec.channel.model == "trace":
+        return
+    from kfcrit.theory.tails import tail_exponent
+
+    sec["tail"] = {"exponent": tail_exponent(
+        spec.system, spec.channel.arrival_probability,
+        classification=sec.get("classification"), structure=theory.structure).to_dict()}
 
 
 def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
@@ -588,7 +654,8 @@ def tail_assessment(limit: float | None, allowed: float | None,
 
 
 def mean_assessment(limit: float, bounds: dict[str, Any] | None,
-                    op: dict[str, Any] | None) -> dict[str, Any]:
+                    op: dict[str, Any] | None,
+                    design: dict[str, Any] | None = None) -> dict[str, Any]:
     """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (MATH §11).
 
     ``not met`` when the filter is mean-unstable (E[tr P_t] diverges) or tr S̄ > L (S̄ is a lower
@@ -601,6 +668,10 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
     if verdict == vd.Verdict.MEAN_UNSTABLE.value:
         return {"status": "not met", "basis": "the filter is mean-unstable at the operating "
                 "point: lim E[tr P_t] is infinite"}
+    req = (design or {}).get("required_arrival_probability") or {}
+    if req.get("status") == "impossible":
+        return {"status": "not met", "basis": "no arrival probability meets it: "
+                + str(req.get("reason") or "L is below the no-loss floor")}
     lower = (bounds or {}).get("lower") or {}
     upper = (bounds or {}).get("upper") or {}
     if bounds and lower.get("exists") is False:
@@ -623,7 +694,8 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
 def requirement_assessment(requirements: dict[str, Any] | None,
                            simulation: dict[str, Any] | None,
                            bounds: dict[str, Any] | None = None,
-                           op: dict[str, Any] | None = None) -> dict[str, Any] | None:
+                           op: dict[str, Any] | None = None,
+                           design: dict[str, Any] | None = None) -> dict[str, Any] | None:
     """The system file's requirements, each assessed (``assessments``, in file order; the tail
     requirement's assessment also as ``assessment`` for scripts written against schema 1)."""
     if not requirements:
@@ -640,7 +712,7 @@ def requirement_assessment(requirements: dict[str, Any] | None,
     mean_limit = out.get("max_mean_error_trace")
     if mean_limit is not None:
         items.append({"requirement": f"lim E[tr P] ≤ {mean_limit:g}",
-                      **mean_assessment(mean_limit, bounds, op)})
+                      **mean_assessment(mean_limit, bounds, op, design)})
     out["assessments"] = items
     return out
 

@@ -57,6 +57,8 @@ class RobustCriticalValue:
     expression: str | None = opt()
     nearby_case: str | None = opt()
     alternatives: JSON = opt()
+    low: JSON = opt()
+    """A case within the tolerance with a *lower* critical value ``{value, expression, case}``."""
 
 
 @dataclass(frozen=True)
@@ -192,6 +194,7 @@ class Structure:
     observable: JSON = opt()
     standard_form: JSON = opt()
     resolution: JSON = opt()
+    unresolved: JSON = opt()
 
 
 @dataclass(frozen=True)
