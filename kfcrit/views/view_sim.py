@@ -31,9 +31,10 @@ FIGURE_CAPTIONS = {
             "Kar–Sinopoli–Moura, Theorem 9)."),
     "almost_sure": ("Almost-sure behaviour along one path",
                     "Largest and smallest tr P_t over the dyadic blocks t ∈ [2ᵏ, 2ᵏ⁺¹) of "
-                    "one long simulated path at the operating p. Growing maxima show "
-                    "limsup tr P_t = ∞ (upper a.s. unstable); bounded minima show "
-                    "liminf tr P_t < ∞ (lower a.s. stable)."),
+                    "one long simulated path at the operating p. What the theory says about "
+                    "limsup and liminf is in the statements above; a finite path only "
+                    "illustrates it: the block maxima grow with the longest loss run, which "
+                    "grows like log t, so they may look flat over the blocks shown."),
     "invariant": ("Support of the invariant distribution",
                   "Support of the invariant distribution of P_t (Kar–Sinopoli–Moura, Theorem "
                   "10): it starts at the Riccati fixed point P* and has empty intervals that "
@@ -61,6 +62,17 @@ def figure_reasons(rec: dict[str, Any]) -> dict[str, str]:
             "invariant": "the invariant-distribution analysis did not run"}
 
 
+def block_maxima_text(rec: dict[str, Any]) -> str:
+    """What the plotted block maxima did, in numbers (no claim about the infinite path)."""
+    blk = as_dict(as_dict(as_dict(rec.get("simulation")).get("operating_point"))
+                  .get("almost_sure"))
+    top = [v for v in as_list(blk.get("block_max")) if number(v) is not None]
+    if len(top) < 2:
+        return ""
+    return (f" On this path the block maximum goes from {filters.num(top[0], 4)} in the first "
+            f"block to {filters.num(top[-1], 4)} in the last ({len(top)} blocks).")
+
+
 def figures_view(figures: dict[str, str | None],
                  rec: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
     """Each figure with its title, caption and "not computed" message (with the reason)."""
@@ -68,6 +80,8 @@ def figures_view(figures: dict[str, str | None],
     out = {}
     for key, (title, caption) in FIGURE_CAPTIONS.items():
         svg = figures.get(key) if isinstance(figures, dict) else None
+        if key == "almost_sure":
+            caption += block_maxima_text(as_dict(rec))
         out[key] = {"svg": safe_svg(svg), "title": title, "caption": caption,
                     "missing": missing(title[:1].lower() + title[1:], reasons.get(key))}
     return out
@@ -231,6 +245,20 @@ def ergodic_note(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
     return note
 
 
+_SPAWN_RULE = re.compile(r"SeedSequence\(seed, spawn_key=\((\d+), (\w+)\)\)")
+SEED_UNITS = {"i": "path", "j": "replica", "k": "run"}
+
+
+def seed_rule_text(rule: Any) -> str:
+    """A seed rule of the record in words: ``SeedSequence(seed, spawn_key=(0, i))`` reads
+    "stream (0, i) of the base seed for path i" (NumPy's ``SeedSequence.spawn`` keys)."""
+    def words(m: re.Match[str]) -> str:
+        unit = SEED_UNITS.get(m.group(2), "index")
+        return f"stream ({m.group(1)}, {m.group(2)}) of the base seed for {unit} {m.group(2)}"
+
+    return _SPAWN_RULE.sub(words, filters.text(rule))
+
+
 def seeds_text(seeds: Any) -> str:
     """The simulation's seeds in words (a mapping of stream names to seeds or seed rules)."""
     if isinstance(seeds, dict):
@@ -238,13 +266,13 @@ def seeds_text(seeds: Any) -> str:
         for k, v in seeds.items():
             label = filters.key_label(k)
             if isinstance(v, dict):
-                inner = ", ".join(f"{filters.key_label(a)} {filters.text(b)}"
+                inner = ", ".join(f"{filters.key_label(a)}: {seed_rule_text(b)}"
                                   for a, b in v.items())
-                parts.append(f"{label}: {inner}")
+                parts.append(f"{label} ({inner})")
             else:
-                parts.append(f"{label}: {filters.text(v)}")
+                parts.append(f"{label}: {seed_rule_text(v)}")
         return "; ".join(parts) if parts else filters.DASH
-    return filters.text(seeds)
+    return seed_rule_text(seeds)
 
 
 
@@ -262,12 +290,16 @@ def _solver_text(solver: Any) -> str:
         return filters.text(solver)
     parts = []
     for k, v in solver.items():
+        if isinstance(v, str) and " " in v:   # a sentence of its own ("output compressed: …")
+            parts.append(prose(v))
+            continue
         label = filters.key_label(k)
         parts.append(f"{label} {filters.sci(v, 3) if isinstance(v, float) else filters.text(v)}")
     return ", ".join(parts) if parts else filters.DASH
 
 
 _EXP_FLOAT = re.compile(r"-?\d+\.\d+e[-+]?\d+")
+_LONG_FLOAT = re.compile(r"(?<![\w.])-?\d+\.\d{7,}(?![\w.])")
 _ZERO_FLOAT = re.compile(r"(?<![\w.])-?0\.0+(?![\w.])")
 # Check names of the record reworded where their words mislead (diverged paths are censored at
 # the threshold and enter the means, which are then lower bounds: nothing is left out).
@@ -290,7 +322,32 @@ def _detail_text(detail: Any) -> str:
         return ""
     out = filters.text(detail).replace("None", filters.DASH)
     out = _EXP_FLOAT.sub(lambda m: filters.sci(float(m.group(0)), 3), out)
+    out = _LONG_FLOAT.sub(lambda m: filters.num(float(m.group(0)), 8), out)
     return prose(_ZERO_FLOAT.sub("0", out))
+
+
+CHECK_STATUS = {"passed": ("pass", "passed"), "failed": ("fail", "failed"),
+                "inconclusive": ("undetermined", "inconclusive"),
+                "not applicable": ("none", "not applicable")}
+
+
+def check_view(check: Any) -> dict[str, Any]:
+    """One verification check of the record as a table row: name, badge and detail.
+
+    The badge follows ``passed`` (True: passed, False: failed) and, when that is ``None``, the
+    check's ``status`` word (inconclusive, not applicable); a passed check is never red.
+    """
+    c = as_dict(check)
+    passed = c.get("passed")
+    if passed is True:
+        css, label = CHECK_STATUS["passed"]
+    elif passed is False:
+        css, label = CHECK_STATUS["failed"]
+    else:
+        word = str(c.get("status") or "not applicable")
+        css, label = CHECK_STATUS.get(word, ("none", word))
+    return {"name": check_name(c.get("check")), "css": css, "label": label,
+            "detail": _detail_text(c.get("detail"))}
 
 
 def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
@@ -298,36 +355,16 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
     ub = as_dict(rec.get("upper_bound"))
     cv = as_dict(rec.get("critical_value"))
     rob = as_dict(rec.get("robust_critical_value"))
-    cb = as_dict(rec.get("covariance_bounds"))
     prov = as_dict(rec.get("provenance"))
     sim = as_dict(rec.get("simulation"))
     st = as_dict(rec.get("structure"))
-    recorded = [{"name": check_name(as_dict(c).get("check")), "status": as_dict(c).get("passed"),
-                 "none_means": "not applicable",
-                 "detail": _detail_text(as_dict(c).get("detail"))}
-                for c in as_list(rec.get("verification"))]
-    derived = [
-        {"name": "critical value decided exactly", "status": cv.get("exact"),
-         "none_means": "not computed", "detail": prose(cv.get("reason"))},
-        {"name": "upper bound certificate re-checked", "status": ub.get("certified"),
-         "none_means": "not computed",
-         "detail": _detail_text(as_dict(ub.get("certificate")).get("verified_by")
-                                or ub.get("certificate")) if ub.get("certificate") else ""},
-        {"name": "upper bound bracket (lower evidence)", "none_means": "not computed",
-         "status": None if ub.get("lower_evidence") is None else bool(ub.get("lower_evidence")),
-         "detail": _detail_text(as_dict(ub.get("lower_evidence")).get("statement")
-                                or ub.get("lower_evidence")) if ub.get("lower_evidence")
-         else ""},
-        {"name": "upper covariance bound V̄ solves the MARE", "none_means": "not computed",
-         "status": as_dict(cb.get("upper")).get("exists"),
-         "detail": f"residual {filters.sci(as_dict(cb.get('upper')).get('residual'), 3)}"
-         if number(as_dict(cb.get("upper")).get("residual")) is not None else ""},
-        {"name": "lower covariance bound S̄ exists (Lyapunov)", "none_means": "not computed",
-         "status": as_dict(cb.get("lower")).get("exists"), "detail": ""},
-    ]
-    # The record's own verification list when the analysis provides one; else what the
-    # sections' flags say (read, not recomputed).
-    checks = recorded + derived[:1] if recorded else derived
+    checks = [check_view(c) for c in as_list(rec.get("verification"))]
+    # how p_c was decided is information, not a check: "numerical" is never shown as a failure
+    checks.append({"name": "critical value decided exactly",
+                   "css": "pass" if cv.get("exact") else "none",
+                   "label": {True: "exact", False: "numerical"}.get(cv.get("exact"),
+                                                                    "not computed"),
+                   "detail": prose(cv.get("reason"))})
     opts = as_dict(prov.get("options"))
     stol = as_dict(st.get("tolerances"))
     tolerances = [

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from markupsafe import Markup
+
 
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
@@ -118,7 +120,7 @@ def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
              for q in as_list(d.get("equal_modulus_pairs"))]
     flags = [{"label": label, "value": d.get(key)} for key, label in (
         ("diagonalizable", "A diagonalizable"), ("observable", "(A, C) observable"),
-        ("detectable", "(A, C) detectable"), ("controllable_Q", "(A, Q^½) controllable"))]
+        ("detectable", "(A, C) detectable"), ("controllable_Q", Markup("(A, Q<sup>1/2</sup>) controllable")))]
     rows = [row("analysis path", d.get("path"), note=prose(d.get("path_reason")))]
     if d.get("observability_index") is not None:
         rows.append(row("observability index I_o", d.get("observability_index"), "num",
@@ -144,7 +146,8 @@ def classification_view(rec: dict[str, Any]) -> dict[str, Any]:
             "general_svg": safe_svg(mathsvg.latex_svg(latex, fontsize=12)),
             "instance_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=12,
                                     label=cv.get("expression")),
-            "instance_expression": cv.get("expression"), "value": number(cv.get("value")),
+            "instance_expression": exact_text(cv.get("expression")) if cv.get("exact") else None,
+            "value": number(cv.get("value")),
             "reason": prose(cv.get("reason")) or None, "exact": cv.get("exact")}
 
 
@@ -157,16 +160,19 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
     cls = rec.get("classification") if isinstance(rec.get("classification"), str) else None
     rows = [
         {"symbol": "p_low", "name": "lower bound p_low", "available": isinstance(lb, dict),
-         "value": number(as_dict(lb).get("value")), "expression": as_dict(lb).get("expression"),
+         "value": number(as_dict(lb).get("value")),
+         "expression": exact_text(as_dict(lb).get("expression")),
          "detail": "1 − 1/max|λᵢ|²: necessary for mean stability",
          "source": "Sinopoli et al., Theorem 3"},
         {"symbol": "p_block", "name": "block lower bound", "available": isinstance(blb, dict),
-         "value": number(as_dict(blb).get("value")), "expression": as_dict(blb).get("expression"),
+         "value": number(as_dict(blb).get("value")),
+         "expression": exact_text(as_dict(blb).get("expression")),
          "detail": "largest critical value of an equi-block",
          "source": "Mo–Sinopoli, Theorem 3"},
         {"symbol": "p_c", "name": "critical value p_c",
          "available": number(cvd.get("value")) is not None,
-         "value": number(cvd.get("value")), "expression": cvd.get("expression"),
+         "value": number(cvd.get("value")),
+         "expression": exact_text(cvd.get("expression")) if cvd.get("exact") else None,
          "detail": "exact (decided symbolically)" if cvd.get("exact") else
          "numerical (bracket closed to the tolerance)" if cvd.get("exact") is False else "",
          "source": theorem_for(cls)[0],
@@ -174,7 +180,8 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
          else "not computed"},
         {"symbol": "p_c,robust", "name": "robust critical value",
          "available": isinstance(rob, dict),
-         "value": number(as_dict(rob).get("value")), "expression": as_dict(rob).get("expression"),
+         "value": number(as_dict(rob).get("value")),
+         "expression": exact_text(as_dict(rob).get("expression")),
          "detail": _robust_detail(as_dict(rob)),
          "source": "largest p_c within the stated relative perturbation",
          "missing": "not needed: the decision is exact and robust to perturbations"
@@ -188,7 +195,8 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
         r.setdefault("missing", "not computed")
     th = as_dict(rec.get("theory"))
     moments = [{"q": as_dict(m).get("q"), "value": number(as_dict(m).get("value")),
-                "expression": as_dict(m).get("expression"), "applies": as_dict(m).get("applies")}
+                "expression": exact_text(as_dict(m).get("expression")),
+                "applies": as_dict(m).get("applies")}
                for m in as_list(th.get("moment_thresholds"))]
     note = th.get("moment_thresholds_note")
     return {"rows": rows, "moments": moments,

@@ -6,8 +6,40 @@ from typing import Any
 
 from kfcrit.views.figures import tail_of
 from kfcrit.views.view_link import CHANNEL_NAMES, channel_summary, link_design_view
-from kfcrit.views.viewparts import (as_dict, exact_text, formula, missing, number, prose,
+from kfcrit.views.viewparts import (as_dict, as_list, exact_text, formula, missing, number, prose,
                                     sentence)
+
+DECISIONS = ("pass", "fail", "undetermined")
+REASON_STATUSES = {"pass": "pass", "fail": "fail", "undetermined": "undetermined",
+                   "not applicable": "none"}
+
+
+def review_view(rec: dict[str, Any]) -> dict[str, Any]:
+    """The review decision of the record (``review``) and its reasons, for the verdict box.
+
+    ``review = {"decision": "pass" | "fail" | "undetermined", "reasons": [{"check", "status",
+    "detail"}]}`` is computed once by the analysis; the box shows it as it is (green pass, red
+    fail, amber undetermined). A record without a ``review`` (written before reviews existed)
+    gets a neutral box that says so: the view does not decide.
+    """
+    rv = as_dict(rec.get("review"))
+    decision = rv.get("decision") if rv.get("decision") in DECISIONS else None
+    reasons = []
+    for r in as_list(rv.get("reasons")):
+        r = as_dict(r)
+        status = str(r.get("status") or "")
+        reasons.append({"check": prose(r.get("check")) or "check",
+                        "status": status or "not stated",
+                        "css": REASON_STATUSES.get(status, "none"),
+                        "detail": sentence(r.get("detail")) if r.get("detail") else ""})
+    return {"available": decision is not None, "decision": decision,
+            "word": decision.upper() if decision else "NO REVIEW DECISION",
+            "css": decision or "neutral", "reasons": reasons,
+            "missing": "" if decision else
+            "This record has no review decision (it predates reviews, or the analysis did not "
+            "produce one): the stability verdict below is not combined with the requirements "
+            "and the link policy."}
+
 
 def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
     """The verdict box: operating p against p_c, margins, robust value, bracket, verdict."""
@@ -20,13 +52,14 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
     verdict = opd.get("verdict") if isinstance(op, dict) else None
     css = {"mean-stable": "stable", "mean-unstable": "unstable",
            "undetermined": "undetermined"}.get(str(verdict), "unknown")
+    review = review_view(rec)
     iid_verdict = opd.get("iid_comparison_verdict")
     return {
         "available": isinstance(op, dict),
         "missing": missing("operating point", "the system file has no channel section, so "
                             "there is no arrival probability to compare with p_c")
         if op is None else "",
-        "verdict": verdict, "css": css,
+        "verdict": verdict, "css": css, "review": review, "box_css": review["css"],
         "p": number(opd.get("arrival_probability")),
         "p_expression": exact_text(channel.get("arrival_probability_expression")),
         "channel_model": CHANNEL_NAMES.get(str(channel.get("model")), channel.get("model")),
