@@ -470,9 +470,10 @@ LABELS = {
     "cdf": "Distribution of the error covariance trace at the operating point",
     "almost_sure": "Block maxima and minima of the error covariance trace along one path",
     "invariant": "Support of the invariant distribution"}
-# Figures drawn from hundreds of points per curve: printed as PNG (see :func:`build_figures`).
-DENSE = frozenset({"phase_transition", "traces", "operating", "cdf"})
-PRINT_DPI = 200
+# Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
+# costs more per figure than the rest of a page's layout.
+DENSE = frozenset(FIGURE_KEYS)
+PRINT_DPI = 170
 MALFORMED = (TypeError, ValueError, KeyError, IndexError, OverflowError)
 
 
@@ -525,18 +526,17 @@ def _to_png_img(fig: Figure, label: str) -> str:
             f'src="data:image/png;base64,{data}">')
 
 
-def build_figures(record: dict[str, Any], medium: str = "screen") -> dict[str, str | None]:
-    """Every report figure as HTML markup (``None`` where the record lacks the data).
+def draw_figures(record: dict[str, Any]) -> dict[str, Figure | None]:
+    """Every report figure as a matplotlib Figure (``None`` where the record lacks the data)."""
+    return {key: _draw(record, key) for key in FIGURE_KEYS}
 
-    ``medium="screen"``: inline SVG. ``medium="print"``: the dense figures (:data:`DENSE`) as
-    PNG data URIs at :data:`PRINT_DPI`, the others as SVG; WeasyPrint's layout time grows with
-    the number of SVG path segments, and a PNG prints as sharply on paper. A malformed section
-    (wrong types or lengths) gives ``None`` rather than an exception: a report with one figure
-    missing is more useful to a reviewer than no report.
-    """
+
+def figure_markup(drawn: dict[str, Figure | None], medium: str = "screen") -> dict[str, str | None]:
+    """HTML markup of drawn figures: inline SVG on screen; in print (``medium="print"``) the
+    figures of :data:`DENSE` as PNG data URIs at :data:`PRINT_DPI` (WeasyPrint's layout and
+    painting time grows with the number of SVG elements; a PNG prints as sharply on paper)."""
     out: dict[str, str | None] = {}
-    for key in FIGURE_KEYS:
-        fig = _draw(record, key)
+    for key, fig in drawn.items():
         if fig is None:
             out[key] = None
         elif medium == "print" and key in DENSE:
@@ -544,3 +544,13 @@ def build_figures(record: dict[str, Any], medium: str = "screen") -> dict[str, s
         else:
             out[key] = _to_svg(fig, LABELS[key])
     return out
+
+
+def build_figures(record: dict[str, Any], medium: str = "screen") -> dict[str, str | None]:
+    """Every report figure as HTML markup (``None`` where the record lacks the data).
+
+    ``medium`` is ``"screen"`` (inline SVG) or ``"print"`` (see :func:`figure_markup`). A
+    malformed section (wrong types or lengths) gives ``None`` rather than an exception: a report
+    with one figure missing is more useful to a reviewer than no report.
+    """
+    return figure_markup(draw_figures(record), medium)

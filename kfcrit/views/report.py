@@ -24,7 +24,7 @@ import jinja2
 
 from kfcrit.errors import InputError
 from kfcrit.views import jinja_filters as filters
-from kfcrit.views.figures import build_figures
+from kfcrit.views.figures import draw_figures, figure_markup
 from kfcrit.views.viewmodel import view_model
 
 TEMPLATE = "report.html.j2"
@@ -103,18 +103,19 @@ def render_documents(record: dict[str, Any], kinds: Iterable[str], *,
                      today: datetime.date | None = None) -> dict[str, bytes]:
     """Every requested format (``html``, ``pdf``) of one record, as bytes, from one drawing.
 
-    The figures are drawn once per medium: inline SVG for the HTML (sharp at any zoom), PNG
-    data URIs of the dense figures for the PDF (WeasyPrint's layout time grows with the
-    number of SVG path segments; a 200 dpi PNG prints as sharply on paper).
+    The figures are drawn once and saved per medium: inline SVG for the HTML (sharp at any
+    zoom), PNG data URIs for the PDF (WeasyPrint's time grows with the number of SVG elements;
+    a 170 dpi PNG prints as sharply on paper).
     """
     wanted = list(dict.fromkeys(kinds))
     bad = [k for k in wanted if k not in KINDS]
     if bad:
         raise InputError(f"unknown report format {bad[0]!r} (html or pdf)", field="format")
+    drawn = draw_figures(record)
     out: dict[str, bytes] = {}
     if "html" in wanted:
-        out["html"] = render_html(record, build_figures(record), today=today).encode("utf-8")
+        out["html"] = render_html(record, figure_markup(drawn), today=today).encode("utf-8")
     if "pdf" in wanted:
-        html = render_html(record, build_figures(record, medium="print"), today=today)
+        html = render_html(record, figure_markup(drawn, "print"), today=today)
         out["pdf"] = render_pdf(html)
     return out
