@@ -1,137 +1,71 @@
-"""Tests of the design-review report: view model, filters, formulas, figures, HTML, PDF, CLI.
+"""Tests of the design-review report: filters, formulas, figures, view model, HTML, PDF, command.
 
-The full record used here is a hand-made FIXTURE (``fixture_record``): it has realistic values for
-every key the report reads, so the layout can be checked before every analysis section lands.
-Its numbers are those of the rotation example (A = [[1, −√3], [√3, 1]], eigenvalues 1 ± j√3 of
-modulus 2, C = [1 0]) from MATH.md §4: q = 3, p_c = 1 − 2^(−2q/(q−1)) = 1 − 2^(−3) = 7/8,
-p_low = 1 − 1/4 = 3/4; p_up = 15/16 from shared/cases/expected.json. The lower covariance bound
-is hand-derived: A Aᵀ = 4 I, so S̄ = Q / (1 − 4(1 − p)) and tr S̄ = 2 / (4p − 3). Series that are
-not closed-form (tr V̄, simulated traces, the CDF) are synthetic shapes, marked as such.
+Records are real analyses (``kfcrit.analyze(...).to_dict()`` of example systems in ``reports/``,
+``--quick``), made once per test session; a test that needs a variant changes a copy of one
+(for instance adds a ``review`` section). Expected values are the papers' closed forms, derived
+by hand in the tests that use them (MATH §3–§5):
+
+* rotation-third-turn: A = [[1, −√3], [√3, 1]], eigenvalues 1 ± j√3 of modulus 2, one output,
+  degenerate with q = 3: p_c = 1 − 2^(−2q/(q−1)) = 1 − 2^(−3) = 7/8, p_low = 1 − 1/4 = 3/4;
+* kar-scalar-fractal: a = √2, C = Q = R = 1: the arrival map f₁(X) = 2X/(X + 1) + 1 has the fixed
+  point P* = 1 + √2 and f₁(∞) = 3; the loss map f₀(X) = 2X + 1 gives f₀(P*) = 3 + 2√2, so
+  (3, 3 + 2√2) carries no invariant mass (Kar–Sinopoli–Moura, Theorem 10);
+* sinopoli-scalar / link-oqpsk-sensor: p_c = 1 − 1/|λ₁|² = 1 − (4/5)² = 9/25 (|λ₁| = 5/4).
 """
 from __future__ import annotations
 
 import copy
-import math
+import io
+import json
 import os
 import re
-import subprocess
-import sys
-import zipfile
 from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
 
+from kfcrit.analysis.record import AnalysisOptions, analyze
+from kfcrit.cli import report as command
+from kfcrit.errors import InputError
+from kfcrit.io.atomic import write_atomic
+from kfcrit.io.systemfile import load_spec
 from kfcrit.views import figures
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
 from kfcrit.views import report
-from kfcrit.io.atomic import write_atomic
-from kfcrit.errors import InputError
+from kfcrit.views import summary
+from kfcrit.views.view_sim import appendix_view, seeds_text, simulation_view
+from kfcrit.views.view_theory import bounds_view
 
 ROOT = Path(__file__).resolve().parents[1]
 REPORTS = ROOT / "reports"
-SECTION_ORDER = ["verdict", "system", "bounds", "phase-transition", "simulation", "distribution",
-                 "statements", "channel", "appendix"]
+SECTION_ORDER = ["verdict", "channel", "distribution", "system", "bounds", "phase-transition",
+                 "simulation", "statements", "appendix"]
 
 
-def fixture_record() -> dict:
-    """A complete, hand-made analysis record (FIXTURE; see the module docstring)."""
-    p_grid = [0.75 + 0.25 * i / 80 for i in range(1, 80)]
-    tr_s = [2 / (4 * p - 3) for p in p_grid]                       # hand-derived (docstring)
-    tr_v = [s * (1 + 0.05 / (p - 15 / 16)) if p > 15 / 16 else None  # synthetic shape
-            for p, s in zip(p_grid, tr_s)]
-    t = list(range(0, 200, 5))
-    return {
-        "name": "Oscillator sampled at a sixth of its period",
-        "classification": "degenerate-second-order",
-        "critical_value": {"value": 0.875, "exact": True, "expression": "7/8",
-                           "latex": r"1 - 2^{-3} = \frac{7}{8}",
-                           "reason": "degenerate equi-block {1, 2} with q = 3 (Mo–Sinopoli Thm 9)"},
-        "robust_critical_value": {"value": 0.75, "tolerance": 1e-9, "expression": "3/4",
-                                  "nearby_case": "an irrational angle gives 1 − 1/|λ₁|²"},
-        "lower_bound": {"value": 0.75, "expression": "3/4"},
-        "block_lower_bound": {"value": 0.875, "expression": "7/8"},
-        "upper_bound": {"value": 0.9375, "interval": [0.93749999, 0.93750001], "certified": True,
-                        "status": "certified", "method": "bisection on LMI feasibility",
-                        "certificate": {"kind": "X ≻ g_p(X)", "verified_by": "exact rationals"},
-                        "lower_evidence": "MARE iteration diverges at 0.93749999",
-                        "solver": "clarabel", "warnings": []},
-        "operating_point": {"arrival_probability": 0.9,
-                            "channel": {"model": "bernoulli", "arrival_probability": 0.9,
-                                        "arrival_probability_expression": "9/10"},
-                            "iid": True, "margin": 0.025, "margin_robust": 0.025,
-                            "bracket": None, "verdict": "mean-stable"},
-        "warnings": ["FIXTURE warning: shown to check the warnings box"],
-        "description": "Eigenvalues 2 exp(+-j pi/3) seen through one output; degenerate, q = 3.",
-        "system": {"n": 2, "m": 1, "exact_input": True,
-                   "matrices": {"A": [["1", "-sqrt(3)"], ["sqrt(3)", "1"]], "C": [["1", "0"]],
-                                "Q": [["1", "0"], ["0", "1"]], "R": [["1"]],
-                                "Sigma0": [["1", "0"], ["0", "1"]]},
-                   "channel": {"model": "bernoulli", "arrival_probability": 0.9,
-                               "arrival_probability_expression": "9/10"}},
-        "structure": {"path": "exact",
-                      "eigenvalues": [{"value": "1 + sqrt(3)*I", "re": 1.0, "im": math.sqrt(3),
-                                       "modulus": 2.0, "modulus_expression": "2"},
-                                      {"value": "1 - sqrt(3)*I", "re": 1.0, "im": -math.sqrt(3),
-                                       "modulus": 2.0, "modulus_expression": "2"}],
-                      "equi_blocks": [{"indices": [0, 1], "modulus": 2.0,
-                                       "one_step_observable": False, "rank": 1}],
-                      "diagonalizable": True, "detectable": True, "controllable_Q": True},
-        "theory": {"moment_thresholds": [
-            {"q": 1, "value": 0.75, "expression": "3/4", "applies": False},
-            {"q": 2, "value": 0.9375, "expression": "15/16", "applies": False}],
-            "stochastic_boundedness": "FIXTURE: P_t is stochastically bounded for every p > 0 "
-                                      "and converges weakly to a unique invariant distribution.",
-            "almost_sure": ["FIXTURE: limsup tr P_t = ∞ almost surely for 0 < p < 1.",
-                            "FIXTURE: liminf tr P_t ≤ tr M almost surely."]},
-        "covariance_bounds": {"p": 0.9,
-                              "lower": {"exists": True, "trace": 2 / (4 * 0.9 - 3),
-                                        "max_eig": 1 / (4 * 0.9 - 3), "matrix": None},
-                              "upper": {"exists": False, "trace": None, "max_eig": None,
-                                        "matrix": None, "residual": None, "method": "MARE"}},
-        "phase_transition": {"p": p_grid, "trace_lower": tr_s, "trace_upper": tr_v,
-                             "markers": {"p_low": 0.75, "p_c": 0.875, "p_up": 0.9375,
-                                         "operating": 0.9}},
-        "simulation": {
-            "operating_point": {
-                "t": t, "mean_trace": [3.3 + 2 * math.exp(-k / 30) for k in t],
-                "band_low": [3.0 + 2 * math.exp(-k / 30) for k in t],
-                "band_high": [3.6 + 2 * math.exp(-k / 30) for k in t],
-                "cdf": {"x": [2 + 0.5 * i for i in range(40)],
-                        "F": [1 - math.exp(-0.25 * i) for i in range(40)]},
-                "tail_probability": 0.018,
-                # synthetic shape: block maxima grow, block minima stay bounded (MATH §6)
-                "almost_sure": {"block_start": [2 ** k for k in range(10)],
-                                "block_max": [4.0 * 1.6 ** k for k in range(10)],
-                                "block_min": [3.3] * 10}},
-            "phase_demo": [
-                {"p": 0.85, "label": "below p_c", "t": t,
-                 "mean_trace": [3 * 1.03 ** k for k in t]},
-                {"p": 0.9, "label": "above p_c", "t": t,
-                 "mean_trace": [3.3 + 2 * math.exp(-k / 30) for k in t]}],
-            "seeds": [0, 1], "paths": 400, "steps": 200},
-        "invariant": None,
-        "link_budget": None,
-        "requirements": {"max_error_trace": 10.0, "max_tail_probability": 0.05},
-        "verification": [{"check": "FIXTURE upper-bound certificate", "passed": True,
-                          "detail": "exact rationals"}],
-        "provenance": {"versions": {"kfcrit": "0.1.0", "numpy": "2.4"}, "seed": 0,
-                       "input_path": "reports/rotation-third-turn.yaml",
-                       "input_sha256": "ab" * 32,
-                       "options": {"tolerance": 1e-9, "quick": False, "seed": 0}},
-    }
+class Records:
+    """Quick analyses of example systems, each made once per session (records are copied out,
+    so a test may change its copy)."""
+
+    def __init__(self) -> None:
+        self._done: dict[str, dict] = {}
+
+    def __call__(self, stem: str) -> dict:
+        if stem not in self._done:
+            spec = load_spec(REPORTS / f"{stem}.yaml")
+            self._done[stem] = analyze(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
+        return copy.deepcopy(self._done[stem])
 
 
-def scalar_fixture() -> dict:
-    """FIXTURE of the Kar–Sinopoli–Moura scalar example (MATH §5): P* = 1 + √2, first gap
-    (3, 3 + 2√2), S_n = 2 S_{n−1} + 1 so the second gap is (7, 7 + 4√2 + ...)."""
-    rec = fixture_record()
-    rec["system"]["n"] = 1
-    rec["invariant"] = {"fixed_point": 1 + math.sqrt(2),
-                        "support_points": [1 + math.sqrt(2), 3, 2 * (1 + math.sqrt(2)) + 1, 7],
-                        "gaps": [[3, 3 + 2 * math.sqrt(2)], [7, 4 * (1 + math.sqrt(2)) + 3]]}
-    return rec
+@pytest.fixture(scope="session")
+def records() -> Records:
+    return Records()
+
+
+@pytest.fixture(scope="session")
+def rotation_html(records) -> str:
+    rec = records("rotation-third-turn")
+    return report.render_html(rec, figures.build_figures(rec))
 
 
 class _Tags(HTMLParser):
@@ -153,12 +87,6 @@ def parse(html: str) -> _Tags:
     p = _Tags()
     p.feed(html)
     return p
-
-
-@pytest.fixture(scope="module")
-def full_html() -> str:
-    rec = fixture_record()
-    return report.render_html(rec, figures.build_figures(rec))
 
 
 # ----------------------------------------------------------------------------- filters
@@ -217,61 +145,132 @@ def test_expression_latex_uses_safe_parser():
     assert mathsvg.expression_latex("__import__('os')") is None
 
 
+
 # ----------------------------------------------------------------------------- figures
 
-def test_every_figure_drawn_from_full_fixture():
-    figs = figures.build_figures(scalar_fixture())
+def test_figures_read_the_production_record(records):
+    rec = records("kar-scalar-fractal")
+    figs = figures.build_figures(rec)
     assert set(figs) == set(figures.FIGURE_KEYS)
     for key, svg in figs.items():
         assert svg is not None and svg.startswith("<svg"), key
+    assert figures.figure_names(rec) == list(figures.FIGURE_KEYS)
+    # the CDF ends at probability 1 and the tail estimate is the record's own
+    x, f = figures.cdf_of(rec)
+    assert x == sorted(x) and f[-1] == pytest.approx(1.0)
+    exc = rec["simulation"]["operating_point"]["exceedance"]
+    assert figures.tail_of(rec) == (exc or {}).get("estimate")
 
 
-def test_figures_missing_or_malformed_data_give_none():
+def test_figure_objects_for_notebooks(records):
+    from matplotlib.figure import Figure
+
+    rec = records("rotation-third-turn")
+    names = figures.figure_names(rec)
+    assert "invariant" not in names                     # n = 2: no invariant-support figure
+    for name in names:
+        fig = figures.figure(rec, name)
+        assert isinstance(fig, Figure) and fig.axes
+    # the phase-transition axes carry p_c = 7/8 as a vertical line
+    ax = figures.figure(rec, "phase_transition").axes[0]
+    xs = [line.get_xdata()[0] for line in ax.get_lines() if len(set(line.get_xdata())) == 1]
+    assert any(abs(x - 7 / 8) < 1e-12 for x in xs)
+    with pytest.raises(ValueError, match="no data"):
+        figures.figure(rec, "invariant")
+    with pytest.raises(KeyError):
+        figures.figure(rec, "no_such_figure")
+
+
+def test_figures_missing_or_malformed_data_give_none(records):
     assert all(v is None for v in figures.build_figures({}).values())
-    rec = fixture_record()
+    rec = records("rotation-third-turn")
     rec["phase_transition"]["trace_lower"] = "oops"
     rec["phase_transition"]["trace_upper"] = [1.0]   # wrong length
-    rec["simulation"]["phase_demo"] = [{"p": 0.5, "t": [1, 2], "mean_trace": ["x", 1]}]
+    rec["simulation"]["phase_demo"]["curves"] = [{"arrival_probability": 0.5, "times": [1, 2],
+                                                  "mean_trace": ["x", 1]}]
     figs = figures.build_figures(rec)
     assert figs["phase_transition"] is None and figs["traces"] is None
     assert figs["operating"] is not None
 
 
+def test_print_figures_are_png_data_uris(records):
+    rec = records("rotation-third-turn")
+    figs = figures.build_figures(rec, medium="print")
+    assert figs["invariant"] is None                   # n = 2: no invariant-support figure
+    for key in figures.DENSE - {"invariant"}:
+        assert figs[key].startswith('<img class="figure-img"'), key
+        assert 'src="data:image/png;base64,' in figs[key]
+    assert figures.build_figures(rec)["almost_sure"].startswith("<svg")
+
+
+def test_phase_window_starts_where_the_bounds_exist() -> None:
+    """Below p_low both bounds are infinite: the window starts just below the first finite point
+    (a tenth of the remaining range), and widens to show an operating point further left."""
+    from kfcrit.views.figures import phase_window
+
+    p = [0.0, 0.25, 0.5, 0.75, 0.8, 0.9, 1.0]
+    nan = float("nan")
+    lower = [nan, nan, nan, nan, 40.0, 8.0, 2.0]
+    upper = [nan, nan, nan, nan, nan, 30.0, 3.0]
+    marks = {"p_low": 0.75, "p_c": 0.9375, "p_up": 0.9375, "operating": 0.95}
+    left, right = phase_window(p, lower, upper, marks)
+    assert right == 1.0
+    assert left == pytest.approx(0.75 - 0.1 * 0.25)
+    left, _ = phase_window(p, lower, upper, {**marks, "operating": 0.5})
+    assert left == pytest.approx(0.5 - 0.1 * 0.5)
+    left, right = phase_window(p, [nan] * 7, None, {})
+    assert (left, right) == (0.0, 1.0)
+
+
+def test_cdf_window_reaches_past_the_limit():
+    left, right = figures.cdf_window([2.0, 3.0, 4.0, 30.0], 10.0)
+    assert left < 2.0 and right > 30.0
+    left, right = figures.cdf_window([2.0, 3.0, 4.0], 10.0)   # no path beyond: still past M
+    assert right > 10.0
+
+
+def test_plain_log_tick_labels():
+    assert figures._plain_label(0.6) == "0.6" and figures._plain_label(20.0) == "20"
+    assert "e" not in figures._plain_label(0.002)
+
+
 # ----------------------------------------------------------------------------- HTML
 
-def test_full_report_has_every_section_in_reading_order(full_html):
-    ids = parse(full_html).ids
+def test_report_has_every_section_in_reading_order(rotation_html):
+    ids = parse(rotation_html).ids
     positions = [ids.index(s) for s in SECTION_ORDER]
     assert positions == sorted(positions)
     assert len(ids) == len(set(ids)), "duplicate ids in the page"
 
 
-def test_full_report_shows_verdict_and_critical_value(full_html):
-    assert "MEAN STABLE" in full_html
-    assert "0.875" in full_html and "7/8" in full_html
-    assert "+0.025" in full_html                     # margin 0.9 − 7/8
-    assert "Mo–Sinopoli, Theorem 5" in full_html     # degenerate second order decides p_c
+def test_report_shows_critical_value_and_theorem(rotation_html):
+    assert "MEAN STABLE" in rotation_html                   # p = 9/10 > p_c = 7/8
+    assert "0.875" in rotation_html and "7/8" in rotation_html
+    assert "+0.025" in rotation_html                        # margin 9/10 − 7/8
+    assert "Mo–Sinopoli, Theorem 5" in rotation_html        # degenerate second order decides
 
 
-def test_full_report_sections_present_not_missing(full_html):
-    body = full_html.split("<main>")[1]
-    for text in ("Phase transition", "Simulated error traces", "Distribution of tr P",
-                 "0.018", "met", "FIXTURE: limsup", "FIXTURE warning", "ab" * 32):
-        assert text in body, text
-    # every figure is drawn, none says "not computed"
-    for fig_id in ("fig-phase-transition", "fig-traces", "fig-operating", "fig-cdf"):
-        chunk = body.split(f'id="{fig_id}"')[1].split("</figure>")[0]
-        assert "<svg" in chunk and "not computed" not in chunk
-
-
-def test_html_is_self_contained(full_html):
-    tags = parse(full_html).tags
+def test_html_is_self_contained(rotation_html):
+    tags = parse(rotation_html).tags
     assert not [t for t, _ in tags if t in ("script", "link", "iframe", "object", "embed")]
     for _, attrs in tags:
         for name in ("src", "href"):
             value = attrs.get(name)
             assert value is None or value.startswith(("#", "data:")), value
-    assert "url(http" not in full_html and "@import" not in full_html
+    assert "url(http" not in rotation_html and "@import" not in rotation_html
+
+
+def test_footer_has_system_name_date_and_version(records):
+    import datetime
+
+    from kfcrit.version import __version__
+
+    rec = records("rotation-third-turn")
+    html = report.render_html(rec, {}, today=datetime.date(2031, 5, 17))
+    assert f"2031-05-17 · kfcrit {__version__}" in html
+    assert "string-set: sysname" in html and "string(docmeta)" in html
+    rec["provenance"]["created"] = "2030-01-02T10:00:00Z"
+    assert "2030-01-02 · kfcrit" in report.render_html(rec, {})
 
 
 def test_missing_sections_say_not_computed():
@@ -287,79 +286,70 @@ def test_missing_sections_say_not_computed():
         assert phrase in html, phrase
 
 
-def test_every_single_section_missing_renders():
-    full = fixture_record()
+def test_every_single_section_missing_renders(records):
+    full = records("rotation-third-turn")
     figs = figures.build_figures(full)
     for key in full:
         rec = copy.deepcopy(full)
         rec[key] = None
-        html = report.render_html(rec, figs)
-        assert 'id="verdict"' in html, key
+        assert 'id="verdict"' in report.render_html(rec, figs), key
         rec.pop(key)
         report.render_html(rec, {})
 
 
-def test_malformed_sections_do_not_crash():
-    rec = fixture_record()
+def test_malformed_sections_do_not_crash(records):
+    rec = records("rotation-third-turn")
     rec["structure"] = {"eigenvalues": "not a list", "equi_blocks": [None, 3]}
     rec["theory"] = {"moment_thresholds": [None], "almost_sure": "one sentence"}
     rec["upper_bound"] = {"interval": "x"}
+    rec["review"] = {"decision": "maybe", "reasons": "x"}
     html = report.render_html(rec, figures.build_figures(rec))
-    assert "one sentence" in html
+    assert "one sentence" in html and "NO REVIEW DECISION" in html
 
 
-def test_autoescape_of_record_text():
-    rec = fixture_record()
+def test_autoescape_of_record_text(records):
+    rec = records("rotation-third-turn")
     rec["name"] = "<script>alert(1)</script>"
-    rec["warnings"] = ["<b>bold</b>"]
+    rec["warnings"] = ["<b>bold</b>", "<b>bold</b>"]
     html = report.render_html(rec, {})
     assert "<script>alert" not in html and "&lt;script&gt;alert(1)" in html
     assert "<b>bold</b>" not in html
+    assert html.count("&lt;b&gt;bold&lt;/b&gt;") == 1        # identical warnings shown once
 
 
-def test_scalar_system_shows_invariant_support():
-    rec = scalar_fixture()
+def test_scalar_system_shows_invariant_support(records):
+    rec = records("kar-scalar-fractal")
     html = report.render_html(rec, figures.build_figures(rec))
     assert "Support of the invariant distribution" in html
-    assert "[3, 5.8284271]" in html   # 3 + 2√2 = 5.82842712… to 8 digits (MATH §5)
-    html2 = report.render_html(fixture_record(), {})
-    assert "Support of the invariant" not in html2     # n = 2: not applicable
+    assert "[3, 5.8284271]" in html     # (f₁(∞), f₀(P*)) = (3, 3 + 2√2) (module docstring)
+    assert "Support of the invariant" not in report.render_html(records("rotation-third-turn"),
+                                                                {})
 
 
-def test_undetermined_and_unstable_verdicts():
-    rec = fixture_record()
+def test_undetermined_and_unstable_stability_lines(records):
+    rec = records("rotation-third-turn")
     rec["operating_point"].update(verdict="undetermined", margin=None, margin_robust=None,
                                   bracket=[0.875, 0.9375], margin_to_bracket=[0.025, -0.0375])
     html = report.render_html(rec, {})
-    assert "verdict-undetermined" in html and "[0.875, 0.9375]" in html
+    assert "stability-undetermined" in html and "[0.875, 0.9375]" in html
     rec["operating_point"].update(verdict="mean-unstable")
-    assert "verdict-unstable" in report.render_html(rec, {})
+    assert "stability-unstable" in report.render_html(rec, {})
 
 
-def test_requirement_not_met_is_flagged():
-    rec = fixture_record()
-    rec["simulation"]["operating_point"]["tail_probability"] = 0.2   # above 0.05
-    rec["requirements"]["assessment"] = {"status": "not met", "basis": "0.2 > 0.05"}
-    assert "NOT met" in report.render_html(rec, {})
-    rec["requirements"]["assessment"] = {"status": "not demonstrated", "basis": "straddles"}
-    html = report.render_html(rec, {})
-    assert "not demonstrated" in html and "NOT met" not in html
+def test_quick_draft_banner(records):
+    rec = records("rotation-third-turn")
+    assert 'id="draft"' in report.render_html(rec, {})      # the session records are --quick
+    rec["provenance"]["options"]["quick"] = False
+    assert 'id="draft"' not in report.render_html(rec, {})
 
 
-def test_quick_draft_banner():
-    rec = fixture_record()
-    rec["provenance"]["options"]["quick"] = True
-    assert 'id="draft"' in report.render_html(rec, {})
-    assert 'id="draft"' not in report.render_html(fixture_record(), {})
-
-
-def test_strict_undefined_catches_template_typos(tmp_path, monkeypatch):
+def test_strict_undefined_catches_template_typos(tmp_path, monkeypatch, records):
     import jinja2
 
     (tmp_path / report.TEMPLATE).write_text("{{ verdict.no_such_key }}")
     monkeypatch.setattr(report, "template_dir", lambda: tmp_path)
     with pytest.raises(jinja2.UndefinedError):
-        report.render_html(fixture_record(), {})
+        report.render_html(records("rotation-third-turn"), {})
 
 
 def test_template_dir_is_repository_templates_in_a_checkout():
@@ -367,30 +357,184 @@ def test_template_dir_is_repository_templates_in_a_checkout():
     assert (d / "report.html.j2").is_file() and (d / "report.css").is_file()
 
 
+# ----------------------------------------------------------------------------- review decision
+
+def with_review(rec: dict, decision: str, *statuses: str) -> dict:
+    """``rec`` with a ``review`` of the documented shape: one reason per status."""
+    checks = ["stability at the operating point", "requirement P(tr P > 20) ≤ 0.01",
+              "link margin policy"]
+    rec["review"] = {"decision": decision, "reasons": [
+        {"check": checks[i], "status": s, "detail": f"detail {i} of the check ({s})"}
+        for i, s in enumerate(statuses)]}
+    return rec
+
+
+def verdict_box(html: str) -> str:
+    return html.split('id="verdict"')[1].split("</section>")[0]
+
+
+def test_failed_review_is_a_red_box_beside_a_stable_verdict(records):
+    rec = with_review(records("rotation-third-turn"), "fail", "pass", "pass", "fail")
+    html = report.render_html(rec, {})
+    head = html.split('<section id="verdict"')[1].split(">")[0]
+    assert "verdict-fail" in head                   # the box colour is the decision's
+    box = verdict_box(html)
+    assert "FAIL" in box and "MEAN STABLE" in box   # the stability verdict is one line in it
+    for i, s in enumerate(("pass", "pass", "fail")):
+        assert f"detail {i} of the check ({s})" in box
+    assert box.count("badge-fail") == 1 and box.count("badge-pass") == 2
+    assert 'class="verdict verdict-pass' not in html
+
+
+@pytest.mark.parametrize("decision,css,word", [("pass", "verdict-pass", "PASS"),
+                                               ("undetermined", "verdict-undetermined",
+                                                "UNDETERMINED")])
+def test_pass_and_undetermined_reviews(records, decision, css, word):
+    status = "pass" if decision == "pass" else "undetermined"
+    rec = with_review(records("rotation-third-turn"), decision, "pass", status,
+                      "not applicable")
+    html = report.render_html(rec, {})
+    assert css in html and word in verdict_box(html)
+    assert "badge-none" in verdict_box(html)       # "not applicable" is neither red nor green
+
+
+def test_record_without_review_gets_a_neutral_box(records):
+    rec = records("rotation-third-turn")
+    rec.pop("review", None)
+    html = report.render_html(rec, {})
+    assert "verdict-neutral" in html and "NO REVIEW DECISION" in html
+    assert not re.search(r'class="verdict verdict-(pass|fail)', html)
+    assert "MEAN STABLE" in verdict_box(html)
+
+
+def test_notebook_summaries(records):
+    rec = with_review(records("rotation-third-turn"), "fail", "pass", "fail")
+    html = summary.html_summary(rec)
+    assert "verdict-fail" in html and "FAIL" in html and "0.875" in html
+    assert "<html" not in html and "<script" not in html
+    md = summary.markdown_summary(rec)
+    assert md.startswith("### Oscillator") and "review FAIL" in md
+    assert "| requirement P(tr P > 20) ≤ 0.01 | fail |" in md
+    assert "| critical value p_c | 0.875 | 7/8 |" in md
+    assert "**MEAN STABLE**" in md
+
+
+# ----------------------------------------------------------------------------- content audit
+
+def test_no_internal_names_in_the_page(records):
+    rec = records("link-oqpsk-sensor")
+    text = visible_text(report.render_html(rec, figures.build_figures(rec)))
+    for leak in ("SeedSequence", "spawn_key", "^", "output compression output"):
+        assert leak not in text, leak
+    # full float precision never shows (a p_up bracket closed to 1e-9 needs 10 decimals)
+    assert not re.search(r"\d\.\d{11,}", text), re.search(r"\d\.\d{11,}", text)
+    assert not raw_dumps(text), raw_dumps(text)
+
+
+def test_seed_rules_in_words():
+    text = seeds_text({"operating_point": {"seed": 0, "paths": "SeedSequence(seed, "
+                                           "spawn_key=(0, i))"}})
+    assert text == "operating point (seed: 0, paths: stream (0, i) of the base seed for path i)"
+
+
+def test_passed_checks_are_never_red(records):
+    rec = records("requirements-tail")
+    checks = appendix_view(rec)["checks"]
+    recorded = rec["verification"]
+    assert len(checks) == len(recorded) + 1
+    for c, r in zip(checks, recorded):
+        assert (c["css"] == "pass") == (r["passed"] is True), (c, r)
+        assert (c["css"] == "fail") == (r["passed"] is False), (c, r)
+    rec["critical_value"]["exact"] = False          # numerical p_c is information, not failure
+    assert appendix_view(rec)["checks"][-1]["css"] == "none"
+
+
+def test_exact_forms_only_where_exact(records):
+    rec = records("rotation-third-turn")
+    rows = {r["symbol"]: r for r in bounds_view(rec)["rows"]}
+    assert rows["p_c"]["expression"] == "7/8" and rows["p_low"]["expression"] == "3/4"
+    rec["critical_value"].update(exact=False, expression="0.87500000000000011")
+    rows = {r["symbol"]: r for r in bounds_view(rec)["rows"]}
+    assert rows["p_c"]["expression"] is None
+
+
+def test_block_maxima_caption_states_the_data_not_a_limit(records):
+    rec = records("rotation-third-turn")
+    html = report.render_html(rec, figures.build_figures(rec))
+    cap = html.split('id="fig-almost-sure"')[1].split("</figcaption>")[0]
+    assert "= ∞" not in cap and "limsup tr P" not in cap
+    top = rec["simulation"]["operating_point"]["almost_sure"]["block_max"]
+    assert filters.num(top[-1], 4) in cap
+
+
+def test_diverged_paths_are_described_as_they_were_handled(records):
+    rec = records("rotation-third-turn")
+    div = rec["simulation"]["operating_point"]["divergence"]
+    div.update(diverged_paths=3, continued=False, mean_is_lower_bound=True, threshold=1e10)
+    rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
+    assert "censored at the threshold; means are lower bounds" in rows["diverged paths"]["note"]
+    div.update(continued=True, mean_is_lower_bound=False)
+    rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
+    assert "true values" in rows["diverged paths"]["note"]
+    assert "lower bounds" not in rows["diverged paths"]["note"]
+
+
+def test_time_average_interval_clamped_and_flagged(records):
+    rec = records("rotation-third-turn")
+    erg = {"replicas": 4, "steps": 10_000, "burn_in": 1_000,
+           "time_averages": {"pooled_mean_trace": {"mean": 17643.0, "lower": -4760.7,
+                                                   "upper": 40048.0},
+                             "replica_mean_trace": [210.0, 1248.0, 196.0, 68000.0]}}
+    rec["simulation"]["operating_point"]["ergodic"] = erg
+    rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
+    note = rows["time average of tr P_t (one long path per replica)"]["note"]
+    assert "95 % interval 0 – 40048" in note and "−4760" not in note and "-4760" not in note
+    assert "unreliable" in note
+
+
+def test_versions_list_report_dependencies(records):
+    names = [r["label"] for r in appendix_view(records("rotation-third-turn"))["versions"]]
+    for name in ("weasyprint", "PyYAML", "numba", "mpmath"):
+        assert name in names
+
+
 # ----------------------------------------------------------------------------- PDF
 
-@pytest.fixture(scope="module")
-def full_pdf(full_html) -> bytes:
-    pytest.importorskip("weasyprint")
-    return report.render_pdf(full_html)
-
-
-def pdf_text(data: bytes) -> tuple[int, str]:
-    import io
-
+def pdf_pages(data: bytes) -> list[str]:
     pypdf = pytest.importorskip("pypdf")
-    reader = pypdf.PdfReader(io.BytesIO(data))
-    return len(reader.pages), "\n".join(page.extract_text() for page in reader.pages)
+    return [page.extract_text() for page in pypdf.PdfReader(io.BytesIO(data)).pages]
 
 
-def test_pdf_text_has_verdict_and_critical_value(full_pdf):
-    pages, text = pdf_text(full_pdf)
-    assert full_pdf.startswith(b"%PDF")
-    assert pages >= 2
-    flat = " ".join(text.split())
-    assert "MEAN STABLE" in flat
-    assert "0.875" in flat
-    assert f"page 1 of {pages}" in flat            # page numbers from the print stylesheet
+@pytest.fixture(scope="session")
+def link_documents(records) -> dict[str, bytes]:
+    pytest.importorskip("weasyprint")
+    rec = with_review(records("link-oqpsk-sensor"), "fail", "pass", "not applicable", "fail")
+    return report.render_documents(rec, ["html", "pdf"])
+
+
+HEADING = re.compile(r"^(\d\. [A-Z]|Appendix|[A-Z][a-z]+( [a-z-]+){0,6}$)")
+
+
+def test_link_review_pdf_layout(link_documents, records):
+    from kfcrit.version import __version__
+
+    pages = pdf_pages(link_documents["pdf"])
+    flat = [" ".join(p.split()) for p in pages]
+    assert "Review: FAIL" in flat[0] and "MEAN STABLE" in flat[0]
+    name = records("link-oqpsk-sensor")["name"]
+    for i, page in enumerate(flat, 1):
+        assert name in page and f"kfcrit {__version__}" in page and f"page {i} of" in page
+    before_appendix = next(i for i, p in enumerate(flat) if "Appendix: details" in p)
+    assert before_appendix <= 5, f"{before_appendix} pages before the appendix"
+    # the link design comes before the theory sections
+    text = " ".join(flat)
+    assert text.index("Design outputs") < text.index("3. The system")
+    # no numbered section heading is the last text line of a page (footer lines excluded)
+    for page in pages:
+        lines = [ln.strip() for ln in page.splitlines() if ln.strip()]
+        body = [ln for ln in lines if name not in ln and "page " not in ln and
+                "DRAFT" not in ln and "kfcrit " not in ln]
+        assert body and not re.match(r"^\d\. [A-Z]", body[-1]), body[-3:]
 
 
 def test_pdf_fetcher_refuses_external_urls(monkeypatch):
@@ -404,7 +548,7 @@ def test_pdf_fetcher_refuses_external_urls(monkeypatch):
     html = ('<html><body><p>x</p><img src="http://example.invalid/a.png">'
             '<link rel="stylesheet" href="https://example.invalid/s.css"></body></html>')
     assert report.render_pdf(html).startswith(b"%PDF")
-    fetcher = report._refusing_fetcher()
+    fetcher = report.refusing_fetcher()
     fetch = getattr(fetcher, "fetch", fetcher)
     with pytest.raises(Exception):  # noqa: B017 - any refusal is fine
         fetch("http://example.invalid/a.png")
@@ -413,12 +557,24 @@ def test_pdf_fetcher_refuses_external_urls(monkeypatch):
 # ----------------------------------------------------------------------------- command
 
 def test_output_format_rules():
-    assert report.output_format("a.html", None) == "html"
-    assert report.output_format("a.PDF", None) == "pdf"
-    assert report.output_format("a.txt", "pdf") == "pdf"
+    assert command.output_format("a.html", None) == "html"
+    assert command.output_format("a.PDF", None) == "pdf"
+    assert command.output_format("a.txt", "pdf") == "pdf"
     with pytest.raises(InputError) as exc:
-        report.output_format("a.txt", None)
+        command.output_format("a.txt", None)
     assert exc.value.exit_code == 2
+
+
+def test_plan_outputs_refuses_duplicates_and_ambiguous_format(tmp_path):
+    src = REPORTS / "sinopoli-scalar.yaml"
+    plan = command.plan_outputs(src, [tmp_path / "a.html", tmp_path / "a.pdf"], None)
+    assert [k for _, k in plan] == ["html", "pdf"]
+    with pytest.raises(InputError, match="given twice"):
+        command.plan_outputs(src, [tmp_path / "a.html", tmp_path / "a.html"], None)
+    with pytest.raises(InputError, match="single output"):
+        command.plan_outputs(src, [tmp_path / "a.html", tmp_path / "b.pdf"], "pdf")
+    with pytest.raises(InputError, match="at least one"):
+        command.plan_outputs(src, [], None)
 
 
 def test_refuses_to_overwrite_input(tmp_path):
@@ -426,53 +582,74 @@ def test_refuses_to_overwrite_input(tmp_path):
     src.write_text((REPORTS / "sinopoli-scalar.yaml").read_text())
     before = src.read_bytes()
     with pytest.raises(InputError, match="input file"):
-        report.report_command(str(src), str(src), fmt=None, quick=True, seed=0, max_states=50)
+        command.report_command(str(src), str(src), quick=True)
     link = tmp_path / "link.html"
     link.symlink_to(src)
     with pytest.raises(InputError, match="input file"):
-        report.report_command(str(src), str(link), fmt=None, quick=True, seed=0, max_states=50)
-    assert src.read_bytes() == before
+        command.report_command(str(src), [str(tmp_path / "ok.html"), str(link)], quick=True)
+    assert src.read_bytes() == before and not (tmp_path / "ok.html").exists()
 
 
 def test_refuses_missing_folder_and_directory(tmp_path):
     src = REPORTS / "sinopoli-scalar.yaml"
     with pytest.raises(InputError, match="does not exist"):
-        report.check_output_path(src, tmp_path / "nope" / "r.html")
+        command.check_output_path(src, tmp_path / "nope" / "r.html")
     (tmp_path / "d.html").mkdir()
     with pytest.raises(InputError, match="directory"):
-        report.check_output_path(src, tmp_path / "d.html")
+        command.check_output_path(src, tmp_path / "d.html")
 
 
-def test_write_atomic_replaces_and_leaves_no_temporary(tmp_path):
-    target = tmp_path / "r.html"
-    target.write_text("old")
-    write_atomic(target, b"new")
-    assert target.read_bytes() == b"new"
-    assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+def test_saved_record_renders_without_analysing(tmp_path, records, monkeypatch, capsys):
+    pytest.importorskip("weasyprint")
+    from kfcrit.analysis import record as analysis
+    from kfcrit.io.jsonio import dumps
+
+    rec = records("sinopoli-scalar")
+    saved = tmp_path / "record.txt"            # no .json extension: detected by content
+    saved.write_text(dumps(rec), encoding="utf-8")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the saved record was analysed again")
+
+    monkeypatch.setattr(analysis, "analyze", refuse)
+    code = command.report_command(str(saved), [str(tmp_path / "r.html"),
+                                                str(tmp_path / "r.pdf")])
+    assert code == analysis.exit_code(rec)
+    html = (tmp_path / "r.html").read_text(encoding="utf-8")
+    assert "9/25" in html and "<svg" in html.split('id="fig-phase-transition"')[1]
+    assert (tmp_path / "r.pdf").read_bytes().startswith(b"%PDF")
+    assert capsys.readouterr().out == ""
+    with pytest.raises(InputError, match="saved record"):
+        command.report_command(str(saved), str(tmp_path / "s.html"), options_given=["quick"])
 
 
-def test_write_atomic_gives_usual_permissions(tmp_path):
-    """``mkstemp`` creates 0600 files; outputs must get 0666 & ~umask like any new file."""
-    old = os.umask(0o022)
-    try:
-        write_atomic(tmp_path / "out.csv", b"x")
-    finally:
-        os.umask(old)
-    assert (tmp_path / "out.csv").stat().st_mode & 0o777 == 0o644
+def test_bad_saved_records_are_refused(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json", encoding="utf-8")
+    with pytest.raises(InputError, match="not valid JSON") as exc:
+        command.report_command(str(bad), str(tmp_path / "r.html"))
+    assert exc.value.exit_code == 2
+    bad.write_text(json.dumps({"hello": 1}), encoding="utf-8")
+    with pytest.raises(InputError, match="not a kfcrit analysis record"):
+        command.report_command(str(bad), str(tmp_path / "r.html"))
+    assert not (tmp_path / "r.html").exists()
 
 
-def test_write_atomic_failure_keeps_old_file(tmp_path, monkeypatch):
-    target = tmp_path / "r.html"
-    target.write_text("old")
+def test_one_analysis_for_html_and_pdf(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("weasyprint")
+    from kfcrit.analysis import record as analysis
 
-    def boom(*args, **kwargs):
-        raise OSError("disk full")
-
-    monkeypatch.setattr(os, "replace", boom)
-    with pytest.raises(OSError):
-        write_atomic(target, b"new")
-    assert target.read_text() == "old"
-    assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+    calls = []
+    real = analysis.analyze
+    monkeypatch.setattr(analysis, "analyze", lambda *a, **k: calls.append(1) or real(*a, **k))
+    src = REPORTS / "sinopoli-scalar.yaml"
+    code = command.report_command(str(src), [str(tmp_path / "a.html"), str(tmp_path / "a.pdf")],
+                                  quick=True)
+    assert calls == [1] and code == 0     # p = 4/5 > p_c = 9/25, decided exactly
+    assert (tmp_path / "a.pdf").read_bytes().startswith(b"%PDF")
+    assert "MEAN STABLE" in (tmp_path / "a.html").read_text(encoding="utf-8")
+    err = capsys.readouterr().err
+    assert err.count("analysing") == 1 and err.count("wrote") == 2
 
 
 def example_files() -> list[Path]:
@@ -484,26 +661,35 @@ def example_files() -> list[Path]:
 
 
 @pytest.mark.parametrize("path", example_files(), ids=lambda p: p.stem)
-def test_render_every_example_html(path, tmp_path, capsys):
-    out = tmp_path / f"{path.stem}.html"
-    code = report.report_command(str(path), str(out), fmt=None, quick=True, seed=0,
-                                 max_states=50)
-    assert code in (0, 3)
-    html = out.read_text(encoding="utf-8")
+def test_render_every_example_html(path, records, capsys):
+    rec = records(path.stem)
+    html = report.render_html(rec, figures.build_figures(rec))
     ids = parse(html).ids
     assert [s for s in SECTION_ORDER if s in ids] == SECTION_ORDER
     assert len(ids) == len(set(ids))
-    assert "Verdict" in html and "critical value" in html
-    err = capsys.readouterr().err
-    assert "wrote" in err and str(out) in err
-    assert capsys.readouterr().out == ""            # stdout carries no progress
-    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
+    assert "Review" in html and "critical value" in html
+    text = visible_text(html)
+    assert not raw_dumps(text), raw_dumps(text)
+    assert "SeedSequence" not in text and "^" not in text
     for fig_id in ("fig-phase-transition", "fig-traces", "fig-operating", "fig-cdf",
                    "fig-almost-sure"):              # every example has a channel
         chunk = html.split(f'id="{fig_id}"')[1].split("</figure>")[0]
         assert "<svg" in chunk, fig_id
     if path.stem == "link-oqpsk-sensor":
         check_link_budget_report(html)
+
+
+def test_gilbert_elliott_report_has_bursty_section(records):
+    rec = records("ge-bursty-scalar")
+    html = report.render_html(rec, figures.build_figures(rec))
+    assert 'id="bursty-link"' in html and "verdict basis" in html
+    rows = qty_rows(html, "channel")
+    r = rec["link_budget"]["recovery_rate"]
+    a2 = rec["link_budget"]["spectral_radius"] ** 2
+    assert rows["recovery rate r"] == filters.num(r)
+    assert rows["required recovery rate 1 − 1/a²"] == filters.num(1 - 1 / a2, 6)   # MATH §7
+    assert 'id="fig-invariant"' in html                                 # scalar: support drawn
+    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
 
 
 class _Text(HTMLParser):
@@ -571,204 +757,6 @@ def check_link_budget_report(html: str) -> None:
     assert "margin policy NOT met" in verdict and "policy needs" in verdict
 
 
-def test_cli_report_pdf_and_unknown_extension(tmp_path):
-    src = REPORTS / "sinopoli-scalar.yaml"
-    out = tmp_path / "r.pdf"
-    run = subprocess.run([sys.executable, "-m", "kfcrit", "report", str(src), "-o", str(out),
-                          "--quick"], capture_output=True, text=True, cwd=ROOT, timeout=300)
-    assert run.returncode in (0, 3), run.stderr
-    assert out.read_bytes().startswith(b"%PDF") and run.stdout == ""
-    pages, text = pdf_text(out.read_bytes())
-    assert "Verdict" in text and "critical value" in text
-    # What a reviewer reads in the printed example: the verdict and p_c = 9/25 = 0.36.
-    flat = " ".join(text.split())
-    assert "MEAN STABLE" in flat and "0.36" in flat and "9/25" in flat
-    # --quick: the draft mark is on every page (an @page margin box), not only on page 1.
-    import io
-
-    import pypdf
-
-    reader = pypdf.PdfReader(io.BytesIO(out.read_bytes()))
-    assert pages >= 2
-    assert all("DRAFT" in page.extract_text() for page in reader.pages)
-    bad = subprocess.run([sys.executable, "-m", "kfcrit", "report", str(src), "-o",
-                          str(tmp_path / "r.txt")], capture_output=True, text=True, cwd=ROOT,
-                         timeout=120)
-    assert bad.returncode == 2 and "--format" in bad.stderr
-    assert not (tmp_path / "r.txt").exists()
-
-
-@pytest.mark.slow
-def test_wheel_ships_templates(tmp_path):
-    """The built wheel holds kfcrit/templates/report.html.j2 and report.css (force-include)."""
-    run = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps",
-                          "--no-build-isolation", "-w", str(tmp_path), str(ROOT)],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr
-    wheel = next(tmp_path.glob("kfcrit-*.whl"))
-    names = set(zipfile.ZipFile(wheel).namelist())
-    for name in ("kfcrit/templates/report.html.j2", "kfcrit/templates/report.css",
-                 "kfcrit/templates/_verdict.html.j2", "kfcrit/report.py"):
-        assert name in names, name
-
-
-# ----------------------------------------------------------------------------- labelled tables
-
-def test_unit_and_number_filters():
-    assert filters.unit(-100.9648, "dBm") == "−100.96 dBm"
-    assert filters.unit(81.187, "m") == "81.2 m"
-    assert filters.unit(2.0e6, "Hz") == "2 MHz"
-    assert filters.unit(None, "dB") == "—"
-    assert filters.sci(4.261669270870999e-16) == "4.26 × 10⁻¹⁶"
-    assert filters.sci(0.5) == "0.5"
-    assert filters.prob(0.32859750788) == "0.3286"
-    assert filters.prob(1.2e-4) == "1.2 × 10⁻⁴"
-    assert filters.count(50000) == "50\u202f000"
-    assert filters.vector([[-0.80098], [-0.99706]]) == "[−0.801, −0.9971]"
-    assert filters.quantity(1.7752, "dB") == "1.78 dB"
-    assert filters.quantity(0.3286, "pct") == "32.9 %"
-    assert filters.quantity(None, "yesno") == "not computed"
-
-
-def test_eigenvalues_with_imaginary_unit_are_typeset():
-    assert mathsvg.expression_latex("1 + sqrt(3)*I") == r"1 + \sqrt{3} i"
-    assert mathsvg.expression_svg("1 - sqrt(3)*I") is not None
-    assert mathsvg.expression_latex("exp(I*pi/3)") is None      # not misread as E**(E*pi/3)
-
-
-def test_invariant_gaps_keep_exact_hole_over_numerical_estimate():
-    inv = {"holes": [[2.5, 2.7071067811865475], [3.0, 5.82842712474619]],
-           "support_points": {"largest_gaps": [[2.4999284826384978, 2.7071067811865475],
-                                               [2.9997139714660026, 5.82842712474619]]}}
-    assert figures.invariant_gaps(inv) == [[2.5, 2.7071067811865475],
-                                           [3.0, 5.82842712474619]]
-
-
-def test_fixture_report_has_no_raw_dumps(full_html):
-    assert not raw_dumps(visible_text(full_html)), raw_dumps(visible_text(full_html))
-
-
-def link_record() -> dict:
-    """FIXTURE: the link-budget section shape of ``linkbudget.design_section`` (numbers of the
-    link-oqpsk-sensor example, rounded), with the analysis' ``design_check``."""
-    from kfcrit.analysis.record import design_check
-
-    rec = fixture_record()
-    channel = {"model": "link-budget", "radio": {"model": "ieee802154-oqpsk-2450"},
-               "tx_power_dbm": 0.0, "distance_m": 105.0, "packet_bytes": 40,
-               "path_loss": {"model": "log-distance", "shadowing_sigma_db": 4.0,
-                             "shadowing": "per-link"},
-               "margin_db": 2.0, "max_outage": 0.1, "sinr_db": 0.1292,
-               "arrival_probability": 0.96214, "arrival_probability_expression": "0.96214"}
-    rec["operating_point"]["channel"] = channel
-    lb = {"applicable": True, "radio": {"model": "ieee802154-oqpsk-2450", "formula": "BER"},
-          "link": {"tx_power_dbm": 0.0, "distance_m": 105.0, "path_loss_db": 100.836,
-                   "rx_power_dbm": -100.836, "bandwidth_hz": 2e6, "interference_dbm": None,
-                   "sinr_db": 0.1292, "packet_error_rate": 0.0379, "arrival_probability": 0.962},
-          "margin_policy": {"margin_db": 2.0, "max_outage": 0.1, "effective_margin_db": 5.126,
-                            "rule": "keep max(margin_db, sigma * Phi^-1(1 - max_outage)) dB"},
-          "required_arrival_probability": {"design_value": 0.875, "basis": "critical value p_c"},
-          "required_sinr_db": -1.646, "required_rx_power_dbm": -102.611,
-          "link_margin_db": 1.7752, "max_distance_m": 81.187, "max_distance_unbounded": False,
-          "mean_stable_at_distance": True,
-          "shadowing": {"sigma_db": 4.0, "mode": "per-link", "mean_arrival_probability": 0.64,
-                        "outage_below_critical": 0.3286, "outage_below_upper": 0.3473},
-          "thresholds": [{"label": "critical_value", "arrival_probability": 0.875,
-                          "required_sinr_db": -1.646, "required_rx_power_dbm": -102.611,
-                          "link_margin_db": 1.7752, "max_distance_m": 81.187,
-                          "max_distance_unbounded": False, "outage_probability": 0.3286,
-                          "reachable": True}],
-          "notes": ["per-link shadowing: FIXTURE note"]}
-    lb["design_check"] = design_check(lb)
-    rec["link_budget"] = lb
-    return rec
-
-
-def test_design_check_compares_the_link_with_its_policy():
-    dc = link_record()["link_budget"]["design_check"]
-    assert dc["margin_policy_met"] is False            # 1.7752 dB < 5.126 dB
-    assert dc["outage_within_policy"] is False         # 32.9 % > 10 %
-    assert dc["max_distance_m"] == 81.187 and dc["distance_m"] == 105.0
-
-
-def test_link_budget_section_is_a_labelled_table_with_units():
-    rec = link_record()
-    html = report.render_html(rec, {})
-    rows = qty_rows(html, "channel")
-    assert rows["required SINR"] == "−1.65 dB"
-    assert rows["required received power"] == "−102.61 dBm"
-    assert rows["link margin at the configured distance"] == "1.78 dB"
-    assert rows["maximum distance at the margin policy"] == "81.2 m"
-    assert rows["noise bandwidth"] == "2 MHz"
-    assert rows["shadowing outage P(p_link ≤ design requirement)"] == "32.9 %"
-    assert rows["interference"] == "none"
-    assert "margin policy NOT met" in html
-    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
-
-
-def test_gilbert_elliott_report_has_bursty_section(tmp_path):
-    src = tmp_path / "ge.yaml"
-    src.write_text("name: bursty\nA: [[-1.25]]\nC: [[1]]\nQ: [[1]]\nR: [[2.5]]\n"
-                   "channel: {model: gilbert-elliott, failure_rate: 0.2, recovery_rate: 0.4}\n"
-                   "requirements: {max_error_trace: 20, max_tail_probability: 0.05}\n",
-                   encoding="utf-8")
-    out = tmp_path / "ge.html"
-    assert report.report_command(str(src), str(out), fmt=None, quick=True, seed=0,
-                                 max_states=50) in (0, 3)
-    html = out.read_text(encoding="utf-8")
-    assert 'id="bursty-link"' in html and "verdict basis" in html
-    rows = qty_rows(html, "channel")
-    assert rows["recovery rate r"] == "0.4" and rows["mean loss-burst length 1/r"] == "2.5"
-    assert rows["required recovery rate 1 − 1/a²"] == "0.36"           # 1 − (4/5)² (MATH §7)
-    assert "P(tr P &gt; 20)" in html and "95 % interval" in html        # requirement + CI
-    assert 'id="fig-invariant"' in html                                 # scalar: support drawn
-    assert "not the verdict's basis for a bursty channel" in html      # the i.i.d. margin
-    assert not raw_dumps(visible_text(html)), raw_dumps(visible_text(html))
-
-
-def test_missing_figures_say_why():
-    rec = fixture_record()
-    rec["operating_point"] = None
-    rec["system"]["channel"] = None
-    rec["simulation"]["operating_point"] = None
-    html = report.render_html(rec, figures.build_figures(rec))
-    chunk = html.split('id="fig-cdf"')[1].split("</figure>")[0]
-    assert "not computed (the system file has no channel section" in chunk
-    assert "channel: not computed (the system file has no channel section" in html
-    rec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
-    html = report.render_html(rec, figures.build_figures(rec))
-    assert "simulation: not computed (simulation disabled (--no-simulate))" in html
-
-
-def test_simulation_summary_is_labelled():
-    rec = fixture_record()
-    rows = qty_rows(report.render_html(rec, {}), "simulation")
-    assert rows["mean tr P_t at the horizon"] == filters.num(3.3 + 2 * math.exp(-195 / 30), 6)
-    html = report.render_html(rec, {})
-    assert "400 paths × 200 steps" in html
-
-
-def test_phase_window_starts_where_the_bounds_exist() -> None:
-    """Below p_low both bounds are infinite: the window starts just below the first finite point
-    (a tenth of the remaining range), and widens to show an operating point further left."""
-    from kfcrit.views.figures import phase_window
-
-    p = [0.0, 0.25, 0.5, 0.75, 0.8, 0.9, 1.0]
-    nan = float("nan")
-    lower = [nan, nan, nan, nan, 40.0, 8.0, 2.0]
-    upper = [nan, nan, nan, nan, nan, 30.0, 3.0]
-    marks = {"p_low": 0.75, "p_c": 0.9375, "p_up": 0.9375, "operating": 0.95}
-    left, right = phase_window(p, lower, upper, marks)
-    assert right == 1.0
-    assert left == pytest.approx(0.75 - 0.1 * 0.25)
-    left, _ = phase_window(p, lower, upper, {**marks, "operating": 0.5})
-    assert left == pytest.approx(0.5 - 0.1 * 0.5)
-    # nothing finite at all: fall back to the whole grid
-    left, right = phase_window(p, [nan] * 7, None, {})
-    assert (left, right) == (0.0, 1.0)
-
-
-# ----------------------------------------------------------------------------- audit regressions
 
 def test_num_and_sci_share_the_scientific_style():
     assert filters.num(160480.0, 5) == "1.6048 × 10⁵"
@@ -798,146 +786,33 @@ def test_pretty_text_unicode_notation():
     assert t(None) == ""
 
 
-def _with_operating_sim(rec: dict, **op) -> dict:
-    rec["simulation"]["operating_point"].update(op)
-    return rec
+def test_write_atomic_replaces_and_leaves_no_temporary(tmp_path):
+    target = tmp_path / "r.html"
+    target.write_text("old")
+    write_atomic(target, b"new")
+    assert target.read_bytes() == b"new"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
 
 
-def test_diverged_paths_are_described_as_censored_lower_bounds():
-    rec = _with_operating_sim(fixture_record(), paths=400, steps=200,
-                              divergence={"threshold": 1e10, "diverged_paths": 3,
-                                          "mean_is_lower_bound": True})
-    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
-    note = rows["diverged paths"]["note"]
-    assert "censored at the threshold; means are lower bounds" in note
-    assert "not averaged" not in note and "flagged" not in note
-    # the newer rule: paths continued in scaled form keep true values (no lower-bound claim)
-    rec["simulation"]["operating_point"]["divergence"].update(continued=True,
-                                                               mean_is_lower_bound=False)
-    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
-    assert "true values" in rows["diverged paths"]["note"]
-    assert "lower bounds" not in rows["diverged paths"]["note"]
-    rec["verification"] = [{"check": "simulation: all statistics finite (divergence flagged, "
-                                     "not propagated)", "passed": True, "detail": "0 of 1"}]
-    names = [c["name"] for c in report.appendix_view(rec)["checks"]]
-    assert not any("flagged" in n for n in names)
-    assert any("censored" in n for n in names)
+def test_write_atomic_gives_usual_permissions(tmp_path):
+    """``mkstemp`` creates 0600 files; outputs must get 0666 & ~umask like any new file."""
+    old = os.umask(0o022)
+    try:
+        write_atomic(tmp_path / "out.csv", b"x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "out.csv").stat().st_mode & 0o777 == 0o644
 
 
-def test_cdf_points_keep_the_tail_and_the_maximum():
-    import numpy as np
+def test_write_atomic_failure_keeps_old_file(tmp_path, monkeypatch):
+    target = tmp_path / "r.html"
+    target.write_text("old")
 
-    from kfcrit.sim.montecarlo import SimulationResult
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
 
-    def result(traces, threshold=1e10):
-        res = object.__new__(SimulationResult)      # cdf_points reads these two fields only
-        object.__setattr__(res, "horizon_traces", np.asarray(traces, dtype=float))
-        object.__setattr__(res, "divergence_threshold", threshold)
-        return res
-
-    rng = np.random.default_rng(0)
-    x = np.concatenate([rng.uniform(3, 15, 997), [25.0, 40.0, 90.0]])   # 3 paths above M = 20
-    cdf = result(x).cdf_points()
-    assert len(cdf["trace"]) == x.size                       # N ≤ 2000: the exact ECDF
-    assert max(cdf["trace"]) == 90.0 and cdf["probability"][-1] == 1.0
-    above = [f for v, f in zip(cdf["trace"], cdf["probability"]) if v > 20]
-    assert len(above) == 3
-    big = np.concatenate([rng.uniform(3, 15, 49_990), np.linspace(21, 500, 10)])
-    cdf = result(big).cdf_points()
-    assert len(cdf["trace"]) < 2000 and max(cdf["trace"]) == 500.0
-    assert sum(v > 20 for v in cdf["trace"]) == 10            # every exceeding path is drawn
-    assert cdf["trace"] == sorted(cdf["trace"])
-    censored = result([1.0, 2.0, 1e10, 1e10], threshold=1e10).cdf_points()
-    assert censored["trace"] == [1.0, 2.0] and censored["probability"] == [0.25, 0.5]
-
-
-def test_cdf_figure_reaches_past_the_limit():
-    rec = fixture_record()
-    rec["simulation"]["operating_point"]["cdf"] = {"x": [2.0, 3.0, 4.0, 30.0],
-                                                   "F": [0.25, 0.5, 0.75, 1.0]}
-    assert figures.cdf_svg(rec) is not None
-    left, right = figures.cdf_window(rec["simulation"]["operating_point"]["cdf"]["x"], 10.0)
-    assert left < 2.0 and right > 30.0
-    left, right = figures.cdf_window([2.0, 3.0, 4.0], 10.0)   # no path beyond: still past M
-    assert right > 10.0
-
-
-def test_time_average_interval_clamped_and_flagged():
-    erg = {"replicas": 4, "steps": 10_000, "burn_in": 1_000,
-           "time_averages": {"pooled_mean_trace": {"mean": 17643.0, "lower": -4760.7,
-                                                   "upper": 40048.0},
-                             "replica_mean_trace": [210.0, 1248.0, 196.0, 68000.0]}}
-    rec = _with_operating_sim(fixture_record(), ergodic=erg)
-    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
-    note = rows["time average of tr P_t (one long path per replica)"]["note"]
-    assert "95 % interval 0 – 40048" in note and "−4760" not in note and "-4760" not in note
-    assert "unreliable" in note
-    erg["time_averages"] = {"pooled_mean_trace": {"mean": 5.1, "lower": 4.9, "upper": 5.3},
-                            "replica_mean_trace": [5.04, 4.98, 5.3, 5.09]}
-    rows = {r["label"]: r for r in report.simulation_view(rec)["rows"]}
-    assert "unreliable" not in rows["time average of tr P_t (one long path per replica)"]["note"]
-
-
-def test_verdict_legend_without_channel_gives_the_reason():
-    rec = fixture_record()
-    rec["operating_point"] = None
-    html = report.render_html(rec, {})
-    legend = html.split('class="legend"')[1].split("</p>")[0]
-    assert "no operating point" in legend and "bracket" not in legend
-    rec = fixture_record()
-    rec["operating_point"].update(verdict="undetermined", bracket=[0.875, 0.9375])
-    assert "bracket" in report.verdict_view(rec)["legend"]
-    assert report.verdict_view(fixture_record())["legend"] == ""
-
-
-def test_exact_upper_bound_shows_its_expression():
-    rec = fixture_record()
-    rec["upper_bound"] = {"value": 0.36000000000000004, "interval": [0.36, 0.36000000000000004],
-                          "certified": True, "status": "determined", "method": "exact",
-                          "lower_evidence": {"kind": "theorem", "value": 0.36,
-                                             "expression": "9/25",
-                                             "statement": "p_up = p_low exactly (C invertible)"}}
-    row = {r["symbol"]: r for r in report.bounds_view(rec)["rows"]}["p_up"]
-    assert row["expression"] == "9/25" and "decided exactly" in row["detail"]
-
-
-def test_versions_list_report_dependencies():
-    names = [r["label"] for r in report.appendix_view(fixture_record())["versions"]]
-    for name in ("weasyprint", "PyYAML", "numba", "mpmath"):
-        assert name in names
-
-
-def test_notes_end_with_full_stops():
-    rec = fixture_record()
-    rec["theory"]["moment_thresholds_note"] = "applies when all eigenvalues are all unstable"
-    assert report.bounds_view(rec)["moments_note"].endswith("unstable.")
-    rec["operating_point"]["note"] = "the verdict follows the basis stated"
-    assert report.verdict_view(rec)["note"].endswith("stated.")
-
-
-def test_plain_log_tick_labels():
-    assert figures._plain_label(0.6) == "0.6" and figures._plain_label(20.0) == "20"
-    assert "e" not in figures._plain_label(0.002)
-
-
-def test_report_tolerance_option_reaches_the_robust_value(tmp_path: Path) -> None:
-    # the third-turn rotation entered with a float √3 is exactly irrational as entered
-    # (p_c = 3/4, Thm 10) but within 1e-9 of q = 3 (p_c = 1 − 2^{−3} = 7/8, Thm 9): the
-    # report shows the robust value 0.875 at the default tolerance and none at 1e-18
-    from click.testing import CliRunner
-
-    from kfcrit.cli.main import main
-
-    src = tmp_path / "float-third-turn.yaml"
-    src.write_text("name: float third turn\nA: [[1, -1.7320508075688772], "
-                   "[1.7320508075688772, 1]]\nC: [[1, 0]]\nQ: 1\nR: 1\n")
-    texts = {}
-    for tol in ("1e-9", "1e-18"):
-        out = tmp_path / f"r{tol}.html"
-        r = CliRunner().invoke(main, ["report", str(src), "-o", str(out), "--quick",
-                                      "--tolerance", tol])
-        assert r.exit_code in (0, 3), r.stderr
-        texts[tol] = out.read_text()
-    calm = "no perturbation within the tolerance changes it"
-    assert calm not in texts["1e-9"] and "0.875" in texts["1e-9"]
-    assert calm in texts["1e-18"]
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(OSError):
+        write_atomic(target, b"new")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.html"]

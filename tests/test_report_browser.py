@@ -1,7 +1,7 @@
 """The HTML report as a user sees it: opened in headless Chromium (Debian ``chromium``).
 
 Checks that the page loads with no failed resource and no console error, and that the rendered
-DOM shows the verdict and the critical value; a screenshot must be produced. Skipped only when
+DOM shows the verdict and the critical value of a real analysis; a screenshot must be produced. Skipped only when
 chromium is not installed (``.ci/run`` installs it).
 """
 from __future__ import annotations
@@ -40,33 +40,33 @@ def page_errors(stderr: str) -> list[str]:
             or "net::ERR_" in line or "Uncaught" in line]
 
 
-def test_fixture_report_in_chromium(tmp_path):
-    import importlib.util
+def test_report_in_chromium(tmp_path):
+    from kfcrit.analysis.record import AnalysisOptions, analyze
+    from kfcrit.io.systemfile import load_spec
 
-    spec = importlib.util.spec_from_file_location("kf_test_report",
-                                                  Path(__file__).with_name("test_report.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    rec = mod.fixture_record()
-    page = tmp_path / "fixture.html"
+    spec = load_spec(ROOT / "reports" / "rotation-third-turn.yaml")
+    rec = analyze(spec, AnalysisOptions(quick=True)).to_dict()
+    page = tmp_path / "rotation.html"
     page.write_text(report.render_html(rec, figures.build_figures(rec)), encoding="utf-8")
     run = chromium(page.as_uri(), "--dump-dom")
     assert run.returncode == 0, run.stderr[-2000:]
     dom = run.stdout
     assert 'id="verdict"' in dom and "MEAN STABLE" in dom
-    assert "0.875" in dom
+    assert "0.875" in dom                                        # p_c = 7/8 (MATH §4)
     assert not page_errors(run.stderr), page_errors(run.stderr)
     shot = tmp_path / "shot.png"
     run = chromium(page.as_uri(), f"--screenshot={shot}", "--window-size=1100,2400")
     assert shot.read_bytes().startswith(b"\x89PNG")
 
 
-def test_real_example_in_chromium(tmp_path):
+def test_command_output_in_chromium(tmp_path):
+    from kfcrit.cli.report import report_command
+
     out = tmp_path / "scalar.html"
-    code = report.report_command(str(ROOT / "reports" / "sinopoli-scalar.yaml"), str(out),
-                                 fmt=None, quick=True, seed=0, max_states=50)
-    assert code in (0, 3)
+    code = report_command(str(ROOT / "reports" / "sinopoli-scalar.yaml"), [str(out)],
+                          quick=True, max_states=50)
+    assert code == 0                                             # p = 4/5 > p_c = 9/25
     run = chromium(out.as_uri(), "--dump-dom")
     assert run.returncode == 0
-    assert "Verdict" in run.stdout and "0.36" in run.stdout      # p_c = 9/25 (MATH §3)
+    assert "Review" in run.stdout and "0.36" in run.stdout      # p_c = 9/25 (MATH §3)
     assert not page_errors(run.stderr), page_errors(run.stderr)

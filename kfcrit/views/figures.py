@@ -1,11 +1,14 @@
-"""Report figures: matplotlib drawings of record data, returned as inline SVG strings.
+"""Report figures: matplotlib drawings of record data (Figure objects, inline SVG or PNG).
 
-Every function here reads only the analysis record (``Analysis.to_dict()``) and draws; nothing is
-computed beyond unit conversions. A figure whose data is missing or malformed is ``None`` and the
+Every function here reads only the analysis record (``Analysis.to_dict()``, or the same dict read
+back from ``--json``) and draws; nothing is computed beyond unit conversions. :func:`figure`
+returns one figure as a :class:`matplotlib.figure.Figure` (for notebooks), :func:`figure_names`
+lists those the record has data for, and :func:`build_figures` returns every figure as markup for
+the report. A figure whose data is missing or malformed is ``None`` and the
 report says "not computed" in its place. ``None`` inside a data list is a non-finite value in the
 record (a divergent trace, a bound that does not exist at that p) and is drawn as a gap.
 
-Figures (keys of :func:`build_figures`):
+Figures (names for :func:`figure`, keys of :func:`build_figures`):
 
 * ``phase_transition``: tr S̄ and tr V̄ against p (log scale) with p_low, p_c, p_up and the
   operating point marked (Sinopoli et al. 2004, Fig. 1-style);
@@ -17,6 +20,8 @@ Figures (keys of :func:`build_figures`):
 """
 from __future__ import annotations
 
+import base64
+import html
 import io
 import math
 from collections.abc import Callable, Sequence
@@ -81,8 +86,9 @@ def _positive(values: Sequence[float]) -> bool:
 
 def _to_svg(fig: Figure, label: str) -> str:
     buf = io.BytesIO()
-    fig.savefig(buf, format="svg", bbox_inches="tight", pad_inches=0.04,
-                metadata={"Date": None, "Creator": None, "Format": None, "Type": None})
+    with matplotlib.rc_context(FIG_RC):   # svg.fonttype and svg.hashsalt are read when saving
+        fig.savefig(buf, format="svg", bbox_inches="tight", pad_inches=0.04,
+                    metadata={"Date": None, "Creator": None, "Format": None, "Type": None})
     return clean_svg(buf.getvalue().decode("utf-8"), label=label, css_class="figure-svg")
 
 
@@ -155,14 +161,10 @@ def _fmt(value: float | None) -> str:
 
 
 def markers_of(record: dict[str, Any]) -> dict[str, float | None]:
-    """p_low, p_c, p_up and the operating p: the phase-transition markers, else the contract."""
-    marks = _section(record, "phase_transition", "markers") or {}
-    fallback = {"p_low": _section(record, "lower_bound", "value"),
-                "p_c": _section(record, "critical_value", "value"),
-                "p_up": _section(record, "upper_bound", "value"),
-                "operating": _section(record, "operating_point", "arrival_probability")}
-    return {k: _number(marks.get(k)) if _number(marks.get(k)) is not None else _number(v)
-            for k, v in fallback.items()}
+    """p_low, p_c, p_up and the operating p (``phase_transition.markers``; ``None`` if absent)."""
+    marks = _section(record, "phase_transition", "markers")
+    marks = marks if isinstance(marks, dict) else {}
+    return {k: _number(marks.get(k)) for k in ("p_low", "p_c", "p_up", "operating")}
 
 
 def phase_window(p: Sequence[float], lower: Sequence[float] | None,
@@ -186,7 +188,7 @@ def phase_window(p: Sequence[float], lower: Sequence[float] | None,
     return left, right
 
 
-def phase_transition_svg(record: dict[str, Any]) -> str | None:
+def draw_phase_transition(record: dict[str, Any]) -> Figure | None:
     """tr S̄(p) and tr V̄(p) on a log axis with p_low, p_c, p_up and the operating point."""
     pt = record.get("phase_transition")
     if not isinstance(pt, dict):
@@ -221,15 +223,12 @@ def phase_transition_svg(record: dict[str, Any]) -> str | None:
         ax.set_ylabel("trace of the bound")
         ax.set_xlim(*phase_window(p, lower, upper, marks))
         fig.legend(loc="outside lower center", frameon=False, ncols=3)
-        return _to_svg(fig, "Phase transition: trace of the lower and upper covariance bounds "
-                            "against the arrival probability")
+        return fig
 
 
-def traces_svg(record: dict[str, Any]) -> str | None:
+def draw_traces(record: dict[str, Any]) -> Figure | None:
     """Simulated mean tr P_t for arrival probabilities just below and above the critical value."""
-    demo = _section(record, "simulation", "phase_demo")
-    if isinstance(demo, dict):
-        demo = demo.get("curves")
+    demo = _section(record, "simulation", "phase_demo", "curves")
     if not isinstance(demo, list) or not demo:
         return None
     with matplotlib.rc_context(FIG_RC):
@@ -242,9 +241,8 @@ def traces_svg(record: dict[str, Any]) -> str | None:
             t, y, _, _ = series_of(run)
             if t is None or y is None or len(t) != len(y) or not _positive(y):
                 continue
-            p = _number(run.get("p") if run.get("p") is not None
-                        else run.get("arrival_probability"))
-            label = str(run.get("label") or run.get("side") or "")
+            p = _number(run.get("arrival_probability"))
+            label = str(run.get("side") or "")
             text = f"p = {p:.4g}" if p is not None else "p = ?"
             if run.get("mean_is_lower_bound"):
                 label = (label + ", " if label else "") + "paths diverged: a lower bound"
@@ -258,45 +256,38 @@ def traces_svg(record: dict[str, Any]) -> str | None:
         ax.set_xlabel("time step t")
         ax.set_ylabel("mean tr $P_t$ over paths")
         fig.legend(loc="outside lower center", frameon=False, ncols=2)
-        return _to_svg(fig, "Simulated mean error covariance trace below and above the critical "
-                            "value")
+        return fig
 
 
 def series_of(run: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
-    """(t, mean, band low, band high) of a simulated run, in either record shape:
-    ``t/mean_trace/band_low/band_high`` lists, or ``times`` with ``mean_trace`` a list or a
-    mapping ``{mean, lower, upper}`` (``lower``/``upper`` lists beside it also accepted)."""
-    t = _floats(run.get("t") if run.get("t") is not None else run.get("times"))
+    """(times, mean, band lower end, band upper end) of a simulated run.
+
+    The operating-point run has ``times`` and ``mean_trace = {mean, lower, upper}``; a curve of
+    ``phase_demo`` has ``times``, ``mean_trace`` (a list) and ``lower``/``upper`` beside it.
+    """
+    t = _floats(run.get("times"))
     mt = run.get("mean_trace")
     if isinstance(mt, dict):
         return t, _floats(mt.get("mean")), _floats(mt.get("lower")), _floats(mt.get("upper"))
-    lo = run.get("band_low") if run.get("band_low") is not None else run.get("lower")
-    hi = run.get("band_high") if run.get("band_high") is not None else run.get("upper")
-    return t, _floats(mt), _floats(lo), _floats(hi)
+    return t, _floats(mt), _floats(run.get("lower")), _floats(run.get("upper"))
 
 
 def cdf_of(record: dict[str, Any]) -> tuple[Any, Any]:
-    """(x, F) of the simulated distribution of tr P at the operating point (either shape)."""
-    op = _section(record, "simulation", "operating_point") or {}
-    cdf = op.get("cdf") if isinstance(op.get("cdf"), dict) else \
-        _section(op, "horizon", "cdf")
+    """(trace, probability) of the empirical CDF of tr P at the operating point
+    (``simulation.operating_point.horizon.cdf``)."""
+    cdf = _section(record, "simulation", "operating_point", "horizon", "cdf")
     if not isinstance(cdf, dict):
         return None, None
-    x = cdf.get("x") if cdf.get("x") is not None else cdf.get("trace")
-    f = cdf.get("F") if cdf.get("F") is not None else cdf.get("probability")
-    return _floats(x), _floats(f)
+    return _floats(cdf.get("trace")), _floats(cdf.get("probability"))
 
 
 def tail_of(record: dict[str, Any]) -> float | None:
-    """Simulated P(tr P > limit) at the operating point (``tail_probability`` or
-    ``exceedance.estimate``)."""
-    op = _section(record, "simulation", "operating_point") or {}
-    if _number(op.get("tail_probability")) is not None:
-        return _number(op.get("tail_probability"))
-    return _number(_section(op, "exceedance", "estimate"))
+    """Simulated P(tr P > limit) at the operating point
+    (``simulation.operating_point.exceedance.estimate``)."""
+    return _number(_section(record, "simulation", "operating_point", "exceedance", "estimate"))
 
 
-def operating_svg(record: dict[str, Any]) -> str | None:
+def draw_operating(record: dict[str, Any]) -> Figure | None:
     """Mean tr P_t at the operating point (with its band) against tr S̄ and tr V̄."""
     op = _section(record, "simulation", "operating_point")
     if not isinstance(op, dict):
@@ -329,8 +320,7 @@ def operating_svg(record: dict[str, Any]) -> str | None:
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")
         fig.legend(loc="outside lower center", frameon=False, ncols=4)
-        return _to_svg(fig, "Simulated mean error covariance trace at the operating point "
-                            "against the covariance bounds")
+        return fig
 
 
 def cdf_window(x: Sequence[float], limit: float | None) -> tuple[float, float] | None:
@@ -344,7 +334,7 @@ def cdf_window(x: Sequence[float], limit: float | None) -> tuple[float, float] |
     return min(finite) / 1.15, max(finite) * 1.6
 
 
-def cdf_svg(record: dict[str, Any]) -> str | None:
+def draw_cdf(record: dict[str, Any]) -> Figure | None:
     """Empirical CDF of tr P at the operating point, with the requirement's limit if given."""
     x, f = cdf_of(record)
     if x is None or f is None or len(x) != len(f) or not _positive(x):
@@ -373,18 +363,18 @@ def cdf_svg(record: dict[str, Any]) -> str | None:
         ax.set_ylabel("P(tr P ≤ x)")
         # Below the axes, as in the other figures: it can never cover the curve or the limit.
         fig.legend(loc="outside lower center", frameon=False, ncols=2)
-        return _to_svg(fig, "Distribution of the error covariance trace at the operating point")
+        return fig
 
 
 def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
-    """Empty intervals of the invariant support: ``gaps``, ``gap_levels`` [{lower, upper}],
-    ``holes`` and ``support_points.largest_gaps`` (pairs), sorted.
+    """Empty intervals of the invariant support: ``holes`` (pairs), ``gap_levels``
+    [{lower, upper}] and ``support_points.largest_gaps`` (pairs), sorted.
 
     Intervals found twice (an exact hole and its numerical estimate from finitely many support
     points share the upper end) are kept once, as the narrower one: the numerical estimate
     starts at the largest support point found, below the true end of the support piece.
     """
-    raw: list[Any] = list(inv.get("gaps") or []) + list(inv.get("holes") or [])
+    raw: list[Any] = list(inv.get("holes") or [])
     raw += [[_dict_get(g, "lower"), _dict_get(g, "upper")] for g in inv.get("gap_levels") or []]
     sp = inv.get("support_points")
     if isinstance(sp, dict):
@@ -405,19 +395,18 @@ def _dict_get(d: Any, key: str) -> Any:
     return d.get(key) if isinstance(d, dict) else None
 
 
-def invariant_svg(record: dict[str, Any]) -> str | None:
+def draw_invariant(record: dict[str, Any]) -> Figure | None:
     """Support of the invariant distribution of a scalar system: the support from P* on, with
-    its empty intervals cut out (and support points, when the record lists them)."""
+    its empty intervals cut out."""
     inv = record.get("invariant")
     if not isinstance(inv, dict):
         return None
-    points = _floats(inv.get("support_points")) or []
     gaps = invariant_gaps(inv)
     fp = inv.get("fixed_point")
     fixed = _number(fp.get("value") if isinstance(fp, dict) else fp)
-    if not _positive(points) and not gaps:
+    if not gaps:
         return None
-    ends = [v for g in gaps for v in g] + [v for v in points if math.isfinite(v) and v > 0]
+    ends = [v for g in gaps for v in g]
     left = fixed if fixed is not None and fixed > 0 else min(ends)
     right = max(ends) * 1.15
     with matplotlib.rc_context(FIG_RC):
@@ -427,10 +416,6 @@ def invariant_svg(record: dict[str, Any]) -> str | None:
         for i, (a, b) in enumerate(gaps):
             ax.axvspan(float(a), float(b), ymin=0.2, ymax=0.8, color="#fde7cf", linewidth=0,
                        label="empty interval (no mass)" if i == 0 else None)
-        pts = [v for v in points if math.isfinite(v) and v > 0]
-        if pts:
-            ax.vlines(pts, 0.1, 0.9, color=COLORS["sim"], linewidth=0.6,
-                      label="support points (finite compositions)")
         if fixed is not None:
             ax.axvline(fixed, color=COLORS["p_c"], linewidth=1.4,
                        label=f"P* = {fixed:.4g} (Riccati fixed point)")
@@ -443,10 +428,10 @@ def invariant_svg(record: dict[str, Any]) -> str | None:
         ax.spines["left"].set_visible(False)
         ax.set_xlabel("P (scalar error covariance)")
         fig.legend(loc="outside lower center", frameon=False, ncols=3)
-        return _to_svg(fig, "Support of the invariant distribution")
+        return fig
 
 
-def almost_sure_svg(record: dict[str, Any]) -> str | None:
+def draw_almost_sure(record: dict[str, Any]) -> Figure | None:
     """Block maxima and minima of tr P_t over dyadic time blocks of one long path (MATH §6)."""
     blk = _section(record, "simulation", "operating_point", "almost_sure")
     if not isinstance(blk, dict):
@@ -469,25 +454,103 @@ def almost_sure_svg(record: dict[str, Any]) -> str | None:
         ax.set_xlabel("block start $2^k$ (time step)")
         ax.set_ylabel("tr $P_t$")
         fig.legend(loc="outside lower center", frameon=False, ncols=2)
-        return _to_svg(fig, "Block maxima and minima of the error covariance trace along one "
-                            "path")
+        return fig
 
 
-BUILDERS: dict[str, Callable[[dict[str, Any]], str | None]] = {
-    "phase_transition": phase_transition_svg, "traces": traces_svg, "operating": operating_svg,
-    "cdf": cdf_svg, "almost_sure": almost_sure_svg, "invariant": invariant_svg}
+DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
+    "phase_transition": draw_phase_transition, "traces": draw_traces,
+    "operating": draw_operating, "cdf": draw_cdf, "almost_sure": draw_almost_sure,
+    "invariant": draw_invariant}
+LABELS = {
+    "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
+                        "against the arrival probability",
+    "traces": "Simulated mean error covariance trace below and above the critical value",
+    "operating": "Simulated mean error covariance trace at the operating point against the "
+                 "covariance bounds",
+    "cdf": "Distribution of the error covariance trace at the operating point",
+    "almost_sure": "Block maxima and minima of the error covariance trace along one path",
+    "invariant": "Support of the invariant distribution"}
+# Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
+# costs more per figure than the rest of a page's layout.
+DENSE = frozenset(FIGURE_KEYS)
+PRINT_DPI = 170
+MALFORMED = (TypeError, ValueError, KeyError, IndexError, OverflowError)
 
 
-def build_figures(record: dict[str, Any]) -> dict[str, str | None]:
-    """Every report figure as inline SVG (``None`` where the record lacks the data).
+def _draw(record: dict[str, Any], name: str) -> Figure | None:
+    """The drawer's figure, or ``None`` when the record lacks the data or it is malformed."""
+    try:
+        return DRAWERS[name](record)
+    except MALFORMED:
+        return None
 
-    A malformed section (wrong types or lengths) also gives ``None`` rather than an exception:
-    a report with one figure missing is more useful to a reviewer than no report.
+
+def figure(record: dict[str, Any], name: str) -> Figure:
+    """One report figure as a matplotlib :class:`~matplotlib.figure.Figure` (for notebooks).
+
+    Parameters
+    ----------
+    record : dict
+        ``Analysis.to_dict()``.
+    name : str
+        One of :data:`FIGURE_KEYS`; :func:`figure_names` lists those the record has data for.
+
+    Raises
+    ------
+    KeyError
+        ``name`` is not a figure of the report.
+    ValueError
+        The record has no data for this figure (e.g. no simulation, or not a scalar system).
     """
+    if name not in DRAWERS:
+        raise KeyError(f"unknown figure {name!r}; the figures are {', '.join(FIGURE_KEYS)}")
+    fig = _draw(record, name)
+    if fig is None:
+        raise ValueError(f"figure {name!r}: the record has no data for it")
+    return fig
+
+
+def figure_names(record: dict[str, Any]) -> list[str]:
+    """Names of the figures that :func:`figure` can draw from this record, in report order."""
+    return [name for name in FIGURE_KEYS if _draw(record, name) is not None]
+
+
+def _to_png_img(fig: Figure, label: str) -> str:
+    """An ``<img>`` element holding the figure as a PNG data URI (``label`` as its alt text)."""
+    buf = io.BytesIO()
+    with matplotlib.rc_context(FIG_RC):
+        fig.savefig(buf, format="png", dpi=PRINT_DPI, bbox_inches="tight", pad_inches=0.04,
+                    metadata={"Software": None})
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    return (f'<img class="figure-img" alt="{html.escape(label)}" '
+            f'src="data:image/png;base64,{data}">')
+
+
+def draw_figures(record: dict[str, Any]) -> dict[str, Figure | None]:
+    """Every report figure as a matplotlib Figure (``None`` where the record lacks the data)."""
+    return {key: _draw(record, key) for key in FIGURE_KEYS}
+
+
+def figure_markup(drawn: dict[str, Figure | None], medium: str = "screen") -> dict[str, str | None]:
+    """HTML markup of drawn figures: inline SVG on screen; in print (``medium="print"``) the
+    figures of :data:`DENSE` as PNG data URIs at :data:`PRINT_DPI` (WeasyPrint's layout and
+    painting time grows with the number of SVG elements; a PNG prints as sharply on paper)."""
     out: dict[str, str | None] = {}
-    for key, builder in BUILDERS.items():
-        try:
-            out[key] = builder(record)
-        except (TypeError, ValueError, KeyError, IndexError, OverflowError):
+    for key, fig in drawn.items():
+        if fig is None:
             out[key] = None
+        elif medium == "print" and key in DENSE:
+            out[key] = _to_png_img(fig, LABELS[key])
+        else:
+            out[key] = _to_svg(fig, LABELS[key])
     return out
+
+
+def build_figures(record: dict[str, Any], medium: str = "screen") -> dict[str, str | None]:
+    """Every report figure as HTML markup (``None`` where the record lacks the data).
+
+    ``medium`` is ``"screen"`` (inline SVG) or ``"print"`` (see :func:`figure_markup`). A
+    malformed section (wrong types or lengths) gives ``None`` rather than an exception: a report
+    with one figure missing is more useful to a reviewer than no report.
+    """
+    return figure_markup(draw_figures(record), medium)

@@ -12,6 +12,8 @@ from collections.abc import Callable
 from typing import Any
 
 import jinja2
+import markupsafe
+from markupsafe import Markup
 
 DASH = "—"
 _POW_RE = re.compile(r"\*\*\(?(-?[\w./]+)\)?")
@@ -160,6 +162,24 @@ def pretty_text(text: Any) -> str:
     s = re.sub(r"(?<![/\d.])(\d+)\*(?=[A-Za-z(√])", r"\1", s)   # 2*X → 2X
     s = _STAR_RE.sub("·", s)
     return s
+
+
+_CARET_RE = re.compile(r"\^(\([^()]{1,40}\)|[\w\u2080-\u209c\u2212+\-]{1,12})")
+
+
+def supmath(text: Any) -> Markup:
+    """Record prose (:func:`pretty_text`) as HTML, with each exponent Unicode has no glyph for
+    (``E[Pₖ^q]``, ``|λ₁|^(−2q)``) set as ``<sup>`` instead of a literal caret; everything else
+    is escaped."""
+    escaped = str(markupsafe.escape(pretty_text(text)))
+
+    def sup(m: re.Match[str]) -> str:
+        body = m.group(1)
+        if body.startswith("(") and body.endswith(")"):
+            body = body[1:-1]
+        return f"<sup>{body}</sup>"
+
+    return Markup(_CARET_RE.sub(sup, escaped))
 
 
 def verdict_label(value: Any) -> str:
@@ -329,7 +349,7 @@ FILTERS: dict[str, Callable[..., str]] = {
     "indices": indices, "short_hash": short_hash, "text": text, "key_label": key_label,
     "fixed": fixed, "sci": sci, "unit": unit, "prob": prob, "count": count, "vector": vector,
     "signed_plain": signed_plain, "quantity": quantity, "pretty_text": pretty_text,
-    "span": span,
+    "span": span, "supmath": supmath,
 }
 
 

@@ -1,0 +1,137 @@
+"""View model of the verdict box: the review decision with its reasons, the operating point
+against p_c, the link design and the requirement."""
+from __future__ import annotations
+
+from typing import Any
+
+from kfcrit.views.figures import tail_of
+from kfcrit.views.view_link import CHANNEL_NAMES, channel_summary, link_design_view
+from kfcrit.views.viewparts import (as_dict, as_list, exact_text, formula, missing, number, prose,
+                                    sentence)
+
+DECISIONS = ("pass", "fail", "undetermined")
+REASON_STATUSES = {"pass": "pass", "fail": "fail", "undetermined": "undetermined",
+                   "not applicable": "none"}
+
+
+def review_view(rec: dict[str, Any]) -> dict[str, Any]:
+    """The review decision of the record (``review``) and its reasons, for the verdict box.
+
+    ``review = {"decision": "pass" | "fail" | "undetermined", "reasons": [{"check", "status",
+    "detail"}]}`` is computed once by the analysis; the box shows it as it is (green pass, red
+    fail, amber undetermined). A record without a ``review`` (written before reviews existed)
+    gets a neutral box that says so: the view does not decide.
+    """
+    rv = as_dict(rec.get("review"))
+    decision = rv.get("decision") if rv.get("decision") in DECISIONS else None
+    reasons = []
+    for r in as_list(rv.get("reasons")):
+        r = as_dict(r)
+        status = str(r.get("status") or "")
+        reasons.append({"check": prose(r.get("check")) or "check",
+                        "status": status or "not stated",
+                        "css": REASON_STATUSES.get(status, "none"),
+                        "detail": sentence(r.get("detail")) if r.get("detail") else ""})
+    return {"available": decision is not None, "decision": decision,
+            "word": decision.upper() if decision else "NO REVIEW DECISION",
+            "css": decision or "neutral", "reasons": reasons,
+            "missing": "" if decision else
+            "This record has no review decision (it predates reviews, or the analysis did not "
+            "produce one): the stability verdict below is not combined with the requirements "
+            "and the link policy."}
+
+
+def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
+    """The verdict box: operating p against p_c, margins, robust value, bracket, verdict."""
+    op = rec.get("operating_point")
+    opd = as_dict(op)
+    cv = as_dict(rec.get("critical_value"))
+    rob = rec.get("robust_critical_value")
+    robd = as_dict(rob)
+    channel = as_dict(opd.get("channel")) or as_dict(as_dict(rec.get("system")).get("channel"))
+    verdict = opd.get("verdict") if isinstance(op, dict) else None
+    css = {"mean-stable": "stable", "mean-unstable": "unstable",
+           "undetermined": "undetermined"}.get(str(verdict), "unknown")
+    review = review_view(rec)
+    iid_verdict = opd.get("iid_comparison_verdict")
+    return {
+        "available": isinstance(op, dict),
+        "missing": missing("operating point", "the system file has no channel section, so "
+                            "there is no arrival probability to compare with p_c")
+        if op is None else "",
+        "verdict": verdict, "css": css, "review": review, "box_css": review["css"],
+        "p": number(opd.get("arrival_probability")),
+        "p_expression": exact_text(channel.get("arrival_probability_expression")),
+        "channel_model": CHANNEL_NAMES.get(str(channel.get("model")), channel.get("model")),
+        "channel_summary": channel_summary(channel) if channel else "",
+        "critical_value": number(cv.get("value")),
+        "critical_expression": cv.get("expression"),
+        "critical_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=13,
+                                label=cv.get("expression")),
+        "critical_exact": cv.get("exact"),
+        "critical_reason": prose(cv.get("reason")) or None,
+        "margin": number(opd.get("margin")),
+        "margin_robust": number(opd.get("margin_robust")),
+        "robust": {"available": isinstance(rob, dict),
+                   "value": number(robd.get("value")), "tolerance": number(robd.get("tolerance")),
+                   "expression": robd.get("expression"),
+                   "nearby_case": robd.get("nearby_case"),
+                   "missing": "not needed: the classification is decided exactly and no "
+                              "perturbation within the tolerance changes it"
+                   if cv.get("exact") else "not computed"},
+        "bracket": opd.get("bracket") if isinstance(opd.get("bracket"), list) else None,
+        "margin_to_bracket": opd.get("margin_to_bracket")
+        if isinstance(opd.get("margin_to_bracket"), list) else None,
+        "reason": prose(opd.get("reason")) if isinstance(opd.get("reason"), str) else None,
+        "basis": prose(opd.get("basis")) if isinstance(opd.get("basis"), str) else None,
+        "iid_verdict": iid_verdict if iid_verdict and iid_verdict != verdict else None,
+        "note": sentence(opd.get("note")) if opd.get("note") else None,
+        "legend": verdict_legend(op, verdict, opd),
+        "link_design": link_design_view(rec),
+        "requirement": requirement_view(rec),
+    }
+
+
+def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
+    """The last sentence of the legend under the verdict box (after the two verdicts' meaning):
+    why this verdict is not determined, when it is not (no operating point, p inside the bracket
+    of p_c, or the record's reason); empty for a determined verdict."""
+    if not isinstance(op, dict):
+        why = ("Not determined: no operating point is configured (the system file has no "
+               "channel section), so there is no arrival probability p to compare with p_c.")
+    elif verdict == "undetermined":
+        if isinstance(opd.get("bracket"), list):
+            why = "Undetermined: p lies inside the bracket of p_c, so the comparison is open."
+        else:
+            why = "Undetermined: " + (sentence(opd.get("reason")) or
+                                      "the comparison of p with p_c is not decided.")
+    elif not verdict:
+        why = "Not determined: " + (sentence(opd.get("reason")) or "the analysis gave no verdict.")
+    else:
+        why = ""
+    return why
+
+
+def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
+    """The system file's requirements against the simulated tail probability at p."""
+    req = as_dict(rec.get("requirements"))
+    limit = number(req.get("max_error_trace"))
+    max_tail = number(req.get("max_tail_probability"))
+
+    tail = tail_of(rec)
+    exc = as_dict(as_dict(as_dict(rec.get("simulation")).get("operating_point")).get("exceedance"))
+    lo, hi = number(exc.get("lower")), number(exc.get("upper"))
+    status = as_dict(req.get("assessment")).get("status")
+    met = {"met": True, "not met": False}.get(status) if isinstance(status, str) else None
+    return {"available": limit is not None, "limit": limit, "max_tail": max_tail,
+            "tail": tail, "met": met, "status": status,
+            "interval": [lo, hi] if None not in (lo, hi) else None,
+            "count": exc.get("count"), "total": exc.get("total"),
+            "caution": "not demonstrated: the 95 % interval contains the allowed tail "
+                       "probability; run more paths (full mode) before relying on this"
+                       if status == "not demonstrated" else "",
+            "missing": "" if limit is not None else
+            "no requirement in the system file (add requirements: max_error_trace, "
+            "max_tail_probability)"}
+
+

@@ -1,0 +1,73 @@
+"""The report's view model: one plain dict holding every value the templates read.
+
+:func:`view_model` assembles the section views (``view_verdict``, ``view_theory``, ``view_link``,
+``view_sim``). Missing sections become ``available: False`` with a "not computed" message, never
+a missing key: the template environment uses ``StrictUndefined``.
+"""
+from __future__ import annotations
+
+import datetime
+from typing import Any
+
+from kfcrit.version import __version__
+from kfcrit.views.view_link import channel_view
+from kfcrit.views.view_sim import appendix_view, figures_view, simulation_view
+from kfcrit.views.view_theory import (bounds_view, classification_view, covariance_view,
+                                      invariant_view, statements_view, structure_view,
+                                      system_view)
+from kfcrit.views.view_verdict import requirement_view, verdict_view
+from kfcrit.views.viewparts import as_dict, as_list, prose
+
+
+def report_date(record: dict[str, Any], today: datetime.date | None = None) -> str:
+    """The date printed in the footer: the record's ``provenance.created`` (its first ten
+    characters, an ISO date) when the record has one, else the rendering date."""
+    created = as_dict(record.get("provenance")).get("created")
+    if isinstance(created, str) and len(created) >= 10:
+        return created[:10]
+    return (today or datetime.date.today()).isoformat()
+
+
+def meta_view(rec: dict[str, Any], today: datetime.date | None = None) -> dict[str, Any]:
+    """Title, description, draft flag and the footer's system name, date and version."""
+    prov = as_dict(rec.get("provenance"))
+    name = rec.get("name") or "unnamed system"
+    return {"title": f"Design review: {name}", "name": name,
+            "description": rec.get("description") or "",
+            "quick": bool(as_dict(prov.get("options")).get("quick")),
+            "input_path": prov.get("input_path"), "version": __version__,
+            "date": report_date(rec, today),
+            "link_review": as_dict(rec.get("link_budget")).get("applicable") is True}
+
+
+def view_model(record: dict[str, Any], figures: dict[str, str | None],
+               today: datetime.date | None = None) -> dict[str, Any]:
+    """Every value the templates read, from the record and the figures (no computation left).
+
+    Parameters
+    ----------
+    record : dict
+        ``Analysis.to_dict()`` (any section may be ``None`` or absent).
+    figures : dict
+        Figure markup from :func:`kfcrit.views.figures.build_figures` (``None`` where missing).
+    today : datetime.date, optional
+        The rendering date for the footer when the record carries none (default: today).
+    """
+    rec = as_dict(record)
+    return {
+        "meta": meta_view(rec, today),
+        "verdict": verdict_view(rec),
+        "warnings": list(dict.fromkeys(prose(w) for w in as_list(rec.get("warnings")))),
+        "system": system_view(rec),
+        "structure": structure_view(rec),
+        "classification": classification_view(rec),
+        "bounds": bounds_view(rec),
+        "covariance": covariance_view(rec),
+        "figures": figures_view(figures, rec),
+        "simulation": simulation_view(rec),
+        "requirement": requirement_view(rec),
+        "statements": statements_view(rec),
+        "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
+        "channel": channel_view(rec),
+        "appendix": appendix_view(rec),
+    }
