@@ -23,6 +23,8 @@ Examples:
   kfcrit analyze reports/rotation-third-turn.yaml --json
   kfcrit report reports/sinopoli-general.yaml -o review.html
   kfcrit report reports/sinopoli-general.yaml -o review.pdf --quick
+  kfcrit report reports/link-oqpsk-sensor.yaml -o review.html -o review.pdf
+  kfcrit analyze FILE --json > record.json && kfcrit report record.json -o review.pdf
   kfcrit simulate reports/kar-scalar-fractal.yaml --paths 2000 --steps 500 --seed 1
 
 \b

@@ -67,32 +67,38 @@ def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool
 
 
 @main.command(epilog=EXAMPLES)
-@click.argument("system_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="Output file (.html or .pdf).")
+@click.argument("source", metavar="FILE", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "outputs", required=True, multiple=True,
+              type=click.Path(dir_okay=False),
+              help="Output file (.html or .pdf); repeat for both: -o r.html -o r.pdf.")
 @click.option("--format", "fmt", type=click.Choice(["html", "pdf"]), default=None,
-              help="Output format (default: from the output file's extension).")
+              help="Format of a single output whose extension does not say it.")
 @click.option("--quick", is_flag=True, help="A fast draft with fewer simulations.")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
 @click.option("--tolerance", type=ToleranceType(), default=1e-9, show_default=True,
               help="Relative perturbation size for the robust critical value, in [0, 0.1].")
 @max_states_option
 @debug_option
+@click.pass_context
 @handle_errors
-def report(system_file: str, output: str, fmt: str | None, quick: bool, seed: int,
-           tolerance: float, max_states: int, debug: bool) -> None:
-    """Write a design-review report of SYSTEM_FILE to OUTPUT (HTML or PDF)."""
-    from kfcrit.analysis.spec import load_spec
-    from kfcrit.io.atomic import check_writable
-    from kfcrit.views.report import report_command
+def report(ctx: click.Context, source: str, outputs: tuple[str, ...], fmt: str | None,
+           quick: bool, seed: int, tolerance: float, max_states: int, debug: bool) -> None:
+    """Write a design-review report of FILE (a system file, or a record saved with
+    'kfcrit analyze --json') to every OUTPUT, from one analysis."""
+    from click.core import ParameterSource
 
-    # refuse a bad output path or a bad system file before any progress line is printed (the
-    # error is then the only line on stderr); load_spec remembers the file, so the report
-    # does not parse it twice
-    check_writable(output)
-    load_spec(system_file, max_states=max_states)
-    sys.exit(report_command(system_file, output, fmt=fmt, quick=quick, seed=seed,
-                            max_states=max_states, tolerance=tolerance))
+    from kfcrit.analysis.spec import load_spec
+    from kfcrit.cli.report import ANALYSIS_OPTIONS, report_command, source_kind
+    from kfcrit.io.atomic import check_writable
+
+    for out in outputs:
+        check_writable(out)
+    if source_kind(source) == "system":
+        load_spec(source, max_states=max_states)
+    given = [n for n in ANALYSIS_OPTIONS
+             if ctx.get_parameter_source(n) is ParameterSource.COMMANDLINE]
+    sys.exit(report_command(source, list(outputs), fmt=fmt, quick=quick, seed=seed,
+                            max_states=max_states, tolerance=tolerance, options_given=given))
 
 
 @main.command(epilog=EXAMPLES)

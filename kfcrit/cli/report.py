@@ -101,7 +101,13 @@ def load_record(path: str | Path) -> dict[str, Any]:
     if not isinstance(record, dict) or not any(k in record for k in RECORD_KEYS):
         raise InputError("not a kfcrit analysis record (save one with 'kfcrit analyze FILE "
                          "--json > record.json')", field="record")
-    return record
+    from kfcrit.analysis.sections import record_from_json
+    from kfcrit.io.typed import RecordError
+
+    try:  # the typed record's strict reader: every view then reads a well-formed record
+        return record_from_json(record).to_dict()
+    except RecordError as exc:
+        raise InputError(f"not a record of this kfcrit version ({exc})", field="record") from None
 
 
 def progress(message: str) -> None:
@@ -126,7 +132,7 @@ def analysed_record(source: str | Path, *, quick: bool, seed: int, tolerance: fl
                     max_states: int) -> dict[str, Any]:
     """Analyse the system file ``source`` once and return its record as a dict."""
     from kfcrit.analysis.record import AnalysisOptions, analyze
-    from kfcrit.io.systemfile import load_spec
+    from kfcrit.analysis.spec import load_spec
 
     progress(f"reading {source}")
     spec = load_spec(source, max_states=max_states)
