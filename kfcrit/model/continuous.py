@@ -384,22 +384,21 @@ def _certified_sample(A: sp.ImmutableMatrix, Qc: sp.ImmutableMatrix,
                 break
     finally:
         flint.ctx.prec = old
-    _check_finite(values[0], values[1])
     return values[0], values[1], bound
 
 
 def _to_floats(mats: list[Any], n: int) -> tuple[list[np.ndarray], float, bool]:
     """Float64 midpoints of ball matrices, the largest |float − true| bound, and whether every
-    ball is narrow to float accuracy."""
+    ball is narrow to float accuracy (an error if a value overflows float64)."""
     out, bound, accurate = [], 0.0, True
     for M in mats:
         arr, rads = np.empty((n, n)), []
         for i in range(n):
             for j in range(n):
                 x = M[i, j]
-                if not x.is_finite():
-                    return [np.full((n, n), np.inf)] * len(mats), math.inf, False
-                f = float(x.mid())
+                f = float(x.mid()) if x.is_finite() else math.inf
+                if not math.isfinite(f):
+                    _check_finite(np.array([f]), np.array([f]))
                 rad = float(x.rad()) + abs(float(x.mid() - _exact_arb(f)))
                 arr[i, j] = f
                 bound = max(bound, rad)
