@@ -262,3 +262,16 @@ def test_schema_takes_either_form_not_both() -> None:
     assert not validator.is_valid({k: v for k, v in BASE.items() if k != "sampling_time"})
     assert not validator.is_valid({**discrete, "sampling_time": 1})
     assert not validator.is_valid({**BASE, "continuous": {"A": [[0]]}})
+
+
+def test_above_the_certified_size_floats_say_they_have_no_bound() -> None:
+    from kfcrit.model.continuous import CERTIFIED_MAX_STATES
+
+    n = CERTIFIED_MAX_STATES + 1
+    # A_c = −I/2 (not exact: too many states): A = e^{−T/2} I, Q = (1 − e^{−T}) I.
+    m = sample(np.diag(np.full(n, -0.5)), 1, "1/2")
+    assert m.method == "float-van-loan" and m.error_bound == math.inf
+    assert "no proven error bound" in m.reason
+    np.testing.assert_allclose(m.float_a(), math.exp(-0.25) * np.eye(n), rtol=1e-14, atol=1e-300)
+    np.testing.assert_allclose(m.float_q(), (1 - math.exp(-0.5)) * np.eye(n), rtol=1e-13,
+                               atol=1e-300)

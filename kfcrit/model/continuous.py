@@ -40,12 +40,22 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import sign_of
-from kfcrit.model.system import (MAX_STATES_DEFAULT, System, is_definite, sym_tolerance,
-                                 to_float, to_matrix)
+from kfcrit.model.system import (
+    MAX_STATES_DEFAULT,
+    System,
+    is_definite,
+    sym_tolerance,
+    to_float,
+    to_matrix,
+)
 
 EXACT_MAX_STATES = 8
 """Largest ``A_c`` sampled exactly (a rational characteristic polynomial of this degree is
 factored; every other step is rational linear algebra of this size)."""
+
+CERTIFIED_MAX_STATES = 64
+"""Largest ``A_c`` whose Van Loan exponential (size 2n) is enclosed in ball arithmetic; above,
+SciPy's ``expm`` gives float64 values without a proven bound (``error_bound`` is infinite)."""
 
 CERTIFIED_PRECISIONS = (128, 256, 512, 1024)
 """Ball-arithmetic precisions (bits) tried in turn until every entry is known to float accuracy."""
@@ -69,7 +79,8 @@ class SampledModel:
     exact : bool
         Whether ``A`` and ``Q`` are exact closed forms of the input numbers.
     method : str
-        ``"exact-nilpotent"``, ``"exact-rational-eigenvalues"`` or ``"certified-van-loan"``.
+        ``"exact-nilpotent"``, ``"exact-rational-eigenvalues"``, ``"certified-van-loan"`` or,
+        above :data:`CERTIFIED_MAX_STATES` states, ``"float-van-loan"``.
     reason : str
         Why this method: what made the exponential exact, or why the exact path was not taken.
     A_c, Q_c : sympy.ImmutableMatrix
@@ -80,7 +91,8 @@ class SampledModel:
         Whether every input number was exact (text, integers, fractions, sympy); False when any
         came from a binary float (then taken as the rational it is).
     error_bound : float
-        Proven bound on ``|computed − true|`` over the entries of ``A`` and ``Q`` (0 if exact).
+        Proven bound on ``|computed − true|`` over the entries of ``A`` and ``Q`` (0 if exact,
+        ``inf`` for ``"float-van-loan"``, which has no proven bound).
     """
 
     A: Any
@@ -178,6 +190,12 @@ def sample(A_c: Any, Q_c: Any, T: Any) -> SampledModel:
             return out
         why = ("the eigenvalues of continuous.A are not all rational (its characteristic "
                "polynomial does not split over the rationals)")
+    if n > CERTIFIED_MAX_STATES:
+        Ad, Qd = _float_sample(A, Qc, t)
+        return SampledModel(Ad, Qd, False, "float-van-loan",
+                            f"{why}; n > {CERTIFIED_MAX_STATES}: ball arithmetic too costly, "
+                            "SciPy expm of the Van Loan block (no proven error bound)",
+                            A, Qc, t, ea and eq and et, math.inf)
     Ad, Qd, bound = _certified_sample(A, Qc, t)
     return SampledModel(Ad, Qd, False, "certified-van-loan",
                         f"{why}; matrix exponential of the Van Loan block in ball arithmetic",
@@ -343,6 +361,22 @@ def _check_finite(a: np.ndarray, q: np.ndarray) -> None:
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(q))):
         raise InputError("e^(A_c T) overflows float64: continuous.A times the sampling time is "
                          "too large", field="sampling_time")
+
+
+def _float_sample(A: sp.ImmutableMatrix, Qc: sp.ImmutableMatrix,
+                  T: sp.Expr) -> tuple[np.ndarray, np.ndarray]:
+    """Van Loan in float64 (SciPy's scaling-and-squaring Padé ``expm``), Q symmetrized."""
+    from scipy.linalg import expm
+
+    n = A.shape[0]
+    a, q, t = to_float(A), to_float(Qc), float(T)
+    with np.errstate(over="ignore", invalid="ignore"):
+        F = expm(np.block([[-a, q], [np.zeros((n, n)), a.T]]) * t)
+        Ad = F[n:, n:].T.copy()
+        Qd = Ad @ F[:n, n:]
+    Qd = np.triu(Qd) + np.triu(Qd, 1).T
+    _check_finite(Ad, Qd)
+    return Ad, Qd
 
 
 def _ball(x: sp.Expr) -> Any:
