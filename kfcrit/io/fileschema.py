@@ -108,19 +108,37 @@ def system_schema() -> dict[str, Any]:
         "max_tail_probability": {**PROBABILITY, "description": "α of the tail requirement"},
         "max_mean_error_trace": {**num, "description": "L of the accuracy requirement "
                                  "lim E[tr P] ≤ L"}}, [], "design requirements")
+    continuous = _object({
+        "A": {**mat, "description": "continuous-time state matrix A_c (n × n): dx = A_c x dt + dw"},
+        "Q": {**mat, "description": "spectral density Q_c of the process noise w (n × n, PSD)"}},
+        ["A", "Q"], "continuous-time model, sampled with a zero-order hold: A = e^{A_c T}, Q = "
+        "∫_0^T e^{A_c s} Q_c e^{A_c' s} ds (exact for rational eigenvalues, e.g. integrator "
+        "chains; certified floats otherwise); instead of A and Q")
     props = {"name": {"type": "string", "minLength": 1, "description": "name of the system"},
              "description": {"type": "string", "description": "free text"},
-             "A": {**mat, "description": "state matrix (n × n)"},
+             "A": {**mat, "description": "state matrix (n × n); required unless continuous: "
+                                         "is given"},
              "C": {**mat, "description": "output matrix (m × n)"},
-             "Q": {**mat, "description": "process-noise covariance (n × n, PSD)"},
-             "R": {**mat, "description": "measurement-noise covariance (m × m, PD)"},
+             "Q": {**mat, "description": "process-noise covariance (n × n, PSD); required "
+                                         "unless continuous: is given"},
+             "R": {**mat, "description": "measurement-noise covariance (m × m, PD); for a "
+                                         "continuous-time model, the discrete covariance of "
+                                         "the sampled sensor"},
+             "continuous": continuous,
+             "sampling_time": {**num, "description": "sampling time T > 0 (seconds) of "
+                                                     "continuous:"},
              "Sigma0": {**mat, "description": "initial covariance (default identity)"},
              "channel": {"$ref": "#/$defs/channel"},
              "requirements": {"$ref": "#/$defs/requirements"}}
     defs = {"number": NUMBER, "matrix": MATRIX, "requirements": requirements, **channel_defs()}
     return {"$schema": SCHEMA_DIALECT, "$id": "https://kfcrit.invalid/schema/system.json",
             "title": "kfcrit system file", "type": "object", "properties": props,
-            "required": ["name", "A", "C", "Q", "R"], "additionalProperties": False,
+            "required": ["name", "C", "R"], "additionalProperties": False,
+            "oneOf": [{"required": ["A", "Q"],
+                       "not": {"anyOf": [{"required": ["continuous"]},
+                                         {"required": ["sampling_time"]}]}},
+                      {"required": ["continuous", "sampling_time"],
+                       "not": {"anyOf": [{"required": ["A"]}, {"required": ["Q"]}]}}],
             "$defs": defs}
 
 

@@ -17,6 +17,7 @@ import yaml
 
 from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
 from kfcrit.model.channels import Channel, check_keys, exact_probability, key_name
+from kfcrit.model.continuous import SampledModel, sample
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import number_from_text
 from kfcrit.io.safeio import read_text
@@ -28,8 +29,14 @@ MAX_NESTING = 64
 MAX_NODES = 1_000_000
 """Most YAML values (scalars and collections) in a file read by :func:`read_yaml` by default."""
 MATRIX_KEYS = frozenset({"A", "C", "Q", "R", "Sigma0"})
-TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements"}
-REQUIRED_KEYS = {"name", "A", "C", "Q", "R"}
+TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements",
+            "continuous", "sampling_time"}
+REQUIRED_KEYS = {"name", "C", "R"}
+"""Required in every system file; the model is either ``A`` and ``Q`` (discrete time) or
+``continuous: {A, Q}`` with ``sampling_time`` (:data:`CONTINUOUS_KEYS`), never both."""
+CONTINUOUS_KEYS = {"A", "Q"}
+SCAN_MATRIX_KEYS = MATRIX_KEYS | {"continuous"}
+"""Top-level keys whose lists the size guard of :func:`scan_yaml` covers."""
 REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability", "max_mean_error_trace"}
 
 
@@ -233,6 +240,9 @@ class SystemSpec:
     description: str = ""
     path: str | None = None
     sha256: str | None = None
+    continuous: SampledModel | None = None
+    """The continuous-time model and sampling (``continuous:`` with ``sampling_time``) that
+    gave ``system.A`` and ``system.Q``; None for a discrete-time file."""
 
 
 def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: int = MAX_NODES,
@@ -347,19 +357,66 @@ def _raw_shape(value: Any, name: str, max_states: int) -> tuple[int, int] | None
 
 
 def _check_shapes(doc: dict, max_states: int) -> None:
-    """The dimension checks of :class:`System`, on the raw lists (cheap: no entry is read)."""
+    """The dimension checks of :class:`System`, on the raw lists (cheap: no entry is read).
+
+    In a continuous-time file the state matrix and noise are ``continuous.A``, ``continuous.Q``.
+    """
     shapes = {k: _raw_shape(doc[k], k, max_states) for k in sorted(MATRIX_KEYS) if k in doc}
+    a_name = "A"
+    if "continuous" in doc:
+        a_name = "continuous.A"
+        for key in ("A", "Q"):
+            shapes[key] = _raw_shape(doc["continuous"][key], f"continuous.{key}", max_states)
     a = shapes["A"] or (1, 1)
     n = a[0]
     if a != (n, n):
-        raise InputError(f"must be square, got {a[0]}x{a[1]}", field="A")
+        raise InputError(f"must be square, got {a[0]}x{a[1]}", field=a_name)
     c = shapes["C"] or (1, 1)
     if c[1] != n:
         raise InputError(f"must have {n} columns (the size of A), got {c[1]}", field="C")
     for key, size in (("Q", n), ("R", c[0]), ("Sigma0", n)):
         shape = shapes.get(key)
         if shape is not None and shape != (size, size):
-            raise InputError(f"must be {size}x{size}, got {shape[0]}x{shape[1]}", field=key)
+            name = "continuous.Q" if key == "Q" and "continuous" in doc else key
+            raise InputError(f"must be {size}x{size}, got {shape[0]}x{shape[1]}", field=name)
+
+
+def _check_model_form(doc: dict) -> None:
+    """Either ``A`` and ``Q`` or ``continuous: {A, Q}`` with ``sampling_time``, not both."""
+    if "continuous" in doc or "sampling_time" in doc:
+        for key in ("A", "Q"):
+            if key in doc:
+                raise InputError("give either A and Q (discrete time) or continuous: with "
+                                 "sampling_time, not both", field=key)
+        for key in ("continuous", "sampling_time"):
+            if doc.get(key) is None:
+                raise InputError("is required with "
+                                 + ("sampling_time" if key == "continuous" else "continuous:"),
+                                 field=key)
+        data = doc["continuous"]
+        if not isinstance(data, dict):
+            raise InputError("must be a mapping with A and Q (the continuous-time state matrix "
+                             "and noise spectral density)", field="continuous")
+        check_keys(data, CONTINUOUS_KEYS, CONTINUOUS_KEYS, "continuous")
+        for key in ("A", "Q"):
+            if data[key] is None:
+                raise InputError("is required", field=f"continuous.{key}")
+        if isinstance(doc["sampling_time"], (list, dict)):
+            raise InputError("must be a number (seconds)", field="sampling_time")
+        return
+    for key in ("A", "Q"):
+        if doc.get(key) is None:
+            raise InputError("is required (or continuous: with sampling_time)", field=key)
+
+
+def _sampled(doc: dict) -> SampledModel | None:
+    """The sampled continuous-time model of a file (:func:`kfcrit.model.continuous.sample`)."""
+    if "continuous" not in doc:
+        return None
+    data = doc["continuous"]
+    return sample(_exact_numbers(data["A"], "continuous.A"),
+                  _exact_numbers(data["Q"], "continuous.Q"),
+                  _exact_numbers(doc["sampling_time"], "sampling_time"))
 
 
 def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
@@ -386,8 +443,13 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     description = doc.get("description") or ""
     if not isinstance(description, str):
         raise InputError("must be a string", field="description")
+    _check_model_form(doc)
     _check_shapes(doc, max_states)  # on the raw structure, before any exact conversion
     mats = {k: _exact_numbers(doc[k], k) for k in ("A", "C", "Q", "R", "Sigma0") if k in doc}
+    sampled = _sampled(doc)
+    if sampled is not None:
+        mats["A"], mats["Q"] = (sampled.A, sampled.Q) if sampled.exact \
+            else (sampled.float_a(), sampled.float_q())
     system = System(mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
                     name=str(name)[:200], max_states=max_states)
     channel = (channel_from_mapping(_plain(doc["channel"]), "channel", base_dir,
@@ -396,7 +458,7 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()
     return SystemSpec(system=system, channel=channel, requirements=reqs,
-                      description=description[:2000])
+                      description=description[:2000], continuous=sampled)
 
 
 def max_nodes_for(max_states: int) -> int:
@@ -416,11 +478,12 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
     """
     text, digest = _read_text(path)
     doc = parse_yaml_text(text, name=Path(path).name, max_nodes=max_nodes_for(max_states),
-                          matrix_keys=MATRIX_KEYS, max_items=max_states)
+                          matrix_keys=SCAN_MATRIX_KEYS, max_items=max_states)
     spec = spec_from_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states,
                              channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
-                     description=spec.description, path=str(path), sha256=digest)
+                     description=spec.description, path=str(path), sha256=digest,
+                     continuous=spec.continuous)
     return out
 
 
