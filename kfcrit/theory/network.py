@@ -366,11 +366,16 @@ def _boundary(ctx: _Context, path: nk.Path, lo: float, hi: float,
         chk, _ = ctx.try_at(path(lo)[0])
         if chk is not None:
             return Boundary(lo, lo, chk.to_dict(), "certified at the start of the path")
-    s0 = min(max(s_nec, lo), hi)
-    _, X0 = nk.cone_radius(ctx.plant, ctx.col, path(s0)[0], iterations=200, eps=1e-10)
-    ctx.stats["newton"] += 1
-    th = nk.threshold_newton(ctx.plant, ctx.col, path, X0, s0)
-    if th.converged and th.s >= s_nec - 1e-7 and np.linalg.eigvalsh(th.X).min() > 0:
+    start = min(max(s_nec, lo), hi)
+    for frac in (0.0, 0.05, 0.25, 0.5):
+        # Newton from the necessary end first, then from points further into the path
+        s0 = start + frac * (hi - start)
+        _, X0 = nk.cone_radius(ctx.plant, ctx.col, path(s0)[0], iterations=200, eps=1e-10)
+        ctx.stats["newton"] += 1
+        th = nk.threshold_newton(ctx.plant, ctx.col, path, X0, s0)
+        if not (th.converged and th.s >= s_nec - 1e-7 and th.s <= hi
+                and np.linalg.eigvalsh(th.X).min() > 0):
+            continue
         for step in CERT_STEPS:
             s = max(th.s + step * ctx.tol, s_nec)
             if s > hi:
@@ -577,6 +582,10 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         warnings.append(f"{N} sensors: the sufficient surface uses the {col.size} most likely "
                         "received sets, the rest counted as total loss (a valid, more "
                         "conservative sufficient condition)")
+    bursty = [s.name for s in network.sensors if s.channel is not None and not s.channel.iid]
+    if bursty and p is None:
+        warnings.append(f"sensors {', '.join(bursty)} have bursty (Markov) links: the analysis "
+                        "uses their stationary arrival probabilities (i.i.d. theory)")
     if not structure_of(st).controllable_Q:
         warnings.append("(A, Q^1/2) is not controllable: the necessary surface assumes "
                         "every unobserved unstable mode is excited by the noise")
@@ -730,12 +739,13 @@ def _bottleneck(rows: Sequence[SensorResult]) -> dict[str, Any]:
     """Sensor with the smallest p_i − critical_i (the first to reach the boundary when it alone
     degrades). Key: the certified margin p_i − (sufficient end), then p_i − (necessary end),
     then file order. Sensors whose critical value does not exist are skipped."""
-    rule = ("smallest p_i − critical_i; an interval counts by its conservative end "
+    rule = ("smallest p_i − critical_i among sensors whose loss alone breaks mean stability "
+            "(N−1 verdict not mean-stable); an interval counts by its conservative end "
             "(p_i − upper end), ties broken by p_i − lower end, then by sensor order")
     best = None
     for k, r in enumerate(rows):
         iv = r.margin.get("interval")
-        if iv is None:
+        if iv is None or r.n_minus_1.get("verdict") == "mean-stable":
             continue
         cons = iv[0] if iv[0] is not None else -math.inf
         key = (cons, iv[1], k)
@@ -743,7 +753,7 @@ def _bottleneck(rows: Sequence[SensorResult]) -> dict[str, Any]:
             best = (key, r)
     if best is None:
         return {"name": None, "margin": None, "rule": rule,
-                "reason": "no sensor has a critical value"}
+                "reason": "no single link's degradation reaches the boundary"}
     r = best[1]
     return {"name": r.name, "margin": r.margin.get("value"),
             "margin_interval": r.margin.get("interval"), "rule": rule}
