@@ -301,7 +301,7 @@ small = st.sampled_from([R(k, 2) for k in range(-4, 5)])
 probs = st.sampled_from([R(k, 10) for k in range(0, 11)])
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(a=st.lists(small, min_size=4, max_size=4),
        c=st.lists(st.sampled_from([0, 1]), min_size=4, max_size=4),
        p=st.lists(probs, min_size=2, max_size=2), i=st.integers(0, 1),
