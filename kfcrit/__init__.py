@@ -18,7 +18,9 @@ _LAZY = {"Analysis": "analysis.record", "AnalysisOptions": "analysis.record",
          "analyze": "analysis.record", "System": "model.system", "SystemSpec": "io.systemfile",
          "load_spec": "analysis.spec", "load_system": "analysis.spec",
          "critical_value": "theory.critical", "upper_bound": "theory.upper",
-         "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds"}
+         "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds",
+         "from_continuous_statespace": "model.continuous", "sample": "model.continuous",
+         "network_analysis": "theory.network"}
 
 
 def __getattr__(name: str) -> Any:
@@ -37,4 +39,5 @@ def __dir__() -> list[str]:
 
 __all__ = ["Analysis", "AnalysisOptions", "ExitCode", "KfcritError", "System", "SystemSpec",
            "__version__", "analyze", "covariance_bounds", "critical_value", "load_spec",
-           "load_system", "simulate", "upper_bound"]
+           "load_system", "simulate", "upper_bound", "from_continuous_statespace", "sample",
+           "network_analysis"]

@@ -98,10 +98,16 @@ def _as_spec(system: System | SystemSpec) -> SystemSpec:
 
 
 def system_section(spec: SystemSpec) -> dict[str, Any]:
-    """Sizes, exactness and exact matrices of the system."""
+    """Sizes, exactness and exact matrices of the system (and how it was sampled, for a
+    continuous-time file; its sensors, for a network)."""
     s = spec.system
-    return {"n": s.n, "m": s.m, "exact_input": s.exact, "matrices": s.matrices_text(),
-            "channel": spec.channel.to_dict() if spec.channel is not None else None}
+    out = {"n": s.n, "m": s.m, "exact_input": s.exact, "matrices": s.matrices_text(),
+           "channel": spec.channel.to_dict() if spec.channel is not None else None}
+    if spec.continuous is not None:
+        out["continuous"] = spec.continuous.to_dict()
+    if spec.network is not None:
+        out["sensors"] = spec.network.to_dict().get("sensors")
+    return out
 
 
 def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
@@ -201,6 +207,46 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     return out
 
 
+def network_sections(spec: SystemSpec, opts: AnalysisOptions, warnings: list[str]
+                     ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The ``network`` section (MATH §9: per-sensor critical values, uniform margin, N − 1
+    verdicts, bottleneck) and the operating point of a ``sensors:`` file.
+
+    The top-level critical value and p_up of such a record are those of the stacked system —
+    every sensor's packet arriving together, as over one joint link; the network's own values
+    are in ``network``.
+    """
+    from kfcrit.theory.network import network_analysis
+
+    net = network_analysis(spec.network, tol=opts.tolerance).to_dict()
+    warnings.extend(net.get("warnings") or [])
+    if spec.network.size > 1:
+        warnings.append("sensor network: the top-level critical value and p_up are those of the "
+                        "stacked system (all sensors' packets arriving together); per-sensor "
+                        "critical values, the uniform margin and N − 1 verdicts are in "
+                        "`network`")
+    verdict, basis = vd.network_verdict(net)
+    sensors = net.get("sensors") or []
+    bottleneck = (net.get("bottleneck") or {}).get("name")
+    row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
+    channels = [s.channel.to_dict() if s.channel is not None else None
+                for s in spec.network.sensors]
+    margin = net.get("uniform_margin") or {}
+    op = {"arrival_probability": row.get("arrival_probability"),
+          "channel": {"model": "network", "sensors": [
+              {"name": s.name, "channel": c} for s, c in zip(spec.network.sensors, channels)]},
+          "iid": all(s.channel is None or s.channel.iid for s in spec.network.sensors),
+          "margin": margin.get("value"), "margin_robust": None,
+          "bracket": margin.get("interval"),
+          "arrival_probabilities": {s.get("name"): s.get("arrival_probability")
+                                    for s in sensors},
+          "bottleneck": bottleneck,
+          "note": "network: arrival_probability is the bottleneck sensor's; margin is the "
+                  "uniform margin δ (every link degraded by δ reaches the stability boundary)",
+          "verdict": verdict.value, "basis": basis}
+    return net, op
+
+
 def trace_summary(spec: SystemSpec, p: float) -> dict[str, Any]:
     """Length, empirical arrival rate and a Gilbert–Elliott fit of a measured trace (for
     information: a finite recording decides nothing about mean stability)."""
@@ -280,14 +326,21 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     warnings: list[str] = conditioning_warnings(s) + list(theory.warnings)
 
     _link_sections(spec, opts, sec, warnings, theory)
-    sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
+    if spec.network is not None:
+        sec["network"], sec["operating_point"] = network_sections(spec, opts, warnings)
+    else:
+        sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     reqs = spec.requirements
     _design_sections(spec, theory, sec, warnings)
     _tail_section(spec, theory, sec)
     if opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
         _bounds_sections(spec, sec, warnings, curves=opts.details)
     tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
-    if opts.details or tail:
+    if spec.network is not None and spec.network.size > 1:
+        sec["simulation"] = {"skipped": True, "reason": "the simulation of a sensor network "
+                             "(per-sensor arrivals) is not part of the analysis record yet; "
+                             "the verdict rests on the network theory (MATH §9)"}
+    elif opts.details or tail:
         _simulation_sections(spec, opts, sec, warnings)
     sec["requirements"] = requirement_assessment(reqs.to_dict() if reqs else None,
                                                  sec.get("simulation"),

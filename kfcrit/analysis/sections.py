@@ -117,6 +117,10 @@ class OperatingPoint:
     diverges_for_all_p: bool | None = opt()
     trace: JSON = opt()
     burst: JSON = opt()
+    arrival_probabilities: JSON = opt()
+    """Per-sensor arrival probabilities of a network (``arrival_probability`` is then the
+    bottleneck sensor's and ``margin`` the uniform margin)."""
+    bottleneck: str | None = opt()
 
 
 @dataclass(frozen=True)
@@ -162,6 +166,10 @@ class SystemSection:
     exact_input: bool
     matrices: JSON
     channel: JSON
+    continuous: JSON = opt()
+    """The continuous-time model and its sampling (method, exactness, error bound)."""
+    sensors: JSON = opt()
+    """The sensors of a network file (name, rows of C, noise, channel)."""
 
 
 @dataclass(frozen=True)

@@ -237,6 +237,16 @@ def _burst_verdict(crit: CriticalInputs, burst: BurstInputs) -> tuple[Verdict, s
             + (f" ({burst.basis})" if burst.basis else ""))
 
 
+def network_verdict(result: Mapping[str, Any]) -> tuple[Verdict, str]:
+    """Mean stability of a sensor network at its operating point (MATH §9), from the network
+    analysis: mean-unstable when a necessary surface is crossed (some sensor subset's modes
+    grow faster than their losses allow), mean-stable when the sufficient surface is
+    certified, undetermined between them."""
+    verdict = Verdict(result.get("verdict") or Verdict.UNDETERMINED.value)
+    basis = result.get("basis") or result.get("reason") or ""
+    return verdict, str(basis)
+
+
 # ----------------------------------------------------------------------------- review
 
 def stability_reason(verdict: Verdict | str | None, basis: str | None) -> Reason:

@@ -18,6 +18,7 @@ import yaml
 from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
 from kfcrit.model.channels import Channel, check_keys, exact_probability, key_name
 from kfcrit.model.continuous import SampledModel, sample
+from kfcrit.model.network import Network, network_from_mapping
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import number_from_text
 from kfcrit.io.safeio import read_text
@@ -30,12 +31,12 @@ MAX_NODES = 1_000_000
 """Most YAML values (scalars and collections) in a file read by :func:`read_yaml` by default."""
 MATRIX_KEYS = frozenset({"A", "C", "Q", "R", "Sigma0"})
 TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements",
-            "continuous", "sampling_time"}
+            "continuous", "sampling_time", "sensors", "links", "sink_position_m", "R_cross"}
 REQUIRED_KEYS = {"name", "C", "R"}
 """Required in every system file; the model is either ``A`` and ``Q`` (discrete time) or
 ``continuous: {A, Q}`` with ``sampling_time`` (:data:`CONTINUOUS_KEYS`), never both."""
 CONTINUOUS_KEYS = {"A", "Q"}
-SCAN_MATRIX_KEYS = MATRIX_KEYS | {"continuous"}
+SCAN_MATRIX_KEYS = MATRIX_KEYS | {"continuous", "sensors", "R_cross"}
 """Top-level keys whose lists the size guard of :func:`scan_yaml` covers."""
 REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability", "max_mean_error_trace"}
 
@@ -243,6 +244,9 @@ class SystemSpec:
     continuous: SampledModel | None = None
     """The continuous-time model and sampling (``continuous:`` with ``sampling_time``) that
     gave ``system.A`` and ``system.Q``; None for a discrete-time file."""
+    network: Network | None = None
+    """The sensors of a ``sensors:`` file (each with its rows of C, its noise and its channel);
+    ``system`` is then the stacked system (every sensor's rows) and ``channel`` None."""
 
 
 def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: int = MAX_NODES,
@@ -434,6 +438,8 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
         if not isinstance(key, str) or key not in TOP_KEYS:
             raise InputError(f"unknown key (allowed: {', '.join(sorted(TOP_KEYS))})",
                              field=key_name(key))
+    if "sensors" in doc:
+        return _network_spec(doc, base_dir, max_states, channels)
     for key in sorted(REQUIRED_KEYS):
         if key not in doc or doc[key] is None:
             raise InputError("is required", field=key)
@@ -461,6 +467,37 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                       description=description[:2000], continuous=sampled)
 
 
+def _name_and_description(doc: dict) -> tuple[str, str]:
+    if doc.get("name") is None:
+        raise InputError("is required", field="name")
+    name = doc["name"]
+    if not isinstance(name, (str, YamlNumber)) or not str(name).strip():
+        raise InputError("must be a non-empty string", field="name")
+    description = doc.get("description") or ""
+    if not isinstance(description, str):
+        raise InputError("must be a string", field="description")
+    return str(name)[:200], description[:2000]
+
+
+def _network_spec(doc: dict, base_dir: Path | None, max_states: int,
+                  channels: Mapping[str, ChannelParser]) -> SystemSpec:
+    """The spec of a ``sensors:`` file (MATH §9): the network and its stacked system."""
+    name, description = _name_and_description(doc)
+    for key in ("continuous", "sampling_time"):
+        if key in doc:
+            raise InputError("a sensors: file gives A and Q in discrete time", field=key)
+
+    def parse(mapping: dict, prefix: str) -> Channel:
+        return channel_from_mapping(_plain(mapping), prefix, base_dir, parsers=channels)
+
+    plain = {k: (_plain(v) if k in ("sensors", "links") else v) for k, v in doc.items()}
+    network = network_from_mapping(plain, parse, name=name, max_states=max_states)
+    reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
+        else Requirements()
+    return SystemSpec(system=network.stacked_system(), channel=None, requirements=reqs,
+                      description=description, network=network)
+
+
 def max_nodes_for(max_states: int) -> int:
     """The YAML value budget of a system file: five full matrices of the largest size, plus
     room for the rest (so a file is refused before it is built, not after)."""
@@ -483,7 +520,7 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
                              channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
                      description=spec.description, path=str(path), sha256=digest,
-                     continuous=spec.continuous)
+                     continuous=spec.continuous, network=spec.network)
     return out
 
 

@@ -47,6 +47,43 @@ def review_lines(rec: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _value_text(d: dict[str, Any] | None) -> str:
+    """A value with its exact form, or its interval when only bracketed."""
+    d = d or {}
+    if d.get("value") is not None:
+        expr = d.get("expression")
+        return f"{d['value']:.6g}" + (f" (= {expr})" if d.get("exact") and expr and
+                                       len(expr) <= 30 else "")
+    iv = d.get("interval")
+    if iv:
+        return f"in [{_num(iv[0])}, {_num(iv[1])}]"
+    return "—"
+
+
+def network_lines(net: dict[str, Any] | None) -> list[str]:
+    """The sensor network: one row per node (arrival probability, critical value, margin,
+    verdict with that link dead), the uniform margin and the bottleneck link."""
+    if not net:
+        return []
+    lines = ["  sensor network        " + f"{len(net.get('sensors') or [])} sensors, verdict "
+             f"{(net.get('verdict') or '—').upper()}",
+             f"    {'sensor':<12} {'p_i':>9}  {'critical p_i':<24} {'margin':>9}  N−1 (link dead)"]
+    for s in net.get("sensors") or []:
+        margin = (s.get("margin") or {}).get("value")
+        lines.append(f"    {safe_text(s.get('name'))[:12]:<12} "
+                     f"{_num(s.get('arrival_probability')):>9}  "
+                     f"{_value_text(s.get('critical_value')):<24} "
+                     f"{(f'{margin:+.4g}' if margin is not None else '—'):>9}  "
+                     f"{(s.get('n_minus_1') or {}).get('verdict', '—')}")
+    um = net.get("uniform_margin") or {}
+    lines.append(f"    uniform margin δ      {_value_text(um)}  (every link degraded by δ "
+                 "reaches the boundary)")
+    bn = net.get("bottleneck") or {}
+    if bn.get("name"):
+        lines.append(f"    bottleneck link       {safe_text(bn['name'])}")
+    return lines
+
+
 def summary(rec: dict[str, Any]) -> str:
     """A readable multi-line summary of an analysis record."""
     lines = [f"kfcrit analysis: {safe_text(rec['name'])}"]
@@ -95,6 +132,7 @@ def summary(rec: dict[str, Any]) -> str:
         if op.get("note"):
             lines.append(f"      note: {op['note']}")
         lines.extend(_trace_lines(op.get("trace")))
+    lines.extend(network_lines(rec.get("network")))
     lines.extend(_bounds_lines(rec))
     lines.extend(_simulation_lines(rec))
     lines.extend(_link_lines(rec))
