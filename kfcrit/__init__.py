@@ -14,8 +14,8 @@ from kfcrit.errors import ExitCode, KfcritError  # noqa: E402
 
 # Everything else is imported on first use: ``kfcrit --help``, input errors and signals
 # answer at once instead of after the ~1 s import of sympy, numpy and scipy.
-_LAZY = {"Analysis": "analysis.record", "AnalysisOptions": "analysis.record",
-         "analyze": "analysis.record", "System": "model.system", "SystemSpec": "io.systemfile",
+_LAZY = {"Analysis": "api", "AnalysisOptions": "analysis.record",
+         "analyze": "api", "sweep": "api", "SweepTable": "api", "System": "model.system", "SystemSpec": "io.systemfile",
          "load_spec": "analysis.spec", "load_system": "analysis.spec",
          "critical_value": "theory.critical", "upper_bound": "theory.upper",
          "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds",
@@ -40,4 +40,4 @@ def __dir__() -> list[str]:
 __all__ = ["Analysis", "AnalysisOptions", "ExitCode", "KfcritError", "System", "SystemSpec",
            "__version__", "analyze", "covariance_bounds", "critical_value", "load_spec",
            "load_system", "simulate", "upper_bound", "from_continuous_statespace", "sample",
-           "network_analysis"]
+           "network_analysis", "sweep", "SweepTable"]

@@ -1,0 +1,110 @@
+"""Records and sweep tables for notebooks: ``repr``, ``_repr_html_``, ``_repr_markdown_``,
+``figure(name)`` and ``to_pandas()``."""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from kfcrit.analysis import sections
+from kfcrit.analysis.record import analyze as record_analyze
+
+
+@dataclass(frozen=True, repr=False)
+class Analysis(sections.Analysis):
+    """The typed analysis record, displayed in notebooks by its verdict box and bounds table.
+
+    Everything of :class:`kfcrit.analysis.sections.Analysis` (typed sections, ``to_dict()``,
+    ``decision``, ``verdict``), plus :meth:`figure` and the rich displays.
+    """
+
+    def _repr_html_(self) -> str:
+        from kfcrit.views.summary import html_summary
+
+        return html_summary(self.to_dict())
+
+    def _repr_markdown_(self) -> str:
+        from kfcrit.views.summary import markdown_summary
+
+        return markdown_summary(self.to_dict())
+
+    def figure_names(self) -> list[str]:
+        """The figures this record has data for (the report's figures, in report order)."""
+        from kfcrit.views.figures import figure_names
+
+        return figure_names(self.to_dict())
+
+    def figure(self, name: str) -> Any:
+        """One report figure as a :class:`matplotlib.figure.Figure` (see :meth:`figure_names`)."""
+        from kfcrit.views.figures import figure
+
+        return figure(self.to_dict(), name)
+
+    @classmethod
+    def of(cls, record: sections.Analysis) -> Analysis:
+        """The notebook form of a record built by :func:`kfcrit.analysis.record.analyze`."""
+        return cls(**{f.name: getattr(record, f.name) for f in dataclasses.fields(record)})
+
+
+def analyze(system: Any, options: Any = None, **kwargs: Any) -> Analysis:
+    """Analyse a :class:`~kfcrit.model.system.System` or a loaded system file.
+
+    See :func:`kfcrit.analysis.record.analyze` (same parameters); the record returned displays
+    itself in notebooks.
+    """
+    return Analysis.of(record_analyze(system, options, **kwargs))
+
+
+@dataclass(frozen=True)
+class SweepTable:
+    """A sweep's table: one row per point (parameters, then the result columns)."""
+
+    rows: tuple[dict[str, Any], ...]
+    parameters: tuple[str, ...]
+    columns: tuple[str, ...]
+    computed: int = 0
+    reused: int = 0
+
+    def to_pandas(self) -> Any:
+        """The table as a :class:`pandas.DataFrame` (pandas is an optional extra:
+        ``pip install 'kfcrit[notebook]'``)."""
+        try:
+            import pandas as pd
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError("to_pandas() needs pandas: pip install 'kfcrit[notebook]'") from exc
+        return pd.DataFrame([{c: r.get(c) for c in self.columns} for r in self.rows],
+                            columns=list(self.columns))
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __repr__(self) -> str:
+        decisions = [r.get("decision") for r in self.rows]
+        counts = ", ".join(f"{d}: {decisions.count(d)}" for d in dict.fromkeys(decisions))
+        return f"<kfcrit SweepTable: {len(self.rows)} points over {', '.join(self.parameters)}" \
+               f" ({counts})>"
+
+
+def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: int = 1,
+          max_states: int = 400, write: bool = True, scheduler: str | None = None
+          ) -> SweepTable:
+    """Run (or resume) the sweep of ``sweep_file`` from Python and return its table.
+
+    ``output`` is the results folder (default: beside the sweep file, as for ``kfcrit sweep``);
+    with ``write`` the CSV, JSON and figures are written there too.
+    """
+    from kfcrit.analysis.sweep import RESULT_COLUMNS, load_sweep, run_sweep
+    from kfcrit.cli.sweep import write_outputs
+
+    spec = load_sweep(sweep_file, max_states=max_states)
+    out = Path(output) if output is not None else \
+        Path(sweep_file).with_name(Path(sweep_file).stem + "-results")
+    result = run_sweep(spec, out, scheduler=scheduler, workers=workers, max_states=max_states)
+    if write:
+        write_outputs(spec, result.rows, Path(result.output), runner=result.runner,
+                      workers=result.workers, computed=result.computed, reused=result.reused)
+    columns: Sequence[str] = ("index", "key", *spec.parameters, *RESULT_COLUMNS)
+    return SweepTable(rows=tuple(result.rows), parameters=tuple(spec.parameters),
+                      columns=tuple(columns), computed=result.computed, reused=result.reused)
