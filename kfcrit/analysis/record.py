@@ -478,6 +478,31 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     warnings.extend((sim or {}).get("warnings") or [])
 
 
+def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str, Any]:
+    """The link's curves for the report: arrival probability and outage against distance, PER
+    against SINR (:mod:`kfcrit.link.curves`), with the arrival probabilities they are read
+    against (p_c or the bracket's upper end, and the accuracy requirement's [p_S, p_V])."""
+    from kfcrit.link import curves
+
+    marks: dict[str, float] = {}
+    pc = (sec.get("critical_value") or {}).get("value")
+    up = (sec.get("upper_bound") or {}).get("value")
+    if pc is not None:
+        marks["p_c"] = float(pc)
+    elif up is not None:
+        marks["p_up"] = float(up)
+    req = ((sec.get("design") or {}).get("required_arrival_probability") or {})
+    if req.get("interval"):
+        marks["p_S"], marks["p_V"] = (float(v) for v in req["interval"])
+    out = {"arrival_vs_distance": curves.arrival_vs_distance(channel).to_dict(),
+           "per_vs_sinr": curves.per_vs_sinr(channel.radio).to_dict(),
+           "marks": marks}
+    usable = {k: v for k, v in marks.items() if 0 < v < 1}
+    if usable:
+        out["outage_vs_distance"] = curves.outage_vs_distance(channel, usable).to_dict()
+    return out
+
+
 def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
                         ge: Any) -> dict[str, Any]:
     """The Gilbert–Elliott section of a bursty chain: the conditions of MATH §7 (scalar) and
@@ -526,6 +551,8 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
         bracket=bracket, upper_bound=(sec.get("upper_bound") or {}).get("value"))
     if isinstance(sec["link_budget"], dict):
         sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
+        if opts.details:
+            sec["link_budget"]["curves"] = link_curves(ch, sec, spec)
         ge = bursty_channel(ch)
         if ge is not None:
             sec["link_budget"]["bursty"] = bursty_link_section(spec, opts, theory, ge)

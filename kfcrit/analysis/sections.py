@@ -331,6 +331,8 @@ class LinkBudget:
     critical_curve: JSON = opt()
     gilbert_elliott: JSON = opt()
     bursty: JSON = opt()
+    curves: JSON = opt()
+    """Arrival probability and outage against distance, PER against SINR (for the figures)."""
 
 
 # ----------------------------------------------------------------------------- the record
