@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from kfcrit.version import __version__
 from kfcrit.errors import ExitCode, KfcritError  # noqa: E402
+from kfcrit.version import __version__
 
 # Everything else is imported on first use: ``kfcrit --help``, input errors and signals
 # answer at once instead of after the ~1 s import of sympy, numpy and scipy.

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
+from kfcrit.model.system import System
 from kfcrit.theory import bounds
 from kfcrit.theory.riccati import g
-from kfcrit.model.system import System
 
 
 def scalar(a: float, q: float = 1.0, r: float = 1.0) -> System:
@@ -193,8 +193,8 @@ def test_phase_transition_time_budget_is_a_warning_not_a_failure():
 
 def test_static_gain_section_is_skipped_with_a_reason_beyond_its_size_cap() -> None:
     """n = 31 > 30: no O(n⁶) eigenproblem; both gains say why, with the vech size 31·32/2."""
-    from kfcrit.theory import bounds
     from kfcrit.model.system import System
+    from kfcrit.theory import bounds
 
     n = bounds.STATIC_GAIN_MAX_STATES + 1
     A = np.diag([1.2] + [0.5] * (n - 1))

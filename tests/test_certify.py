@@ -12,8 +12,8 @@ import flint
 import numpy as np
 import pytest
 
-from kfcrit.theory import certify
 from kfcrit.model.system import System
+from kfcrit.theory import certify
 from kfcrit.theory.upper import upper_bound
 
 
@@ -199,12 +199,9 @@ def _exact_upper_check(A, C, p, X, K) -> bool:
 
 def test_record_of_a_larger_system_reverifies_exactly_from_json():
     import json
-    import sys
     from fractions import Fraction
 
-    from .conftest import SHARED_CASES
-    sys.path.insert(0, str(SHARED_CASES.parent / "bench"))
-    from systems import random_system
+    from .data.bench_systems import random_system
 
     A, C, Q, R = random_system(10, 3, 1)          # n = 10 > 6: formerly no matrices recorded
     s = System(A, C, Q, R)

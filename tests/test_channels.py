@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 
 from kfcrit.analysis.spec import CHANNELS
 from kfcrit.analysis.spec import parse_channel as channel_from_mapping
+from kfcrit.errors import InputError
 from kfcrit.model.channels import (
     ArrivalProcess,
     Bernoulli,
@@ -26,7 +27,6 @@ from kfcrit.model.channels import (
     GilbertElliott,
     Trace,
 )
-from kfcrit.errors import InputError
 from kfcrit.sim.montecarlo import _KIND_CODE, arrival_sequence, path_keys
 
 
@@ -94,8 +94,8 @@ def test_base_class_default_is_iid_with_the_stationary_probability():
     x = ch.draw_arrivals(np.random.default_rng(1), 40_000)
     se = math.sqrt(0.75 * 0.25 / x.size)
     assert abs(x.mean() - 0.75) < 5 * se
-    from kfcrit.sim.montecarlo import simulate
     from kfcrit.model.system import System
+    from kfcrit.sim.montecarlo import simulate
 
     res = simulate(System([[0.5]], [[1]], 1, 1), 10, 5, 0, ch)
     assert res.channel["model"] == "only-stationary"
@@ -187,8 +187,8 @@ def test_trace_start_comes_from_the_path_key_not_the_number_of_paths():
     """Prefix independence for trace channels: path i starts at key_i mod L, key_i the first
     64-bit word of NumPy's SeedSequence(seed, spawn_key=(0, i)); running 3 or 300 paths gives
     the same first paths (the old ⌊i·L/paths⌋ start moved with the number of paths)."""
-    from kfcrit.sim.montecarlo import simulate
     from kfcrit.model.system import System
+    from kfcrit.sim.montecarlo import simulate
 
     seq = (np.random.default_rng(11).random(37) < 0.6).tolist()
     system = System([[1.1]], [[1]], 1, 1)

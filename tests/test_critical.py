@@ -1,6 +1,6 @@
 """Critical values: the paper cases, hand-derived cases, robustness, invariances (Hypothesis).
 
-Every expected value comes from /work/shared/cases/expected.json (derived from the papers) or
+Every expected value comes from tests/data/cases/expected.json (derived from the papers) or
 from a hand derivation written next to the case with MATH.md §4:
 non-degenerate p_c = 1 − |λ_1|^{-2}; degenerate pair p_c = 1 − |λ_1|^{-2q/(q−1)}.
 """
@@ -15,12 +15,12 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kfcrit.theory import critical
-from kfcrit.theory.structure import eigen_structure
+from kfcrit.io.systemfile import load_spec
 from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.exprparse import parse_expression
 from kfcrit.model.system import System
-from kfcrit.io.systemfile import load_spec
+from kfcrit.theory import critical
+from kfcrit.theory.structure import eigen_structure
 
 from .conftest import SHARED_CASES
 
@@ -405,8 +405,8 @@ def test_long_exact_numbers_keep_an_exact_expression() -> None:
 
 @pytest.mark.parametrize("bad", [-1e-3, 0.2, float("nan"), "0.01"])
 def test_tolerance_message_names_its_range(bad) -> None:
-    from kfcrit.theory.critical import critical_value
     from kfcrit.errors import InputError
+    from kfcrit.theory.critical import critical_value
 
     with pytest.raises(InputError, match=r"\[0, 0\.1\]"):
         critical_value(System([[2]], [[1]], Q=1, R=1), tolerance=bad)

@@ -16,11 +16,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from kfcrit.theory import bounds as _bounds
-from kfcrit.theory import critical
-from kfcrit.theory import riccati
-from kfcrit.theory import upper as _upper
 from kfcrit.model.system import System
+from kfcrit.theory import bounds as _bounds
+from kfcrit.theory import critical, riccati
+from kfcrit.theory import upper as _upper
 
 from . import test_lemmas as L
 from . import test_properties as P

@@ -22,8 +22,8 @@ from hypothesis import strategies as st
 from kfcrit import System
 from kfcrit.cli.main import main
 from kfcrit.errors import InputError, KfcritError
-from kfcrit.model.exprparse import parse_expression
 from kfcrit.io.systemfile import load_spec, spec_from_mapping
+from kfcrit.model.exprparse import parse_expression
 
 from .conftest import PROFILE
 
@@ -411,8 +411,8 @@ def test_write_atomic_turns_os_errors_into_output_errors(tmp_path: Path,
     import errno
     import os
 
-    from kfcrit.io.atomic import write_atomic
     from kfcrit.errors import OutputError
+    from kfcrit.io.atomic import write_atomic
 
     target = tmp_path / "keep.txt"
     target.write_bytes(b"old")

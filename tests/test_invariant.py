@@ -11,10 +11,10 @@ import pytest
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.theory.invariant import ScalarMaps, gap_levels, invariant_section, support_points
-from kfcrit.sim.montecarlo import ergodic, simulate
-from kfcrit.model.system import System
 from kfcrit.io.systemfile import load_spec
+from kfcrit.model.system import System
+from kfcrit.sim.montecarlo import ergodic, simulate
+from kfcrit.theory.invariant import ScalarMaps, gap_levels, invariant_section, support_points
 
 from .conftest import REPORTS, SHARED_CASES
 

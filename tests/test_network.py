@@ -14,8 +14,8 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kfcrit.errors import InputError
 from kfcrit.analysis.spec import parse_channel as channel_from_mapping
+from kfcrit.errors import InputError
 from kfcrit.model.network import Network, Sensor, euclidean_distance, network_from_mapping
 from kfcrit.model.system import System
 from kfcrit.theory import network_kernels as nk

@@ -23,8 +23,8 @@ import sympy as sp
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from kfcrit.theory import critical
 from kfcrit.model.system import System
+from kfcrit.theory import critical
 
 from .strategies import (
     PAPER_CASES,

@@ -13,8 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from kfcrit.views import figures
-from kfcrit.views import report
+from kfcrit.views import figures, report
 
 CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium"
                                         if Path("/usr/bin/chromium").exists() else None)

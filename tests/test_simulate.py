@@ -24,8 +24,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_lyapunov
 
-from kfcrit.model.channels import GilbertElliott, Trace
 from kfcrit.errors import InputError
+from kfcrit.io.jsonio import dumps
+from kfcrit.io.systemfile import Requirements, SystemSpec, load_spec
+from kfcrit.model.channels import GilbertElliott, Trace
+from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import (
     LANES,
     _lambda_max_lanes,
@@ -36,10 +39,7 @@ from kfcrit.sim.montecarlo import (
     simulate_command,
     simulation_section,
 )
-from kfcrit.io.jsonio import dumps
 from kfcrit.theory.riccati import f_arrival, f_loss, g
-from kfcrit.model.system import System
-from kfcrit.io.systemfile import Requirements, SystemSpec, load_spec
 
 from .conftest import REPORTS
 

@@ -1,6 +1,6 @@
 """The upper bound p_up (kfcrit.theory.upper, kfcrit.theory.lmi): closed forms, paper values, cross-checks.
 
-Expected values: MATH.md §3 and ../shared/cases/expected.json (paper values); the single-output
+Expected values: MATH.md §3 and tests/data/cases/expected.json (paper values); the single-output
 closed form p_up = 1 − 1/Π|λ_u|² ([beyond] in MATH.md, tested here as a property); p_low
 (Sinopoli Thm 3); the issue's MARE observations for random_system(20, 6, 0). Cross-checks use
 independent methods: the LMI, the MARE iteration and the static-gain critical value.
@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from fractions import Fraction
 
 import numpy as np
@@ -17,15 +16,13 @@ import pytest
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
-from kfcrit.theory import bounds
-from kfcrit.model.system import System
 from kfcrit.io.systemfile import load_spec
+from kfcrit.model.system import System
+from kfcrit.theory import bounds
 from kfcrit.theory.upper import UpperBound, upper_bound, upper_section
 
 from .conftest import SHARED_CASES
-
-sys.path.insert(0, str(SHARED_CASES.parent / "bench"))
-from systems import random_system  # noqa: E402
+from .data.bench_systems import random_system  # noqa: E402
 
 
 def make(A, C) -> System:
@@ -165,7 +162,7 @@ def test_undetectable_is_undetermined_not_an_error():
 
 
 def test_upper_section_never_raises(monkeypatch):
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory import upper
 
     def boom(*_a, **_k):
         raise np.linalg.LinAlgError("singular matrix")
@@ -555,7 +552,7 @@ def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
 
 
 def test_numpy_solve_failure_is_undetermined(monkeypatch):
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory import upper
 
     upper.clear_memo()
     monkeypatch.setattr(np.linalg, "solve", _raise(np.linalg.LinAlgError("Singular matrix")))
@@ -567,8 +564,7 @@ def test_numpy_solve_failure_is_undetermined(monkeypatch):
 def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
     import cvxpy
 
-    from kfcrit.theory import lmi
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory import lmi, upper
 
     upper.clear_memo()
     monkeypatch.setattr(lmi, "lmi_upper_bound", _raise(cvxpy.error.SolverError("Clarabel")))
@@ -598,8 +594,8 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
     from click.testing import CliRunner
 
     import kfcrit
-    from kfcrit.theory import newton, upper
     from kfcrit.cli.main import main
+    from kfcrit.theory import newton, upper
 
     path = tmp_path / "no-channel.yaml"
     path.write_text(NO_CHANNEL)

@@ -23,7 +23,7 @@ followed by the detail sections ``system``, ``structure``, ``theory``, ``covaria
 from __future__ import annotations
 
 import platform
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd

@@ -50,7 +50,6 @@ import json
 import math
 import os
 import re
-import sys
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from decimal import Decimal
@@ -60,11 +59,10 @@ from typing import Any
 
 import sympy as sp
 
-from kfcrit.version import __version__
-from kfcrit.io.atomic import write_atomic
 from kfcrit.errors import ExitCode, InputError, KfcritError
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.safeio import read_text
+from kfcrit.version import __version__
 
 FORMAT_VERSION = 1
 MAX_POINTS = 1_000_000
@@ -311,8 +309,8 @@ def _load_base(system: Any, sweep_dir: Path) -> tuple[dict, Path, str | None]:
 
 def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
     """Read and validate a sweep file (every error is one line naming the field)."""
-    from kfcrit.model.channels import check_keys
     from kfcrit.io.systemfile import read_yaml
+    from kfcrit.model.channels import check_keys
 
     doc, digest = read_yaml(path)
     if not isinstance(doc, dict):

@@ -22,8 +22,8 @@ import time
 
 import numpy as np
 
-from kfcrit.theory import critical
 from kfcrit.model.system import System
+from kfcrit.theory import critical
 
 EXACT_TARGET = 2.0
 NUMERIC_TARGET = 5.0

@@ -71,8 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     from reference_rre import simulate_traces  # noqa: E402 - found through sys.path
     from systems import random_system  # noqa: E402
 
-    from kfcrit.sim.montecarlo import simulate
     from kfcrit.model.system import System
+    from kfcrit.sim.montecarlo import simulate
 
     print(f"machine: {machine()}")
     print(f"reference: {ref_dir / 'reference_rre.py'}; paths={args.paths} steps={args.steps} "

@@ -8,20 +8,20 @@ constructors exist (``yaml.SafeLoader`` subclass), so no tag can build a Python 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from kfcrit.errors import InputError
 from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
+from kfcrit.io.safeio import read_text
 from kfcrit.model.channels import Channel, check_keys, exact_probability, key_name
 from kfcrit.model.continuous import SampledModel, sample
-from kfcrit.model.network import Network, network_from_mapping
-from kfcrit.errors import InputError
 from kfcrit.model.exprparse import number_from_text
-from kfcrit.io.safeio import read_text
+from kfcrit.model.network import Network, network_from_mapping
 from kfcrit.model.system import MAX_STATES_DEFAULT, System
 
 MAX_FILE_BYTES = 20_000_000

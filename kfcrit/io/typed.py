@@ -26,7 +26,7 @@ import types
 import typing
 from typing import Any, Union
 
-JSON = Union[None, bool, int, float, str, list[Any], dict[str, Any]]
+JSON = Union[None, bool, int, float, str, list[Any], dict[str, Any]]  # noqa: UP007 - one object
 """Any JSON value (its schema is ``{}``)."""
 
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"

@@ -20,6 +20,7 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 
+
 def exact_probability(value: Any, field: str, *, low_open: bool = False) -> sp.Rational:
     """Read a probability exactly and check it lies in [0, 1] (or (0, 1] if ``low_open``)."""
     from kfcrit.model.exprparse import compare, number_from_text, parse_expression

@@ -24,8 +24,14 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import compare, parse_expression
-from kfcrit.model.system import (MAX_STATES_DEFAULT, System, is_definite, sym_tolerance,
-                                 to_float, to_matrix)
+from kfcrit.model.system import (
+    MAX_STATES_DEFAULT,
+    System,
+    is_definite,
+    sym_tolerance,
+    to_float,
+    to_matrix,
+)
 
 MAX_SENSORS = 64
 """Most sensors a network may have (the exact analysis enumerates 2^N received sets up to

@@ -40,9 +40,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
 from kfcrit.model.channels import ArrivalProcess, Bernoulli, Channel, exact_probability
-from kfcrit.errors import InputError
 from kfcrit.model.system import System
 
 DEFAULT_SAMPLES = 200

@@ -36,9 +36,10 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import sympy as sp
@@ -594,7 +595,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
 
     # ---- per sensor: coordinate paths
     rows = []
-    for i, s in enumerate(network.sensors):
+    for i in range(len(network.sensors)):
         rows.append(_sensor_row(ctx, cons, exact_region, i, pf, pe))
 
     # ---- uniform margin

@@ -8,8 +8,16 @@ from markupsafe import Markup
 
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
-from kfcrit.views.viewparts import (as_dict, as_list, exact_text, missing, number, prose, row,
-                                    safe_svg)
+from kfcrit.views.viewparts import (
+    as_dict,
+    as_list,
+    exact_text,
+    missing,
+    number,
+    prose,
+    row,
+    safe_svg,
+)
 
 CHANNEL_NAMES = {"bernoulli": "Bernoulli (i.i.d. losses)",
                  "gilbert-elliott": "Gilbert–Elliott (bursty, two-state Markov losses)",

@@ -8,7 +8,7 @@ from typing import Any
 from kfcrit.version import __version__
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views.figures import series_of, tail_of
-from kfcrit.views.viewparts import (as_dict, as_list, missing, number, prose, row, safe_svg)
+from kfcrit.views.viewparts import as_dict, as_list, missing, number, prose, row, safe_svg
 
 FIGURE_CAPTIONS = {
     "phase_transition": ("Phase transition",

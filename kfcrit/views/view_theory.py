@@ -7,12 +7,23 @@ from typing import Any
 
 from markupsafe import Markup
 
-
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
 from kfcrit.views.figures import invariant_gaps
-from kfcrit.views.viewparts import (as_dict, as_list, exact_text, formula, kv_rows, maybe_svg,
-                                    missing, number, prose, row, safe_svg, sentence)
+from kfcrit.views.viewparts import (
+    as_dict,
+    as_list,
+    exact_text,
+    formula,
+    kv_rows,
+    maybe_svg,
+    missing,
+    number,
+    prose,
+    row,
+    safe_svg,
+    sentence,
+)
 
 THEOREMS: tuple[tuple[str, str, str, str], ...] = (
     ("non-degenerate", "Mo–Sinopoli, Theorem 4",

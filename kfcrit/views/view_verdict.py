@@ -6,8 +6,16 @@ from typing import Any
 
 from kfcrit.views.figures import tail_of
 from kfcrit.views.view_link import CHANNEL_NAMES, channel_summary, link_design_view
-from kfcrit.views.viewparts import (as_dict, as_list, exact_text, formula, missing, number, prose,
-                                    sentence)
+from kfcrit.views.viewparts import (
+    as_dict,
+    as_list,
+    exact_text,
+    formula,
+    missing,
+    number,
+    prose,
+    sentence,
+)
 
 DECISIONS = ("pass", "fail", "undetermined")
 REASON_STATUSES = {"pass": "pass", "fail": "fail", "undetermined": "undetermined",

@@ -12,9 +12,15 @@ from typing import Any
 from kfcrit.version import __version__
 from kfcrit.views.view_link import channel_view
 from kfcrit.views.view_sim import appendix_view, figures_view, simulation_view
-from kfcrit.views.view_theory import (bounds_view, classification_view, covariance_view,
-                                      invariant_view, statements_view, structure_view,
-                                      system_view)
+from kfcrit.views.view_theory import (
+    bounds_view,
+    classification_view,
+    covariance_view,
+    invariant_view,
+    statements_view,
+    structure_view,
+    system_view,
+)
 from kfcrit.views.view_verdict import requirement_view, verdict_view
 from kfcrit.views.viewparts import as_dict, as_list, prose
 

@@ -1,0 +1,1 @@
+"""Facts from the papers and the shared benchmark generator, kept in the repository."""
