@@ -15,7 +15,8 @@ from kfcrit.version import __version__
 # Everything else is imported on first use: ``kfcrit --help``, input errors and signals
 # answer at once instead of after the ~1 s import of sympy, numpy and scipy.
 _LAZY = {"Analysis": "api", "AnalysisOptions": "analysis.record",
-         "analyze": "api", "sweep": "api", "SweepTable": "api", "System": "model.system", "SystemSpec": "io.systemfile",
+         "analyze": "api", "sweep": "api", "SweepTable": "api", "System": "model.system",
+         "SystemSpec": "io.systemfile",
          "load_spec": "analysis.spec", "load_system": "analysis.spec",
          "critical_value": "theory.critical", "upper_bound": "theory.upper",
          "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds",

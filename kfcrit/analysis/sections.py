@@ -403,7 +403,8 @@ class Analysis:
     def __repr__(self) -> str:
         pc = self.critical_value.value if self.critical_value else None
         pc_text = (self.critical_value.expression or f"{pc:.6g}") if pc is not None else "bracket"
-        return (f"<kfcrit Analysis {self.name!r}: {self.classification.value if self.classification else '?'}, "
+        cls = self.classification.value if self.classification else "?"
+        return (f"<kfcrit Analysis {self.name!r}: {cls}, "
                 f"p_c = {pc_text}, verdict {self.verdict or 'n/a'}, review {self.decision}>")
 
 
