@@ -166,7 +166,7 @@ def test_just_above_pc_monte_carlo_checks_are_inconclusive_not_failed(body: str,
     path = write(tmp_path, "name: near\n" + body)
     r = run_cli(path, "--json", "--quick")
     assert r.stderr == ""                       # no RuntimeWarning / LinAlgWarning leaks
-    assert r.returncode == 0, r.stdout[-2000:]  # before: 1 (a false verification failure)
+    assert r.returncode == 0, r.stdout[-2000:]  # no false verification failure
     rec = json.loads(r.stdout)
     assert rec["operating_point"]["verdict"] == "mean-stable"   # p > p_c
     checks = rec["verification"]
@@ -211,7 +211,7 @@ def test_trace_channel_is_undetermined_with_information(tmp_path: Path) -> None:
                            "channel: {model: trace, path: trace.txt}\n")
     code, rec, _ = analyze_json(path, "--quick")
     op = rec["operating_point"]
-    assert op["verdict"] == "undetermined"          # before: mean-stable (0.75 > p_c = 0.36)
+    assert op["verdict"] == "undetermined"          # not mean-stable: 0.75 > p_c = 0.36 is i.i.d. only
     assert op["iid_comparison_verdict"] == "mean-stable"
     assert "i.i.d." in op["basis"] and "Gilbert–Elliott" in op["basis"]
     assert "information" in op["basis"]

@@ -154,9 +154,9 @@ def diagonal_mare(a: np.ndarray, p: float) -> np.ndarray:
 
 
 def test_phase_transition_200_state_diagonal_is_fast_and_right(monkeypatch):
-    # Before: Newton–Kleinman (a dense solve in n(n+1)/2 = 20100 unknowns) at every one of
-    # ~80 grid points: more than 15 minutes. Now: fewer points for large n, warm-started fixed
-    # point, and a time budget stated in the record.
+    # Newton–Kleinman would be a dense solve in n(n+1)/2 = 20100 unknowns at each of ~80 grid
+    # points (minutes): large n uses fewer points, a warm-started fixed point and a time budget
+    # stated in the record.
     import time
 
     n = 200

@@ -203,7 +203,7 @@ def test_record_of_a_larger_system_reverifies_exactly_from_json():
 
     from .data.bench_systems import random_system
 
-    A, C, Q, R = random_system(10, 3, 1)          # n = 10 > 6: formerly no matrices recorded
+    A, C, Q, R = random_system(10, 3, 1)          # n = 10 > 6: matrices recorded too
     s = System(A, C, Q, R)
     d = json.loads(json.dumps(upper_bound(s, tol=1e-9).to_dict(), allow_nan=False))
     cert = d["certificate"]

@@ -132,7 +132,7 @@ def test_invariant_section_scalar_only_and_overlapping_images():
 # ---- hostile scales: certified comparison, no NumPy warnings, overflow stated --------------
 
 def test_tiny_scalar_a_is_decided_by_a_certified_comparison() -> None:
-    # exit 4 before: bool(lo < hi) on a sympy Relational it could not decide (TypeError)
+    # bool(lo < hi) on a sympy Relational it cannot decide must not raise (TypeError → exit 4)
     from kfcrit.theory.invariant import gap_is_open
 
     s = System([["1e-200"]], 1, 1, 1)

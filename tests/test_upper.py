@@ -289,7 +289,7 @@ def test_invertible_ill_conditioned_c_is_exact(A, C):
 
 def test_lmi_with_ill_conditioned_c_contains_true_value():
     s = make(np.array([[2.0, 1.0], [0.0, -1.9]]), np.array([[1.0, 0.5], [0.0, 1e-12]]))
-    ub = upper_bound(s, tol=1e-7, method="lmi")        # was [0.75183711, 0.75183718]
+    ub = upper_bound(s, tol=1e-7, method="lmi")
     assert ub.certified and contains_exactly(ub.interval, Fraction(3, 4))
 
 
