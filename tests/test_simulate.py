@@ -24,22 +24,16 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_lyapunov
 
-from kfcrit.model.channels import GilbertElliott, Trace
+from kfcrit.cli.simulate import simulate_command, summary_text, with_progress
 from kfcrit.errors import InputError
-from kfcrit.sim.montecarlo import (
-    LANES,
-    _lambda_max_lanes,
-    _riccati_lanes,
-    ergodic,
-    path_keys,
-    simulate,
-    simulate_command,
-    simulation_section,
-)
 from kfcrit.io.jsonio import dumps
-from kfcrit.theory.riccati import f_arrival, f_loss, g
-from kfcrit.model.system import System
 from kfcrit.io.systemfile import Requirements, SystemSpec, load_spec
+from kfcrit.model.channels import GilbertElliott, Trace
+from kfcrit.model.system import System
+from kfcrit.sim.kernels import LANES, lambda_max_lanes, riccati_lanes
+from kfcrit.sim.montecarlo import ergodic, path_keys, simulate, simulation_section
+from kfcrit.sim.stats import accumulate_log, column_stats
+from kfcrit.theory.riccati import f_arrival, f_loss, g
 
 from .conftest import REPORTS
 
@@ -121,11 +115,11 @@ def test_lane_step_is_symmetric_psd_and_equals_the_maps(sysmats, rank, scale, la
     wm = [np.empty((n, m, lanes)), np.empty((m, m, lanes)), np.empty((n, m, lanes)),
           np.empty((n, m, lanes))]
     ones, zeros = np.ones(lanes), np.zeros(lanes)
-    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3],
+    riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3],
                    False, ones, zeros)
     # the scaled branch with c = 1 and no loading is the same arithmetic, bit for bit
     out_scaled = np.empty_like(Xs)
-    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out_scaled, ws[0], ws[1], wm[0], wm[1], wm[2],
+    riccati_lanes(A, C, Q, R, Xs, gam, lanes, out_scaled, ws[0], ws[1], wm[0], wm[1], wm[2],
                    wm[3], True, ones, zeros)
     assert np.array_equal(out, out_scaled)
     for b in range(lanes):
@@ -148,7 +142,7 @@ def test_lambda_max_bisection_matches_eigvalsh(n, rank, entries, exponent):
     Xs[:, :, 1] *= 2.0
     out = np.empty(W)
     work = [np.empty(W) for _ in range(5)]
-    _lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *work)
+    lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *work)
     for b in range(W):
         ref = np.linalg.eigvalsh(Xs[:, :, b])[-1]
         assert abs(out[b] - ref) <= 1e-10 * max(np.trace(Xs[:, :, b]), 1e-300)
@@ -283,21 +277,17 @@ def test_values_beyond_float64_are_reported_as_log10():
 
 
 def simulate_summary(res):
-    from kfcrit.sim.montecarlo import summary_text
-
     return summary_text(res)
 
 
 def test_log_sum_exp_moments_by_hand():
     """Values 1e400 and 1e401 (as logs): mean 5.5e400, sample sd 9e400/√2."""
-    from kfcrit.sim.montecarlo import _accumulate_log, _column_stats
-
     ln10 = math.log(10)
     lv = np.array([[400 * ln10], [401 * ln10]])
     lmax, s1, s2 = np.full(1, -np.inf), np.zeros(1), np.zeros(1)
-    _accumulate_log(lv[:1], lmax, s1, s2)   # in two batches: a new maximum rescales the sums
-    _accumulate_log(lv[1:], lmax, s1, s2)
-    _, _, lmean, lstd = _column_stats(2, np.full(1, np.inf), np.full(1, np.nan), lmax, s1, s2)
+    accumulate_log(lv[:1], lmax, s1, s2)   # in two batches: a new maximum rescales the sums
+    accumulate_log(lv[1:], lmax, s1, s2)
+    _, _, lmean, lstd = column_stats(2, np.full(1, np.inf), np.full(1, np.nan), lmax, s1, s2)
     assert lmean[0] == pytest.approx(400 + math.log10(5.5), abs=1e-12)
     assert lstd[0] == pytest.approx(400 + math.log10(9 / math.sqrt(2)), abs=1e-12)
 
@@ -318,11 +308,11 @@ def test_bit_identical_for_any_batch_size_with_diverging_paths():
 def test_progress_is_reported_in_step_chunks(monkeypatch):
     """A run with fewer paths than one batch still reports progress as the steps advance,
     and the chunking changes no number (diverging lanes carry their scaled state across)."""
-    import kfcrit.sim.montecarlo as mc
+    import kfcrit.sim.engine as engine
 
     kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4}
     ref = simulate(GENERAL, 50, 900, 2, record_traces=2, **kw)
-    monkeypatch.setattr(mc, "PROGRESS_WORK", 50 * 4 * 100)   # 100 steps per kernel call
+    monkeypatch.setattr(engine, "PROGRESS_WORK", 50 * 4 * 100)   # 100 steps per kernel call
     calls = []
     res = simulate(GENERAL, 50, 900, 2, record_traces=2, progress=lambda d, t: calls.append((d, t)),
                    **kw)
@@ -602,10 +592,8 @@ def test_simulate_command_json_text_and_plot(tmp_path, capsys):
 
 def test_progress_bar_path_runs_and_reports(capsys):
     """The rich progress path (used only when stderr is a terminal) gives the same result."""
-    from kfcrit.sim.montecarlo import _with_progress
-
     spec = load_spec(REPORTS / "sinopoli-scalar.yaml")
-    res = _with_progress(spec, 600, 20, 3, False)
+    res = with_progress(spec, 600, 20, 3, False)
     ref = simulate(spec.system, 600, 20, 3, spec.channel)
     assert np.array_equal(res.mean_trace, ref.mean_trace)
     assert capsys.readouterr().out == ""  # nothing on stdout
@@ -675,7 +663,7 @@ def _doctored(res, factor):
 
 def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
     from kfcrit.model.channels import Bernoulli
-    from kfcrit.sim.montecarlo import simulation_checks, tail_regime
+    from kfcrit.sim.checks import simulation_checks, tail_regime
 
     # scalar a = -1.25: p_c = 1 - 1/a^2 = 0.36; the variance of P is finite iff
     # (1 - p) a^4 < 1, i.e. p > 1 - 1/a^4 = 0.5904 (hand derivation, MATH §3 / Cor. 2)
@@ -699,7 +687,7 @@ def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
 
 def test_lyapunov_settling_is_reported():
     from kfcrit.model.channels import Bernoulli
-    from kfcrit.sim.montecarlo import tail_regime
+    from kfcrit.sim.checks import tail_regime
 
     # (1 - p) a^2 = 0.64 * 1.5625 = 1 - 1.5625e-10: S_t grows by ~1 per step for 500 steps while
     # its limit is 1/(1.5625e-10) ≈ 6.4e9, so the horizon is far from settled
