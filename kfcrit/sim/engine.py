@@ -15,8 +15,12 @@ reported as log10 (``log10_*``); never a silent inf or NaN.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -71,23 +75,143 @@ def sample_times(steps: int, samples: int) -> np.ndarray:
 
 
 def problem_scale(system: System, P0: np.ndarray) -> float:
-    """Problem scale: max(tr P0, tr Q, tr P*) (P* by scipy's DARE when it exists).
+    """Problem scale: max(tr P0, tr Q, tr P*), P* the stabilising DARE solution when it exists.
 
-    An ill-conditioned DARE (scipy's ``LinAlgWarning``) or one without a stabilising solution
-    only drops P* from the maximum; nothing is printed.
+    P* by the structured doubling algorithm (:func:`steady_covariance`); when it does not
+    converge (no stabilising solution, or ill-conditioned) P* is only left out of the maximum.
     """
     scale = max(float(np.trace(P0)), float(np.trace(system.q)), 1e-300)
-    try:
-        from scipy.linalg import solve_discrete_are
-
-        with quiet_numerics():
-            P = solve_discrete_are(system.a.T, system.c.T, system.q, system.r)
-        if np.all(np.isfinite(P)):
-            scale = max(scale, float(np.trace(P)))
-    except (ValueError, np.linalg.LinAlgError):
-        pass
+    P = steady_covariance(system.a, system.c, system.q, system.r)
+    if P is not None:
+        scale = max(scale, float(np.trace(P)))
     return scale
 
+
+def steady_covariance(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray,
+                      iterations: int = 60) -> np.ndarray | None:
+    r"""P* = A P* A' + Q − A P* C'(C P* C' + R)^{-1} C P* A' by structured doubling, or None.
+
+    .. math::
+
+        W_k = (I + G_k H_k)^{-1},\quad \mathcal{A}_{k+1} = \mathcal{A}_k W_k \mathcal{A}_k,\quad
+        G_{k+1} = G_k + \mathcal{A}_k W_k G_k \mathcal{A}_k',\quad
+        H_{k+1} = H_k + \mathcal{A}_k' H_k W_k \mathcal{A}_k
+
+    from 𝒜_0 = A', G_0 = C' R^{-1} C, H_0 = Q (Chu et al. 2004); H_k → P* quadratically when a
+    stabilising solution exists. None when it has not converged to a relative 1e-10 within
+    ``iterations`` doublings or is not finite. Cheap (a few n×n products per doubling), where
+    scipy's QZ-based ``solve_discrete_are`` costs tens of milliseconds on a loaded machine.
+    """
+    n = A.shape[0]
+    with quiet_numerics():
+        try:
+            Ak = np.array(A, dtype=float).T.copy()
+            G = C.T @ np.linalg.solve(R, C)
+            H = np.array(Q, dtype=float)
+            eye = np.eye(n)
+            for _ in range(iterations):
+                W = np.linalg.inv(eye + G @ H)
+                AW = Ak @ W
+                H_new = H + Ak.T @ H @ W @ Ak
+                G = G + AW @ G @ Ak.T
+                Ak = AW @ Ak
+                H_new = 0.5 * (H_new + H_new.T)
+                G = 0.5 * (G + G.T)
+                if not np.all(np.isfinite(H_new)):
+                    return None
+                done = np.abs(H_new - H).max() <= 1e-10 * max(np.abs(H_new).max(), 1e-300)
+                H = H_new
+                if done:
+                    return H
+        except np.linalg.LinAlgError:
+            return None
+    return None
+
+
+LAMBDA_MAX_SAMPLES = 20
+"""Default number of sample times at which E[λ_max(P_t)] is computed (exactly)."""
+MAX_THREADS = 8
+
+
+def resolve_threads(threads: int | None) -> int:
+    """Worker threads: ``threads`` (≥ 1), or the CPUs this process may use (at most 8)."""
+    if threads is None:
+        try:
+            usable = len(os.sched_getaffinity(0))
+        except (AttributeError, OSError):
+            usable = os.cpu_count() or 1
+        return max(1, min(usable, MAX_THREADS))
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise InputError("must be an integer >= 1", field="threads")
+    return int(threads)
+
+
+def split_lanes(start: int, stop: int, parts: int) -> list[tuple[int, int]]:
+    """Cut paths ``start … stop−1`` into ≤ ``parts`` ranges of whole ``LANES`` blocks, in order."""
+    blocks = -(-(stop - start) // LANES)
+    per = -(-blocks // max(1, min(parts, blocks)))
+    edges = list(range(start, stop, per * LANES)) + [stop]
+    return list(zip(edges[:-1], edges[1:], strict=True))
+
+
+def lambda_max_schedule(times: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sample columns where λ_max is computed: (index per column or −1, the chosen times).
+
+    At most ``samples`` columns, evenly spread over ``times`` and always with the first and
+    the last (the horizon); none when ``samples`` is 0.
+    """
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 0:
+        raise InputError("must be an integer >= 0", field="lambda_max_samples")
+    index = np.full(times.size, -1, dtype=np.int64)
+    if samples == 0:
+        return index, np.zeros(0, dtype=np.int64)
+    cols = np.unique(np.round(np.linspace(0, times.size - 1, min(max(samples, 2), times.size)))
+                     .astype(np.int64))
+    index[cols] = np.arange(cols.size)
+    return index, times[cols]
+
+
+@dataclass(eq=False)
+class _Part:
+    """Kernel state and outputs of paths ``start … stop−1`` of a batch (one worker's share)."""
+
+    start: int
+    stop: int
+    keys: np.ndarray
+    offsets: np.ndarray
+    out_tr: np.ndarray
+    out_ltr: np.ndarray
+    out_lm: np.ndarray
+    out_llm: np.ndarray
+    out_div: np.ndarray
+    out_fail: np.ndarray
+    Xall: np.ndarray
+    lg_all: np.ndarray
+    sc_all: np.ndarray
+    st_all: np.ndarray
+    ch_all: np.ndarray
+    traces: np.ndarray
+
+    @classmethod
+    def new(cls, seed: int, start: int, stop: int, seq_len: int, n: int, S: int, SL: int,
+            traces: np.ndarray, n_traced: int) -> _Part:
+        B = stop - start
+        keys = path_keys(seed, start, stop)
+        k_tr = max(0, min(n_traced - start, B))
+        return cls(start, stop, keys, trace_offsets(keys, seq_len),
+                   np.empty((B, S)), np.empty((B, S)), np.empty((B, SL)), np.empty((B, SL)),
+                   np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64),
+                   np.empty((n, n, B)), np.zeros(B), np.zeros(B, dtype=np.int64),
+                   np.zeros(B, dtype=np.uint64), np.zeros(B, dtype=np.int64),
+                   traces[start:start + k_tr] if k_tr else np.empty((0, traces.shape[1])))
+
+
+def _advance(fixed: tuple, chan_args: tuple, times: np.ndarray, lmax_index: np.ndarray,
+             threshold: float, part: _Part, t0: int, t1: int) -> None:
+    """Run the kernel on one part from step t0 to t1 (releases the GIL)."""
+    rre_paths(*fixed, part.keys, part.offsets, *chan_args, t0, t1, times, lmax_index, threshold,
+              part.Xall, part.lg_all, part.sc_all, part.st_all, part.ch_all, part.out_tr,
+              part.out_ltr, part.out_lm, part.out_llm, part.out_div, part.out_fail, part.traces)
 
 
 def check_sizes(paths: int, steps: int, seed: int) -> None:
@@ -100,7 +224,8 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
              arrival_probability: Any = None, *, record_traces: bool | int = False,
              full_state_paths: int = 0, horizon_samples: int = DEFAULT_SAMPLES,
              initial: np.ndarray | None = None, divergence_threshold: float | None = None,
-             track_lambda_max: bool = True, batch_size: int = 1024,
+             track_lambda_max: bool = True, lambda_max_samples: int = LAMBDA_MAX_SAMPLES,
+             batch_size: int = 1024, threads: int | None = None,
              progress: Callable[[int, int], None] | None = None) -> SimulationResult:
     """Monte Carlo of the random Riccati equation P_{t+1} = f_{γ_t}(P_t), P_0 = Σ0.
 
@@ -129,9 +254,18 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         Finite and positive (default 1e10 × max(tr P0, tr Q, tr P*)). A path whose trace
         crosses it is counted as diverged and continued in scaled form (true values).
     track_lambda_max : bool
-        Also estimate E[λ_max(P_t)] at the sample times.
+        Also estimate E[λ_max(P_t)], at ``lambda_max_samples`` of the sample times.
+    lambda_max_samples : int
+        At most this many sample times (evenly spread, with 0 and ``steps``) at which λ_max is
+        computed — exactly: closed form for n ≤ 2, Cholesky bisection on μI − P to 3.7e-12 tr P
+        for n ≥ 3 (each costs about three Riccati steps at n = 6, so λ_max at every sample
+        time would cost more than the simulation). The result's ``lambda_max_times`` lists them.
     batch_size : int
-        Paths per kernel call (results do not depend on it).
+        Paths per batch (results do not depend on it).
+    threads : int, optional
+        Threads that advance the blocks of a batch concurrently (default: the CPUs this process
+        may use, at most 8). Results do not depend on it: blocks are independent and the
+        statistics are accumulated in path order.
     progress : callable, optional
         Called as ``progress(path_steps_done, paths × steps)`` after every chunk of steps
         (the run is then cut into chunks of ``PROGRESS_WORK`` / n² lane-steps; the results do
@@ -167,11 +301,14 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
                          "(record_traces=k) or rely on the streaming statistics",
                          field="record_traces")
     traces = np.empty((n_traced, steps + 1))
+    lmax_index, lmax_times = lambda_max_schedule(times, lambda_max_samples if track_lambda_max
+                                                 else 0)
+    S, SL = times.size, lmax_times.size
     count_t = 0
     mean_t, m2_t = np.zeros(S), np.zeros(S)
-    mean_l, m2_l = np.zeros(S), np.zeros(S)
+    mean_l, m2_l = np.zeros(SL), np.zeros(SL)
     lsum_t = (np.full(S, -np.inf), np.zeros(S), np.zeros(S))   # (max log, Σe^{x−M}, Σe^{2(x−M)})
-    lsum_l = (np.full(S, -np.inf), np.zeros(S), np.zeros(S))
+    lsum_l = (np.full(SL, -np.inf), np.zeros(SL), np.zeros(SL))
     div_frac = np.zeros(S)
     above = np.zeros(S)
     lthr = math.log(threshold)
@@ -180,43 +317,47 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     div_times = np.empty(paths, dtype=np.int64)
     fail_times = np.empty(paths, dtype=np.int64)
     batch_size = max(int(batch_size), 1)
+    workers = resolve_threads(threads)
     total = paths * steps
-    for start in range(0, paths, batch_size):
-        stop = min(start + batch_size, paths)
-        B = stop - start
-        keys = path_keys(seed, start, stop)
-        offsets = trace_offsets(keys, seq.size)
-        out_tr, out_lm = np.empty((B, S)), np.empty((B, S))
-        out_ltr, out_llm = np.empty((B, S)), np.empty((B, S))
-        out_div, out_fail = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
-        Xall, lg_all = np.empty((n, n, B)), np.zeros(B)
-        sc_all, st_all, ch_all = (np.zeros(B, dtype=np.int64), np.zeros(B, dtype=np.uint64),
-                                  np.zeros(B, dtype=np.int64))
-        k_tr = max(0, min(n_traced - start, B))
-        tr_view = traces[start:start + k_tr] if k_tr else np.empty((0, steps + 1))
-        # in time chunks when progress is reported (the chunking does not change the numbers)
-        chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
-        for t0 in range(0, steps, chunk):
-            t1 = min(t0 + chunk, steps)
-            rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, times,
-                       threshold, track_lambda_max, LANES, Xall, lg_all, sc_all, st_all, ch_all,
-                       out_tr, out_ltr, out_lm, out_llm, out_div, out_fail, tr_view)
-            if progress is not None:
-                progress(start * steps + B * t1, total)
-        c0 = count_t
-        count_t = accumulate(out_tr, c0, mean_t, m2_t)
-        accumulate_log(out_ltr, *lsum_t)
-        if track_lambda_max:
-            accumulate(out_lm, c0, mean_l, m2_l)
-            accumulate_log(out_llm, *lsum_l)
-        dv = out_div[out_div >= 0]
-        for d in dv:
-            div_frac[times >= d] += 1
-        above += np.count_nonzero(out_ltr > lthr, axis=0)
-        horizon[start:stop] = out_tr[:, -1]
-        horizon_log[start:stop] = out_ltr[:, -1]
-        div_times[start:stop] = out_div
-        fail_times[start:stop] = out_fail
+    fixed = (A, C, Q, R, P0)
+    chan_args = (kind, p, f, r, seq)
+    with ThreadPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
+        for start in range(0, paths, batch_size):
+            stop = min(start + batch_size, paths)
+            B = stop - start
+            parts = [_Part.new(seed, a, b, seq.size, n, S, SL, traces, n_traced)
+                     for a, b in split_lanes(start, stop, workers)]
+            # in time chunks when progress is reported (the chunking does not change the numbers)
+            chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
+            for t0 in range(0, steps, chunk):
+                t1 = min(t0 + chunk, steps)
+                calls = [(part, t0, t1) for part in parts]
+                if pool is None or len(parts) == 1:
+                    for call in calls:
+                        _advance(fixed, chan_args, times, lmax_index, threshold, *call)
+                else:
+                    for fut in [pool.submit(_advance, fixed, chan_args, times, lmax_index,
+                                            threshold, *call) for call in calls]:
+                        fut.result()
+                if progress is not None:
+                    progress(start * steps + B * t1, total)
+            for part in parts:  # in path order: the sums do not depend on the split
+                c0 = count_t
+                count_t = accumulate(part.out_tr, c0, mean_t, m2_t)
+                accumulate_log(part.out_ltr, *lsum_t)
+                if SL:
+                    accumulate(part.out_lm, c0, mean_l, m2_l)
+                    accumulate_log(part.out_llm, *lsum_l)
+                for d in part.out_div[part.out_div >= 0]:
+                    div_frac[times >= d] += 1
+                above += np.count_nonzero(part.out_ltr > lthr, axis=0)
+                a, b = part.start, part.stop
+                horizon[a:b] = part.out_tr[:, -1]
+                last = part.out_ltr[:, -1]
+                with quiet_numerics():   # plain values below e^LOG_KEEP carry no log: take it
+                    horizon_log[a:b] = np.where(last > -np.inf, last, np.log(part.out_tr[:, -1]))
+                div_times[a:b] = part.out_div
+                fail_times[a:b] = part.out_fail
     mean_t, std_t, lmean_t, lstd_t = column_stats(count_t, mean_t, m2_t, *lsum_t)
     if track_lambda_max:
         mean_l, std_l, lmean_l, lstd_l = column_stats(count_t, mean_l, m2_l, *lsum_l)
@@ -252,6 +393,7 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         log10_mean_trace=lmean_t, log10_std_trace=lstd_t,
         log10_mean_lambda_max=lmean_l if track_lambda_max else None,
         log10_std_lambda_max=lstd_l if track_lambda_max else None,
+        lambda_max_times=lmax_times if track_lambda_max else None,
         horizon_log10_traces=horizon_log / LN10, above_threshold_fraction=above / paths,
         failure_times=fail_times)
 

@@ -22,9 +22,11 @@ import numpy as np
 from numba import njit
 
 from kfcrit.sim.arrivals import channel_next, channel_start, next_uniform
+from kfcrit.sim.stats import LOG_KEEP
 
-LANES = 256
-"""Paths advanced together by the kernel (the SIMD axis)."""
+LANES = 128
+"""Paths advanced together by the kernel (the SIMD axis): a compile-time constant, so the
+lane loops have a fixed trip count (no remainder loop) and every path runs the same vector code."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -32,7 +34,7 @@ LANES = 256
 # ---------------------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld):
     """out[:, :, b] = f_{γ_b}(X[:, :, b]) for the lanes b < W (γ_b = g[b] ∈ {0.0, 1.0}).
 
@@ -302,18 +304,25 @@ def scaled_step(A, C, Q, R, P, b, g, log_scale, ws, out):
     return ell + math.log(s)
 
 
-@njit(cache=True, error_model="numpy")
-def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_t, threshold,
-               want_lmax, lanes, Xall, lg_all, sc_all, state_all, ch_all, out_tr, out_ltr,
-               out_lm, out_llm, out_div, out_fail, traces):
+@njit(cache=True, error_model="numpy", nogil=True)
+def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_t, lmax_index,
+              threshold, Xall, lg_all, sc_all, state_all, ch_all, out_tr, out_ltr, out_lm,
+              out_llm, out_div, out_fail, traces):
     """Advance the paths of a batch from step ``t0`` to ``t1``; record tr P, λ_max at sample times.
 
-    Paths run in blocks of ``lanes`` lanes (see :func:`riccati_lanes`); a path's arithmetic
-    does not depend on its block, so results do not depend on ``lanes``, the batch or the
-    chunking in time. The state of every path (X, log scale, scaled flag, random and channel
-    state) is kept in ``Xall`` (n×n×B), ``lg_all``, ``sc_all``, ``state_all``, ``ch_all``
-    between calls (``t0 = 0`` initialises it). ``traces`` (k, steps + 1): full traces of the first
-    k paths (k may be 0); ``out_ltr``/``out_llm`` hold natural logs.
+    Paths run in blocks of ``LANES`` lanes (see :func:`riccati_lanes`); the last block of a batch
+    is padded with spare lanes (P_0, always arrivals) whose values are never read, so every path
+    runs through the same fixed-size vector loops: a path's arithmetic does not depend on its
+    block, so results do not depend on the batch or the chunking in time. The state of every
+    path (X, log scale, scaled flag, random and channel state) is kept in ``Xall`` (n×n×B),
+    ``lg_all``, ``sc_all``, ``state_all``, ``ch_all`` between calls (``t0 = 0`` initialises it).
+    ``traces`` (k, steps + 1): full traces of the first k paths (k may be 0).
+
+    Sample times: ``out_tr[:, s]`` = tr P at ``sample_t[s]`` (inf beyond float64) and
+    ``out_ltr[:, s]`` its natural log where tr P > e^``LOG_KEEP`` or the path is in scaled
+    form, −inf elsewhere (see :func:`kfcrit.sim.stats.accumulate_log`: smaller values cannot
+    change a log-sum-exp sum that is used). λ_max is computed only at the sample times s with
+    ``lmax_index[s] = k ≥ 0``, into ``out_lm[:, k]`` / ``out_llm[:, k]`` (same conventions).
 
     Divergence: when tr P crosses ``threshold`` the path is *not* stopped; ``out_div`` records
     the first crossing time (−1 if never) and the path continues in the scaled form
@@ -327,26 +336,32 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
     B = keys.shape[0]
     n_samples = sample_t.shape[0]
     n_traced = traces.shape[0]
-    X, Y, F, FX, XC, L, AK, T = workspace(n, m, lanes)
+    X, Y, F, FX, XC, L, AK, T = workspace(n, m, LANES)
     ws = workspace(n, m, 1) + (np.zeros(1), np.ones(1), np.zeros(1))
-    g = np.zeros(lanes)
-    state = np.empty(lanes, dtype=np.uint64)
-    ch = np.empty(lanes, dtype=np.int64)
-    trn = np.empty(lanes)
-    lm = np.empty(lanes)
-    lg = np.zeros(lanes)
-    sc = np.zeros(lanes, dtype=np.int64)
-    cs = np.ones(lanes)
-    ld = np.zeros(lanes)
-    v1, v2, v3, v4, v5 = (np.empty(lanes), np.empty(lanes), np.empty(lanes), np.empty(lanes),
-                          np.empty(lanes))
+    g = np.ones(LANES)
+    state = np.empty(LANES, dtype=np.uint64)
+    ch = np.empty(LANES, dtype=np.int64)
+    trn = np.empty(LANES)
+    lm = np.empty(LANES)
+    lg = np.zeros(LANES)
+    sc = np.zeros(LANES, dtype=np.int64)
+    cs = np.ones(LANES)
+    ld = np.zeros(LANES)
+    v1, v2, v3, v4, v5 = (np.empty(LANES), np.empty(LANES), np.empty(LANES), np.empty(LANES),
+                          np.empty(LANES))
     lthr = math.log(threshold)
+    keep = math.exp(LOG_KEEP)
     si0 = 0
-    while si0 < n_samples and sample_t[si0] <= t0:
+    while si0 < n_samples and sample_t[si0] < t0:
         si0 += 1
-    for start in range(0, B, lanes):
-        W = min(lanes, B - start)
+    for start in range(0, B, LANES):
+        W = min(LANES, B - start)
         nsc = 0
+        for b in range(W, LANES):  # spare lanes: P_0 under arrivals, never read
+            set_lane(X, b, P0)
+            g[b] = 1.0
+            sc[b] = 0
+            lg[b] = 0.0
         if t0 == 0:
             for b in range(W):
                 state[b] = keys[start + b]
@@ -358,15 +373,6 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
                 out_fail[start + b] = -1
                 if start + b < n_traced:
                     traces[start + b, 0] = trn[b]
-            if sample_t[0] == 0:
-                if want_lmax:
-                    lambda_max_lanes(X, W, lm, FX, v1, v2, v3, v4, v5)
-                for b in range(W):
-                    out_tr[start + b, 0] = trn[b]
-                    out_ltr[start + b, 0] = math.log(trn[b]) if trn[b] > 0.0 else -math.inf
-                    if want_lmax:
-                        out_lm[start + b, 0] = lm[b]
-                        out_llm[start + b, 0] = math.log(lm[b]) if lm[b] > 0.0 else -math.inf
         else:
             for b in range(W):
                 state[b] = state_all[start + b]
@@ -377,11 +383,16 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
                     for j in range(n):
                         X[i, j, b] = Xall[i, j, start + b]
                 trn[b] = lane_trace(X, b)
-        for b in range(W):
+        for b in range(LANES):
             cs[b] = math.exp(-lg[b]) if sc[b] else 1.0
             ld[b] = LOAD if sc[b] else 0.0
             nsc += sc[b]
         si = si0
+        if si < n_samples and sample_t[si] == t0:
+            if t0 == 0:
+                _record(X, W, start, si, lmax_index[si], trn, sc, lg, keep, lm, FX, v1, v2, v3,
+                        v4, v5, out_tr, out_ltr, out_lm, out_llm)
+            si += 1
         for t in range(t0, t1):
             if kind == 0:  # i.i.d.: a branch-free loop the compiler vectorises
                 for b in range(W):
@@ -389,83 +400,26 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
             else:
                 for b in range(W):
                     g[b] = 1.0 if channel_next(kind, p, f, r, seq, ch, state, b) else 0.0
-            riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T, nsc > 0, cs, ld)
+            riccati_lanes(A, C, Q, R, X, g, LANES, Y, F, FX, XC, L, AK, T, nsc > 0, cs, ld)
             X, Y = Y, X  # Y now holds the previous state (needed by a rescue step)
-            for b in range(W):
+            for b in range(LANES):
                 trn[b] = 0.0
             for i in range(n):
-                for b in range(W):
+                for b in range(LANES):
                     trn[b] += X[i, i, b]
             fix = nsc > 0
             if not fix:
                 for b in range(W):
                     fix |= not trn[b] <= threshold  # also catches NaN
             if fix:
-                for b in range(W):
-                    s = trn[b]
-                    if sc[b] == 0 and s <= threshold:
-                        continue
-                    if sc[b] == 1 and s > 0.0 and s < math.inf:
-                        ell = lg[b] + math.log(s)
-                        lane_scale(X, b, 1.0 / s)
-                    elif sc[b] == 0 and s > threshold and s < math.inf:
-                        ell = math.log(s)
-                        lane_scale(X, b, 1.0 / s)
-                    else:  # overflow or NaN: redo the step from the previous state, scaled
-                        ell = scaled_step(A, C, Q, R, Y, b, g[b], lg[b] if sc[b] else 0.0,
-                                           ws, X)
-                        if not ell == ell:  # a numerical failure: keep the last finite value
-                            if out_fail[start + b] < 0:
-                                out_fail[start + b] = t + 1
-                            for i in range(n):
-                                for j in range(n):
-                                    X[i, j, b] = Y[i, j, b]
-                            ell = lg[b] + math.log(lane_trace(X, b)) if sc[b] else \
-                                math.log(lane_trace(X, b))
-                            if not sc[b]:  # back to its plain value
-                                trn[b] = lane_trace(X, b)
-                                continue
-                            lane_scale(X, b, 1.0 / lane_trace(X, b))
-                    if ell > lthr:
-                        if out_div[start + b] < 0:
-                            out_div[start + b] = t + 1
-                        if sc[b] == 0:
-                            sc[b] = 1
-                            nsc += 1
-                            ld[b] = LOAD
-                        lg[b] = ell
-                        cs[b] = math.exp(-ell)
-                        trn[b] = math.exp(ell)  # inf when it overflows: logs are recorded too
-                    else:  # back below the threshold: the plain form again
-                        lane_scale(X, b, math.exp(ell) / lane_trace(X, b))
-                        if sc[b] == 1:
-                            sc[b] = 0
-                            nsc -= 1
-                        lg[b] = 0.0
-                        cs[b] = 1.0
-                        ld[b] = 0.0
-                        trn[b] = lane_trace(X, b)
+                nsc = _rescale(A, C, Q, R, X, Y, W, start, t, g, trn, sc, lg, cs, ld, nsc,
+                               threshold, lthr, ws, out_div, out_fail)
             if start < n_traced:
                 for b in range(min(W, n_traced - start)):
                     traces[start + b, t + 1] = trn[b]
             if si < n_samples and sample_t[si] == t + 1:
-                if want_lmax:
-                    lambda_max_lanes(X, W, lm, FX, v1, v2, v3, v4, v5)
-                for b in range(W):
-                    if sc[b]:
-                        out_tr[start + b, si] = trn[b]
-                        out_ltr[start + b, si] = lg[b]
-                        if want_lmax:
-                            out_lm[start + b, si] = lm[b] * trn[b]
-                            out_llm[start + b, si] = math.log(lm[b]) + lg[b]
-                    else:
-                        out_tr[start + b, si] = trn[b]
-                        out_ltr[start + b, si] = (math.log(trn[b]) if trn[b] > 0.0
-                                                  else -math.inf)
-                        if want_lmax:
-                            out_lm[start + b, si] = lm[b]
-                            out_llm[start + b, si] = (math.log(lm[b]) if lm[b] > 0.0
-                                                      else -math.inf)
+                _record(X, W, start, si, lmax_index[si], trn, sc, lg, keep, lm, FX, v1, v2, v3,
+                        v4, v5, out_tr, out_ltr, out_lm, out_llm)
                 si += 1
         for b in range(W):
             state_all[start + b] = state[b]
@@ -476,6 +430,83 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
                 for j in range(n):
                     Xall[i, j, start + b] = X[i, j, b]
 
+
+@njit(cache=True, error_model="numpy")
+def _record(X, W, start, si, li, trn, sc, lg, keep, lm, N, v1, v2, v3, v4, v5, out_tr, out_ltr,
+            out_lm, out_llm):
+    """Write tr P (and λ_max when ``li`` ≥ 0) of the lanes b < W at sample column ``si``."""
+    for b in range(W):
+        out_tr[start + b, si] = trn[b]
+        if sc[b]:
+            out_ltr[start + b, si] = lg[b]
+        else:
+            out_ltr[start + b, si] = math.log(trn[b]) if trn[b] > keep else -math.inf
+    if li < 0:
+        return
+    lambda_max_lanes(X, W, lm, N, v1, v2, v3, v4, v5)
+    for b in range(W):
+        if sc[b]:
+            out_lm[start + b, li] = lm[b] * trn[b]
+            out_llm[start + b, li] = math.log(lm[b]) + lg[b]
+        else:
+            out_lm[start + b, li] = lm[b]
+            out_llm[start + b, li] = math.log(lm[b]) if lm[b] > keep else -math.inf
+
+
+@njit(cache=True, error_model="numpy")
+def _rescale(A, C, Q, R, X, Y, W, start, t, g, trn, sc, lg, cs, ld, nsc, threshold, lthr, ws,
+             out_div, out_fail):
+    """Move lanes across the divergence threshold (plain ↔ scaled form); return #scaled lanes.
+
+    A lane in scaled form is renormalised to tr X = 1; a plain lane above the threshold enters
+    the scaled form; a non-finite step is redone from the previous state ``Y`` in scaled form,
+    and a lane whose step fails even so is frozen at its last finite value (``out_fail``).
+    """
+    n = X.shape[0]
+    for b in range(W):
+        s = trn[b]
+        if sc[b] == 0 and s <= threshold:
+            continue
+        if sc[b] == 1 and s > 0.0 and s < math.inf:
+            ell = lg[b] + math.log(s)
+            lane_scale(X, b, 1.0 / s)
+        elif sc[b] == 0 and s > threshold and s < math.inf:
+            ell = math.log(s)
+            lane_scale(X, b, 1.0 / s)
+        else:  # overflow or NaN: redo the step from the previous state, scaled
+            ell = scaled_step(A, C, Q, R, Y, b, g[b], lg[b] if sc[b] else 0.0, ws, X)
+            if not ell == ell:  # a numerical failure: keep the last finite value
+                if out_fail[start + b] < 0:
+                    out_fail[start + b] = t + 1
+                for i in range(n):
+                    for j in range(n):
+                        X[i, j, b] = Y[i, j, b]
+                ell = lg[b] + math.log(lane_trace(X, b)) if sc[b] else \
+                    math.log(lane_trace(X, b))
+                if not sc[b]:  # back to its plain value
+                    trn[b] = lane_trace(X, b)
+                    continue
+                lane_scale(X, b, 1.0 / lane_trace(X, b))
+        if ell > lthr:
+            if out_div[start + b] < 0:
+                out_div[start + b] = t + 1
+            if sc[b] == 0:
+                sc[b] = 1
+                nsc += 1
+                ld[b] = LOAD
+            lg[b] = ell
+            cs[b] = math.exp(-ell)
+            trn[b] = math.exp(ell)  # inf when it overflows: logs are recorded too
+        else:  # back below the threshold: the plain form again
+            lane_scale(X, b, math.exp(ell) / lane_trace(X, b))
+            if sc[b] == 1:
+                sc[b] = 0
+                nsc -= 1
+            lg[b] = 0.0
+            cs[b] = 1.0
+            ld[b] = 0.0
+            trn[b] = lane_trace(X, b)
+    return nsc
 
 
 @njit(cache=True, error_model="numpy")

@@ -43,6 +43,10 @@ class quiet_numerics:  # noqa: N801 - used like a function: ``with quiet_numeric
 
 LOG_SAFE = 345.0
 """ln of ~1e150: above it, means and variances of a sample column come from log-sum-exp sums."""
+LOG_KEEP = LOG_SAFE - 100.0
+"""Sample values below e^LOG_KEEP enter the log-sum-exp sums as −inf (nothing): those sums are
+used only for columns whose maximum exceeds e^LOG_SAFE, where each such value weighs less than
+e^{−100} relative to the maximum — below float64 rounding for any number of paths < 1e27."""
 
 
 LN10 = math.log(10.0)
@@ -52,7 +56,8 @@ LN10 = math.log(10.0)
 def accumulate_log(lvalues, lmax, s1, s2):
     """Streaming log-sum-exp per column: Σ e^{x − M} and Σ e^{2(x − M)}, M the running max.
 
-    Rows in order (bit-identical for any batch size); −inf entries (a zero trace) add nothing.
+    Rows in order (bit-identical for any batch size); −inf entries (a zero trace, or a value
+    below e^LOG_KEEP recorded as −inf by the kernel) add nothing.
     """
     for b in range(lvalues.shape[0]):
         for s in range(lvalues.shape[1]):
