@@ -542,7 +542,9 @@ def test_simulation_section_keys_and_json():
                       "checks", "runtime_seconds", "warnings"}
     assert d["checks"] and all(c["passed"] for c in d["checks"])
     assert {"check", "passed", "status", "detail"} == set(d["checks"][0])
-    assert d["operating_point"]["reliability"]["variance_condition"] == "(1 - r) rho(A)^4"
+    # p_c = 9/25 is given: the variance condition is the general one, q / (1 - p_c)^2
+    assert d["operating_point"]["reliability"]["variance_condition"] == "(1 - r) / (1 - p_c)^2"
+    assert d["operating_point"]["mean_exists"] is True   # r = 1/2 > p_c (burst claim)
     op = d["operating_point"]
     for key in ("channel", "arrival_probability", "iid", "times", "mean_trace",
                 "mean_lambda_max", "horizon", "exceedance", "ergodic", "bursts", "almost_sure",
@@ -697,3 +699,146 @@ def test_lyapunov_settling_is_reported():
                                                         rel=1e-4)
     reg = tail_regime(SCALAR, Bernoulli(sp.Rational(9, 10)), 500)
     assert reg["settled"] is True and reg["heavy_tailed"] is False
+
+
+# --------------------------------------------------------------------------------------------
+# threads, λ_max schedule, the threshold scale, heavy tails and divergent means
+
+
+def test_bit_identical_for_any_number_of_threads():
+    """Blocks of a batch run on several threads; the statistics are summed in path order."""
+    kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4, "record_traces": 3}
+    paths = 3 * LANES + 5
+    ref = simulate(GENERAL, paths, 80, 3, threads=1, **kw)
+    for threads, bs in ((2, 1024), (3, 2 * LANES), (8, 100)):
+        other = simulate(GENERAL, paths, 80, 3, threads=threads, batch_size=bs, **kw)
+        for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces", "traces",
+                     "divergence_times", "log10_mean_trace"):
+            assert np.array_equal(getattr(ref, name), getattr(other, name)), (threads, name)
+    with pytest.raises(InputError, match="threads"):
+        simulate(GENERAL, 5, 5, 0, arrival_probability=0.5, threads=0)
+
+
+def test_lambda_max_is_exact_at_its_sample_times():
+    """p = 1: every path follows the same deterministic Riccati recursion, so E[λ_max(P_t)] is
+    λ_max of that recursion (kfcrit.theory.riccati.f_arrival, numpy's eigvalsh) at the chosen
+    times; n = 3 takes the Cholesky-bisection branch."""
+    A = np.array([[1.2, 0.3, 0.0], [0.0, 0.9, 0.5], [0.1, 0.0, 1.1]])
+    C = np.array([[1.0, 0.0, 1.0]])
+    system = System(A, C, np.eye(3), [[2.0]])
+    res = simulate(system, 7, 60, 0, arrival_probability=1, lambda_max_samples=9)
+    lt = res.lambda_max_times
+    assert lt.size == 9 and lt[0] == 0 and lt[-1] == 60 and set(lt) <= set(res.times)
+    P, lam = np.eye(3), {0: 1.0}
+    for t in range(1, 61):
+        P = f_arrival(A, C, np.eye(3), np.array([[2.0]]), P)
+        lam[t] = np.linalg.eigvalsh(P)[-1]
+    np.testing.assert_allclose(res.mean_lambda_max, [lam[int(t)] for t in lt], rtol=1e-10)
+    d = res.to_dict()["mean_lambda_max"]
+    assert d["times"] == [int(t) for t in lt] and "9 of the" in d["method"]
+    assert "bisection" in d["method"]
+    none = simulate(system, 3, 10, 0, arrival_probability=1, track_lambda_max=False)
+    assert none.mean_lambda_max is None and none.to_dict()["mean_lambda_max"] is None
+
+
+@pytest.mark.parametrize("n,m,seed", [(1, 1, 0), (2, 1, 1), (4, 2, 2), (6, 2, 3)])
+def test_threshold_scale_dare_matches_scipy(n, m, seed):
+    """P* by structured doubling against scipy's QZ-based solve_discrete_are (a second
+    method), on systems with unstable modes and a stabilising solution."""
+    from scipy.linalg import solve_discrete_are
+
+    from kfcrit.sim.engine import steady_covariance
+
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    A *= 1.2 / max(abs(np.linalg.eigvals(A)))
+    C = rng.normal(size=(m, n))
+    P = steady_covariance(A, C, np.eye(n), np.eye(m))
+    ref = solve_discrete_are(A.T, C.T, np.eye(n), np.eye(m))
+    np.testing.assert_allclose(P, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
+
+
+def test_threshold_scale_without_stabilising_solution():
+    """An undetectable unstable mode (2 with C = [0 1]) has no stabilising DARE solution."""
+    from kfcrit.sim.engine import steady_covariance
+
+    assert steady_covariance(np.diag([2.0, 0.5]), np.array([[0.0, 1.0]]), np.eye(2),
+                             np.eye(1)) is None
+
+
+def test_variance_condition_uses_the_critical_value_degenerate_case():
+    """A = diag(2, −2), C = [1 1]: degenerate, q = 2, p_c = 1 − 2^{−4} = 15/16 (MATH §4).
+    Hand value of the variance threshold: 1 − p₂ = (1 − p_c)² = 2^{−8}, p₂ = 255/256 — the
+    same as 1 − ρ^{−4q/(q−1)} = 1 − 2^{−8}. At p = 0.99 (between p_c and p₂) the variance is
+    infinite although (1 − p) ρ⁴ = 0.16 < 1 (the non-degenerate formula)."""
+    from kfcrit.model.channels import Bernoulli
+    from kfcrit.sim.checks import tail_regime
+
+    system = System(np.diag([2.0, -2.0]), [[1.0, 1.0]], 1, 1)
+    ch = Bernoulli(sp.Rational(99, 100))
+    plain = tail_regime(system, ch, 100)
+    assert plain["heavy_tailed"] is False and plain["variance_value"] == pytest.approx(0.16)
+    reg = tail_regime(system, ch, 100, critical_value=15 / 16)
+    assert reg["heavy_tailed"] is True
+    assert reg["variance_threshold_p2"] == pytest.approx(255 / 256, abs=1e-15)
+    assert reg["variance_value"] == pytest.approx(0.01 * 256)
+    assert reg["variance_basis"].startswith("claim")
+    above = tail_regime(system, Bernoulli(sp.Rational(997, 1000)), 100, critical_value=15 / 16)
+    assert above["heavy_tailed"] is False        # 0.003 · 256 = 0.768 < 1
+
+
+def test_variance_condition_takes_the_upper_end_of_a_bracket():
+    """Only a bracket [0.3, 0.4] of p_c, p = 0.6: the upper end gives 1 − p₂ = (1 − 0.4)² = 0.36
+    and (1 − p)/0.36 = 1.11 ≥ 1 (infinite variance flagged); the lower end would give
+    0.4/0.49 = 0.82 < 1. The upper end is the conservative one and is used; p_up alone is an
+    upper end too (p_c ≤ p_up)."""
+    from kfcrit.model.channels import Bernoulli
+    from kfcrit.sim.checks import tail_regime
+
+    reg = tail_regime(SCALAR, Bernoulli(sp.Rational(3, 5)), 50, critical_bracket=(0.3, 0.4))
+    assert reg["heavy_tailed"] is True and reg["variance_threshold_p2"] == pytest.approx(0.64)
+    assert reg["variance_critical_source"] == "critical_bracket"
+    up = tail_regime(SCALAR, Bernoulli(sp.Rational(3, 5)), 50, upper_bound=0.4)
+    assert up["heavy_tailed"] is True and up["variance_critical_value"] == 0.4
+
+
+def test_below_critical_the_section_gives_no_mean():
+    """p = 3/10 < p_c = 9/25: E[tr P_t] grows without bound; the operating point must not
+    present a finite mean with an interval. The raw sample statistics stay, labelled."""
+    from kfcrit.model.channels import Bernoulli
+
+    spec = SystemSpec(system=SCALAR, channel=Bernoulli(sp.Rational(3, 10)))
+    d = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=2, quick=True)
+    op = d["operating_point"]
+    assert op["mean_exists"] is False
+    assert op["mean_trace"]["mean"] is None and op["mean_trace"]["lower"] is None
+    assert op["mean_trace"]["diverges"] is True and "diverges" in op["mean_trace"]["statement"]
+    assert op["mean_lambda_max"]["mean"] is None
+    assert op["horizon"]["mean"] is None and op["horizon"]["mean_diverges"] is True
+    sample = op["sample_mean_trace"]
+    assert "not an estimate" in sample["label"] and len(sample["mean"]) == len(op["times"])
+    assert sample["mean"][0] == pytest.approx(float(np.trace(SCALAR.sigma0)))
+    pooled = op["ergodic"]["time_averages"]["pooled_mean_trace"]
+    assert pooled["mean"] is None and pooled["diverges"] is True
+    assert any("diverges" in w for w in d["warnings"])
+    json.loads(dumps(d))
+    # the same operating point with only a bracket above p: still divergent
+    d2 = simulation_section(spec, critical_value=None, upper_bound=0.5, seed=2, quick=True,
+                            critical_bracket=(0.32, 0.4))
+    assert d2["operating_point"]["mean_exists"] is False
+    # inside the bracket: unknown, the mean is given (with the flag)
+    d3 = simulation_section(spec, critical_value=None, upper_bound=0.5, seed=2, quick=True,
+                            critical_bracket=(0.2, 0.4))
+    assert d3["operating_point"]["mean_exists"] is None
+    assert d3["operating_point"]["mean_trace"]["mean"] is not None
+
+
+def test_gilbert_elliott_burst_condition_decides_divergence():
+    """(1 − r) a² = 0.75 · 1.5625 ≥ 1: E[P] unbounded for any system (MATH §10)."""
+    from kfcrit.sim.checks import mean_regime
+
+    bad = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 4)))
+    assert bad["exists"] is False and bad["value"] == pytest.approx(0.75 * 1.5625)
+    ok = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
+                     critical_value=0.36)
+    assert ok["exists"] is True and ok["basis"].startswith("claim")

@@ -16,38 +16,88 @@ from kfcrit.sim.engine import initial_covariance
 from kfcrit.sim.results import ErgodicResult, SimulationResult
 from kfcrit.sim.stats import finite_or_none, quiet_numerics
 
+VARIANCE_CLAIM = (
+    "claim: Var tr P < inf iff the loss factor q (1 - p i.i.d., 1 - r Gilbert-Elliott) is below "
+    "(1 - p_c)^2, i.e. p > p_2 with 1 - p_2 = (1 - p_c)^2 - the q-th moment condition of "
+    "Mo-Sinopoli Cor. 2 with exponent 2 (1 - p_2 = rho^-4 for non-degenerate systems, "
+    "1 - p_c = rho^-2) and, by the same loss-burst argument with the growth rate of Thm 9, "
+    "1 - p_2 = rho^(-4q/(q-1)) for the degenerate second-order case (MATH section 4)")
 
-def tail_regime(system: System, channel: Channel, steps: int) -> dict[str, Any]:
-    """How far sample means of tr P_t can be trusted at this operating point.
+
+def critical_upper(critical_value: float | None = None,
+                   critical_bracket: tuple[float | None, float | None] | None = None,
+                   upper_bound: float | None = None) -> tuple[float | None, float | None, str]:
+    """(lower end, upper end, source) of what is known about p_c.
+
+    The exact value when known; else the bracket; else [None, p_up] (p_c ≤ p_up).
+    """
+    if critical_value is not None:
+        return float(critical_value), float(critical_value), "critical_value"
+    lo, hi = critical_bracket if critical_bracket is not None else (None, None)
+    if hi is not None:
+        return (None if lo is None else float(lo)), float(hi), "critical_bracket"
+    if upper_bound is not None:
+        return (None if lo is None else float(lo)), float(upper_bound), "upper_bound (p_c <= p_up)"
+    return (None if lo is None else float(lo)), None, "none"
+
+
+def _loss_factor(channel: Channel) -> tuple[float | None, str | None]:
+    """q = 1 − p (i.i.d.) or 1 − r (Gilbert–Elliott): the per-step probability that a loss
+    burst goes on; None for a measured trace."""
+    proc = channel.arrival_process()
+    if proc.kind == "iid":
+        return 1.0 - float(proc.p), "1 - p"
+    if proc.kind == "markov":
+        return 1.0 - float(proc.recovery_rate), "1 - r"
+    return None, None
+
+
+def tail_regime(system: System, channel: Channel, steps: int, *,
+                critical_value: float | None = None,
+                critical_bracket: tuple[float | None, float | None] | None = None,
+                upper_bound: float | None = None) -> dict[str, Any]:
+    r"""How far sample means of tr P_t can be trusted at this operating point.
 
     * ``heavy_tailed``: a loss burst of length k has probability ∝ q^k (q = 1 − p for i.i.d.
-      losses, q = 1 − r for Gilbert–Elliott) and multiplies P by about ρ(A)^{2k}, so
-      E[(tr P)²] ≥ c Σ_k (q ρ⁴)^k: when q ρ(A)⁴ ≥ 1 the variance of tr P diverges (Mo–Sinopoli
-      Cor. 2 with exponent 2 gives the same threshold for non-degenerate systems). The sample
-      standard deviation then underestimates the spread, the ±5 se tolerance is no test, and
-      the sample mean sits below the true mean most of the time. This happens for every p just
-      above p_c (q ρ² < 1 ≤ q ρ⁴). ``None`` for a measured trace (no model).
+      losses, q = 1 − r for Gilbert–Elliott) and multiplies E[P] by about (1 − p_c)^{−k}, its
+      square by (1 − p_c)^{−2k}, so
+
+      .. math:: \operatorname{Var} \operatorname{tr} P < \infty \iff q < (1 - p_c)^2,
+
+      i.e. p > p₂ with 1 − p₂ = (1 − p_c)² (a claim, :data:`VARIANCE_CLAIM`): 1 − ρ^{−4} for
+      non-degenerate systems, 1 − ρ^{−4q/(q−1)} for the degenerate second-order case. When p_c is
+      only bracketed the upper end is used (it flags more operating points: conservative);
+      without any information on p_c, p_c = 1 − ρ(A)^{−2} (the non-degenerate value, a lower
+      bound of p_c) and the condition reads q ρ(A)⁴ ≥ 1. The sample standard deviation then
+      underestimates the spread, the ±5 se tolerance is no test, and the sample mean sits below
+      the true mean most of the time. ``None`` for a measured trace (no model).
     * ``settled``: tr S_T ≥ 0.95 tr S̄ for the Lyapunov recursion S_{t+1} = (1 − p) A S_t A' + Q
       from Σ0 (i.i.d. only): near p_c, (1 − p) ρ² → 1 and the mean needs far more than the
       horizon T to approach its limit, so limit bounds say nothing about E[tr P_T] yet.
     """
     rho = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
-    proc = channel.arrival_process()
-    if proc.kind == "iid":
-        q, basis = 1.0 - float(proc.p), "(1 - p) rho(A)^4"
-    elif proc.kind == "markov":
-        q, basis = 1.0 - float(proc.recovery_rate), "(1 - r) rho(A)^4"
-    else:
-        q, basis = None, None
+    q, q_name = _loss_factor(channel)
+    _, hi, source = critical_upper(critical_value, critical_bracket, upper_bound)
     with quiet_numerics():
         # numpy power: ρ⁴ beyond float64 is inf (the heavy tail is then certain), not an error
-        value = None if q is None else float(q * np.float64(rho) ** 4)
+        if q is None:
+            value, basis, p2 = None, None, None
+        elif hi is None:
+            value, basis = float(q * np.float64(rho) ** 4), f"({q_name}) rho(A)^4"
+            p2 = None
+        else:
+            gap = np.float64(1.0 - min(max(hi, 0.0), 1.0)) ** 2   # (1 − p_c)²
+            value = float(q / gap) if gap > 0 else math.inf
+            basis, p2 = f"({q_name}) / (1 - p_c)^2", float(1.0 - gap)
     out: dict[str, Any] = {
         "variance_condition": basis,
         "variance_value": finite_or_none(value) if value is not None else None,
         "heavy_tailed": None if value is None else bool(not value < 1),
+        "variance_threshold_p2": p2,
+        "variance_critical_value": hi, "variance_critical_source": source,
+        "variance_basis": VARIANCE_CLAIM if q is not None else None,
         "lyapunov_trace_at_horizon": None, "lyapunov_trace_limit": None, "settled": None}
-    if proc.kind == "iid" and q * rho * rho < 1:
+    if channel.arrival_process().kind == "iid" and q * rho * rho < 1:
         from kfcrit.theory.bounds import lower_covariance
 
         S_T = lyapunov_traces(system, 1.0 - q, np.array([steps]))[0]
@@ -58,6 +108,47 @@ def tail_regime(system: System, channel: Channel, steps: int) -> dict[str, Any]:
             out.update(lyapunov_trace_at_horizon=S_T, lyapunov_trace_limit=lim,
                        settled=bool(S_T >= 0.95 * lim))
     return out
+
+
+def mean_regime(system: System, channel: Channel, *, critical_value: float | None = None,
+                critical_bracket: tuple[float | None, float | None] | None = None,
+                upper_bound: float | None = None) -> dict[str, Any]:
+    """Whether E[tr P_t] stays bounded at this operating point: ``exists`` True/False/None.
+
+    i.i.d. losses (MATH §3–4): bounded iff p > p_c, so False when p ≤ p_c (or ≤ the lower end
+    of its bracket), True when p > p_c (or > the upper end, or > p_up), None in between.
+    Gilbert–Elliott (MATH §7, §10): (1 − r) ρ(A)² ≥ 1 is necessary for divergence-freedom to
+    fail for any system — False; otherwise, as a claim (the burst argument with the i.i.d.
+    growth rate 1/(1 − p_c), You–Fu–Xie for non-degenerate systems), False when r ≤ p_c and
+    True when r > p_c (bracket ends as above), None in between. A measured trace: None.
+    """
+    proc = channel.arrival_process()
+    lo, hi, source = critical_upper(critical_value, critical_bracket, upper_bound)
+    rho = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
+    if proc.kind == "iid":
+        x, name, basis = float(proc.p), "p", "theorem: E[P_t] bounded iff p > p_c (MATH 3-4)"
+    elif proc.kind == "markov":
+        r = float(proc.recovery_rate)
+        with quiet_numerics():
+            burst = float((1.0 - r) * np.float64(rho) ** 2)
+        if not burst < 1:
+            return {"exists": False, "basis": "theorem: (1 - r) rho(A)^2 >= 1 makes E[P_t] "
+                    "unbounded for any system (MATH 10, necessary burst condition)",
+                    "value": finite_or_none(burst), "critical_source": source}
+        x, name = r, "r"
+        basis = ("claim: E[P_t] bounded iff r > p_c (loss bursts with the i.i.d. growth rate "
+                 "1/(1 - p_c); You-Fu-Xie 2011 for non-degenerate systems, MATH 7, 10)")
+    else:
+        return {"exists": None, "basis": "a measured trace: no model", "critical_source": source}
+    exists = None
+    if rho < 1:   # a stable plant: E[P_t] bounded even without arrivals (Lyapunov)
+        exists = True
+    elif lo is not None and x <= lo:
+        exists = False
+    elif hi is not None and x > hi:
+        exists = True
+    return {"exists": exists, "basis": basis, "compared": name, "value": x,
+            "critical_lower": lo, "critical_upper": hi, "critical_source": source}
 
 
 def lyapunov_traces(system: System, p: float, times: np.ndarray) -> list[float | None]:
