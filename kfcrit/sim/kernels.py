@@ -82,14 +82,14 @@ def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld)
         for l in range(k):
             for b in range(W):
                 L[k, k, b] -= L[k, l, b] * L[k, l, b]
-        for b in range(W):
-            L[k, k, b] = math.sqrt(L[k, k, b])
+        for b in range(W):  # the diagonal holds 1/L_kk: one division per pivot, not per use
+            L[k, k, b] = 1.0 / math.sqrt(L[k, k, b])
         for i in range(k + 1, m):
             for l in range(k):
                 for b in range(W):
                     L[i, k, b] -= L[i, l, b] * L[k, l, b]
             for b in range(W):
-                L[i, k, b] = L[i, k, b] / L[k, k, b]
+                L[i, k, b] = L[i, k, b] * L[k, k, b]
     for i in range(n):
         for k in range(m):
             for b in range(W):
@@ -105,13 +105,13 @@ def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld)
                 for b in range(W):
                     AK[i, k, b] -= L[k, l, b] * AK[i, l, b]
             for b in range(W):
-                AK[i, k, b] = AK[i, k, b] / L[k, k, b]
+                AK[i, k, b] = AK[i, k, b] * L[k, k, b]
         for k in range(m - 1, -1, -1):
             for l in range(k + 1, m):
                 for b in range(W):
                     AK[i, k, b] -= L[l, k, b] * AK[i, l, b]
             for b in range(W):
-                AK[i, k, b] = AK[i, k, b] / L[k, k, b] * g[b]
+                AK[i, k, b] = AK[i, k, b] * L[k, k, b] * g[b]
     for i in range(n):
         for j in range(n):
             a = A[i, j]
@@ -131,13 +131,26 @@ def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld)
             if scaled:
                 for b in range(W):
                     T[i, k, b] *= cs[b]
+    # F X and the upper triangle of F X F' + (AK R) AK' + Q: the n³ part of the step. Three
+    # products per pass over the lanes (one load/store of the accumulator per three terms);
+    # the grouping depends on n only, so every lane sums in the same order.
     for i in range(n):
         for j in range(n):
-            for b in range(W):
-                FX[i, j, b] = 0.0
-            for k in range(n):
+            k = n % 3
+            if k == 0:
                 for b in range(W):
-                    FX[i, j, b] += F[i, k, b] * X[k, j, b]
+                    FX[i, j, b] = 0.0
+            elif k == 1:
+                for b in range(W):
+                    FX[i, j, b] = F[i, 0, b] * X[0, j, b]
+            else:
+                for b in range(W):
+                    FX[i, j, b] = F[i, 0, b] * X[0, j, b] + F[i, 1, b] * X[1, j, b]
+            while k < n:
+                for b in range(W):
+                    FX[i, j, b] += (F[i, k, b] * X[k, j, b] + F[i, k + 1, b] * X[k + 1, j, b]
+                                    + F[i, k + 2, b] * X[k + 2, j, b])
+                k += 3
     for i in range(n):
         for j in range(i, n):
             q = Q[i, j]
@@ -147,12 +160,21 @@ def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld)
             else:
                 for b in range(W):
                     out[i, j, b] = q
-            for k in range(n):
-                for b in range(W):
-                    out[i, j, b] += FX[i, k, b] * F[j, k, b]
             for k in range(m):
                 for b in range(W):
                     out[i, j, b] += T[i, k, b] * AK[j, k, b]
+            k = n % 3
+            if k == 1:
+                for b in range(W):
+                    out[i, j, b] += FX[i, 0, b] * F[j, 0, b]
+            elif k == 2:
+                for b in range(W):
+                    out[i, j, b] += FX[i, 0, b] * F[j, 0, b] + FX[i, 1, b] * F[j, 1, b]
+            while k < n:
+                for b in range(W):
+                    out[i, j, b] += (FX[i, k, b] * F[j, k, b] + FX[i, k + 1, b] * F[j, k + 1, b]
+                                     + FX[i, k + 2, b] * F[j, k + 2, b])
+                k += 3
             if j > i:
                 for b in range(W):
                     out[j, i, b] = out[i, j, b]
