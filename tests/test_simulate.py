@@ -109,7 +109,7 @@ def test_lane_step_is_symmetric_psd_and_equals_the_maps(sysmats, rank, scale, la
     L = np.cos(rng_free * (1 + scale))[:, : min(rank, n)]
     X = 10.0 ** (4 * scale) * (L @ L.T)
     Xs = np.repeat(X[:, :, None], lanes, axis=2).copy()
-    gam = (np.arange(lanes) % 2).astype(float)
+    gam = np.repeat((np.arange(lanes) % 2).astype(float)[None, :], m, axis=0)  # one sensor
     out = np.empty_like(Xs)
     ws = [np.empty((n, n, lanes)) for _ in range(2)]
     wm = [np.empty((n, m, lanes)), np.empty((m, m, lanes)), np.empty((n, m, lanes)),
@@ -125,7 +125,7 @@ def test_lane_step_is_symmetric_psd_and_equals_the_maps(sysmats, rank, scale, la
     for b in range(lanes):
         Y = out[:, :, b]
         assert np.array_equal(Y, Y.T)
-        ref = f_arrival(A, C, Q, R, X) if gam[b] else f_loss(A, Q, X)
+        ref = f_arrival(A, C, Q, R, X) if gam[0, b] else f_loss(A, Q, X)
         tol = 1e-9 * max(1.0, np.abs(ref).max())
         np.testing.assert_allclose(Y, ref, rtol=1e-8, atol=tol)
         assert np.linalg.eigvalsh(Y).min() >= -tol
@@ -842,3 +842,87 @@ def test_gilbert_elliott_burst_condition_decides_divergence():
     ok = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
                      critical_value=0.36)
     assert ok["exists"] is True and ok["basis"].startswith("claim")
+
+
+# --------------------------------------------------------------------------------------------
+# several sensors, each over its own link
+
+
+@pytest.mark.parametrize("channel", [None, GilbertElliott(sp.Rational(1, 5), sp.Rational(1, 2))])
+def test_one_sensor_owning_every_row_is_the_single_link_filter(channel):
+    """Sensors API with one sensor owning every row: bit for bit the single-link simulation."""
+    from kfcrit.model.channels import Bernoulli
+
+    ch = channel if channel is not None else Bernoulli(sp.Rational(11, 20))
+    two = System([[1.2, 0.3], [0.0, 0.9]], [[1.0, 0.0], [0.5, 1.0]], 1, [[1.0, 0.2], [0.2, 2.0]])
+    ref = simulate(two, LANES + 9, 70, 4, ch, record_traces=3)
+    net = simulate(two, LANES + 9, 70, 4, sensors=[([0, 1], ch)], record_traces=3)
+    for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces", "traces"):
+        assert np.array_equal(getattr(ref, name), getattr(net, name)), name
+    assert net.channel["model"] == "sensors"
+
+
+def test_sensor_arrivals_follow_the_received_set_update():
+    """Two sensors (rows 0 and 1 of C, R with a cross term) over two different traces. Each
+    path reads sensor s's trace from offset key mod L, key = SeedSequence(seed, spawn_key=
+    (stream_s, i)) with stream 0 for sensor 0 and 3 for sensor 1 (numpy's own SeedSequence).
+    Independent reference: kfcrit.theory.riccati.f_arrival with the stacked rows of C (and the
+    block of R) that arrived, f_loss when none did."""
+    A = np.array([[1.1, 0.4], [0.0, 0.8]])
+    C = np.array([[1.0, 0.0], [0.3, 1.0]])
+    Q, R = np.eye(2), np.array([[1.0, 0.3], [0.3, 2.0]])
+    seqs = [[1, 0, 0, 1, 1, 0, 1], [0, 1, 1, 0, 0]]
+    res = simulate(System(A, C, Q, R), 3, 30, 7,
+                   sensors=[([0], Trace.from_arrivals(seqs[0])),
+                            ([1], Trace.from_arrivals(seqs[1]))],
+                   record_traces=True, divergence_threshold=1e300)
+    for i in range(3):
+        offs = []
+        for stream, seq in ((0, seqs[0]), (3, seqs[1])):
+            key = np.random.SeedSequence(7, spawn_key=(stream, i)).generate_state(1, np.uint64)[0]
+            offs.append(int(key % np.uint64(len(seq))))
+        P, expected = np.eye(2), [2.0]
+        for t in range(30):
+            rows = [s for s in range(2) if seqs[s][(offs[s] + t) % len(seqs[s])]]
+            if rows:
+                P = f_arrival(A, C[rows], Q, R[np.ix_(rows, rows)], P)
+            else:
+                P = f_loss(A, Q, P)
+            expected.append(np.trace(P))
+        np.testing.assert_allclose(res.traces[i], expected, rtol=1e-10)
+
+
+def test_redundant_sensors_scalar_plant():
+    """A scalar plant a = 1.25 seen by two sensors with independent Bernoulli links: E[P]
+    bounded iff (1 − p_1)(1 − p_2) a² < 1 (the all-lost event is the only loss). With
+    p_1 = p_2 = 0.3: 0.49 · 1.5625 = 0.77 < 1 bounded; each link alone (0.7 · 1.5625 = 1.09)
+    would not be. The Lyapunov recursion of the all-lost probability, s_{t+1} = 0.49 a² s_t + 1,
+    is a lower bound of E[P_t] (Sinopoli Lemma 1 with p = 1 − 0.49), and the mean settles."""
+    from kfcrit.model.channels import Bernoulli
+
+    sys2 = System([[1.25]], [[1.0], [1.0]], 1, np.eye(2))
+    links = [([0], Bernoulli(sp.Rational(3, 10))), ([1], Bernoulli(sp.Rational(3, 10)))]
+    res = simulate(sys2, 20_000, 120, 3, sensors=links, horizon_samples=121)
+    s, lower = 1.0, [1.0]
+    for _ in range(120):
+        s = 0.49 * 1.5625 * s + 1
+        lower.append(s)
+    se = res.std_trace / math.sqrt(res.paths)
+    assert np.all(res.mean_trace >= np.array(lower)[res.times] - 5 * se)
+    assert abs(res.mean_trace[60] - res.mean_trace[120]) < 5 * math.hypot(se[60], se[120])
+    single = simulate(System([[1.25]], [[1.0]], 1, 1), 20_000, 120, 3,
+                      arrival_probability=sp.Rational(3, 10), horizon_samples=121)
+    assert single.mean_trace[120] > 3 * res.mean_trace[120]
+
+
+def test_sensor_arguments_are_checked():
+    from kfcrit.model.channels import Bernoulli
+
+    b = Bernoulli(sp.Rational(1, 2))
+    two = System([[1.2, 0.0], [0.0, 0.9]], np.eye(2), 1, 1)
+    with pytest.raises(InputError, match="sensors"):
+        simulate(two, 5, 5, 0, sensors=[([0], b)])                 # row 1 has no sensor
+    with pytest.raises(InputError, match="sensors"):
+        simulate(two, 5, 5, 0, sensors=[([0, 1], b), ([1], b)])    # row 1 twice
+    with pytest.raises(InputError, match="sensors"):
+        simulate(two, 5, 5, 0, b, sensors=[([0, 1], b)])

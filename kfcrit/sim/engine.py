@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass
@@ -32,6 +32,7 @@ from kfcrit.model.system import System
 from kfcrit.sim.arrivals import (
     STREAM_ERGODIC,
     STREAM_FULL_STATE,
+    STREAM_PATHS,
     arrival_sequence,
     path_keys,
     process_arrays,
@@ -171,6 +172,63 @@ def lambda_max_schedule(times: np.ndarray, samples: int) -> tuple[np.ndarray, np
     return index, times[cols]
 
 
+def sensor_stream(sensor: int) -> int:
+    """Stream of sensor s's arrivals: the paths' own stream for s = 0, 2 + s beyond."""
+    return STREAM_PATHS if sensor == 0 else STREAM_ERGODIC + sensor
+
+
+def resolve_sensors(sensors: Sequence[tuple[Sequence[int], Channel]], m: int
+                    ) -> list[tuple[list[int], Channel]]:
+    """Check (rows, channel) pairs: channels, and rows that partition 0 … m−1."""
+    out: list[tuple[list[int], Channel]] = []
+    seen: list[int] = []
+    for s, item in enumerate(sensors):
+        try:
+            rows, ch = item
+            rows = [int(k) for k in rows]
+        except (TypeError, ValueError):
+            raise InputError(f"sensor {s}: must be (rows of C, channel)", field="sensors") from None
+        if not isinstance(ch, Channel):
+            raise InputError(f"sensor {s}: must have a Channel, got {type(ch).__name__}",
+                             field="sensors")
+        if not rows or any(not 0 <= k < m for k in rows):
+            raise InputError(f"sensor {s}: rows must be indices of C's {m} rows", field="sensors")
+        seen += rows
+        out.append((rows, ch))
+    if not out or sorted(seen) != list(range(m)):
+        raise InputError(f"every row of C (0 … {m - 1}) must belong to exactly one sensor",
+                         field="sensors")
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class SensorLinks:
+    """Per-sensor channel arrays for the kernel and the sensor of every output row."""
+
+    kinds: np.ndarray
+    ps: np.ndarray
+    fs: np.ndarray
+    rs: np.ndarray
+    seqs: np.ndarray
+    seq_len: np.ndarray
+    row_sensor: np.ndarray
+
+    @classmethod
+    def of(cls, links: list[tuple[list[int], Channel]], m: int) -> SensorLinks:
+        coded = [process_arrays(ch.arrival_process()) for _, ch in links]
+        longest = max(c[4].size for c in coded)
+        seqs = np.zeros((len(coded), longest), dtype=np.bool_)
+        for s, c in enumerate(coded):
+            seqs[s, :c[4].size] = c[4]
+        row_sensor = np.empty(m, dtype=np.int64)
+        for s, (rows, _) in enumerate(links):
+            row_sensor[rows] = s
+        return cls(np.array([c[0] for c in coded], dtype=np.int64),
+                   np.array([c[1] for c in coded]), np.array([c[2] for c in coded]),
+                   np.array([c[3] for c in coded]), seqs,
+                   np.array([c[4].size for c in coded], dtype=np.int64), row_sensor)
+
+
 @dataclass(eq=False)
 class _Part:
     """Kernel state and outputs of paths ``start … stop−1`` of a batch (one worker's share)."""
@@ -193,16 +251,18 @@ class _Part:
     traces: np.ndarray
 
     @classmethod
-    def new(cls, seed: int, start: int, stop: int, seq_len: int, n: int, S: int, SL: int,
+    def new(cls, seed: int, start: int, stop: int, seq_len: np.ndarray, n: int, S: int, SL: int,
             traces: np.ndarray, n_traced: int) -> _Part:
         B = stop - start
-        keys = path_keys(seed, start, stop)
+        N = seq_len.size
+        keys = np.stack([path_keys(seed, start, stop, sensor_stream(s)) for s in range(N)])
+        offsets = np.stack([trace_offsets(keys[s], int(seq_len[s])) for s in range(N)])
         k_tr = max(0, min(n_traced - start, B))
-        return cls(start, stop, keys, trace_offsets(keys, seq_len),
+        return cls(start, stop, keys, offsets,
                    np.empty((B, S)), np.empty((B, S)), np.empty((B, SL)), np.empty((B, SL)),
                    np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64),
                    np.empty((n, n, B)), np.zeros(B), np.zeros(B, dtype=np.int64),
-                   np.zeros(B, dtype=np.uint64), np.zeros(B, dtype=np.int64),
+                   np.zeros((N, B), dtype=np.uint64), np.zeros((N, B), dtype=np.int64),
                    traces[start:start + k_tr] if k_tr else np.empty((0, traces.shape[1])))
 
 
@@ -226,7 +286,8 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
              initial: np.ndarray | None = None, divergence_threshold: float | None = None,
              track_lambda_max: bool = True, lambda_max_samples: int = LAMBDA_MAX_SAMPLES,
              batch_size: int = 1024, threads: int | None = None,
-             progress: Callable[[int, int], None] | None = None) -> SimulationResult:
+             progress: Callable[[int, int], None] | None = None,
+             sensors: Sequence[tuple[Sequence[int], Channel]] | None = None) -> SimulationResult:
     """Monte Carlo of the random Riccati equation P_{t+1} = f_{γ_t}(P_t), P_0 = Σ0.
 
     Parameters
@@ -266,6 +327,13 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         Threads that advance the blocks of a batch concurrently (default: the CPUs this process
         may use, at most 8). Results do not depend on it: blocks are independent and the
         statistics are accumulated in path order.
+    sensors : sequence of (rows, Channel), optional
+        Several sensors, each over its own link (instead of ``channel``): sensor s owns the
+        output rows ``rows`` of C (every row belongs to exactly one sensor) and its packets
+        follow its channel, independently of the others; a step uses the stacked rows of C
+        whose packets arrived (:func:`kfcrit.sim.kernels.riccati_lanes`). Sensor 0 draws from
+        the path's stream ``spawn_key=(0, i)``, sensor s ≥ 1 from ``spawn_key=(2 + s, i)``, so
+        one sensor owning every row gives exactly the single-link result.
     progress : callable, optional
         Called as ``progress(path_steps_done, paths × steps)`` after every chunk of steps
         (the run is then cut into chunks of ``PROGRESS_WORK`` / n² lane-steps; the results do
@@ -283,10 +351,21 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     if not isinstance(system, System):
         raise InputError(f"must be a System, got {type(system).__name__}", field="system")
     check_sizes(paths, steps, seed)
-    chan = resolve_channel(channel, arrival_probability)
+    n, m = system.n, system.m
+    if sensors is None:
+        chan = resolve_channel(channel, arrival_probability)
+        links = [(list(range(m)), chan)]
+    else:
+        if channel is not None or arrival_probability is not None:
+            raise InputError("give sensors or a channel, not both", field="sensors")
+        links = resolve_sensors(sensors, m)
+        chan = links[0][1]
+        if full_state_paths:
+            raise InputError("the full-state simulation has one link; leave it at 0 with "
+                             "sensors", field="full_state_paths")
+    link = SensorLinks.of(links, m)
     process = chan.arrival_process()
     kind, p, f, r, seq = process_arrays(process)
-    n, m = system.n, system.m
     A, C, Q, R = (np.ascontiguousarray(x, dtype=float) for x in
                   (system.a, system.c, system.q, system.r))
     P0 = initial_covariance(system, initial)
@@ -320,12 +399,12 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     workers = resolve_threads(threads)
     total = paths * steps
     fixed = (A, C, Q, R, P0)
-    chan_args = (kind, p, f, r, seq)
+    chan_args = (link.kinds, link.ps, link.fs, link.rs, link.seqs, link.seq_len, link.row_sensor)
     with ThreadPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
         for start in range(0, paths, batch_size):
             stop = min(start + batch_size, paths)
             B = stop - start
-            parts = [_Part.new(seed, a, b, seq.size, n, S, SL, traces, n_traced)
+            parts = [_Part.new(seed, a, b, link.seq_len, n, S, SL, traces, n_traced)
                      for a, b in split_lanes(start, stop, workers)]
             # in time chunks when progress is reported (the chunking does not change the numbers)
             chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
@@ -362,9 +441,11 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     if track_lambda_max:
         mean_l, std_l, lmean_l, lstd_l = column_stats(count_t, mean_l, m2_l, *lsum_l)
     warnings: list[str] = []
-    if process.kind == "sequence" and steps > process.sequence.size:
-        warnings.append(f"the arrival trace has {process.sequence.size} values, fewer than the "
-                        f"{steps} steps: it is read cyclically")
+    for _, ch in links:
+        pr = ch.arrival_process()
+        if pr.kind == "sequence" and steps > pr.sequence.size:
+            warnings.append(f"the arrival trace has {pr.sequence.size} values, fewer than the "
+                            f"{steps} steps: it is read cyclically")
     n_div = int(np.count_nonzero(div_times >= 0))
     if n_div:
         warnings.append(f"{n_div} of {paths} paths crossed the divergence threshold tr P > "
@@ -382,7 +463,12 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
             if full_state_paths and full_state_paths > 0 else None)
     return SimulationResult(
         system_name=system.name, n=n, m=m, paths=paths, steps=steps, seed=int(seed),
-        channel=chan.to_dict(), arrival_probability=float(chan.arrival_probability),
+        channel=(chan.to_dict() if sensors is None else
+                 {"model": "sensors", "sensors": [{"rows": list(rows), "channel": ch.to_dict()}
+                                                  for rows, ch in links]}),
+        arrival_probability=(float(chan.arrival_probability) if sensors is None else
+                             float(np.mean([float(ch.arrival_probability)
+                                            for _, ch in links]))),
         times=times, mean_trace=mean_t, std_trace=std_t,
         mean_lambda_max=mean_l if track_lambda_max else None,
         std_lambda_max=std_l if track_lambda_max else None,

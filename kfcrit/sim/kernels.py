@@ -36,7 +36,13 @@ lane loops have a fixed trip count (no remainder loop) and every path runs the s
 
 @njit(cache=True, error_model="numpy", inline="always")
 def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld):
-    """out[:, :, b] = f_{γ_b}(X[:, :, b]) for the lanes b < W (γ_b = g[b] ∈ {0.0, 1.0}).
+    """out[:, :, b] = f_{γ_b}(X[:, :, b]) for the lanes b < W; g[k, b] ∈ {0.0, 1.0} says whether
+    output row k reached the estimator in lane b (one sensor: every row alike).
+
+    Received set: with D = diag(g[:, b]) the step uses S̃ = D S D + (I − D) and AK = A X C' S̃⁻¹ D,
+    i.e. the gain of the stacked rows of C that arrived (S̃ is S on those rows and the identity
+    elsewhere, so its Cholesky factor and inverse split the same way) and 0 for the others.
+    When every row arrived, S̃ = S exactly (products by 1.0, sums with 0.0).
 
     With ``scaled`` the noise of lane b is multiplied by ``cs[b]`` (Q → c Q, R → c R: the map
     of the scaled form P = e^ℓ X, c = e^{−ℓ}) and S = C X C' + c R is loaded on its diagonal by
@@ -78,6 +84,12 @@ def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld)
         for k in range(m):
             for b in range(W):
                 L[k, k, b] += ld[b] * (L[k, k, b] + 1e-288)
+    for k in range(m):  # rows that did not arrive: identity rows of S̃
+        for l in range(k):
+            for b in range(W):
+                L[k, l, b] = L[k, l, b] * (g[k, b] * g[l, b])
+        for b in range(W):
+            L[k, k, b] = L[k, k, b] * g[k, b] + (1.0 - g[k, b])
     for k in range(m):
         for l in range(k):
             for b in range(W):
@@ -111,7 +123,7 @@ def riccati_lanes(A, C, Q, R, X, g, W, out, F, FX, XC, L, AK, T, scaled, cs, ld)
                 for b in range(W):
                     AK[i, k, b] -= L[l, k, b] * AK[i, l, b]
             for b in range(W):
-                AK[i, k, b] = AK[i, k, b] * L[k, k, b] * g[b]
+                AK[i, k, b] = AK[i, k, b] * L[k, k, b] * g[k, b]
     for i in range(n):
         for j in range(n):
             a = A[i, j]
@@ -313,7 +325,8 @@ def scaled_step(A, C, Q, R, P, b, g, log_scale, ws, out):
         for j in range(n):
             X1[i, j, 0] = P[i, j, b] / tr
     ell = log_scale + math.log(tr)
-    g1[0] = g
+    for k in range(g.shape[0]):
+        g1[k, 0] = g[k, b]
     c1[0] = math.exp(-ell)
     d1[0] = LOAD
     riccati_lanes(A, C, Q, R, X1, g1, 1, Y1, F1, FX1, XC1, L1, AK1, T1, True, c1, d1)
@@ -327,9 +340,9 @@ def scaled_step(A, C, Q, R, P, b, g, log_scale, ws, out):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_t, lmax_index,
-              threshold, Xall, lg_all, sc_all, state_all, ch_all, out_tr, out_ltr, out_lm,
-              out_llm, out_div, out_fail, traces):
+def rre_paths(A, C, Q, R, P0, keys, offsets, kinds, ps, fs, rs, seqs, seq_len, row_sensor, t0,
+              t1, sample_t, lmax_index, threshold, Xall, lg_all, sc_all, state_all, ch_all,
+              out_tr, out_ltr, out_lm, out_llm, out_div, out_fail, traces):
     """Advance the paths of a batch from step ``t0`` to ``t1``; record tr P, λ_max at sample times.
 
     Paths run in blocks of ``LANES`` lanes (see :func:`riccati_lanes`); the last block of a batch
@@ -339,6 +352,12 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
     path (X, log scale, scaled flag, random and channel state) is kept in ``Xall`` (n×n×B),
     ``lg_all``, ``sc_all``, ``state_all``, ``ch_all`` between calls (``t0 = 0`` initialises it).
     ``traces`` (k, steps + 1): full traces of the first k paths (k may be 0).
+
+    Sensors: output row k of C belongs to sensor ``row_sensor[k]``; sensor s has its own link
+    (``kinds[s]``, ``ps[s]``, ``fs[s]``, ``rs[s]``, trace ``seqs[s, :seq_len[s]]``), random stream
+    (``keys[s]``, trace offsets ``offsets[s]``) and channel state (``state_all[s]``,
+    ``ch_all[s]``); a step uses the rows whose sensor's packet arrived (see
+    :func:`riccati_lanes`). One sensor owning every row is the single-link filter.
 
     Sample times: ``out_tr[:, s]`` = tr P at ``sample_t[s]`` (inf beyond float64) and
     ``out_ltr[:, s]`` its natural log where tr P > e^``LOG_KEEP`` or the path is in scaled
@@ -355,14 +374,19 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
     """
     n = A.shape[0]
     m = C.shape[0]
-    B = keys.shape[0]
+    B = keys.shape[1]
+    N = kinds.shape[0]
+    all_iid = True
+    for s in range(N):
+        all_iid &= kinds[s] == 0
     n_samples = sample_t.shape[0]
     n_traced = traces.shape[0]
     X, Y, F, FX, XC, L, AK, T = workspace(n, m, LANES)
-    ws = workspace(n, m, 1) + (np.zeros(1), np.ones(1), np.zeros(1))
-    g = np.ones(LANES)
-    state = np.empty(LANES, dtype=np.uint64)
-    ch = np.empty(LANES, dtype=np.int64)
+    ws = workspace(n, m, 1) + (np.zeros((m, 1)), np.ones(1), np.zeros(1))
+    g = np.ones((m, LANES))
+    gs = np.ones((N, LANES))
+    state = np.empty((N, LANES), dtype=np.uint64)
+    ch = np.empty((N, LANES), dtype=np.int64)
     trn = np.empty(LANES)
     lm = np.empty(LANES)
     lg = np.zeros(LANES)
@@ -381,13 +405,17 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
         nsc = 0
         for b in range(W, LANES):  # spare lanes: P_0 under arrivals, never read
             set_lane(X, b, P0)
-            g[b] = 1.0
+            for k in range(m):
+                g[k, b] = 1.0
             sc[b] = 0
             lg[b] = 0.0
         if t0 == 0:
+            for s in range(N):
+                for b in range(W):
+                    state[s, b] = keys[s, start + b]
+                    ch[s, b] = channel_start(kinds[s], fs[s], rs[s], seq_len[s],
+                                             offsets[s, start + b], state[s], b)
             for b in range(W):
-                state[b] = keys[start + b]
-                ch[b] = channel_start(kind, f, r, seq.shape[0], offsets[start + b], state, b)
                 trn[b] = set_lane(X, b, P0)
                 lg[b] = 0.0
                 sc[b] = 0
@@ -396,9 +424,11 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
                 if start + b < n_traced:
                     traces[start + b, 0] = trn[b]
         else:
+            for s in range(N):
+                for b in range(W):
+                    state[s, b] = state_all[s, start + b]
+                    ch[s, b] = ch_all[s, start + b]
             for b in range(W):
-                state[b] = state_all[start + b]
-                ch[b] = ch_all[start + b]
                 lg[b] = lg_all[start + b]
                 sc[b] = sc_all[start + b]
                 for i in range(n):
@@ -416,12 +446,22 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
                         v4, v5, out_tr, out_ltr, out_lm, out_llm)
             si += 1
         for t in range(t0, t1):
-            if kind == 0:  # i.i.d.: a branch-free loop the compiler vectorises
+            for s in range(N):
+                st = state[s]
+                if all_iid:  # i.i.d.: a branch-free loop the compiler vectorises
+                    p = ps[s]
+                    for b in range(W):
+                        gs[s, b] = 1.0 if next_uniform(st, b) < p else 0.0
+                else:
+                    seq = seqs[s, :seq_len[s]]
+                    chs = ch[s]
+                    for b in range(W):
+                        gs[s, b] = 1.0 if channel_next(kinds[s], ps[s], fs[s], rs[s], seq, chs,
+                                                       st, b) else 0.0
+            for k in range(m):
+                s = row_sensor[k]
                 for b in range(W):
-                    g[b] = 1.0 if next_uniform(state, b) < p else 0.0
-            else:
-                for b in range(W):
-                    g[b] = 1.0 if channel_next(kind, p, f, r, seq, ch, state, b) else 0.0
+                    g[k, b] = gs[s, b]
             riccati_lanes(A, C, Q, R, X, g, LANES, Y, F, FX, XC, L, AK, T, nsc > 0, cs, ld)
             X, Y = Y, X  # Y now holds the previous state (needed by a rescue step)
             for b in range(LANES):
@@ -443,9 +483,11 @@ def rre_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, t0, t1, sample_
                 _record(X, W, start, si, lmax_index[si], trn, sc, lg, keep, lm, FX, v1, v2, v3,
                         v4, v5, out_tr, out_ltr, out_lm, out_llm)
                 si += 1
+        for s in range(N):
+            for b in range(W):
+                state_all[s, start + b] = state[s, b]
+                ch_all[s, start + b] = ch[s, b]
         for b in range(W):
-            state_all[start + b] = state[b]
-            ch_all[start + b] = ch[b]
             lg_all[start + b] = lg[b]
             sc_all[start + b] = sc[b]
             for i in range(n):
@@ -496,7 +538,7 @@ def _rescale(A, C, Q, R, X, Y, W, start, t, g, trn, sc, lg, cs, ld, nsc, thresho
             ell = math.log(s)
             lane_scale(X, b, 1.0 / s)
         else:  # overflow or NaN: redo the step from the previous state, scaled
-            ell = scaled_step(A, C, Q, R, Y, b, g[b], lg[b] if sc[b] else 0.0, ws, X)
+            ell = scaled_step(A, C, Q, R, Y, b, g, lg[b] if sc[b] else 0.0, ws, X)
             if not ell == ell:  # a numerical failure: keep the last finite value
                 if out_fail[start + b] < 0:
                     out_fail[start + b] = t + 1
@@ -548,7 +590,7 @@ def ergodic_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, burn
     m = C.shape[0]
     W = keys.shape[0]
     X, Y, F, FX, XC, L, AK, T = workspace(n, m, W)
-    g = np.zeros(W)
+    g = np.zeros((m, W))
     state = np.empty(W, dtype=np.uint64)
     ch = np.empty(W, dtype=np.int64)
     tr = np.empty(W)
@@ -562,7 +604,8 @@ def ergodic_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, burn
     for t in range(steps):
         for b in range(W):
             arrived = channel_next(kind, p, f, r, seq, ch, state, b)
-            g[b] = 1.0 if arrived else 0.0
+            for k in range(m):
+                g[k, b] = 1.0 if arrived else 0.0
             if t >= burn_in and div[b] < 0:
                 if arrived:
                     if run[b] > 0:
@@ -574,7 +617,7 @@ def ergodic_paths(A, C, Q, R, P0, keys, offsets, kind, p, f, r, seq, steps, burn
                     run[b] += 1
                     losses[b] += 1
                     longest[b] = max(longest[b], run[b])
-        riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T, False, g, g)
+        riccati_lanes(A, C, Q, R, X, g, W, Y, F, FX, XC, L, AK, T, False, tr, tr)
         X, Y = Y, X
         k = int(math.log2(t + 1))
         for b in range(W):
