@@ -132,11 +132,16 @@ def steady_covariance(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray
 LAMBDA_MAX_SAMPLES = 20
 """Default number of sample times at which E[λ_max(P_t)] is computed (exactly)."""
 MAX_THREADS = 8
+THREAD_WORK = 10_000_000
+"""Below this many n² · path-steps a run stays on one thread (starting threads costs more)."""
 
 
-def resolve_threads(threads: int | None) -> int:
-    """Worker threads: ``threads`` (≥ 1), or the CPUs this process may use (at most 8)."""
+def resolve_threads(threads: int | None, work: float = math.inf) -> int:
+    """Worker threads: ``threads`` (≥ 1), or the CPUs this process may use (at most 8) when the
+    run's ``work`` (n² · path-steps) is at least ``THREAD_WORK``, else 1."""
     if threads is None:
+        if work < THREAD_WORK:
+            return 1
         try:
             usable = len(os.sched_getaffinity(0))
         except (AttributeError, OSError):
@@ -325,8 +330,9 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         Paths per batch (results do not depend on it).
     threads : int, optional
         Threads that advance the blocks of a batch concurrently (default: the CPUs this process
-        may use, at most 8). Results do not depend on it: blocks are independent and the
-        statistics are accumulated in path order.
+        may use, at most 8, for runs of at least ``THREAD_WORK`` n² · path-steps; one below).
+        Results do not depend on it: blocks are independent and the statistics are accumulated
+        in path order.
     sensors : sequence of (rows, Channel), optional
         Several sensors, each over its own link (instead of ``channel``): sensor s owns the
         output rows ``rows`` of C (every row belongs to exactly one sensor) and its packets
@@ -396,7 +402,7 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     div_times = np.empty(paths, dtype=np.int64)
     fail_times = np.empty(paths, dtype=np.int64)
     batch_size = max(int(batch_size), 1)
-    workers = resolve_threads(threads)
+    workers = resolve_threads(threads, float(n * n) * paths * steps)
     total = paths * steps
     fixed = (A, C, Q, R, P0)
     chan_args = (link.kinds, link.ps, link.fs, link.rs, link.seqs, link.seq_len, link.row_sensor)
