@@ -926,3 +926,24 @@ def test_sensor_arguments_are_checked():
         simulate(two, 5, 5, 0, sensors=[([0, 1], b), ([1], b)])    # row 1 twice
     with pytest.raises(InputError, match="sensors"):
         simulate(two, 5, 5, 0, b, sensors=[([0, 1], b)])
+
+
+@pytest.mark.parametrize("gap", [0.5, 0.99, 1.0 - 1e-9, 1.0])
+def test_lambda_max_certified_bracket_and_bisection_fallback(gap):
+    """λ_max by power iteration + Cholesky certificate, with bisection where the certificate
+    fails (a small spectral gap λ₂/λ₁ = ``gap`` leaves the Rayleigh quotient short), against
+    LAPACK's eigvalsh on Q diag(3, 3·gap, 1, 0.2) Q' (Q a fixed rotation, no RNG)."""
+    c, s = math.cos(0.7), math.sin(0.7)
+    Q1 = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    Q2 = np.array([[1, 0, 0, 0], [0, c, 0, -s], [0, 0, 1, 0], [0, s, 0, c]])
+    Qm = Q1 @ Q2 @ Q1.T
+    X = Qm @ np.diag([3.0, 3.0 * gap, 1.0, 0.2]) @ Qm.T
+    X = 0.5 * (X + X.T)
+    W = 4
+    Xs = np.repeat(X[:, :, None], W, axis=2).copy()
+    Xs[:, :, 1] *= 1e-3
+    out = np.empty(W)
+    lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *[np.empty(W) for _ in range(5)])
+    for b in range(W):
+        ref = np.linalg.eigvalsh(Xs[:, :, b])[-1]
+        assert abs(out[b] - ref) <= 1e-10 * np.trace(Xs[:, :, b])
