@@ -196,51 +196,14 @@ LMAX_BISECTIONS = 38
 """Bisection steps for λ_max: the bracket (⊂ [tr/n, tr]) shrinks below 3.7e-12 · tr."""
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _positive_definite(X, W, mu, N, d, fail):
-    """fail[b] = 0.0 where μ_b I − X_b is positive definite (its Cholesky factorisation, backward
-    stable, lane-parallel in ``N``, has only positive pivots), 1.0 elsewhere."""
-    n = X.shape[0]
-    for b in range(W):
-        fail[b] = 0.0
-    for j in range(n):
-        for b in range(W):
-            d[b] = mu[b] - X[j, j, b]
-        for k in range(j):
-            for b in range(W):
-                d[b] -= N[j, k, b] * N[j, k, b]
-        for b in range(W):  # N[j, j] holds the reciprocal of the pivot's square root
-            if d[b] > 0.0:
-                N[j, j, b] = 1.0 / math.sqrt(d[b])
-            else:
-                fail[b] = 1.0
-                N[j, j, b] = 1.0
-        for i in range(j + 1, n):
-            for b in range(W):
-                d[b] = -X[i, j, b]
-            for k in range(j):
-                for b in range(W):
-                    d[b] -= N[i, k, b] * N[j, k, b]
-            for b in range(W):
-                N[i, j, b] = d[b] * N[j, j, b]
-
-
-POWER_STEPS = 12
-"""Power-iteration steps that give the lower end θ ≤ λ_max (a Rayleigh quotient)."""
-CERTIFY = 2e-12
-"""Relative width of the certified bracket [θ, θ(1 + CERTIFY)] of λ_max."""
-
-
 @njit(cache=True, error_model="numpy")
 def lambda_max_lanes(X, W, out, N, lo, hi, mu, d, fail):
     """λ_max(X[:, :, b]) for the lanes b < W of symmetric PSD matrices, into ``out``.
 
-    n ≤ 2: closed form. Otherwise a certified bracket: ``POWER_STEPS`` steps of power iteration
-    from the row sums |X| give a Rayleigh quotient θ ≤ λ_max; λ_max ≤ μ = θ(1 + ``CERTIFY``) is
-    certified when μI − X is positive definite (a backward-stable Cholesky test), and the
-    midpoint of [θ, μ] is returned. Lanes whose certificate fails (a small spectral gap) are
-    bisected on [max(θ, tr/n, max_i X_ii), min(tr, max_i Σ_j |X_ij|)] (Gershgorin) to
-    3.7e-12 tr X, with the same positive-definiteness test.
+    n ≤ 2: closed form. Otherwise bisection on [max(tr/n, max_i X_ii), min(tr, max_i Σ_j |X_ij|)]
+    (λ_max of a PSD matrix lies there; Gershgorin): μ is above λ_max iff μI − X is positive
+    definite, i.e. iff its Cholesky factorisation (backward stable, lane-parallel in ``N``) has
+    only positive pivots.
     """
     n = X.shape[0]
     if n == 1:
@@ -257,8 +220,6 @@ def lambda_max_lanes(X, W, out, N, lo, hi, mu, d, fail):
         lo[b] = 0.0  # tr X
         hi[b] = 0.0  # max diagonal
         mu[b] = 0.0  # Gershgorin bound max_i Σ_j |X_ij|
-    v = N[0]
-    w = N[1]
     for i in range(n):
         for b in range(W):
             lo[b] += X[i, i, b]
@@ -269,66 +230,41 @@ def lambda_max_lanes(X, W, out, N, lo, hi, mu, d, fail):
                 d[b] += abs(X[i, j, b])
         for b in range(W):
             mu[b] = max(mu[b], d[b])
-            v[i, b] = d[b]
     for b in range(W):
         tr = lo[b]
         lo[b] = max(tr / n, hi[b])
         hi[b] = min(tr, mu[b])
-    for step in range(POWER_STEPS + 1):
-        for i in range(n):
-            for b in range(W):
-                w[i, b] = 0.0
-            for j in range(n):
-                for b in range(W):
-                    w[i, b] += X[i, j, b] * v[j, b]
-        if step == POWER_STEPS:
-            break
-        for b in range(W):
-            d[b] = 0.0
-        for i in range(n):
-            for b in range(W):
-                d[b] = max(d[b], abs(w[i, b]))
-        for b in range(W):
-            d[b] = 1.0 / d[b] if d[b] > 0.0 else 0.0
-        for i in range(n):
-            for b in range(W):
-                v[i, b] = w[i, b] * d[b]
-    for b in range(W):
-        mu[b] = 0.0  # v'Xv
-        d[b] = 0.0   # v'v
-    for i in range(n):
-        for b in range(W):
-            mu[b] += v[i, b] * w[i, b]
-            d[b] += v[i, b] * v[i, b]
-    for b in range(W):
-        theta = mu[b] / d[b] if d[b] > 0.0 else lo[b]
-        if not theta >= lo[b]:
-            theta = lo[b]
-        lo[b] = min(theta, hi[b])
-        mu[b] = min(lo[b] * (1.0 + CERTIFY), hi[b])
-        out[b] = mu[b]
-    _positive_definite(X, W, mu, N, d, fail)
-    again = False
-    for b in range(W):
-        if fail[b] > 0.0 and mu[b] < hi[b]:
-            again = True
-            out[b] = -1.0  # not certified: bisected below (λ_max ≥ 0, so −1 marks the lane)
-        else:
-            out[b] = 0.5 * (lo[b] + mu[b])
-    if not again:
-        return
     for _ in range(LMAX_BISECTIONS):
         for b in range(W):
             mu[b] = 0.5 * (lo[b] + hi[b])
-        _positive_definite(X, W, mu, N, d, fail)
+            fail[b] = 0.0
+        for j in range(n):
+            for b in range(W):
+                d[b] = mu[b] - X[j, j, b]
+            for k in range(j):
+                for b in range(W):
+                    d[b] -= N[j, k, b] * N[j, k, b]
+            for b in range(W):  # N[j, j] holds the reciprocal of the pivot's square root
+                if d[b] > 0.0:
+                    N[j, j, b] = 1.0 / math.sqrt(d[b])
+                else:
+                    fail[b] = 1.0
+                    N[j, j, b] = 1.0
+            for i in range(j + 1, n):
+                for b in range(W):
+                    d[b] = -X[i, j, b]
+                for k in range(j):
+                    for b in range(W):
+                        d[b] -= N[i, k, b] * N[j, k, b]
+                for b in range(W):
+                    N[i, j, b] = d[b] * N[j, j, b]
         for b in range(W):
             if fail[b] > 0.0:
                 lo[b] = mu[b]
             else:
                 hi[b] = mu[b]
     for b in range(W):
-        if out[b] < 0.0:
-            out[b] = 0.5 * (lo[b] + hi[b])
+        out[b] = 0.5 * (lo[b] + hi[b])
 
 
 @njit(cache=True)

@@ -112,9 +112,8 @@ class SimulationResult:
         """How E[λ_max(P_t)] was computed (stated in the record)."""
         k = (self.times.size if self.lambda_max_times is None else self.lambda_max_times.size)
         how = ("closed form" if self.n <= 2 else
-               "power iteration, then the bracket [theta, theta (1 + 2e-12)] certified by a "
-               "Cholesky test of mu I - P; Cholesky bisection to 3.7e-12 tr P where that "
-               "certificate fails")
+               "Cholesky bisection on mu I - P (backward-stable positive-definiteness test), "
+               "to 3.7e-12 tr P")
         return (f"exact per path ({how}), at {k} of the {self.times.size} sample times "
                 "(listed in times), averaged over all paths")
 
