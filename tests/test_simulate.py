@@ -24,21 +24,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_lyapunov
 
+from kfcrit.cli.simulate import simulate_command, summary_text, with_progress
 from kfcrit.errors import InputError
 from kfcrit.io.jsonio import dumps
 from kfcrit.io.systemfile import Requirements, SystemSpec, load_spec
 from kfcrit.model.channels import GilbertElliott, Trace
 from kfcrit.model.system import System
-from kfcrit.sim.montecarlo import (
-    LANES,
-    _lambda_max_lanes,
-    _riccati_lanes,
-    ergodic,
-    path_keys,
-    simulate,
-    simulate_command,
-    simulation_section,
-)
+from kfcrit.sim.kernels import LANES, lambda_max_lanes, riccati_lanes
+from kfcrit.sim.montecarlo import ergodic, path_keys, simulate, simulation_section
+from kfcrit.sim.stats import accumulate_log, column_stats
 from kfcrit.theory.riccati import f_arrival, f_loss, g
 
 from .conftest import REPORTS
@@ -115,23 +109,23 @@ def test_lane_step_is_symmetric_psd_and_equals_the_maps(sysmats, rank, scale, la
     L = np.cos(rng_free * (1 + scale))[:, : min(rank, n)]
     X = 10.0 ** (4 * scale) * (L @ L.T)
     Xs = np.repeat(X[:, :, None], lanes, axis=2).copy()
-    gam = (np.arange(lanes) % 2).astype(float)
+    gam = np.repeat((np.arange(lanes) % 2).astype(float)[None, :], m, axis=0)  # one sensor
     out = np.empty_like(Xs)
     ws = [np.empty((n, n, lanes)) for _ in range(2)]
     wm = [np.empty((n, m, lanes)), np.empty((m, m, lanes)), np.empty((n, m, lanes)),
           np.empty((n, m, lanes))]
     ones, zeros = np.ones(lanes), np.zeros(lanes)
-    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3],
+    riccati_lanes(A, C, Q, R, Xs, gam, lanes, out, ws[0], ws[1], wm[0], wm[1], wm[2], wm[3],
                    False, ones, zeros)
     # the scaled branch with c = 1 and no loading is the same arithmetic, bit for bit
     out_scaled = np.empty_like(Xs)
-    _riccati_lanes(A, C, Q, R, Xs, gam, lanes, out_scaled, ws[0], ws[1], wm[0], wm[1], wm[2],
+    riccati_lanes(A, C, Q, R, Xs, gam, lanes, out_scaled, ws[0], ws[1], wm[0], wm[1], wm[2],
                    wm[3], True, ones, zeros)
     assert np.array_equal(out, out_scaled)
     for b in range(lanes):
         Y = out[:, :, b]
         assert np.array_equal(Y, Y.T)
-        ref = f_arrival(A, C, Q, R, X) if gam[b] else f_loss(A, Q, X)
+        ref = f_arrival(A, C, Q, R, X) if gam[0, b] else f_loss(A, Q, X)
         tol = 1e-9 * max(1.0, np.abs(ref).max())
         np.testing.assert_allclose(Y, ref, rtol=1e-8, atol=tol)
         assert np.linalg.eigvalsh(Y).min() >= -tol
@@ -148,7 +142,7 @@ def test_lambda_max_bisection_matches_eigvalsh(n, rank, entries, exponent):
     Xs[:, :, 1] *= 2.0
     out = np.empty(W)
     work = [np.empty(W) for _ in range(5)]
-    _lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *work)
+    lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *work)
     for b in range(W):
         ref = np.linalg.eigvalsh(Xs[:, :, b])[-1]
         assert abs(out[b] - ref) <= 1e-10 * max(np.trace(Xs[:, :, b]), 1e-300)
@@ -283,21 +277,17 @@ def test_values_beyond_float64_are_reported_as_log10():
 
 
 def simulate_summary(res):
-    from kfcrit.sim.montecarlo import summary_text
-
     return summary_text(res)
 
 
 def test_log_sum_exp_moments_by_hand():
     """Values 1e400 and 1e401 (as logs): mean 5.5e400, sample sd 9e400/√2."""
-    from kfcrit.sim.montecarlo import _accumulate_log, _column_stats
-
     ln10 = math.log(10)
     lv = np.array([[400 * ln10], [401 * ln10]])
     lmax, s1, s2 = np.full(1, -np.inf), np.zeros(1), np.zeros(1)
-    _accumulate_log(lv[:1], lmax, s1, s2)   # in two batches: a new maximum rescales the sums
-    _accumulate_log(lv[1:], lmax, s1, s2)
-    _, _, lmean, lstd = _column_stats(2, np.full(1, np.inf), np.full(1, np.nan), lmax, s1, s2)
+    accumulate_log(lv[:1], lmax, s1, s2)   # in two batches: a new maximum rescales the sums
+    accumulate_log(lv[1:], lmax, s1, s2)
+    _, _, lmean, lstd = column_stats(2, np.full(1, np.inf), np.full(1, np.nan), lmax, s1, s2)
     assert lmean[0] == pytest.approx(400 + math.log10(5.5), abs=1e-12)
     assert lstd[0] == pytest.approx(400 + math.log10(9 / math.sqrt(2)), abs=1e-12)
 
@@ -318,11 +308,11 @@ def test_bit_identical_for_any_batch_size_with_diverging_paths():
 def test_progress_is_reported_in_step_chunks(monkeypatch):
     """A run with fewer paths than one batch still reports progress as the steps advance,
     and the chunking changes no number (diverging lanes carry their scaled state across)."""
-    import kfcrit.sim.montecarlo as mc
+    import kfcrit.sim.engine as engine
 
     kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4}
     ref = simulate(GENERAL, 50, 900, 2, record_traces=2, **kw)
-    monkeypatch.setattr(mc, "PROGRESS_WORK", 50 * 4 * 100)   # 100 steps per kernel call
+    monkeypatch.setattr(engine, "PROGRESS_WORK", 50 * 4 * 100)   # 100 steps per kernel call
     calls = []
     res = simulate(GENERAL, 50, 900, 2, record_traces=2, progress=lambda d, t: calls.append((d, t)),
                    **kw)
@@ -552,7 +542,9 @@ def test_simulation_section_keys_and_json():
                       "checks", "runtime_seconds", "warnings"}
     assert d["checks"] and all(c["passed"] for c in d["checks"])
     assert {"check", "passed", "status", "detail"} == set(d["checks"][0])
-    assert d["operating_point"]["reliability"]["variance_condition"] == "(1 - r) rho(A)^4"
+    # p_c = 9/25 is given: the variance condition is the general one, q / (1 - p_c)^2
+    assert d["operating_point"]["reliability"]["variance_condition"] == "(1 - r) / (1 - p_c)^2"
+    assert d["operating_point"]["mean_exists"] is True   # r = 1/2 > p_c (burst claim)
     op = d["operating_point"]
     for key in ("channel", "arrival_probability", "iid", "times", "mean_trace",
                 "mean_lambda_max", "horizon", "exceedance", "ergodic", "bursts", "almost_sure",
@@ -602,10 +594,8 @@ def test_simulate_command_json_text_and_plot(tmp_path, capsys):
 
 def test_progress_bar_path_runs_and_reports(capsys):
     """The rich progress path (used only when stderr is a terminal) gives the same result."""
-    from kfcrit.sim.montecarlo import _with_progress
-
     spec = load_spec(REPORTS / "sinopoli-scalar.yaml")
-    res = _with_progress(spec, 600, 20, 3, False)
+    res = with_progress(spec, 600, 20, 3, False)
     ref = simulate(spec.system, 600, 20, 3, spec.channel)
     assert np.array_equal(res.mean_trace, ref.mean_trace)
     assert capsys.readouterr().out == ""  # nothing on stdout
@@ -675,7 +665,7 @@ def _doctored(res, factor):
 
 def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
     from kfcrit.model.channels import Bernoulli
-    from kfcrit.sim.montecarlo import simulation_checks, tail_regime
+    from kfcrit.sim.checks import simulation_checks, tail_regime
 
     # scalar a = -1.25: p_c = 1 - 1/a^2 = 0.36; the variance of P is finite iff
     # (1 - p) a^4 < 1, i.e. p > 1 - 1/a^4 = 0.5904 (hand derivation, MATH §3 / Cor. 2)
@@ -699,7 +689,7 @@ def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
 
 def test_lyapunov_settling_is_reported():
     from kfcrit.model.channels import Bernoulli
-    from kfcrit.sim.montecarlo import tail_regime
+    from kfcrit.sim.checks import tail_regime
 
     # (1 - p) a^2 = 0.64 * 1.5625 = 1 - 1.5625e-10: S_t grows by ~1 per step for 500 steps while
     # its limit is 1/(1.5625e-10) ≈ 6.4e9, so the horizon is far from settled
@@ -709,3 +699,251 @@ def test_lyapunov_settling_is_reported():
                                                         rel=1e-4)
     reg = tail_regime(SCALAR, Bernoulli(sp.Rational(9, 10)), 500)
     assert reg["settled"] is True and reg["heavy_tailed"] is False
+
+
+# --------------------------------------------------------------------------------------------
+# threads, λ_max schedule, the threshold scale, heavy tails and divergent means
+
+
+def test_bit_identical_for_any_number_of_threads():
+    """Blocks of a batch run on several threads; the statistics are summed in path order."""
+    kw = {"arrival_probability": 0.45, "divergence_threshold": 1e4, "record_traces": 3}
+    paths = 3 * LANES + 5
+    ref = simulate(GENERAL, paths, 80, 3, threads=1, **kw)
+    for threads, bs in ((2, 1024), (3, 2 * LANES), (8, 100)):
+        other = simulate(GENERAL, paths, 80, 3, threads=threads, batch_size=bs, **kw)
+        for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces", "traces",
+                     "divergence_times", "log10_mean_trace"):
+            assert np.array_equal(getattr(ref, name), getattr(other, name)), (threads, name)
+    with pytest.raises(InputError, match="threads"):
+        simulate(GENERAL, 5, 5, 0, arrival_probability=0.5, threads=0)
+
+
+def test_lambda_max_is_exact_at_its_sample_times():
+    """p = 1: every path follows the same deterministic Riccati recursion, so E[λ_max(P_t)] is
+    λ_max of that recursion (kfcrit.theory.riccati.f_arrival, numpy's eigvalsh) at the chosen
+    times; n = 3 takes the Cholesky-bisection branch."""
+    A = np.array([[1.2, 0.3, 0.0], [0.0, 0.9, 0.5], [0.1, 0.0, 1.1]])
+    C = np.array([[1.0, 0.0, 1.0]])
+    system = System(A, C, np.eye(3), [[2.0]])
+    res = simulate(system, 7, 60, 0, arrival_probability=1, lambda_max_samples=9)
+    lt = res.lambda_max_times
+    assert lt.size == 9 and lt[0] == 0 and lt[-1] == 60 and set(lt) <= set(res.times)
+    P, lam = np.eye(3), {0: 1.0}
+    for t in range(1, 61):
+        P = f_arrival(A, C, np.eye(3), np.array([[2.0]]), P)
+        lam[t] = np.linalg.eigvalsh(P)[-1]
+    np.testing.assert_allclose(res.mean_lambda_max, [lam[int(t)] for t in lt], rtol=1e-10)
+    d = res.to_dict()["mean_lambda_max"]
+    assert d["times"] == [int(t) for t in lt] and "9 of the" in d["method"]
+    assert "bisection" in d["method"]
+    none = simulate(system, 3, 10, 0, arrival_probability=1, track_lambda_max=False)
+    assert none.mean_lambda_max is None and none.to_dict()["mean_lambda_max"] is None
+
+
+@pytest.mark.parametrize("n,m,seed", [(1, 1, 0), (2, 1, 1), (4, 2, 2), (6, 2, 3)])
+def test_threshold_scale_dare_matches_scipy(n, m, seed):
+    """P* by structured doubling against scipy's QZ-based solve_discrete_are (a second
+    method), on systems with unstable modes and a stabilising solution."""
+    from scipy.linalg import solve_discrete_are
+
+    from kfcrit.sim.engine import steady_covariance
+
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    A *= 1.2 / max(abs(np.linalg.eigvals(A)))
+    C = rng.normal(size=(m, n))
+    P = steady_covariance(A, C, np.eye(n), np.eye(m))
+    ref = solve_discrete_are(A.T, C.T, np.eye(n), np.eye(m))
+    np.testing.assert_allclose(P, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
+
+
+def test_threshold_scale_without_stabilising_solution():
+    """An undetectable unstable mode (2 with C = [0 1]) has no stabilising DARE solution."""
+    from kfcrit.sim.engine import steady_covariance
+
+    assert steady_covariance(np.diag([2.0, 0.5]), np.array([[0.0, 1.0]]), np.eye(2),
+                             np.eye(1)) is None
+
+
+def test_variance_condition_uses_the_critical_value_degenerate_case():
+    """A = diag(2, −2), C = [1 1]: degenerate, q = 2, p_c = 1 − 2^{−4} = 15/16 (MATH §4).
+    Hand value of the variance threshold: 1 − p₂ = (1 − p_c)² = 2^{−8}, p₂ = 255/256 — the
+    same as 1 − ρ^{−4q/(q−1)} = 1 − 2^{−8}. At p = 0.99 (between p_c and p₂) the variance is
+    infinite although (1 − p) ρ⁴ = 0.16 < 1 (the non-degenerate formula)."""
+    from kfcrit.model.channels import Bernoulli
+    from kfcrit.sim.checks import tail_regime
+
+    system = System(np.diag([2.0, -2.0]), [[1.0, 1.0]], 1, 1)
+    ch = Bernoulli(sp.Rational(99, 100))
+    plain = tail_regime(system, ch, 100)
+    assert plain["heavy_tailed"] is False and plain["variance_value"] == pytest.approx(0.16)
+    reg = tail_regime(system, ch, 100, critical_value=15 / 16)
+    assert reg["heavy_tailed"] is True
+    assert reg["variance_threshold_p2"] == pytest.approx(255 / 256, abs=1e-15)
+    assert reg["variance_value"] == pytest.approx(0.01 * 256)
+    assert reg["variance_basis"].startswith("claim")
+    above = tail_regime(system, Bernoulli(sp.Rational(997, 1000)), 100, critical_value=15 / 16)
+    assert above["heavy_tailed"] is False        # 0.003 · 256 = 0.768 < 1
+
+
+def test_variance_condition_takes_the_upper_end_of_a_bracket():
+    """Only a bracket [0.3, 0.4] of p_c, p = 0.6: the upper end gives 1 − p₂ = (1 − 0.4)² = 0.36
+    and (1 − p)/0.36 = 1.11 ≥ 1 (infinite variance flagged); the lower end would give
+    0.4/0.49 = 0.82 < 1. The upper end is the conservative one and is used; p_up alone is an
+    upper end too (p_c ≤ p_up)."""
+    from kfcrit.model.channels import Bernoulli
+    from kfcrit.sim.checks import tail_regime
+
+    reg = tail_regime(SCALAR, Bernoulli(sp.Rational(3, 5)), 50, critical_bracket=(0.3, 0.4))
+    assert reg["heavy_tailed"] is True and reg["variance_threshold_p2"] == pytest.approx(0.64)
+    assert reg["variance_critical_source"] == "critical_bracket"
+    up = tail_regime(SCALAR, Bernoulli(sp.Rational(3, 5)), 50, upper_bound=0.4)
+    assert up["heavy_tailed"] is True and up["variance_critical_value"] == 0.4
+
+
+def test_below_critical_the_section_gives_no_mean():
+    """p = 3/10 < p_c = 9/25: E[tr P_t] grows without bound; the operating point must not
+    present a finite mean with an interval. The raw sample statistics stay, labelled."""
+    from kfcrit.model.channels import Bernoulli
+
+    spec = SystemSpec(system=SCALAR, channel=Bernoulli(sp.Rational(3, 10)))
+    d = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=2, quick=True)
+    op = d["operating_point"]
+    assert op["mean_exists"] is False
+    assert op["mean_trace"]["mean"] is None and op["mean_trace"]["lower"] is None
+    assert op["mean_trace"]["diverges"] is True and "diverges" in op["mean_trace"]["statement"]
+    assert op["mean_lambda_max"]["mean"] is None
+    assert op["horizon"]["mean"] is None and op["horizon"]["mean_diverges"] is True
+    sample = op["sample_mean_trace"]
+    assert "not an estimate" in sample["label"] and len(sample["mean"]) == len(op["times"])
+    assert sample["mean"][0] == pytest.approx(float(np.trace(SCALAR.sigma0)))
+    pooled = op["ergodic"]["time_averages"]["pooled_mean_trace"]
+    assert pooled["mean"] is None and pooled["diverges"] is True
+    assert any("diverges" in w for w in d["warnings"])
+    json.loads(dumps(d))
+    # the same operating point with only a bracket above p: still divergent
+    d2 = simulation_section(spec, critical_value=None, upper_bound=0.5, seed=2, quick=True,
+                            critical_bracket=(0.32, 0.4))
+    assert d2["operating_point"]["mean_exists"] is False
+    # inside the bracket: unknown, the mean is given (with the flag)
+    d3 = simulation_section(spec, critical_value=None, upper_bound=0.5, seed=2, quick=True,
+                            critical_bracket=(0.2, 0.4))
+    assert d3["operating_point"]["mean_exists"] is None
+    assert d3["operating_point"]["mean_trace"]["mean"] is not None
+
+
+def test_gilbert_elliott_burst_condition_decides_divergence():
+    """(1 − r) a² = 0.75 · 1.5625 ≥ 1: E[P] unbounded for any system (MATH §10)."""
+    from kfcrit.sim.checks import mean_regime
+
+    bad = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 4)))
+    assert bad["exists"] is False and bad["value"] == pytest.approx(0.75 * 1.5625)
+    ok = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
+                     critical_value=0.36)
+    assert ok["exists"] is True and ok["basis"].startswith("claim")
+
+
+# --------------------------------------------------------------------------------------------
+# several sensors, each over its own link
+
+
+@pytest.mark.parametrize("channel", [None, GilbertElliott(sp.Rational(1, 5), sp.Rational(1, 2))])
+def test_one_sensor_owning_every_row_is_the_single_link_filter(channel):
+    """Sensors API with one sensor owning every row: bit for bit the single-link simulation."""
+    from kfcrit.model.channels import Bernoulli
+
+    ch = channel if channel is not None else Bernoulli(sp.Rational(11, 20))
+    two = System([[1.2, 0.3], [0.0, 0.9]], [[1.0, 0.0], [0.5, 1.0]], 1, [[1.0, 0.2], [0.2, 2.0]])
+    ref = simulate(two, LANES + 9, 70, 4, ch, record_traces=3)
+    net = simulate(two, LANES + 9, 70, 4, sensors=[([0, 1], ch)], record_traces=3)
+    for name in ("mean_trace", "std_trace", "mean_lambda_max", "horizon_traces", "traces"):
+        assert np.array_equal(getattr(ref, name), getattr(net, name)), name
+    assert net.channel["model"] == "sensors"
+
+
+def test_sensor_arrivals_follow_the_received_set_update():
+    """Two sensors (rows 0 and 1 of C, R with a cross term) over two different traces. Each
+    path reads sensor s's trace from offset key mod L, key = SeedSequence(seed, spawn_key=
+    (stream_s, i)) with stream 0 for sensor 0 and 3 for sensor 1 (numpy's own SeedSequence).
+    Independent reference: kfcrit.theory.riccati.f_arrival with the stacked rows of C (and the
+    block of R) that arrived, f_loss when none did."""
+    A = np.array([[1.1, 0.4], [0.0, 0.8]])
+    C = np.array([[1.0, 0.0], [0.3, 1.0]])
+    Q, R = np.eye(2), np.array([[1.0, 0.3], [0.3, 2.0]])
+    seqs = [[1, 0, 0, 1, 1, 0, 1], [0, 1, 1, 0, 0]]
+    res = simulate(System(A, C, Q, R), 3, 30, 7,
+                   sensors=[([0], Trace.from_arrivals(seqs[0])),
+                            ([1], Trace.from_arrivals(seqs[1]))],
+                   record_traces=True, divergence_threshold=1e300)
+    for i in range(3):
+        offs = []
+        for stream, seq in ((0, seqs[0]), (3, seqs[1])):
+            key = np.random.SeedSequence(7, spawn_key=(stream, i)).generate_state(1, np.uint64)[0]
+            offs.append(int(key % np.uint64(len(seq))))
+        P, expected = np.eye(2), [2.0]
+        for t in range(30):
+            rows = [s for s in range(2) if seqs[s][(offs[s] + t) % len(seqs[s])]]
+            if rows:
+                P = f_arrival(A, C[rows], Q, R[np.ix_(rows, rows)], P)
+            else:
+                P = f_loss(A, Q, P)
+            expected.append(np.trace(P))
+        np.testing.assert_allclose(res.traces[i], expected, rtol=1e-10)
+
+
+def test_redundant_sensors_scalar_plant():
+    """A scalar plant a = 1.25 seen by two sensors with independent Bernoulli links: E[P]
+    bounded iff (1 − p_1)(1 − p_2) a² < 1 (the all-lost event is the only loss). With
+    p_1 = p_2 = 0.3: 0.49 · 1.5625 = 0.77 < 1 bounded; each link alone (0.7 · 1.5625 = 1.09)
+    would not be. The Lyapunov recursion of the all-lost probability, s_{t+1} = 0.49 a² s_t + 1,
+    is a lower bound of E[P_t] (Sinopoli Lemma 1 with p = 1 − 0.49), and the mean settles."""
+    from kfcrit.model.channels import Bernoulli
+
+    sys2 = System([[1.25]], [[1.0], [1.0]], 1, np.eye(2))
+    links = [([0], Bernoulli(sp.Rational(3, 10))), ([1], Bernoulli(sp.Rational(3, 10)))]
+    res = simulate(sys2, 20_000, 120, 3, sensors=links, horizon_samples=121)
+    s, lower = 1.0, [1.0]
+    for _ in range(120):
+        s = 0.49 * 1.5625 * s + 1
+        lower.append(s)
+    se = res.std_trace / math.sqrt(res.paths)
+    assert np.all(res.mean_trace >= np.array(lower)[res.times] - 5 * se)
+    assert abs(res.mean_trace[60] - res.mean_trace[120]) < 5 * math.hypot(se[60], se[120])
+    single = simulate(System([[1.25]], [[1.0]], 1, 1), 20_000, 120, 3,
+                      arrival_probability=sp.Rational(3, 10), horizon_samples=121)
+    assert single.mean_trace[120] > 3 * res.mean_trace[120]
+
+
+def test_sensor_arguments_are_checked():
+    from kfcrit.model.channels import Bernoulli
+
+    b = Bernoulli(sp.Rational(1, 2))
+    two = System([[1.2, 0.0], [0.0, 0.9]], np.eye(2), 1, 1)
+    with pytest.raises(InputError, match="sensors"):
+        simulate(two, 5, 5, 0, sensors=[([0], b)])                 # row 1 has no sensor
+    with pytest.raises(InputError, match="sensors"):
+        simulate(two, 5, 5, 0, sensors=[([0, 1], b), ([1], b)])    # row 1 twice
+    with pytest.raises(InputError, match="sensors"):
+        simulate(two, 5, 5, 0, b, sensors=[([0, 1], b)])
+
+
+@pytest.mark.parametrize("gap", [0.5, 0.99, 1.0 - 1e-9, 1.0])
+def test_lambda_max_bisection_any_spectral_gap(gap):
+    """λ_max by Cholesky bisection with spectral gaps λ₂/λ₁ = ``gap`` from 0.5 to a double
+    eigenvalue, against LAPACK's eigvalsh on Q diag(3, 3·gap, 1, 0.2) Q' (Q a fixed rotation,
+    no RNG)."""
+    c, s = math.cos(0.7), math.sin(0.7)
+    Q1 = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    Q2 = np.array([[1, 0, 0, 0], [0, c, 0, -s], [0, 0, 1, 0], [0, s, 0, c]])
+    Qm = Q1 @ Q2 @ Q1.T
+    X = Qm @ np.diag([3.0, 3.0 * gap, 1.0, 0.2]) @ Qm.T
+    X = 0.5 * (X + X.T)
+    W = 4
+    Xs = np.repeat(X[:, :, None], W, axis=2).copy()
+    Xs[:, :, 1] *= 1e-3
+    out = np.empty(W)
+    lambda_max_lanes(Xs, W, out, np.empty_like(Xs), *[np.empty(W) for _ in range(5)])
+    for b in range(W):
+        ref = np.linalg.eigvalsh(Xs[:, :, b])[-1]
+        assert abs(out[b] - ref) <= 1e-10 * np.trace(Xs[:, :, b])

@@ -1,0 +1,204 @@
+"""The ``simulation`` section of the analysis record: the operating point and a phase demo.
+
+Streams: the operating point uses ``SeedSequence(seed, spawn_key=(0, i))`` for its paths and
+``spawn_key=(2, j)`` for its long ergodic paths; phase-demo curve k uses seed + 1 + k.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.model.system import System
+from kfcrit.sim.checks import mean_regime, simulation_checks, tail_regime
+from kfcrit.sim.engine import ergodic, simulate
+from kfcrit.sim.results import DEFAULT_SAMPLES
+from kfcrit.sim.stats import quiet_numerics
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Sizes of the simulations of one analysis (scaled down for large n)."""
+
+    paths: int
+    steps: int
+    ergodic_steps: int
+    replicas: int
+    demo_paths: int
+    demo_steps: int
+
+    @classmethod
+    def for_system(cls, n: int, quick: bool) -> Budget:
+        base = (cls(300, 200, 10_000, 4, 200, 150) if quick
+                else cls(2000, 500, 50_000, 4, 500, 300))
+        factor = max(1.0, (n / 6.0) ** 3)
+        if factor == 1.0:
+            return base
+        return cls(max(50, int(base.paths / factor)), base.steps,
+                   max(2000, int(base.ergodic_steps / factor)), base.replicas,
+                   max(30, int(base.demo_paths / factor)), base.demo_steps)
+
+
+def phase_probabilities(reference: float) -> list[tuple[str, float]]:
+    """Arrival probabilities around ``reference``: p ∓ 0.5·d and p ∓ 0.2·d, d = min(p, 1 − p)."""
+    d = min(reference, 1.0 - reference)
+    out = [("below", reference - 0.5 * d), ("below", reference - 0.2 * d),
+           ("above", reference + 0.2 * d), ("above", reference + 0.5 * d)]
+    return [(side, float(p)) for side, p in out if 0.0 < p < 1.0]
+
+
+def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: float | None,
+                       seed: int, quick: bool,
+                       critical_bracket: tuple[float | None, float | None] | None = None
+                       ) -> dict[str, Any]:
+    """The ``simulation`` section of the analysis record.
+
+    Keys: ``seed``, ``quick``, ``budget``, ``seeds``, ``operating_point`` (None without a
+    channel), ``phase_demo`` (None when the reference value is unknown or 0),
+    ``runtime_seconds``, ``warnings``. See the module docstring for the streams.
+
+    ``critical_value`` is p_c when known exactly; otherwise ``critical_bracket`` = (lo, hi)
+    brackets it (either end may be None) and ``upper_bound`` is p_up ≥ p_c. They decide whether
+    the mean exists at the operating point (:func:`mean_regime`; when it does not, the
+    operating point carries no E[tr P_t] and no interval, only the sample statistics labelled
+    as such) and whether tr P has a finite variance (:func:`tail_regime`, the upper end of what
+    is known about p_c: conservative).
+    """
+    t0 = time.perf_counter()
+    if not isinstance(spec, SystemSpec):
+        spec = SystemSpec(system=spec)
+    system = spec.system
+    budget = Budget.for_system(system.n, quick)
+    warnings: list[str] = []
+    out: dict[str, Any] = {"seed": int(seed), "quick": bool(quick),
+                           "budget": dict(budget.__dict__), "seeds": {},
+                           "operating_point": None, "phase_demo": None}
+    checks: list[dict[str, Any]] = []
+    with quiet_numerics():
+        _simulation_parts(spec, system, budget, seed, critical_value, upper_bound,
+                          critical_bracket, out, warnings, checks)
+    out["checks"] = checks
+    out["runtime_seconds"] = time.perf_counter() - t0
+    out["warnings"] = warnings
+    return out
+
+
+def _simulation_parts(spec: Any, system: System, budget: Budget, seed: int,
+                      critical_value: float | None, upper_bound: float | None,
+                      critical_bracket: tuple[float | None, float | None] | None,
+                      out: dict[str, Any], warnings: list[str],
+                      checks: list[dict[str, Any]]) -> None:
+    if spec.channel is not None:
+        known = {"critical_value": critical_value, "critical_bracket": critical_bracket,
+                 "upper_bound": upper_bound}
+        out["operating_point"] = _operating_point(spec, budget, seed, known, warnings, checks)
+        out["seeds"]["operating_point"] = {
+            "seed": int(seed), "paths": "SeedSequence(seed, spawn_key=(0, i))",
+            "ergodic": "SeedSequence(seed, spawn_key=(2, j))"}
+    out["phase_demo"] = _phase_demo(system, critical_value, upper_bound, budget, seed, warnings)
+    if out["phase_demo"] is not None:
+        out["seeds"]["phase_demo"] = [c["seed"] for c in out["phase_demo"]["curves"]]
+
+
+def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any],
+                     warnings: list[str], checks: list[dict[str, Any]]) -> dict:
+    system, chan = spec.system, spec.channel
+    samples = DEFAULT_SAMPLES if system.n <= 10 else 50  # λ_max costs ~n³ per sample
+    res = simulate(system, budget.paths, budget.steps, seed, chan, horizon_samples=samples)
+    level = spec.requirements.max_error_trace
+    erg = ergodic(system, budget.ergodic_steps, seed, chan, replicas=budget.replicas,
+                  levels=(level,) if level is not None else ())
+    d = res.to_dict()
+    e = erg.to_dict()
+    warnings.extend(d["warnings"])
+    if e["divergence"]["diverged_replicas"]:
+        warnings.append(f"{e['divergence']['diverged_replicas']} of {erg.replicas} long paths "
+                        "exceeded the divergence threshold (time averages stop there)")
+    regime = tail_regime(system, chan, res.steps, **known)
+    mean = mean_regime(system, chan, **known)
+    found = simulation_checks(system, chan, res, erg, regime)
+    for c in found:
+        if c.get("status") == "inconclusive":
+            warnings.append(f"Monte Carlo check inconclusive: {c['check']} ({c['reason']})")
+    checks.extend(found)
+    op = {
+        "channel": d["channel"], "arrival_probability": d["arrival_probability"],
+        "iid": bool(chan.iid), "paths": res.paths, "steps": res.steps, "seed": res.seed,
+        "times": d["times"], "mean_trace": d["mean_trace"],
+        "mean_lambda_max": d["mean_lambda_max"], "horizon": d["horizon"],
+        "exceedance": res.exceedance(level) if level is not None else None,
+        "ergodic": {k: e[k] for k in ("steps", "burn_in", "replicas", "seed", "streams",
+                                      "time_averages", "divergence")},
+        "bursts": e["bursts"], "almost_sure": e["almost_sure"],
+        "divergence": d["divergence"], "runtime_seconds": res.runtime_seconds,
+        "reliability": regime, "mean_exists": mean["exists"], "mean_basis": mean,
+    }
+    if mean["exists"] is False:
+        _withhold_means(op, warnings)
+    return op
+
+
+DIVERGES = ("E[tr P_t] diverges at this operating point (sup_t E[tr P_t] = inf: {basis}); a "
+            "sample mean over finitely many paths and steps is finite but estimates nothing, "
+            "so no mean and no confidence interval is given")
+
+
+def _withhold_means(op: dict[str, Any], warnings: list[str]) -> None:
+    """Replace every mean (and its interval) of a divergent operating point by a statement;
+    the raw sample statistics stay, under keys that say what they are."""
+    statement = DIVERGES.format(basis=op["mean_basis"]["basis"])
+    for key in ("mean_trace", "mean_lambda_max"):
+        raw = op.get(key)
+        if raw is None:
+            continue
+        op[f"sample_{key}"] = {
+            "label": "sample mean and sd over the simulated paths (not an estimate: the mean "
+                     "diverges)",
+            **{k: raw.get(k) for k in ("mean", "std", "log10_mean", "log10_std", "times")
+               if k in raw}}
+        op[key] = {"exists": False, "diverges": True, "statement": statement,
+                   "mean": None, "lower": None, "upper": None, "std": None, "confidence": None,
+                   "log10_mean": None, "log10_lower": None, "log10_upper": None}
+    hz = op.get("horizon") or {}
+    if hz:
+        hz["sample_mean"], hz["sample_log10_mean"] = hz.get("mean"), hz.get("log10_mean")
+        hz["mean"], hz["log10_mean"], hz["mean_diverges"] = None, None, True
+    ta = (op.get("ergodic") or {}).get("time_averages") or {}
+    pooled = ta.get("pooled_mean_trace")
+    if pooled:
+        ta["pooled_mean_trace"] = {"mean": None, "lower": None, "upper": None,
+                                   "batches": pooled.get("batches"), "diverges": True,
+                                   "sample_time_average": pooled.get("mean"),
+                                   "statement": "the invariant law has an infinite mean "
+                                                "(p <= p_c): time averages grow without bound"}
+    path = ta.get("path") or {}
+    if path:
+        path["sample_mean_trace"], path["mean_trace"] = path.get("mean_trace"), None
+        path["sample_second_moment"], path["second_moment"] = path.get("second_moment"), None
+    warnings.append(statement)
+
+
+def _phase_demo(system: System, critical_value: float | None, upper_bound: float | None,
+                budget: Budget, seed: int, warnings: list[str]) -> dict | None:
+    if critical_value is not None:
+        ref, source = float(critical_value), "critical_value"
+    elif upper_bound is not None:
+        ref, source = float(upper_bound), "upper_bound"
+    else:
+        return None
+    if not 0.0 < ref < 1.0:
+        return None
+    curves = []
+    for k, (side, p) in enumerate(phase_probabilities(ref)):
+        s = int(seed) + 1 + k
+        res = simulate(system, budget.demo_paths, budget.demo_steps, s, arrival_probability=p,
+                       track_lambda_max=False, horizon_samples=100)
+        lo, hi = res.band()
+        curves.append({"arrival_probability": p, "side": side, "seed": s,
+                       "times": res.times.tolist(), "mean_trace": res.mean_trace.tolist(),
+                       "lower": lo.tolist(), "upper": hi.tolist(),
+                       "diverged_fraction": res.diverged_fraction.tolist(),
+                       "mean_is_lower_bound": res.mean_is_lower_bound})
+    return {"reference_value": ref, "reference": source, "paths": budget.demo_paths,
+            "steps": budget.demo_steps, "curves": curves}
