@@ -340,15 +340,15 @@ def test_requirement_assessment_reads_the_wilson_interval() -> None:
     """met iff the interval's upper end ≤ allowed; not met iff its lower end > allowed; else
     not demonstrated. Wilson interval for 0 of 300 at 95 %: [0, z²/(N + z²)] = [0, 0.01264]."""
     from kfcrit.analysis.record import requirement_assessment
-    from kfcrit.sim.montecarlo import _proportion
+    from kfcrit.sim.stats import proportion
 
     req = {"max_error_trace": 20.0, "max_tail_probability": 0.01}
 
     def sim(k, n):
         return {"operating_point": {"steps": 200, "exceedance": {"level": 20.0,
-                                                                   **_proportion(k, n)}}}
+                                                                   **proportion(k, n)}}}
 
-    zero = _proportion(0, 300)
+    zero = proportion(0, 300)
     z2 = 1.959963984540054 ** 2
     assert zero["lower"] == 0.0 and zero["upper"] == pytest.approx(z2 / (300 + z2), rel=1e-9)
     assert requirement_assessment(req, sim(0, 300))["assessment"]["status"] == "not demonstrated"

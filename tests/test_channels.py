@@ -27,7 +27,7 @@ from kfcrit.model.channels import (
     GilbertElliott,
     Trace,
 )
-from kfcrit.sim.montecarlo import _KIND_CODE, arrival_sequence, path_keys
+from kfcrit.sim.arrivals import KIND_CODE, arrival_sequence, path_keys
 
 
 def runs(x: np.ndarray, value: bool) -> np.ndarray:
@@ -46,7 +46,7 @@ def kernel_arrivals(channel: Channel, steps: int, key_index: int = 0, offset: in
     seq = (np.ascontiguousarray(proc.sequence, dtype=np.bool_) if proc.kind == "sequence"
            else np.zeros(1, dtype=np.bool_))
     key = path_keys(7, key_index, key_index + 1)[0]
-    return arrival_sequence(key, _KIND_CODE[proc.kind], proc.p, proc.failure_rate,
+    return arrival_sequence(key, KIND_CODE[proc.kind], proc.p, proc.failure_rate,
                             proc.recovery_rate, seq, offset, steps)
 
 

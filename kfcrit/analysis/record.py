@@ -470,10 +470,17 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
         return
     from kfcrit.sim.montecarlo import simulation_section
 
+    pc = (sec.get("critical_value") or {}).get("value")
+    robust = (sec.get("robust_critical_value") or {}).get("value")
+    bracket = None if spec.network is not None else \
+        (sec.get("operating_point") or {}).get("bracket")
+    if pc is not None and robust is not None and robust > pc:
+        # a system within the tolerance is worse: judge the mean's existence conservatively
+        pc, bracket = None, [pc, robust]
     sim = simulation_section(
-        spec, critical_value=(sec.get("critical_value") or {}).get("value"),
-        upper_bound=(sec.get("upper_bound") or {}).get("value"), seed=opts.seed,
-        quick=opts.quick)
+        spec, critical_value=pc, upper_bound=(sec.get("upper_bound") or {}).get("value"),
+        seed=opts.seed, quick=opts.quick,
+        critical_bracket=tuple(bracket) if bracket and None not in bracket else None)
     sec["simulation"] = sim
     warnings.extend((sim or {}).get("warnings") or [])
 

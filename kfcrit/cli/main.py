@@ -123,7 +123,7 @@ def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
     from kfcrit.io.atomic import check_writable
-    from kfcrit.sim.montecarlo import simulate_command
+    from kfcrit.cli.simulate import simulate_command
 
     if plot is not None:
         check_writable(plot)

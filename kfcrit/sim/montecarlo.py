@@ -27,11 +27,6 @@ from kfcrit.sim.results import ErgodicResult, FullStateResult, SimulationResult
 from kfcrit.sim.section import Budget, phase_probabilities, simulation_section
 from kfcrit.sim.stats import proportion, quiet_numerics
 
-# Private aliases read by tests/test_channels.py and tests/test_analysis.py; to be removed once
-# those tests import KIND_CODE and proportion.
-_KIND_CODE = KIND_CODE
-_proportion = proportion
-
 __all__ = ["LANES", "KIND_CODE", "Budget", "ErgodicResult", "FullStateResult", "SimulationResult",
            "arrival_sequence", "ergodic", "mean_regime", "path_keys", "phase_probabilities",
            "proportion", "quiet_numerics", "simulate", "simulation_checks", "simulation_section",

@@ -172,7 +172,11 @@ def _simulation_lines(rec: dict[str, Any]) -> list[str]:
         return []
     mt = sim.get("mean_trace") or {}
     out = []
-    if mt.get("mean"):
+    if mt.get("diverges"):
+        sample = ((sim.get("sample_mean_trace") or {}).get("mean") or [None])[-1]
+        out.append(f"  simulated E[tr P_t]   diverges (the mean does not exist here); the sample "
+                   f"mean {_num(sample)} at t = {sim.get('steps')} is not an estimate")
+    elif mt.get("mean"):
         out.append(f"  simulated E[tr P_t]   {_num(mt['mean'][-1])} at t = {sim.get('steps')} "
                    f"({sim.get('paths')} paths, seed {sim.get('seed')})")
     ex = sim.get("exceedance")
