@@ -16,6 +16,7 @@ from typing import Any
 import click
 
 from kfcrit.errors import ExitCode, KfcritError
+from kfcrit.io.safeio import printable
 
 EXAMPLES = """\b
 Examples:
@@ -35,8 +36,13 @@ not met), 130 interrupted, 141 the reader of stdout closed the pipe.
 
 
 def fail(message: str, code: int) -> None:
-    """Print one line to stderr and exit with ``code``."""
-    click.echo(f"kfcrit: error: {' '.join(str(message).split())}", err=True)
+    """Print one line to stderr and exit with ``code``.
+
+    Whitespace (newlines, carriage returns) is folded to single spaces and any other control
+    character is escaped (``\\x1b``): a message may echo text from the user's file, which
+    must not move the cursor or rewrite what the terminal shows.
+    """
+    click.echo(f"kfcrit: error: {printable(' '.join(str(message).split()))}", err=True)
     sys.exit(int(code))
 
 
