@@ -53,9 +53,7 @@ import json
 import math
 import os
 import re
-import stat
-import sys
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -64,28 +62,37 @@ from typing import Any
 
 import sympy as sp
 
-from kfcrit.version import __version__
-from kfcrit.io.atomic import write_atomic
-from kfcrit.errors import ExitCode, InputError, KfcritError, OutputError
+from kfcrit.analysis.sweepjournal import (  # noqa: F401 - re-exported for callers
+    JOURNAL_NAME,
+    MAX_JOURNAL_BYTES,
+    MAX_POINTS,
+    POINT_ERROR_CODES,
+    Journal,
+)
+from kfcrit.analysis.sweeprun import (  # noqa: F401 - re-exported for callers
+    ClusterLostError,
+    Items,
+    PointJob,
+    check_scheduler,
+    connect_dask,
+    run_dask,
+    run_processes,
+    run_serial,
+    terminate_pool,
+)
+from kfcrit.errors import ExitCode, InputError, KfcritError
 from kfcrit.io.jsonio import jsonable
-from kfcrit.io.safeio import printable, read_text
+from kfcrit.io.safeio import printable
+from kfcrit.version import __version__
 
 FORMAT_VERSION = 1
-MAX_POINTS = 1_000_000
 MAX_NUM = 100_000
 MAX_SERIES = 12
-MAX_JOURNAL_BYTES = 4096 * MAX_POINTS
-"""Largest journal read back on resuming (4 KiB per point of the largest sweep)."""
 SWEEP_KEYS = {"name", "description", "system", "tolerance", "grid", "points", "plot"}
 MATRICES = ("A", "C", "Q", "R", "Sigma0")
 SYMMETRIC = ("Q", "R", "Sigma0")
 _MATRIX_PATH = re.compile(r"^(A|C|Q|R|Sigma0)\[(\d{1,6})\]\[(\d{1,6})\]$")
 _CHANNEL_PATH = re.compile(r"^channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
-_SCHEDULER = re.compile(r"^(tcp|tls)://([A-Za-z0-9.\-]{1,200}|\[[0-9A-Fa-f:.]{2,60}\]):"
-                        r"(\d{1,5})$")
-DASK_CONNECT_TIMEOUT = "15s"
-"""How long ``--scheduler`` waits for the scheduler before giving up (one-line error)."""
-
 RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
                   "critical_expression", "robust_critical_value", "upper_bound", "requirement",
                   "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
@@ -315,8 +322,8 @@ def _load_base(system: Any, sweep_dir: Path) -> tuple[dict, Path, str | None]:
 
 def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
     """Read and validate a sweep file (every error is one line naming the field)."""
-    from kfcrit.model.channels import check_keys
     from kfcrit.io.systemfile import read_yaml
+    from kfcrit.model.channels import check_keys
 
     doc, digest = read_yaml(path)
     if not isinstance(doc, dict):
@@ -627,335 +634,6 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
 
 
 # ---------------------------------------------------------------------------------------------
-# The journal (resumability)
-# ---------------------------------------------------------------------------------------------
-
-JOURNAL_NAME = "sweep.journal.jsonl"
-"""File name of the journal in the output folder."""
-JOURNAL_FORMAT = 2
-"""Version of the journal line format (``key``, ``check``, ``result``)."""
-_STRING_COLUMNS = ("error", "classification", "critical_expression", "requirement_basis")
-_WORD_COLUMNS = {"status": ("ok", "error"),
-                 "verdict": (None, "mean-stable", "mean-unstable", "undetermined"),
-                 "decision": (None, "pass", "fail", "undetermined"),
-                 "requirement_basis": (None, "robust critical value", "critical value",
-                                       "upper bound (sufficient)",
-                                       "lower bound (necessary only)")}
-_POINT_ERROR_CODES = (int(ExitCode.VERIFICATION_FAILED), int(ExitCode.BAD_INPUT),
-                      int(ExitCode.INCONCLUSIVE))
-"""Exit codes a point's error row may carry (those of KfcritError and of numerical faults)."""
-_SAFE_TEXT = re.compile("[^\x00-\x1f\x7f-\x9f<>&\u2028\u2029\u202a-\u202e\u2066-\u2069]"
-                        "{0,300}")
-"""A journalled string: at most 300 characters, no control or bidi characters, no markup."""
-_KEY = re.compile("[0-9a-f]{64}")
-
-
-def journal_check(binding: str, key: str, result: dict[str, Any]) -> str:
-    """SHA-256 that binds one journal line to its sweep.
-
-    .. math:: h = \\operatorname{SHA256}(\\text{format} \\,\\|\\, \\text{sweep file}
-              \\,\\|\\, k \\,\\|\\, \\text{result})
-
-    where the point key :math:`k` (:func:`point_key`) already covers the kfcrit version, the
-    base system, the tolerance, ``max_states`` and the point's assignments, and ``binding`` is
-    the SHA-256 of the sweep file's bytes. An edited result, a line copied from another sweep
-    or another kfcrit version, or a line from an older format fails the check. This detects
-    stale and edited lines; it is not a signature (anyone who can run kfcrit can compute it),
-    so results are also validated by :func:`valid_result`.
-    """
-    blob = json.dumps({"journal": JOURNAL_FORMAT, "sweep": binding, "key": key,
-                       "result": result}, sort_keys=True, ensure_ascii=True,
-                      separators=(",", ":"), allow_nan=False)
-    return hashlib.sha256(blob.encode()).hexdigest()
-
-
-def _finite_number(value: Any) -> bool:
-    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)
-                             and math.isfinite(value))
-
-
-def valid_result(result: Any) -> bool:
-    """Whether a journalled result has exactly the shape :func:`evaluate_point` produces.
-
-    Columns are :data:`RESULT_COLUMNS` (plus ``error_code`` on an error row); numbers finite or
-    null; words from their vocabularies; free text bounded and free of control characters and
-    markup; an error row carries an exit code a point can have (1, 2 or 3) and an ok row none.
-    Anything else is treated as not computed (the point is computed again), never reused.
-    """
-    if not isinstance(result, dict):
-        return False
-    status = result.get("status")
-    expected = set(RESULT_COLUMNS) | ({"error_code"} if status == "error" else set())
-    if set(result) != expected:
-        return False
-    for column, words in _WORD_COLUMNS.items():
-        if result[column] not in words:
-            return False
-    for column in _STRING_COLUMNS:
-        text = result[column]
-        if text is not None and not (isinstance(text, str) and _SAFE_TEXT.fullmatch(text)):
-            return False
-    if result["iid"] not in (None, True, False):
-        return False
-    numbers = [c for c in RESULT_COLUMNS
-               if c not in _STRING_COLUMNS and c not in _WORD_COLUMNS and c != "iid"]
-    if not all(_finite_number(result[c]) for c in numbers):
-        return False
-    if status == "error":
-        code = result["error_code"]
-        return (isinstance(code, int) and not isinstance(code, bool)
-                and code in _POINT_ERROR_CODES and isinstance(result["error"], str))
-    return result["error"] is None
-
-
-class Journal:
-    """Append-only JSON-lines file of finished points, fsynced after every batch.
-
-    Each line is ``{"key": k, "check": h, "result": r}`` with ``h`` =
-    :func:`journal_check` of the sweep; on reading, a line whose check or shape does not match
-    (edited, copied from another sweep, torn, or forged) counts as not computed.
-
-    The file is opened without following symbolic links (``O_NOFOLLOW``) and must be a regular
-    file: a link, FIFO or device put in its place is refused with one line (exit 2), never
-    written through. A torn last line (the process died mid-write) is ignored on reading and a
-    newline is written before the next append, so the file stays parseable line by line. A
-    failed append (disk full) truncates the file back to its previous length, and removes it
-    when it was empty, before raising :class:`~kfcrit.errors.OutputError` naming the journal.
-    """
-
-    def __init__(self, path: Path, binding: str = "") -> None:
-        self.path = path
-        self.binding = binding
-
-    def load(self) -> dict[str, dict[str, Any]]:
-        """Key → result columns of every complete line whose check and shape are valid."""
-        out: dict[str, dict[str, Any]] = {}
-        if not os.path.lexists(self.path):
-            return out
-        # a regular file only (a FIFO, a device or a symbolic link put in its place is
-        # refused), bounded; kfcrit writes it in ASCII, so strict UTF-8 loses nothing
-        text, _ = read_text(self.path, field="output", max_bytes=MAX_JOURNAL_BYTES,
-                            what="the journal", follow_symlinks=False)
-        for line in text.splitlines():
-            try:
-                entry = json.loads(line)
-            except (json.JSONDecodeError, RecursionError):
-                continue
-            if not (isinstance(entry, dict) and set(entry) == {"key", "check", "result"}):
-                continue
-            key, check, result = entry["key"], entry["check"], entry["result"]
-            if not (isinstance(key, str) and _KEY.fullmatch(key) and isinstance(check, str)
-                    and valid_result(result)):
-                continue
-            try:
-                if check != journal_check(self.binding, key, result):
-                    continue
-            except (TypeError, ValueError):
-                continue
-            out[key] = result
-        return out
-
-    def _open(self) -> int:
-        flags = (os.O_RDWR | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0)
-                 | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-                 | getattr(os, "O_NOCTTY", 0))
-        shown = f"the journal {str(self.path)[:120]!r}"
-        try:
-            fd = os.open(self.path, flags, 0o666)
-        except OSError as exc:
-            reason = ("is a symbolic link, not a regular file" if os.path.islink(self.path)
-                      else f"cannot be written ({exc.strerror or exc})")
-            raise OutputError(f"{shown} {reason}", field="output") from None
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            os.close(fd)
-            raise OutputError(f"{shown} is not a regular file", field="output")
-        return fd
-
-    def append(self, entries: list[tuple[str, dict[str, Any]]]) -> None:
-        """Append ``(key, result)`` entries with their checks and fsync."""
-        if not entries:
-            return
-        lines = "".join(json.dumps({"key": k, "check": journal_check(self.binding, k, r),
-                                    "result": r}, allow_nan=False, ensure_ascii=True,
-                                   separators=(",", ":")) + "\n" for k, r in entries)
-        fd = self._open()
-        size = 0
-        try:
-            size = os.fstat(fd).st_size
-            needs_newline = size > 0 and os.pread(fd, 1, size - 1) != b"\n"
-            data = (("\n" if needs_newline else "") + lines).encode("ascii")
-            view = memoryview(data)
-            while view:
-                written = os.write(fd, view)
-                view = view[written:]
-            os.fsync(fd)
-        except OSError as exc:
-            self._undo(fd, size)
-            raise OutputError(f"cannot write the journal {str(self.path)[:120]!r}: "
-                              f"{exc.strerror or exc}", field="output") from None
-        finally:
-            os.close(fd)
-
-    def _undo(self, fd: int, size: int) -> None:
-        """Take a failed append back: truncate to ``size``, remove the file if it was empty."""
-        try:
-            os.ftruncate(fd, size)
-            if size == 0 and os.path.samestat(os.fstat(fd), os.lstat(self.path)):
-                os.unlink(self.path)
-        except OSError:
-            pass
-
-    def count(self) -> int:
-        """Lines whose check and shape are valid (for the interruption message)."""
-        try:
-            return len(self.load())
-        except KfcritError:
-            return 0
-
-
-# ---------------------------------------------------------------------------------------------
-# Runners
-# ---------------------------------------------------------------------------------------------
-
-Items = list[tuple[int, str, list[tuple[str, str]]]]
-
-
-def _chunks(items: Items, workers: int) -> list[Items]:
-    size = max(1, min(64, math.ceil(len(items) / (4 * max(1, workers)))))
-    return [items[i:i + size] for i in range(0, len(items), size)]
-
-
-def run_serial(spec: SweepSpec, items: Items, max_states: int,
-               ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate in this process (chunk by chunk, so the journal is written as it goes)."""
-    theories: dict[str, Any] = {}
-    for chunk in _chunks(items, 1):
-        yield evaluate_chunk(spec.base_doc, str(spec.base_dir), spec.tolerance, max_states,
-                             chunk, theories)
-
-
-def run_processes(spec: SweepSpec, items: Items, max_states: int, workers: int,
-                  ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate on a local process pool (spawned, so safe next to threads)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                               initializer=_worker_init)
-    try:
-        futures = [pool.submit(evaluate_chunk, spec.base_doc, str(spec.base_dir),
-                               spec.tolerance, max_states, chunk)
-                   for chunk in _chunks(items, workers)]
-        for fut in as_completed(futures):
-            yield fut.result()
-    except BaseException:  # interrupted (or closed early): stop the workers before leaving
-        terminate_pool(pool)
-        raise
-    pool.shutdown(wait=True)
-
-
-def _worker_init() -> None:
-    """Workers ignore SIGINT: a Ctrl-C reaches the whole process group, and the parent alone
-    decides (it terminates the workers); a worker must not die mid-chunk with a traceback."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def terminate_pool(pool: Any, timeout: float = 5.0) -> None:
-    """Shut a ``ProcessPoolExecutor`` down *now*: cancel queued chunks, terminate the worker
-    processes (SIGTERM, then SIGKILL after ``timeout``), join them and the executor's manager
-    thread, and release the pool's queues.
-
-    The interrupted CLI leaves with ``os._exit`` (no interpreter shutdown, no atexit hooks), so
-    without this the workers would finish their chunk as orphans. Releasing the queues (their
-    semaphores unregister from multiprocessing's resource tracker) lets the tracker end quietly
-    as soon as this process exits, with nothing "leaked" to report.
-    """
-    import gc
-
-    procs = list((getattr(pool, "_processes", None) or {}).values())
-    for proc in procs:
-        try:
-            proc.terminate()
-        except (OSError, ValueError, AttributeError):
-            pass
-    for proc in procs:
-        try:
-            proc.join(timeout)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(timeout)
-        except (OSError, ValueError, AssertionError, AttributeError):
-            pass
-    # The manager thread sees the dead workers, fails the futures and closes the queues. The
-    # shutdown runs in a daemon thread joined with a timeout: the interrupt may have landed
-    # while this thread held one of the executor's (non-reentrant) locks, and a blocking
-    # shutdown here would then wait for ever; the process leaves with os._exit regardless.
-    import threading
-
-    def _shutdown(executor: Any) -> None:
-        try:
-            executor.shutdown(wait=True, cancel_futures=True)
-        except Exception:  # noqa: BLE001 - a broken pool must not mask the interrupt
-            pass
-
-    closer = threading.Thread(target=_shutdown, args=(pool,), name="kfcrit-pool-shutdown",
-                              daemon=True)
-    closer.start()
-    closer.join(timeout)
-    del pool
-    gc.collect()
-
-
-def check_scheduler(scheduler: str) -> None:
-    """The ``--scheduler`` address must be ``tcp://HOST:PORT`` (or ``tls://``), port ≤ 65535."""
-    m = _SCHEDULER.match(scheduler)
-    if not m or not 0 < int(m.group(3)) < 65536:
-        raise InputError(f"must look like tcp://HOST:PORT (or tls://), got "
-                         f"{scheduler[:60]!r}", field="--scheduler")
-
-
-def connect_dask(scheduler: str) -> Any:
-    """A ``distributed.Client`` on an existing scheduler (every failure is one InputError)."""
-    check_scheduler(scheduler)
-    try:
-        from distributed import Client
-    except ImportError:
-        raise InputError("needs dask[distributed] (pip install 'kfcrit[dask]')",
-                         field="--scheduler") from None
-    try:
-        return Client(scheduler, timeout=DASK_CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError(f"cannot connect to the Dask scheduler at {scheduler[:60]} "
-                         f"({type(exc).__name__} after at most {DASK_CONNECT_TIMEOUT})",
-                         field="--scheduler") from None
-
-
-def run_dask(spec: SweepSpec, items: Items, max_states: int, client: Any,
-             ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate on an existing Dask distributed cluster through ``client`` (closed at the end)."""
-    from distributed import as_completed
-
-    try:
-        workers = max(1, len(client.scheduler_info().get("workers", {})))
-        base = client.scatter([spec.base_doc], broadcast=True)[0]
-        futures = [client.submit(evaluate_chunk, base, str(spec.base_dir), spec.tolerance,
-                                 max_states, chunk, pure=False)
-                   for chunk in _chunks(items, workers)]
-        try:
-            # the client is not the default one (set_as_default=False): name its loop
-            for fut in as_completed(futures, loop=client.loop):
-                yield fut.result()
-        except BaseException:
-            client.cancel(futures)
-            raise
-    finally:
-        client.close()
-
-
-# ---------------------------------------------------------------------------------------------
 # Outputs
 # ---------------------------------------------------------------------------------------------
 
@@ -1051,7 +729,7 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
             client.close()
         raise InputError(f"cannot create or write the output folder {str(out)[:80]!r}",
                          field="--output") from None
-    journal = Journal(out / JOURNAL_NAME, spec.sha256 or "")
+    journal = Journal(out / JOURNAL_NAME, spec.sha256 or "", RESULT_COLUMNS)
     try:
         known = journal.load()
     except BaseException:
@@ -1066,12 +744,14 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
             pending.append((index, key, spec.assignments(index)))
     reused = len(spec.keys) - len(pending)
     workers = workers or os.cpu_count() or 1
+    job = PointJob(evaluate=evaluate_chunk, base_doc=spec.base_doc, base_dir=str(spec.base_dir),
+                   tolerance=spec.tolerance, max_states=max_states)
     if client is not None:
-        batches = run_dask(spec, pending, max_states, client)
+        batches = run_dask(job, pending, client, scheduler or "")
     elif workers == 1 or len(pending) <= 8:
-        batches = run_serial(spec, pending, max_states)
+        batches = run_serial(job, pending)
     else:
-        batches = run_processes(spec, pending, max_states, workers)
+        batches = run_processes(job, pending, workers)
     advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
                                                                        lambda: None)
     try:
@@ -1087,7 +767,7 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
     errors = [r for r in rows if r["status"] != "ok"]
     # a point's code is one of _POINT_ERROR_CODES (valid_result refuses any other in the
     # journal): no journal line can make a finished sweep exit 130 or 141
-    codes = [known[k]["error_code"] if known[k].get("error_code") in _POINT_ERROR_CODES
+    codes = [known[k]["error_code"] if known[k].get("error_code") in POINT_ERROR_CODES
              else int(ExitCode.BAD_INPUT) for k in spec.keys if known[k].get("status") != "ok"]
     exit_code = max(codes) if codes else int(ExitCode.OK)
     return SweepResult(rows=rows, computed=len(pending), reused=reused, errors=len(errors),
