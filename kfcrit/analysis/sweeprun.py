@@ -269,7 +269,7 @@ def _check_handshake(frame: bytes) -> None:
     except ImportError:  # distributed depends on msgpack; without it the length checks stand
         return
     try:
-        info = msgpack.unpackb(frame, raw=False, strict_map_key=False, max_buffer_size=len(frame))
+        info = msgpack.unpackb(frame, raw=False, strict_map_key=False)
     except Exception:  # noqa: BLE001 - msgpack raises several unrelated types on garbage
         raise ValueError from None
     if not (isinstance(info, dict) and "python" in info):
@@ -340,29 +340,82 @@ def _live_workers(client: Any) -> int:
                            callback_timeout=DASK_POLL_SECONDS * 4).get("workers", {}))
 
 
+def _lost_types() -> tuple[type[BaseException], ...]:
+    """Exceptions that mean the cluster, not the computation, failed."""
+    import asyncio
+    import concurrent.futures
+
+    types: tuple[type[BaseException], ...] = (OSError, TimeoutError, asyncio.CancelledError,
+                                              concurrent.futures.CancelledError)
+    try:
+        from distributed import KilledWorker
+        types += (KilledWorker,)
+    except ImportError:
+        pass
+    return types
+
+
+class _Health:
+    """Asks the scheduler for its workers every :data:`DASK_POLL_SECONDS` while nothing
+    finishes; raises :class:`ClusterLostError` when it does not answer or has had no worker for
+    :data:`DASK_NO_WORKER_SECONDS`."""
+
+    def __init__(self, client: Any, scheduler: str) -> None:
+        import time
+
+        self.client, self.scheduler = client, scheduler
+        self.checked = time.monotonic()
+        self.idle_since: float | None = None
+
+    def progress(self) -> None:
+        import time
+
+        self.checked = time.monotonic()
+        self.idle_since = None
+
+    def check(self, *, force: bool = False) -> int:
+        import time
+
+        now = time.monotonic()
+        if not force and now - self.checked < DASK_POLL_SECONDS:
+            return -1
+        self.checked = now
+        try:
+            alive = _live_workers(self.client)
+        except _lost_types():
+            raise _lost(self.scheduler, "the scheduler stopped answering") from None
+        if alive:
+            self.idle_since = None
+        elif self.idle_since is None:
+            self.idle_since = now
+        elif now - self.idle_since >= DASK_NO_WORKER_SECONDS:
+            raise _lost(self.scheduler, f"no worker was left for {DASK_NO_WORKER_SECONDS:g} s")
+        return alive
+
+
 def run_dask(job: PointJob, items: Items, client: Any, scheduler: str = "the scheduler",
              ) -> Iterator[list[tuple[int, str, dict]]]:
     """Evaluate on an existing Dask distributed cluster through ``client`` (closed at the end).
 
-    Finished chunks are yielded as they complete. Every :data:`DASK_POLL_SECONDS` without a
-    finished chunk the scheduler is asked how many workers it has: a scheduler that does not
-    answer, or no worker for :data:`DASK_NO_WORKER_SECONDS`, ends the run with
-    :class:`ClusterLostError` (exit 2, resume hint), as do chunks lost with their workers.
+    Finished chunks are yielded as they complete. While no chunk finishes, the scheduler is
+    asked every :data:`DASK_POLL_SECONDS` how many workers it has: a scheduler that does not
+    answer, or no worker for :data:`DASK_NO_WORKER_SECONDS` (also before the first chunk is
+    sent), ends the run with :class:`ClusterLostError` (exit 2, resume hint), as do chunks
+    lost with their workers.
     """
     import time
 
-    from distributed import wait
+    from distributed import as_completed
 
-    lost_types: tuple[type[BaseException], ...] = (OSError, TimeoutError)
-    try:
-        from distributed import KilledWorker
-        from distributed.client import FutureCancelledError
-        lost_types += (KilledWorker, FutureCancelledError)
-    except ImportError:
-        pass
+    lost_types = _lost_types()
+    health = _Health(client, scheduler)
+    futures: list[Any] = []
     try:
         try:
-            workers = max(1, len(client.scheduler_info().get("workers", {})))
+            workers = health.check(force=True)
+            while workers == 0:
+                time.sleep(min(1.0, DASK_POLL_SECONDS))
+                workers = health.check(force=True)
             base = client.scatter([job.base_doc], broadcast=True,
                                   timeout=DASK_CONNECT_SECONDS)[0]
         except lost_types:
@@ -370,43 +423,27 @@ def run_dask(job: PointJob, items: Items, client: Any, scheduler: str = "the sch
         futures = [client.submit(job.evaluate, base, job.base_dir, job.tolerance,
                                  job.max_states, chunk, pure=False)
                    for chunk in chunks(items, workers)]
-        pending = set(futures)
-        idle_since: float | None = None
+        # the client is not the default one (set_as_default=False): name its loop
+        pending = as_completed(futures, loop=client.loop)
+        while not pending.is_empty():
+            batch = pending.next_batch(block=False)
+            if not batch:
+                health.check()
+                time.sleep(0.05)
+                continue
+            health.progress()
+            for fut in batch:
+                try:
+                    yield fut.result()
+                except lost_types as exc:
+                    raise _lost(scheduler, f"workers or the scheduler were lost "
+                                f"({type(exc).__name__})") from None
+    except BaseException:
         try:
-            while pending:
-                try:
-                    done, pending = wait(list(pending), timeout=DASK_POLL_SECONDS,
-                                         return_when="FIRST_COMPLETED")
-                except TimeoutError:
-                    done = set()
-                if done:
-                    idle_since = None
-                for fut in done:
-                    try:
-                        yield fut.result()
-                    except lost_types as exc:
-                        raise _lost(scheduler, f"workers or the scheduler were lost "
-                                    f"({type(exc).__name__})") from None
-                if done or not pending:
-                    continue
-                try:
-                    alive = _live_workers(client)
-                except lost_types:
-                    raise _lost(scheduler, "the scheduler stopped answering") from None
-                now = time.monotonic()
-                if alive:
-                    idle_since = None
-                elif idle_since is None:
-                    idle_since = now
-                elif now - idle_since >= DASK_NO_WORKER_SECONDS:
-                    raise _lost(scheduler, f"no worker was left for "
-                                f"{DASK_NO_WORKER_SECONDS:g} s")
-        except BaseException:
-            try:
-                client.cancel(futures)
-            except Exception:  # noqa: BLE001 - the scheduler may be gone already
-                pass
-            raise
+            client.cancel(futures)
+        except Exception:  # noqa: BLE001 - the scheduler may be gone already
+            pass
+        raise
     finally:
         try:
             client.close(timeout=DASK_POLL_SECONDS)

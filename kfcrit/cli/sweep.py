@@ -88,6 +88,14 @@ def _interrupted(journal: Journal) -> None:
     os._exit(ExitCode.INTERRUPTED)
 
 
+def _quiet_dask_logs() -> None:
+    """Keep ``distributed``'s log records ("Failed to reconnect to scheduler …") off stderr: a
+    lost or unreachable scheduler is reported in kfcrit's one line, with the resume hint."""
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+
+
 def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
                   workers: int | None, max_states: int) -> int:
     """Run the ``kfcrit sweep`` subcommand; return the exit code.
@@ -99,6 +107,8 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
     decisions (a sweep explores where a design passes and fails).
     """
     spec = load_sweep(sweep_file, max_states=max_states)
+    if scheduler is not None:
+        _quiet_dask_logs()
     if output is None:
         output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
     try:
