@@ -209,8 +209,8 @@ def _read_exactly(sock: Any, count: int, deadline: float) -> bytes:
     return b"".join(chunks)
 
 
-def probe_scheduler(scheduler: str, timeout: float = DASK_PROBE_SECONDS) -> None:
-    """Check, within ``timeout`` seconds in all, that ``scheduler`` speaks Dask's protocol.
+def probe_scheduler(scheduler: str, timeout: float | None = None) -> None:
+    """Check, within ``timeout`` seconds in all (default :data:`DASK_PROBE_SECONDS`), that ``scheduler`` speaks Dask's protocol.
 
     A Dask scheduler opens every connection with its handshake: an 8-byte length
     :math:`L \\le` :data:`DASK_HANDSHAKE_MAX_BYTES`, then :math:`L` bytes holding a frame count
@@ -224,6 +224,7 @@ def probe_scheduler(scheduler: str, timeout: float = DASK_PROBE_SECONDS) -> None
     import struct
     import time
 
+    timeout = DASK_PROBE_SECONDS if timeout is None else timeout
     m = _SCHEDULER.match(scheduler)
     assert m is not None  # check_scheduler ran first
     host, port = m.group(2).strip("[]"), int(m.group(3))
@@ -355,7 +356,7 @@ def _lost_types() -> tuple[type[BaseException], ...]:
     return types
 
 
-class _Health:
+class ClusterHealth:
     """Asks the scheduler for its workers every :data:`DASK_POLL_SECONDS` while nothing
     finishes; raises :class:`ClusterLostError` when it does not answer or has had no worker for
     :data:`DASK_NO_WORKER_SECONDS`."""
@@ -408,7 +409,7 @@ def run_dask(job: PointJob, items: Items, client: Any, scheduler: str = "the sch
     from distributed import as_completed
 
     lost_types = _lost_types()
-    health = _Health(client, scheduler)
+    health = ClusterHealth(client, scheduler)
     futures: list[Any] = []
     try:
         try:
