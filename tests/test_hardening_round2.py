@@ -63,7 +63,8 @@ def make_char_device(path: Path) -> None:
 
 def assert_same_device(path: Path, before: os.stat_result) -> None:
     now = os.lstat(path)
-    assert stat.S_ISCHR(now.st_mode) and now.st_rdev == before.st_rdev and now.st_ino == before.st_ino
+    assert stat.S_ISCHR(now.st_mode)
+    assert (now.st_rdev, now.st_ino) == (before.st_rdev, before.st_ino)
 
 
 # ---- 8: outputs that are not regular files -------------------------------------------------
