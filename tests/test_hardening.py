@@ -20,9 +20,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from kfcrit import System
+from kfcrit.analysis.spec import load_spec, spec_from_mapping
 from kfcrit.cli.main import main
 from kfcrit.errors import InputError, KfcritError
-from kfcrit.io.systemfile import load_spec, spec_from_mapping
 from kfcrit.model.exprparse import parse_expression
 
 from .conftest import PROFILE
@@ -429,7 +429,7 @@ def test_write_atomic_turns_os_errors_into_output_errors(tmp_path: Path,
 
 
 def test_os_error_naming_a_path_maps_to_exit_2(monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.io.systemfile as sf
+    import kfcrit.analysis.spec as sf  # the reader the CLI calls
 
     def denied(*args: object, **kwargs: object) -> None:
         raise PermissionError(13, "Permission denied", "/some/output/folder")

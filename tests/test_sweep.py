@@ -24,6 +24,7 @@ from scipy import integrate, stats
 from scipy.special import erfc
 
 import kfcrit.analysis.sweep as sweep_mod
+import kfcrit.analysis.sweeprun as run_mod
 from kfcrit.cli.main import main
 
 KB = 1.380649e-23
@@ -479,7 +480,7 @@ def test_bad_scheduler_address(address: str, tmp_path: Path) -> None:
 
 
 def test_unreachable_scheduler(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(sweep_mod, "DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(run_mod, "DASK_PROBE_SECONDS", 1.0)
     sweep = write_case(tmp_path, GOOD_SWEEP)
     code, out, err = run_cli(["sweep", str(sweep), "-o", str(tmp_path / "out"),
                               "--scheduler", "tcp://127.0.0.1:1"])

@@ -33,8 +33,11 @@ negative distance) is an error *row* of that point, not of the sweep.
 
 Invariant (resumability): every finished row is appended to ``sweep.journal.jsonl`` and fsynced
 before it is counted; a row is keyed by the SHA-256 of (format, kfcrit version, base system,
-tolerance, max_states, the point's assignments), so after an interruption only the missing
-points are computed, and a changed base system or tolerance recomputes everything.
+tolerance, max_states, the point's assignments), and each journal line carries a check binding
+it to the sweep file's bytes and to its own result (:func:`journal_check`). After an
+interruption only the missing points are computed; a changed sweep file, base system or
+tolerance recomputes everything, and a line that is edited, forged, torn or malformed counts as
+not computed. The journal is never followed through a symbolic link.
 Invariant (reproducibility): a row depends only on its key's inputs — never on the worker,
 the chunking or the order of completion — and rows are written sorted by point index, so local
 processes, a single process and a Dask cluster give byte-identical tables.
@@ -50,7 +53,7 @@ import json
 import math
 import os
 import re
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -59,27 +62,37 @@ from typing import Any
 
 import sympy as sp
 
+from kfcrit.analysis.sweepjournal import (  # noqa: F401 - re-exported for callers
+    JOURNAL_NAME,
+    MAX_JOURNAL_BYTES,
+    MAX_POINTS,
+    POINT_ERROR_CODES,
+    Journal,
+)
+from kfcrit.analysis.sweeprun import (  # noqa: F401 - re-exported for callers
+    ClusterLostError,
+    Items,
+    PointJob,
+    check_scheduler,
+    connect_dask,
+    run_dask,
+    run_processes,
+    run_serial,
+    terminate_pool,
+)
 from kfcrit.errors import ExitCode, InputError, KfcritError
 from kfcrit.io.jsonio import jsonable
-from kfcrit.io.safeio import read_text
+from kfcrit.io.safeio import printable
 from kfcrit.version import __version__
 
 FORMAT_VERSION = 1
-MAX_POINTS = 1_000_000
 MAX_NUM = 100_000
 MAX_SERIES = 12
-MAX_JOURNAL_BYTES = 4096 * MAX_POINTS
-"""Largest journal read back on resuming (4 KiB per point of the largest sweep)."""
 SWEEP_KEYS = {"name", "description", "system", "tolerance", "grid", "points", "plot"}
 MATRICES = ("A", "C", "Q", "R", "Sigma0")
 SYMMETRIC = ("Q", "R", "Sigma0")
 _MATRIX_PATH = re.compile(r"^(A|C|Q|R|Sigma0)\[(\d{1,6})\]\[(\d{1,6})\]$")
 _CHANNEL_PATH = re.compile(r"^channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
-_SCHEDULER = re.compile(r"^(tcp|tls)://([A-Za-z0-9.\-]{1,200}|\[[0-9A-Fa-f:.]{2,60}\]):"
-                        r"(\d{1,5})$")
-DASK_CONNECT_TIMEOUT = "15s"
-"""How long ``--scheduler`` waits for the scheduler before giving up (one-line error)."""
-
 RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
                   "critical_expression", "robust_critical_value", "upper_bound", "requirement",
                   "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
@@ -596,10 +609,10 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
         record = analyze(spec, opts, theory=theories[skey]).to_dict()
         row.update(row_of(record))
     except KfcritError as exc:
-        row.update(status="error", error=str(exc)[:300],
+        row.update(status="error", error=printable(str(exc))[:300],
                    error_code=int(exc.exit_code))
     except (ValueError, ArithmeticError) as exc:
-        row.update(status="error", error=f"{type(exc).__name__}: {str(exc)[:250]}",
+        row.update(status="error", error=f"{type(exc).__name__}: {printable(str(exc))[:250]}",
                    error_code=int(ExitCode.INCONCLUSIVE))
     return jsonable(row)
 
@@ -618,198 +631,6 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
     return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments,
                                         theories))
             for index, key, assignments in items]
-
-
-# ---------------------------------------------------------------------------------------------
-# The journal (resumability)
-# ---------------------------------------------------------------------------------------------
-
-class Journal:
-    """Append-only JSON-lines file of finished points, fsynced after every batch.
-
-    A torn last line (the process died mid-write) is ignored on reading and a newline is
-    written before the next append, so the file stays parseable line by line.
-    """
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def load(self) -> dict[str, dict[str, Any]]:
-        """Key → result columns of every complete line."""
-        out: dict[str, dict[str, Any]] = {}
-        if not os.path.lexists(self.path):
-            return out
-        # a regular file only (a FIFO or a link to /dev/zero put in its place is refused),
-        # bounded; kfcrit writes it in ASCII, so strict UTF-8 loses nothing
-        text, _ = read_text(self.path, field="output", max_bytes=MAX_JOURNAL_BYTES,
-                            what="the journal")
-        for line in text.splitlines():
-            try:
-                entry = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            if isinstance(entry, dict) and isinstance(entry.get("key"), str) \
-                    and isinstance(entry.get("result"), dict):
-                out[entry["key"]] = entry["result"]
-        return out
-
-    def append(self, entries: list[tuple[str, dict[str, Any]]]) -> None:
-        """Append ``(key, result)`` entries and fsync."""
-        if not entries:
-            return
-        needs_newline = False
-        if self.path.exists() and self.path.stat().st_size > 0:
-            with open(self.path, "rb") as fh:
-                fh.seek(-1, os.SEEK_END)
-                needs_newline = fh.read(1) != b"\n"
-        lines = "".join(json.dumps({"key": k, "result": r}, allow_nan=False,
-                                   separators=(",", ":")) + "\n" for k, r in entries)
-        with open(self.path, "a", encoding="utf-8") as fh:
-            fh.write(("\n" if needs_newline else "") + lines)
-            fh.flush()
-            os.fsync(fh.fileno())
-
-
-# ---------------------------------------------------------------------------------------------
-# Runners
-# ---------------------------------------------------------------------------------------------
-
-Items = list[tuple[int, str, list[tuple[str, str]]]]
-
-
-def _chunks(items: Items, workers: int) -> list[Items]:
-    size = max(1, min(64, math.ceil(len(items) / (4 * max(1, workers)))))
-    return [items[i:i + size] for i in range(0, len(items), size)]
-
-
-def run_serial(spec: SweepSpec, items: Items, max_states: int,
-               ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate in this process (chunk by chunk, so the journal is written as it goes)."""
-    theories: dict[str, Any] = {}
-    for chunk in _chunks(items, 1):
-        yield evaluate_chunk(spec.base_doc, str(spec.base_dir), spec.tolerance, max_states,
-                             chunk, theories)
-
-
-def run_processes(spec: SweepSpec, items: Items, max_states: int, workers: int,
-                  ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate on a local process pool (spawned, so safe next to threads)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                               initializer=_worker_init)
-    try:
-        futures = [pool.submit(evaluate_chunk, spec.base_doc, str(spec.base_dir),
-                               spec.tolerance, max_states, chunk)
-                   for chunk in _chunks(items, workers)]
-        for fut in as_completed(futures):
-            yield fut.result()
-    except BaseException:  # interrupted (or closed early): stop the workers before leaving
-        terminate_pool(pool)
-        raise
-    pool.shutdown(wait=True)
-
-
-def _worker_init() -> None:
-    """Workers ignore SIGINT: a Ctrl-C reaches the whole process group, and the parent alone
-    decides (it terminates the workers); a worker must not die mid-chunk with a traceback."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def terminate_pool(pool: Any, timeout: float = 5.0) -> None:
-    """Shut a ``ProcessPoolExecutor`` down *now*: cancel queued chunks, terminate the worker
-    processes (SIGTERM, then SIGKILL after ``timeout``), join them and the executor's manager
-    thread, and release the pool's queues.
-
-    The interrupted CLI leaves with ``os._exit`` (no interpreter shutdown, no atexit hooks), so
-    without this the workers would finish their chunk as orphans. Releasing the queues (their
-    semaphores unregister from multiprocessing's resource tracker) lets the tracker end quietly
-    as soon as this process exits, with nothing "leaked" to report.
-    """
-    import gc
-
-    procs = list((getattr(pool, "_processes", None) or {}).values())
-    for proc in procs:
-        try:
-            proc.terminate()
-        except (OSError, ValueError, AttributeError):
-            pass
-    for proc in procs:
-        try:
-            proc.join(timeout)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(timeout)
-        except (OSError, ValueError, AssertionError, AttributeError):
-            pass
-    # The manager thread sees the dead workers, fails the futures and closes the queues. The
-    # shutdown runs in a daemon thread joined with a timeout: the interrupt may have landed
-    # while this thread held one of the executor's (non-reentrant) locks, and a blocking
-    # shutdown here would then wait for ever; the process leaves with os._exit regardless.
-    import threading
-
-    def _shutdown(executor: Any) -> None:
-        try:
-            executor.shutdown(wait=True, cancel_futures=True)
-        except Exception:  # noqa: BLE001 - a broken pool must not mask the interrupt
-            pass
-
-    closer = threading.Thread(target=_shutdown, args=(pool,), name="kfcrit-pool-shutdown",
-                              daemon=True)
-    closer.start()
-    closer.join(timeout)
-    del pool
-    gc.collect()
-
-
-def check_scheduler(scheduler: str) -> None:
-    """The ``--scheduler`` address must be ``tcp://HOST:PORT`` (or ``tls://``), port ≤ 65535."""
-    m = _SCHEDULER.match(scheduler)
-    if not m or not 0 < int(m.group(3)) < 65536:
-        raise InputError(f"must look like tcp://HOST:PORT (or tls://), got "
-                         f"{scheduler[:60]!r}", field="--scheduler")
-
-
-def connect_dask(scheduler: str) -> Any:
-    """A ``distributed.Client`` on an existing scheduler (every failure is one InputError)."""
-    check_scheduler(scheduler)
-    try:
-        from distributed import Client
-    except ImportError:
-        raise InputError("needs dask[distributed] (pip install 'kfcrit[dask]')",
-                         field="--scheduler") from None
-    try:
-        return Client(scheduler, timeout=DASK_CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError(f"cannot connect to the Dask scheduler at {scheduler[:60]} "
-                         f"({type(exc).__name__} after at most {DASK_CONNECT_TIMEOUT})",
-                         field="--scheduler") from None
-
-
-def run_dask(spec: SweepSpec, items: Items, max_states: int, client: Any,
-             ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate on an existing Dask distributed cluster through ``client`` (closed at the end)."""
-    from distributed import as_completed
-
-    try:
-        workers = max(1, len(client.scheduler_info().get("workers", {})))
-        base = client.scatter([spec.base_doc], broadcast=True)[0]
-        futures = [client.submit(evaluate_chunk, base, str(spec.base_dir), spec.tolerance,
-                                 max_states, chunk, pure=False)
-                   for chunk in _chunks(items, workers)]
-        try:
-            # the client is not the default one (set_as_default=False): name its loop
-            for fut in as_completed(futures, loop=client.loop):
-                yield fut.result()
-        except BaseException:
-            client.cancel(futures)
-            raise
-    finally:
-        client.close()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -908,7 +729,7 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
             client.close()
         raise InputError(f"cannot create or write the output folder {str(out)[:80]!r}",
                          field="--output") from None
-    journal = Journal(out / "sweep.journal.jsonl")
+    journal = Journal(out / JOURNAL_NAME, spec.sha256 or "", RESULT_COLUMNS)
     try:
         known = journal.load()
     except BaseException:
@@ -923,12 +744,14 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
             pending.append((index, key, spec.assignments(index)))
     reused = len(spec.keys) - len(pending)
     workers = workers or os.cpu_count() or 1
+    job = PointJob(evaluate=evaluate_chunk, base_doc=spec.base_doc, base_dir=str(spec.base_dir),
+                   tolerance=spec.tolerance, max_states=max_states)
     if client is not None:
-        batches = run_dask(spec, pending, max_states, client)
+        batches = run_dask(job, pending, client, scheduler or "")
     elif workers == 1 or len(pending) <= 8:
-        batches = run_serial(spec, pending, max_states)
+        batches = run_serial(job, pending)
     else:
-        batches = run_processes(spec, pending, max_states, workers)
+        batches = run_processes(job, pending, workers)
     advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
                                                                        lambda: None)
     try:
@@ -942,8 +765,10 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
         batches.close()  # release workers / the Dask client at once, also on an interrupt
     rows = assemble_rows(spec, known)
     errors = [r for r in rows if r["status"] != "ok"]
-    codes = [known[k].get("error_code") or int(ExitCode.BAD_INPUT)
-             for k in spec.keys if known[k].get("status") != "ok"]
+    # a point's code is one of _POINT_ERROR_CODES (valid_result refuses any other in the
+    # journal): no journal line can make a finished sweep exit 130 or 141
+    codes = [known[k]["error_code"] if known[k].get("error_code") in POINT_ERROR_CODES
+             else int(ExitCode.BAD_INPUT) for k in spec.keys if known[k].get("status") != "ok"]
     exit_code = max(codes) if codes else int(ExitCode.OK)
     return SweepResult(rows=rows, computed=len(pending), reused=reused, errors=len(errors),
                        exit_code=exit_code, output=str(out), files={},

@@ -7,15 +7,18 @@ failed.
 """
 from __future__ import annotations
 
+import errno
 import functools
 import sys
 import traceback
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 import click
 
 from kfcrit.errors import ExitCode, KfcritError
+from kfcrit.io.safeio import printable
 
 EXAMPLES = """\b
 Examples:
@@ -37,8 +40,13 @@ not met), 130 interrupted, 141 the reader of stdout closed the pipe.
 
 
 def fail(message: str, code: int) -> None:
-    """Print one line to stderr and exit with ``code``."""
-    click.echo(f"kfcrit: error: {' '.join(str(message).split())}", err=True)
+    """Print one line to stderr and exit with ``code``.
+
+    Whitespace (newlines, carriage returns) is folded to single spaces and any other control
+    character is escaped (``\\x1b``): a message may echo text from the user's file, which
+    must not move the cursor or rewrite what the terminal shows.
+    """
+    click.echo(f"kfcrit: error: {printable(' '.join(str(message).split()))}", err=True)
     sys.exit(int(code))
 
 
@@ -78,6 +86,69 @@ def broken_pipe_exit() -> None:
     os._exit(ExitCode.BROKEN_PIPE)
 
 
+ENVIRONMENT_ERRNOS = frozenset(getattr(errno, name) for name in
+                               ("ENOSPC", "EDQUOT", "EIO", "EFBIG", "EROFS", "ENXIO")
+                               if hasattr(errno, name))
+"""``errno`` values that describe the machine (disk full, quota, I/O error, read-only file
+system), not a bug: reported as one line with exit code 2 even when no path is attached."""
+
+
+def _about_stdout(exc: BaseException) -> bool:
+    """Whether ``exc`` was raised writing stdout: the innermost Python frame (``click.echo``,
+    ``print``'s caller) holds stdout, or flushing stdout fails again."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    streams = [s for s in (sys.stdout, sys.__stdout__) if s is not None]
+    streams += [getattr(s, "buffer", None) for s in streams]
+    if tb is not None and any(v is s for v in tb.tb_frame.f_locals.values()
+                              for s in streams if s is not None):
+        return True
+    try:
+        sys.stdout.flush()
+    except (OSError, ValueError):
+        return True
+    return False
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so the interpreter's final flush of data that could not be
+    written cannot print an "Exception ignored" traceback after the one error line."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+
+
+def environment_exit(exc: OSError) -> None:
+    """One line for a full disk, an I/O error or a read-only file system; exit code 2."""
+    reason = exc.strerror or str(exc)
+    if exc.filename is not None:
+        fail(f"cannot write {str(exc.filename)[:120]!r}: {reason}", ExitCode.BAD_INPUT)
+    if _about_stdout(exc):
+        _silence_stdout()
+        fail(f"cannot write to standard output: {reason}", ExitCode.BAD_INPUT)
+    fail(f"cannot write the output: {reason}", ExitCode.BAD_INPUT)
+
+
+def _flush_stdout() -> None:
+    """Flush stdout now, inside the error handling (not at interpreter exit, where a failure
+    would be an ignored traceback and exit code 120)."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        broken_pipe_exit()
+    except OSError as exc:
+        _silence_stdout()
+        fail(f"cannot write to standard output: {exc.strerror or exc}", ExitCode.BAD_INPUT)
+    except ValueError:  # stdout closed by the caller: nothing left to flush
+        pass
+
+
 def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     """Turn kfcrit errors into one stderr line and the documented exit code."""
 
@@ -85,7 +156,9 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         debug = kwargs.get("debug", False)
         try:
-            return func(*args, **kwargs)
+            result = func(*args, **kwargs)
+            _flush_stdout()
+            return result
         except KfcritError as exc:
             if debug:
                 traceback.print_exc()
@@ -93,20 +166,28 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
         except KeyboardInterrupt:
             interrupted_exit()
         except (click.exceptions.Exit, click.ClickException, SystemExit):
+            _flush_stdout()
             raise
         except BrokenPipeError:
             broken_pipe_exit()
         except OSError as exc:
-            if exc.filename is None:  # not about a path the user gave: a bug
-                if debug:
-                    traceback.print_exc()
-                fail(f"internal error (OSError: {str(exc)[:200]}); rerun with --debug for the "
-                     "traceback", ExitCode.INTERNAL)
             if debug:
                 traceback.print_exc()
+            if exc.errno in ENVIRONMENT_ERRNOS:
+                environment_exit(exc)
+            if exc.filename is None:  # not about a path the user gave: a bug
+                fail(f"internal error (OSError: {str(exc)[:200]}); rerun with --debug for the "
+                     "traceback", ExitCode.INTERNAL)
             fail(f"{str(exc.filename)[:120]!r}: {exc.strerror or exc}", ExitCode.BAD_INPUT)
         except MemoryError:
             fail("out of memory (is the problem too large? see --max-states)", ExitCode.BAD_INPUT)
+        except OverflowError as exc:
+            # valid input whose numbers leave the float64 range somewhere a method did not
+            # expect: the analysis is undetermined, not a crash
+            if debug:
+                traceback.print_exc()
+            fail(f"undetermined: a floating-point computation overflowed ({str(exc)[:120]}); "
+                 "the system's numbers are too large for float64 arithmetic", ExitCode.INCONCLUSIVE)
         except Exception as exc:  # noqa: BLE001 - last-resort guard, one line for the user
             if debug:
                 traceback.print_exc()
@@ -114,6 +195,39 @@ def handle_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                  "for the traceback", ExitCode.INTERNAL)
 
     return wrapper
+
+
+class WarningTally:
+    """Collects the warnings NumPy/SciPy print during a command (``warnings.showwarning``).
+
+    An ill-conditioned system can make SciPy repeat the same ``RuntimeWarning`` dozens of times;
+    they are counted here and summarised in one stderr line (:meth:`summary`) instead. The
+    number of distinct messages kept is bounded.
+    """
+
+    MAX_DISTINCT = 20
+
+    def __init__(self) -> None:
+        self.total = 0
+        self.messages: dict[str, int] = {}
+
+    def show(self, message: Warning | str, category: type[Warning], filename: str,
+             lineno: int, file: Any = None, line: str | None = None) -> None:
+        self.total += 1
+        text = f"{category.__name__}: {' '.join(str(message).split())[:160]}"
+        if text in self.messages or len(self.messages) < self.MAX_DISTINCT:
+            self.messages[text] = self.messages.get(text, 0) + 1
+
+    def summary(self) -> str | None:
+        """One line, or None when nothing was reported."""
+        if not self.total:
+            return None
+        first = max(self.messages, key=self.messages.get) if self.messages else ""
+        more = len(self.messages) - 1
+        return (f"kfcrit: warning: the numerical libraries reported {self.total} floating-point "
+                f"warning{'s' if self.total != 1 else ''} (most often {printable(first)}"
+                f"{f'; {more} other kinds' if more > 0 else ''}); rerun with --debug to print "
+                "them")
 
 
 class KfcritGroup(click.Group):
@@ -131,8 +245,35 @@ class KfcritGroup(click.Group):
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         install_sigterm_handler()  # first: a SIGTERM from here on exits 130 with one line
+        tally = WarningTally()
+        with warnings.catch_warnings():
+            argv = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:]
+            if "--debug" not in argv:  # --debug shows every warning as it comes
+                warnings.showwarning = tally.show
+            try:
+                rv = self._run(args, prog_name, complete_var, **extra)
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+                self._summarise(tally, code)
+                raise
+            self._summarise(tally, rv if isinstance(rv, int) else 0)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+    @staticmethod
+    def _summarise(tally: WarningTally, code: int) -> None:
+        """The warnings line, after a result (exit 0, 1, 3 or 5); an error line stays alone."""
+        line = tally.summary()
+        if line and code in (ExitCode.OK, ExitCode.VERIFICATION_FAILED, ExitCode.INCONCLUSIVE,
+                             ExitCode.REVIEW_FAILED):
+            try:
+                click.echo(line, err=True)
+            except (OSError, ValueError):
+                pass
+
+    def _run(self, args: Any, prog_name: str | None, complete_var: str | None,
+             **extra: Any) -> Any:
         try:
-            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         except click.exceptions.NoArgsIsHelpError as exc:  # bare ``kfcrit``: the help text
             exc.show()
             sys.exit(ExitCode.BAD_INPUT)
@@ -147,7 +288,7 @@ class KfcritGroup(click.Group):
             fail(exc.format_message(), exc.exit_code)
         except KeyboardInterrupt:
             interrupted_exit()
-        sys.exit(rv if isinstance(rv, int) else 0)
+        return None
 
 
 class ToleranceType(click.ParamType):

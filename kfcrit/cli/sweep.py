@@ -10,7 +10,9 @@ from typing import Any
 
 from kfcrit.analysis.sweep import (
     FORMAT_VERSION,
+    JOURNAL_NAME,
     RESULT_COLUMNS,
+    Journal,
     SweepSpec,
     load_sweep,
     run_sweep,
@@ -19,6 +21,7 @@ from kfcrit.analysis.sweep import (
 from kfcrit.errors import ExitCode
 from kfcrit.io.atomic import write_atomic
 from kfcrit.io.jsonio import jsonable
+from kfcrit.io.safeio import printable
 from kfcrit.version import __version__
 from kfcrit.views.sweepplots import margin_images
 
@@ -58,35 +61,39 @@ def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
     files = {"csv": out / "sweep.csv", "json": out / "sweep.json",
              "svg": out / "margin.svg", "png": out / "margin.png",
              "run": out / "run.json"}
-    write_atomic(files["csv"], table_csv(spec, rows).encode())
+    # kfcrit names these files itself: a symbolic link planted in the folder is replaced,
+    # never written through
+    write_atomic(files["csv"], table_csv(spec, rows).encode(), follow_symlinks=False)
     write_atomic(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
-                                           ensure_ascii=False).encode())
-    write_atomic(files["run"], json.dumps(run, indent=1).encode())
+                                           ensure_ascii=False).encode(), follow_symlinks=False)
+    write_atomic(files["run"], json.dumps(run, indent=1).encode(), follow_symlinks=False)
     for fmt, data in margin_images(rows, spec.parameters, spec.plot_x).items():
-        write_atomic(files[fmt], data)
+        write_atomic(files[fmt], data, follow_symlinks=False)
     return {k: str(v) for k, v in files.items()}
 
 
-def _interrupted(journal: Path) -> None:
+def _interrupted(journal: Journal) -> None:
     """One line on stderr, then leave with exit code 130 (as ``cli.interrupted_exit`` does).
 
     Unlike the other commands, an interrupted sweep keeps what it finished: the journal.
     """
-    done = 0
-    try:
-        with open(journal, "rb") as fh:
-            done = sum(1 for line in fh if line.endswith(b"\n"))
-    except OSError:
-        pass
-    print(f"kfcrit: error: interrupted; {done} finished points are kept in {journal} (run the "
-          "same command again to resume); the table and plots were not updated",
-          file=sys.stderr)
+    print(f"kfcrit: error: interrupted; {journal.count()} finished points are kept in "
+          f"{printable(str(journal.path))} (run the same command again to resume); the table "
+          "and plots were not updated", file=sys.stderr)
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError):
             pass
     os._exit(ExitCode.INTERRUPTED)
+
+
+def _quiet_dask_logs() -> None:
+    """Keep ``distributed``'s log records ("Failed to reconnect to scheduler …") off stderr: a
+    lost or unreachable scheduler is reported in kfcrit's one line, with the resume hint."""
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
 
 
 def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
@@ -100,6 +107,8 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
     decisions (a sweep explores where a design passes and fails).
     """
     spec = load_sweep(sweep_file, max_states=max_states)
+    if scheduler is not None:
+        _quiet_dask_logs()
     if output is None:
         output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
     try:
@@ -108,12 +117,12 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
         write_outputs(spec, result.rows, Path(result.output), runner=result.runner,
                       workers=result.workers, computed=result.computed, reused=result.reused)
     except KeyboardInterrupt:
-        _interrupted(Path(output) / "sweep.journal.jsonl")
+        _interrupted(Journal(Path(output) / JOURNAL_NAME, spec.sha256 or ""))
     print(f"kfcrit: sweep {spec.name!r}: {len(result.rows)} points ({result.computed} computed, "
           f"{result.reused} from the journal), {result.errors} errors; outputs in "
-          f"{result.output}", file=sys.stderr)
+          f"{printable(result.output)}", file=sys.stderr)
     if result.errors:
         first = next(r for r in result.rows if r["status"] != "ok")
-        print(f"kfcrit: first failing point {first['index']}: {first['error']}",
+        print(f"kfcrit: first failing point {first['index']}: {printable(str(first['error']))}",
               file=sys.stderr)
     return result.exit_code

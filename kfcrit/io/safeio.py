@@ -12,6 +12,7 @@ one :class:`~kfcrit.errors.InputError` naming the field; the file's contents are
 from __future__ import annotations
 
 import os
+import re
 import stat
 
 from kfcrit.errors import InputError
@@ -19,9 +20,9 @@ from kfcrit.errors import InputError
 CHUNK_BYTES = 1 << 20
 """Bytes requested per ``read`` call (the buffer never grows beyond what the file holds)."""
 
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-          (stat.S_ISSOCK, "a socket"))
+_KINDS = ((stat.S_ISLNK, "a symbolic link"), (stat.S_ISDIR, "a directory"),
+          (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
 
 def _kind(mode: int) -> str:
@@ -29,7 +30,7 @@ def _kind(mode: int) -> str:
 
 
 def read_text(path: str | os.PathLike[str], *, field: str, max_bytes: int,
-              what: str = "file") -> tuple[str, bytes]:
+              what: str = "file", follow_symlinks: bool = True) -> tuple[str, bytes]:
     """The UTF-8 text of the regular file ``path`` and its bytes, at most ``max_bytes`` long.
 
     Parameters
@@ -42,6 +43,9 @@ def read_text(path: str | os.PathLike[str], *, field: str, max_bytes: int,
         Largest accepted size; a longer file is refused after reading ``max_bytes + 1`` bytes.
     what : str
         How the file is called in messages (``file``, ``trace file``, ``journal``).
+    follow_symlinks : bool
+        With ``False`` a symbolic link at ``path`` is refused (``lstat`` first, then
+        ``O_NOFOLLOW`` on the open), for files kfcrit itself names such as the sweep journal.
 
     Raises
     ------
@@ -52,11 +56,13 @@ def read_text(path: str | os.PathLike[str], *, field: str, max_bytes: int,
     try:
         # a first look without opening: devices and FIFOs are refused before open() touches
         # them (opening some devices has effects); the fstat below is the binding check
-        mode = os.stat(path).st_mode
+        mode = (os.stat if follow_symlinks else os.lstat)(path).st_mode
         if not stat.S_ISREG(mode):
             raise InputError(f"{shown} is {_kind(mode)}, not a regular file", field=field)
         flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) \
             | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
+        if not follow_symlinks:
+            flags |= getattr(os, "O_NOFOLLOW", 0)
         fd = os.open(path, flags)
     except InputError:
         raise
@@ -93,4 +99,15 @@ def read_text(path: str | os.PathLike[str], *, field: str, max_bytes: int,
     return text, data
 
 
-__all__ = ["CHUNK_BYTES", "read_text"]
+_CONTROLS = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(text: str) -> str:
+    """``text`` with every control, line-separator and bidi-override character escaped
+    (``\\x1b``, ``\\u202e``), so user text echoed in a message cannot move the cursor, erase a
+    line or reorder what the terminal shows. Tabs and newlines are kept (callers that need one
+    line fold whitespace themselves)."""
+    return _CONTROLS.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
+
+
+__all__ = ["CHUNK_BYTES", "printable", "read_text"]
