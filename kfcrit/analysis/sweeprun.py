@@ -210,7 +210,8 @@ def _read_exactly(sock: Any, count: int, deadline: float) -> bytes:
 
 
 def probe_scheduler(scheduler: str, timeout: float | None = None) -> None:
-    """Check, within ``timeout`` seconds in all (default :data:`DASK_PROBE_SECONDS`), that ``scheduler`` speaks Dask's protocol.
+    """Check, within ``timeout`` seconds in all (default :data:`DASK_PROBE_SECONDS`), that
+    ``scheduler`` speaks Dask's protocol.
 
     A Dask scheduler opens every connection with its handshake: an 8-byte length
     :math:`L \\le` :data:`DASK_HANDSHAKE_MAX_BYTES`, then :math:`L` bytes holding a frame count

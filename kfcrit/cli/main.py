@@ -122,8 +122,8 @@ def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              plot: str | None, ergodic_steps: int | None, tail: tuple[float, ...],
              max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
-    from kfcrit.io.atomic import check_writable
     from kfcrit.cli.simulate import simulate_command
+    from kfcrit.io.atomic import check_writable
 
     if plot is not None:
         check_writable(plot)

@@ -129,16 +129,43 @@ def system_schema() -> dict[str, Any]:
                                                      "continuous:"},
              "Sigma0": {**mat, "description": "initial covariance (default identity)"},
              "channel": {"$ref": "#/$defs/channel"},
-             "requirements": {"$ref": "#/$defs/requirements"}}
-    defs = {"number": NUMBER, "matrix": MATRIX, "requirements": requirements, **channel_defs()}
+             "requirements": {"$ref": "#/$defs/requirements"},
+             "sensors": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/sensor"},
+                         "description": "several sensors, each over its own link (instead of "
+                                        "C, R, channel; MATH §9)"},
+             "links": {"type": "object", "description": "defaults merged into every sensor's "
+                                                        "link-budget channel"},
+             "sink_position_m": {"type": "array", "items": num,
+                                 "description": "position of the estimator (with the sensors' "
+                                                "position_m: distances)"},
+             "R_cross": {**mat, "description": "covariance of all sensors' stacked noise "
+                                               "(default: independent sensors)"}}
+    sensor = _object({"name": {"type": "string", "description": "unique name of the sensor"},
+                      "C": {**mat, "description": "the sensor's rows of C (m_i × n)"},
+                      "R": {**mat, "description": "the sensor's noise covariance (m_i × m_i)"},
+                      "channel": {"description": "the sensor's channel: a full channel mapping, "
+                                                 "or (with links:) the link-budget keys that "
+                                                 "differ from the defaults",
+                                  "anyOf": [{"$ref": "#/$defs/channel"}, {"type": "object"}]},
+                      "position_m": {"type": "array", "items": num,
+                                     "description": "position (replaces the channel's "
+                                                    "distance_m, with sink_position_m)"}},
+                     ["name", "C", "R"], "one sensor of a network")
+    defs = {"number": NUMBER, "matrix": MATRIX, "requirements": requirements, "sensor": sensor,
+            **channel_defs()}
+    discrete = {"required": ["A", "Q"],
+                "not": {"anyOf": [{"required": ["continuous"]}, {"required": ["sampling_time"]}]}}
+    sampled = {"required": ["continuous", "sampling_time"],
+               "not": {"anyOf": [{"required": ["A"]}, {"required": ["Q"]}]}}
+    one_sensor = {"required": ["C", "R"], "not": {"anyOf": [
+        {"required": ["sensors"]}, {"required": ["links"]}, {"required": ["R_cross"]}]}}
+    network = {"required": ["sensors", "A", "Q"], "not": {"anyOf": [
+        {"required": ["C"]}, {"required": ["R"]}, {"required": ["channel"]},
+        {"required": ["continuous"]}]}}
     return {"$schema": SCHEMA_DIALECT, "$id": "https://kfcrit.invalid/schema/system.json",
             "title": "kfcrit system file", "type": "object", "properties": props,
-            "required": ["name", "C", "R"], "additionalProperties": False,
-            "oneOf": [{"required": ["A", "Q"],
-                       "not": {"anyOf": [{"required": ["continuous"]},
-                                         {"required": ["sampling_time"]}]}},
-                      {"required": ["continuous", "sampling_time"],
-                       "not": {"anyOf": [{"required": ["A"]}, {"required": ["Q"]}]}}],
+            "required": ["name"], "additionalProperties": False,
+            "oneOf": [{"allOf": [one_sensor, {"oneOf": [discrete, sampled]}]}, network],
             "$defs": defs}
 
 

@@ -43,6 +43,8 @@ from kfcrit.sim.results import DEFAULT_SAMPLES, ErgodicResult, FullStateResult, 
 from kfcrit.sim.stats import LN10, accumulate, accumulate_log, column_stats, quiet_numerics
 
 THRESHOLD_FACTOR = 1e10
+MAX_THRESHOLD = 1e300
+"""Largest default divergence threshold (a finite float64 with room for P_t's growth)."""
 """Default divergence threshold relative to the problem's scale max(tr Σ0, tr Q, tr P*)."""
 
 
@@ -492,9 +494,13 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
 
 
 def resolve_threshold(system: System, P0: np.ndarray, given: Any) -> float:
-    """The divergence threshold: ``given`` (finite, positive) or 1e10 × the problem's scale."""
+    """The divergence threshold: ``given`` (finite, positive) or 1e10 × the problem's scale,
+    capped at :data:`MAX_THRESHOLD` (a scale near the top of float64 — Σ0 or Q of 1e300 — must
+    not turn the default into ``inf``, a value the user never wrote)."""
     if given is None:
         value = THRESHOLD_FACTOR * problem_scale(system, P0)
+        if not value < MAX_THRESHOLD:  # also catches NaN
+            value = MAX_THRESHOLD
     else:
         if isinstance(given, bool):
             raise InputError("must be a finite positive number", field="divergence_threshold")
