@@ -12,10 +12,14 @@ import kfcrit
 from kfcrit.analysis import sweep as sweep_mod
 from kfcrit.analysis.spec import spec_from_mapping
 
+from .conftest import PROFILE
+
 GENERAL = {"name": "general", "A": [[1.25, 0], [1, 1.1]], "C": [[1, 1]], "Q": 20, "R": 2.5}
 """Sinopoli's general example: p_c = 9/25, p_up = 57/121 (MATH §3)."""
 
 THEORY: dict = {}
+GE_EXAMPLES = 40 if PROFILE == "thorough" else 5
+"""Each bursty point runs the coupled-certificate LMI twice (sweep row and analyze)."""
 
 
 def row_and_record(doc: dict, assignments: list[tuple[str, str]]) -> tuple[dict, dict]:
@@ -42,7 +46,8 @@ def test_bernoulli_grid_points_agree(p) -> None:  # noqa: ANN001
     assert row["verdict"] == ("mean-stable" if p > sp.Rational(9, 25) else "mean-unstable")
 
 
-@settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@settings(max_examples=GE_EXAMPLES, suppress_health_check=[HealthCheck.too_slow],
+          deadline=None)
 @given(f=rate, r=rate)
 def test_gilbert_elliott_grid_points_agree(f, r) -> None:  # noqa: ANN001
     doc = {**GENERAL, "channel": {"model": "gilbert-elliott", "failure_rate": "1/10",
