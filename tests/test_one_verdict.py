@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import sympy as sp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -71,3 +72,25 @@ def test_the_bursty_example_of_the_issue() -> None:
         assert (row["verdict"], row["decision"]) == (rec["operating_point"]["verdict"],
                                                      rec["review"]["decision"])
     assert (row["verdict"], row["decision"]) == ("mean-unstable", "fail")
+
+
+NETWORK = {"name": "net", "A": 2, "Q": 1, "sensors": [
+    {"name": "a", "C": 1, "R": 1, "channel": {"model": "bernoulli", "arrival_probability": "0.6"}},
+    {"name": "b", "C": 1, "R": 2, "channel": {"model": "bernoulli",
+                                              "arrival_probability": "0.5"}}]}
+
+
+@pytest.mark.parametrize("p_a, verdict", [("3/10", "mean-unstable"), ("1/2", "mean-unstable"),
+                                          ("7/10", "mean-stable")])
+def test_network_sweep_points_agree(p_a: str, verdict: str) -> None:
+    """A scalar plant a = 2 seen by two sensors is stable iff (1 − p_a)(1 − p_b)·4 < 1
+    (MATH §9); with p_b = 1/2 the boundary is p_a = 1/2 (unstable there)."""
+    row, rec = row_and_record(NETWORK, [("sensors.a.channel.arrival_probability", p_a)])
+    assert row["status"] == "ok"
+    assert (row["verdict"], row["decision"]) == (rec["operating_point"]["verdict"],
+                                                 rec["review"]["decision"])
+    assert row["verdict"] == verdict
+    # uniform margin: (1 − p_a + δ)(1/2 + δ)·4 = 1
+    q = 1 - float(sp.Rational(p_a))
+    delta = (-(q + 0.5) + ((q + 0.5) ** 2 - 4 * (q * 0.5 - 0.25)) ** 0.5) / 2
+    assert row["margin"] == pytest.approx(delta, abs=1e-9)

@@ -93,6 +93,9 @@ MATRICES = ("A", "C", "Q", "R", "Sigma0")
 SYMMETRIC = ("Q", "R", "Sigma0")
 _MATRIX_PATH = re.compile(r"^(A|C|Q|R|Sigma0)\[(\d{1,6})\]\[(\d{1,6})\]$")
 _CHANNEL_PATH = re.compile(r"^channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
+_SENSOR_PATH = re.compile(r"^sensors\.([A-Za-z][A-Za-z0-9_-]{0,39})\.channel"
+                          r"((\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6})$")
+_LINKS_PATH = re.compile(r"^links(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
 RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
                   "critical_expression", "robust_critical_value", "upper_bound", "requirement",
                   "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
@@ -241,6 +244,26 @@ def _values(spec: Any, where: str) -> list[str]:
     return [_scalar_text(spec, where)]
 
 
+def _mapping_root(doc: dict, path: str) -> tuple[Any, list[str], str]:
+    """The mapping a channel-like path starts from, its keys, and what to call it.
+
+    ``channel.K…`` → the channel; ``sensors.NAME.channel.K…`` → that sensor's channel (created
+    empty when the sensor takes its link from ``links:`` alone); ``links.K…`` → the link
+    defaults of a network file.
+    """
+    m = _SENSOR_PATH.match(path)
+    if m:
+        sensor = next((s for s in doc.get("sensors") or []
+                       if isinstance(s, dict) and str(s.get("name")) == m.group(1)), None)
+        if sensor is None:
+            return None, [], f"sensor {m.group(1)!r}"
+        if sensor.get("channel") is None:
+            sensor["channel"] = {}
+        return sensor["channel"], m.group(2).split(".")[1:], f"the channel of {m.group(1)!r}"
+    head, *keys = path.split(".")
+    return doc.get(head), keys, f"the base {head}"
+
+
 def check_parameter(path: Any, base_doc: dict, where: str) -> str:
     """Validate a parameter path against the base system document."""
     if not isinstance(path, str):
@@ -258,18 +281,19 @@ def check_parameter(path: Any, base_doc: dict, where: str) -> str:
             raise InputError(f"index out of range ({name} is {len(rows)}x{len(rows[0])})",
                              field=where)
         return path
-    if _CHANNEL_PATH.match(path):
-        node = base_doc.get("channel")
-        keys = path.split(".")[1:]
+    if _CHANNEL_PATH.match(path) or _SENSOR_PATH.match(path) or _LINKS_PATH.match(path):
+        node, keys, what = _mapping_root(copy.deepcopy(base_doc), path)
         if not isinstance(node, dict):
-            raise InputError("the base system has no channel mapping", field=where)
+            raise InputError(f"the base system has no {what.replace('the base ', '')} mapping",
+                             field=where)
         for key in keys[:-1]:
             node = node.get(key)
             if not isinstance(node, dict):
-                raise InputError(f"the base channel has no mapping {key!r}", field=where)
+                raise InputError(f"{what} has no mapping {key!r}", field=where)
         return path
-    raise InputError("unknown parameter: use channel.KEY[.KEY...] or a matrix entry like "
-                     "A[0][1]", field=where)
+    raise InputError("unknown parameter: use channel.KEY[.KEY...], sensors.NAME.channel.KEY"
+                     "[.KEY...], links.KEY[.KEY...] or a matrix entry like A[0][1]",
+                     field=where)
 
 
 def apply_point(base_doc: dict, assignments: Iterable[tuple[str, str]]) -> dict:
@@ -283,8 +307,7 @@ def apply_point(base_doc: dict, assignments: Iterable[tuple[str, str]]) -> dict:
             if name in SYMMETRIC and i != j and j < len(doc[name]) and i < len(doc[name][j]):
                 doc[name][j][i] = text
             continue
-        keys = path.split(".")[1:]
-        node = doc["channel"]
+        node, keys, _ = _mapping_root(doc, path)
         for key in keys[:-1]:
             node = node[key]
         node[keys[-1]] = text
@@ -380,8 +403,8 @@ def _base_value(base_doc: dict, path: str) -> Any:
     m = _MATRIX_PATH.match(path)
     if m:
         return None
-    node: Any = base_doc.get("channel")
-    for key in path.split(".")[1:]:
+    node, keys, _ = _mapping_root(copy.deepcopy(base_doc), path)
+    for key in keys:
         if not isinstance(node, dict):
             return None
         node = node.get(key)
@@ -441,16 +464,20 @@ def _check_unknown_keys(parameters: list[str], first: tuple[str, ...], where: li
     model then refuses the key itself (``unknown key``), the sweep file names an unknown
     parameter. Other errors (a value out of range) stay errors of the points that have them.
     """
-    from kfcrit.analysis.spec import parse_channel
+    from kfcrit.analysis.spec import parse_channel, spec_from_mapping
 
     for path, text, where_ in zip(parameters, first, where):
         if _MATRIX_PATH.match(path) or _base_value(base_doc, path) is not None:
             continue
         doc = apply_point(base_doc, [(path, text)])
         try:
-            parse_channel(doc["channel"], "channel", base_dir)
+            if _CHANNEL_PATH.match(path):
+                parse_channel(doc["channel"], "channel", base_dir)
+            else:
+                spec_from_mapping(doc, base_dir=base_dir)
         except InputError as exc:
-            if exc.field == path and "unknown key" in str(exc):
+            if "unknown key" in str(exc) and (exc.field == path or (exc.field or "").endswith(
+                    "." + path.rsplit(".", 1)[-1])):
                 raise InputError(f"unknown parameter: {str(exc)[len(path) + 2:]}",
                                  field=where_) from None
 
@@ -560,7 +587,12 @@ def row_of(record: dict[str, Any]) -> dict[str, Any]:
                robust_critical_value=_value(record.get("robust_critical_value")),
                upper_bound=_value(record.get("upper_bound")), requirement=req,
                requirement_basis=basis, decision=(record.get("review") or {}).get("decision"))
-    if op:
+    if op and record.get("network"):
+        # a network: the margin is the uniform margin δ, p the bottleneck sensor's
+        row.update(arrival_probability=op.get("arrival_probability"), iid=op.get("iid"),
+                   margin=op.get("margin"), verdict=op.get("verdict"), requirement=None,
+                   requirement_basis="uniform margin of the sensor network")
+    elif op:
         p = op.get("arrival_probability")
         row.update(arrival_probability=p, iid=op.get("iid"),
                    margin=(p - req) if None not in (p, req) else None,
