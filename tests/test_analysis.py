@@ -27,8 +27,16 @@ def analyze_json(path: Path, *extra: str) -> tuple[int, dict, str]:
 
 
 @pytest.fixture(scope="module")
-def records() -> dict[str, tuple[int, dict, str]]:
-    return {name: analyze_json(REPORTS / name, "--quick") for name in CASES}
+def records(example_records: dict) -> dict[str, tuple[int, dict, str]]:
+    """The paper cases' records from the run's shared analyses (``--quick``), with the exit
+    code ``kfcrit analyze`` gives them."""
+    from kfcrit.analysis.verdict import exit_code
+
+    out = {}
+    for name in CASES:
+        rec = example_records[name].to_dict()
+        out[name] = (exit_code(rec), rec, json.dumps(rec))
+    return out
 
 
 @pytest.mark.parametrize("name", CASES)
