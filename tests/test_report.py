@@ -28,7 +28,7 @@ from kfcrit.analysis.record import AnalysisOptions, analyze
 from kfcrit.cli import report as command
 from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
-from kfcrit.io.systemfile import load_spec
+from kfcrit.analysis.spec import load_spec
 from kfcrit.views import figures
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
@@ -230,8 +230,8 @@ def test_cdf_window_reaches_past_the_limit():
 
 
 def test_plain_log_tick_labels():
-    assert figures._plain_label(0.6) == "0.6" and figures._plain_label(20.0) == "20"
-    assert "e" not in figures._plain_label(0.002)
+    assert figures.plain_label(0.6) == "0.6" and figures.plain_label(20.0) == "20"
+    assert "e" not in figures.plain_label(0.002)
 
 
 # ----------------------------------------------------------------------------- HTML
