@@ -53,9 +53,7 @@ def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
     with matplotlib.rc_context(FIG_RC):
         fig = Figure(figsize=(WIDTH_IN, 3.2), layout="constrained")
         ax = fig.add_subplot()
-        level = finite(curve.get("necessary_value"))
-        if level is None and nec is not None and max(nec) - min(nec) < 1e-12:
-            level = nec[0]
+        level = nec[0] if nec is not None and max(nec) - min(nec) < 1e-12 else None
         if level is not None and curve.get("necessary_expression"):
             # r_nec does not depend on f when the record gives it as one closed form
             ax.axhline(level, color=COLORS["p_c"], linestyle="--", linewidth=0.9,

@@ -224,7 +224,7 @@ def draw_network_map(record: dict[str, Any]) -> Figure | None:
     with matplotlib.rc_context(FIG_RC):
         fig = Figure(figsize=(WIDTH_IN, 3.3), layout="constrained")
         ax = fig.add_subplot()
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_aspect("equal", adjustable="box")
         for s, (low, high) in zip(sensors, margins):
             x, y = pos[s["name"]]
             if sink is not None:
