@@ -46,8 +46,12 @@ def radio_rows(radio: dict[str, Any]) -> list[dict[str, Any]]:
         suf = end_value(as_dict(item.get("sufficient")), unit)
         nec = end_value(as_dict(item.get("necessary")), unit)
         sense = str(item.get("sense") or "")
+        both_missing = number(as_dict(item.get("sufficient")).get("value")) is None and \
+            number(as_dict(item.get("necessary")).get("value")) is None
+        text = (f"{suf} at both ends" if both_missing and suf == nec else
+                f"the requirement is guaranteed at {suf} and fails beyond {nec}")
         rows.append(row(f"{label} ({sense})" if sense else label, None,
-                        note=f"meets the requirement: {suf}; beyond {nec} it fails"
+                        note=text
                         + (f" — {prose(item.get('method'))}" if item.get("method") else "")))
     if number(radio.get("margin_db")) is not None:
         rows.append(row("SINR kept in reserve", radio.get("margin_db"), "dB",
@@ -73,7 +77,9 @@ def tail_view(rec: dict[str, Any]) -> dict[str, Any] | None:
     ex = as_dict(as_dict(rec.get("tail")).get("exponent"))
     if not ex or not ex.get("applicable", True) or number(ex.get("value")) is None:
         return None
-    return {"value": ex.get("value"), "expression": ex.get("expression"),
+    expr = ex.get("expression")
+    short = isinstance(expr, str) and len(expr) <= 40   # a float p gives an unreadable ratio
+    return {"value": ex.get("value"), "expression": expr if short else None,
             "formula": prose(ex.get("formula")), "statement": prose(ex.get("statement")),
             "label": prose(ex.get("label")), "source": str(ex.get("source") or "")}
 
