@@ -89,7 +89,23 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "legend": verdict_legend(op, verdict, opd),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
+        "network": network_cells(rec) if channel.get("model") == "network" else None,
     }
+
+
+def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
+    """For a sensor network, what the verdict box's cells stand for: p is the bottleneck link's,
+    the margin is the uniform margin δ (its bracket when not exact), and p_c above is the
+    stacked system's (every sensor on one link), not a per-link value."""
+    net = as_dict(rec.get("network"))
+    bn = as_dict(net.get("bottleneck"))
+    crit = None
+    for s in as_list(net.get("sensors")):
+        if as_dict(s).get("name") == bn.get("name"):
+            crit = as_dict(as_dict(s).get("critical_value"))
+    return {"bottleneck": bn.get("name"),
+            "bottleneck_critical": number(crit.get("value")) if crit else None,
+            "bottleneck_interval": crit.get("interval") if crit else None}
 
 
 def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
