@@ -41,7 +41,7 @@ def page_errors(stderr: str) -> list[str]:
 
 def test_report_in_chromium(tmp_path):
     from kfcrit.analysis.record import AnalysisOptions, analyze
-    from kfcrit.io.systemfile import load_spec
+    from kfcrit.analysis.spec import load_spec
 
     spec = load_spec(ROOT / "reports" / "rotation-third-turn.yaml")
     rec = analyze(spec, AnalysisOptions(quick=True)).to_dict()

@@ -16,7 +16,13 @@ Figures (names for :func:`figure`, keys of :func:`build_figures`):
 * ``operating``: simulated mean tr P_t at the operating point with its band, against tr S̄, tr V̄;
 * ``cdf``: empirical CDF of tr P at the operating point, with the requirement's limit;
 * ``almost_sure``: block maxima and minima of tr P_t along one long path (MATH §6);
-* ``invariant``: support of the invariant distribution of a scalar system (Kar et al. Thm 10).
+* ``invariant``: support of the invariant distribution of a scalar system (Kar et al. Thm 10);
+* ``network_region``, ``network_map``: a sensor network's stability region in the plane of its
+  two weakest links, and the map of its nodes (:mod:`kfcrit.views.netplots`);
+* ``critical_curve``: a Gilbert–Elliott link's critical curve (:mod:`kfcrit.views.burstplots`);
+* ``accuracy``, ``arrival_distance``, ``per_sinr``, ``outage_distance``: the accuracy
+  requirement against the covariance bounds and the link curves
+  (:mod:`kfcrit.views.designplots`).
 """
 from __future__ import annotations
 
@@ -33,55 +39,34 @@ matplotlib.use("Agg")
 
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
+from kfcrit.views.burstplots import draw_critical_curve  # noqa: E402
+from kfcrit.views.designplots import (  # noqa: E402
+    draw_accuracy,
+    draw_arrival_distance,
+    draw_outage_distance,
+    draw_per_sinr,
+)
+from kfcrit.views.figstyle import (  # noqa: E402,F401
+    COLORS,
+    FIG_RC,
+    HEIGHT_IN,
+    WIDTH_IN,
+    finite,
+    floats,
+    fmt,
+    mark,
+    new_figure,
+    plain_label,
+    plain_log_labels,
+    positive,
+    section,
+)
 from kfcrit.views.mathsvg import clean_svg  # noqa: E402
+from kfcrit.views.netplots import draw_network_map, draw_network_region  # noqa: E402
 
-FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant")
-COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",
-          "p_up": "#7c3aed", "operating": "#15803d", "sim": "#111827", "band": "#9ca3af"}
-FIG_RC = {"font.size": 8.5, "axes.titlesize": 9, "axes.labelsize": 8.5, "legend.fontsize": 7.5,
-          "xtick.labelsize": 7.5, "ytick.labelsize": 7.5, "svg.fonttype": "path",
-          "svg.hashsalt": "kfcrit", "axes.spines.top": False, "axes.spines.right": False,
-          "axes.grid": True, "grid.color": "#e5e7eb", "grid.linewidth": 0.6,
-          "mathtext.fontset": "dejavuserif"}
-WIDTH_IN = 6.4
-HEIGHT_IN = 2.9
-
-
-def _floats(values: Any) -> list[float] | None:
-    """A list of floats (``None`` entries become NaN); ``None`` if ``values`` is not a list."""
-    if not isinstance(values, (list, tuple)) or not values:
-        return None
-    out = []
-    for v in values:
-        if v is None:
-            out.append(math.nan)
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            out.append(float(v))
-        else:
-            return None
-    return out
-
-
-def _number(v: Any) -> float | None:
-    """A finite float or ``None``."""
-    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
-        return float(v)
-    return None
-
-
-def _section(record: dict[str, Any], *keys: str) -> Any:
-    """``record[k1][k2]...`` or ``None`` when any level is missing or not a mapping."""
-    cur: Any = record
-    for k in keys:
-        if not isinstance(cur, dict):
-            return None
-        cur = cur.get(k)
-    return cur
-
-
-def _positive(values: Sequence[float]) -> bool:
-    """True when at least one value is finite and positive (something to draw on a log axis)."""
-    return any(math.isfinite(v) and v > 0 for v in values)
+FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
+               "network_region", "network_map", "critical_curve", "accuracy",
+               "arrival_distance", "per_sinr", "outage_distance")
 
 
 def _to_svg(fig: Figure, label: str) -> str:
@@ -92,79 +77,11 @@ def _to_svg(fig: Figure, label: str) -> str:
     return clean_svg(buf.getvalue().decode("utf-8"), label=label, css_class="figure-svg")
 
 
-def _new_figure(height: float = HEIGHT_IN) -> tuple[Figure, Any]:
-    fig = Figure(figsize=(WIDTH_IN, height), layout="constrained")
-    return fig, fig.add_subplot()
-
-
-def _mark(ax: Any, x: float | None, key: str, label: str, style: str = "--") -> None:
-    if x is not None:
-        ax.axvline(x, color=COLORS[key], linestyle=style, linewidth=1.1, label=label)
-
-
-_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-
-
-def _decade_label(value: float, _pos: Any = None) -> str:
-    """``10⁵`` for a power of ten (plain text with superscript digits: no mathtext to parse)."""
-    if value <= 0:
-        return ""
-    exp = math.log10(value)
-    if abs(exp - round(exp)) > 1e-9:
-        return ""
-    k = int(round(exp))
-    return {0: "1", 1: "10"}.get(k, "10" + str(k).translate(_SUPERSCRIPT))
-
-
-def _plain_label(value: float) -> str:
-    """A tick value as plain text: ``0.6``, ``2``, ``20``, ``300`` (typographic minus sign)."""
-    if value == 0 or not math.isfinite(value):
-        return ""
-    text = f"{value:.3g}"
-    if "e" in text:   # outside the plain range: the decade form
-        return _decade_label(value)
-    return text.replace("-", "−")
-
-
-def _plain_log_labels(ax: Any, which: str = "x") -> None:
-    """Readable tick labels on a log axis, set as plain text (no mathtext: faster, same look).
-
-    Few decades: 0.6, 2, 5, 20, 100 (plain numbers, never ``6e−01``); wide or large ranges:
-    1, 10, 10², 10³ on the decades only.
-    """
-    from matplotlib import ticker
-
-    lo, hi = ax.get_xlim() if which == "x" else ax.get_ylim()
-    axis = ax.xaxis if which == "x" else ax.yaxis
-    if lo <= 0 or hi <= 0 or hi / lo > 1e4 or hi >= 1e5 or lo < 1e-3:
-        axis.set_major_formatter(ticker.FuncFormatter(_decade_label))
-        axis.set_minor_formatter(ticker.NullFormatter())
-        return
-    decades = math.log10(hi / lo)
-    # Minor ticks sit at m·10^k, m = 2..9: label all of them over half a decade or less, the
-    # 2s and 5s up to 2 decades, none beyond.
-    mantissas = set(range(2, 10)) if decades <= 0.5 else {2, 5} if decades <= 2 else set()
-
-    def minor(value: float, _pos: Any = None) -> str:
-        if value <= 0:
-            return ""
-        mant = value / 10 ** math.floor(math.log10(value) + 1e-9)
-        return _plain_label(value) if round(mant) in mantissas and \
-            abs(mant - round(mant)) < 1e-6 else ""
-
-    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _p=None: _plain_label(v)))
-    axis.set_minor_formatter(ticker.FuncFormatter(minor))
-
-
-def _fmt(value: float | None) -> str:
-    return "?" if value is None else f"{value:.4g}"
-
-
 def markers_of(record: dict[str, Any]) -> dict[str, float | None]:
     """p_low, p_c, p_up and the operating p (``phase_transition.markers``; ``None`` if absent)."""
-    marks = _section(record, "phase_transition", "markers")
+    marks = section(record, "phase_transition", "markers")
     marks = marks if isinstance(marks, dict) else {}
-    return {k: _number(marks.get(k)) for k in ("p_low", "p_c", "p_up", "operating")}
+    return {k: finite(marks.get(k)) for k in ("p_low", "p_c", "p_up", "operating")}
 
 
 def phase_window(p: Sequence[float], lower: Sequence[float] | None,
@@ -173,12 +90,12 @@ def phase_window(p: Sequence[float], lower: Sequence[float] | None,
     """The p-range of the phase-transition figure: where a bound exists, plus a margin.
 
     Both bounds are infinite below p_low, so the window starts a tenth of the remaining range
-    below the first finite point (and includes the operating point and the p markers).
+    below the first present point (and includes the operating point and the p markers).
     """
-    finite = [x for i, x in enumerate(p)
+    present = [x for i, x in enumerate(p)
               if any(seq is not None and i < len(seq) and math.isfinite(seq[i])
                      for seq in (lower, upper))]
-    first = min(finite) if finite else min(p)
+    first = min(present) if present else min(p)
     right = max(p)
     shown = [first] + [v for v in marks.values() if v is not None and min(p) <= v <= right]
     left = min(shown)
@@ -193,31 +110,31 @@ def draw_phase_transition(record: dict[str, Any]) -> Figure | None:
     pt = record.get("phase_transition")
     if not isinstance(pt, dict):
         return None
-    p = _floats(pt.get("p"))
-    lower = _floats(pt.get("trace_lower"))
-    upper = _floats(pt.get("trace_upper"))
+    p = floats(pt.get("p"))
+    lower = floats(pt.get("trace_lower"))
+    upper = floats(pt.get("trace_upper"))
     if p is None or (lower is None and upper is None):
         return None
     marks = markers_of(record)
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure()
+        fig, ax = new_figure()
         drawn = False
-        if lower is not None and len(lower) == len(p) and _positive(lower):
+        if lower is not None and len(lower) == len(p) and positive(lower):
             ax.plot(p, lower, color=COLORS["lower"], linewidth=1.6,
                     label=r"tr $\bar S$ (lower bound of lim E[P])")
             drawn = True
-        if upper is not None and len(upper) == len(p) and _positive(upper):
+        if upper is not None and len(upper) == len(p) and positive(upper):
             ax.plot(p, upper, color=COLORS["upper"], linewidth=1.6,
                     label=r"tr $\bar V$ (upper bound of lim E[P])")
             drawn = True
         if not drawn:
             return None
         ax.set_yscale("log")
-        _plain_log_labels(ax, "y")
-        _mark(ax, marks["p_low"], "p_low", rf"$p_{{low}}$ = {_fmt(marks['p_low'])}", ":")
-        _mark(ax, marks["p_c"], "p_c", rf"$p_c$ = {_fmt(marks['p_c'])}", "-")
-        _mark(ax, marks["p_up"], "p_up", rf"$p_{{up}}$ = {_fmt(marks['p_up'])}", "--")
-        _mark(ax, marks["operating"], "operating", f"operating p = {_fmt(marks['operating'])}",
+        plain_log_labels(ax, "y")
+        mark(ax, marks["p_low"], "p_low", rf"$p_{{low}}$ = {fmt(marks['p_low'])}", ":")
+        mark(ax, marks["p_c"], "p_c", rf"$p_c$ = {fmt(marks['p_c'])}", "-")
+        mark(ax, marks["p_up"], "p_up", rf"$p_{{up}}$ = {fmt(marks['p_up'])}", "--")
+        mark(ax, marks["operating"], "operating", f"operating p = {fmt(marks['operating'])}",
               "-.")
         ax.set_xlabel("arrival probability p")
         ax.set_ylabel("trace of the bound")
@@ -228,20 +145,20 @@ def draw_phase_transition(record: dict[str, Any]) -> Figure | None:
 
 def draw_traces(record: dict[str, Any]) -> Figure | None:
     """Simulated mean tr P_t for arrival probabilities just below and above the critical value."""
-    demo = _section(record, "simulation", "phase_demo", "curves")
+    demo = section(record, "simulation", "phase_demo", "curves")
     if not isinstance(demo, list) or not demo:
         return None
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure()
+        fig, ax = new_figure()
         palette = ["#b91c1c", "#d9730d", "#1f5fa8", "#15803d", "#7c3aed"]
         drawn = 0
         for i, run in enumerate(demo):
             if not isinstance(run, dict):
                 continue
             t, y, _, _ = series_of(run)
-            if t is None or y is None or len(t) != len(y) or not _positive(y):
+            if t is None or y is None or len(t) != len(y) or not positive(y):
                 continue
-            p = _number(run.get("arrival_probability"))
+            p = finite(run.get("arrival_probability"))
             label = str(run.get("side") or "")
             text = f"p = {p:.4g}" if p is not None else "p = ?"
             if run.get("mean_is_lower_bound"):
@@ -252,7 +169,7 @@ def draw_traces(record: dict[str, Any]) -> Figure | None:
         if not drawn:
             return None
         ax.set_yscale("log")
-        _plain_log_labels(ax, "y")
+        plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("mean tr $P_t$ over paths")
         fig.legend(loc="outside lower center", frameon=False, ncols=2)
@@ -265,42 +182,42 @@ def series_of(run: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
     The operating-point run has ``times`` and ``mean_trace = {mean, lower, upper}``; a curve of
     ``phase_demo`` has ``times``, ``mean_trace`` (a list) and ``lower``/``upper`` beside it.
     """
-    t = _floats(run.get("times"))
+    t = floats(run.get("times"))
     mt = run.get("mean_trace")
     if isinstance(mt, dict):
-        return t, _floats(mt.get("mean")), _floats(mt.get("lower")), _floats(mt.get("upper"))
-    return t, _floats(mt), _floats(run.get("lower")), _floats(run.get("upper"))
+        return t, floats(mt.get("mean")), floats(mt.get("lower")), floats(mt.get("upper"))
+    return t, floats(mt), floats(run.get("lower")), floats(run.get("upper"))
 
 
 def cdf_of(record: dict[str, Any]) -> tuple[Any, Any]:
     """(trace, probability) of the empirical CDF of tr P at the operating point
     (``simulation.operating_point.horizon.cdf``)."""
-    cdf = _section(record, "simulation", "operating_point", "horizon", "cdf")
+    cdf = section(record, "simulation", "operating_point", "horizon", "cdf")
     if not isinstance(cdf, dict):
         return None, None
-    return _floats(cdf.get("trace")), _floats(cdf.get("probability"))
+    return floats(cdf.get("trace")), floats(cdf.get("probability"))
 
 
 def tail_of(record: dict[str, Any]) -> float | None:
     """Simulated P(tr P > limit) at the operating point
     (``simulation.operating_point.exceedance.estimate``)."""
-    return _number(_section(record, "simulation", "operating_point", "exceedance", "estimate"))
+    return finite(section(record, "simulation", "operating_point", "exceedance", "estimate"))
 
 
 def draw_operating(record: dict[str, Any]) -> Figure | None:
     """Mean tr P_t at the operating point (with its band) against tr S̄ and tr V̄."""
-    op = _section(record, "simulation", "operating_point")
+    op = section(record, "simulation", "operating_point")
     if not isinstance(op, dict):
         return None
     t, y, lo, hi = series_of(op)
-    if t is None or y is None or len(t) != len(y) or not _positive(y):
+    if t is None or y is None or len(t) != len(y) or not positive(y):
         return None
-    s_tr = _number(_section(record, "covariance_bounds", "lower", "trace"))
-    v_tr = _number(_section(record, "covariance_bounds", "upper", "trace"))
-    positive = [v for v in list(y) + [s_tr or 0.0, v_tr or 0.0] if math.isfinite(v) and v > 0]
-    floor = 0.5 * min(positive)
+    s_tr = finite(section(record, "covariance_bounds", "lower", "trace"))
+    v_tr = finite(section(record, "covariance_bounds", "upper", "trace"))
+    shown = [v for v in list(y) + [s_tr or 0.0, v_tr or 0.0] if math.isfinite(v) and v > 0]
+    floor = 0.5 * min(shown)
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure()
+        fig, ax = new_figure()
         if lo is not None and hi is not None and len(lo) == len(t) == len(hi):
             # A lower band end at or below zero cannot be drawn on a log axis: it is drawn to
             # the bottom of the plot (the band extends below it).
@@ -316,7 +233,7 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
                        label=r"tr $\bar V$")
         ax.set_yscale("log")
         ax.set_ylim(bottom=floor)
-        _plain_log_labels(ax, "y")
+        plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")
         fig.legend(loc="outside lower center", frameon=False, ncols=4)
@@ -326,23 +243,23 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
 def cdf_window(x: Sequence[float], limit: float | None) -> tuple[float, float] | None:
     """The x range of the CDF figure: from below the smallest trace to past both the largest
     trace and the requirement's limit (so the paths beyond the limit are visible)."""
-    finite = [v for v in x if math.isfinite(v) and v > 0]
+    present = [v for v in x if math.isfinite(v) and v > 0]
     if limit is not None and limit > 0:
-        finite.append(limit)
-    if not finite:
+        present.append(limit)
+    if not present:
         return None
-    return min(finite) / 1.15, max(finite) * 1.6
+    return min(present) / 1.15, max(present) * 1.6
 
 
 def draw_cdf(record: dict[str, Any]) -> Figure | None:
     """Empirical CDF of tr P at the operating point, with the requirement's limit if given."""
     x, f = cdf_of(record)
-    if x is None or f is None or len(x) != len(f) or not _positive(x):
+    if x is None or f is None or len(x) != len(f) or not positive(x):
         return None
-    limit = _number(_section(record, "requirements", "max_error_trace"))
+    limit = finite(section(record, "requirements", "max_error_trace"))
     tail = tail_of(record)
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure()
+        fig, ax = new_figure()
         ax.step(x, f, where="post", color=COLORS["sim"], linewidth=1.3,
                 label="empirical CDF of tr P")
         if limit is not None and limit > 0:
@@ -357,7 +274,7 @@ def draw_cdf(record: dict[str, Any]) -> Figure | None:
             ax.set_xlim(left, right)
             if math.isfinite(x[-1]) and math.isfinite(f[-1]) and x[-1] < right:
                 ax.plot([x[-1], right], [f[-1], f[-1]], color=COLORS["sim"], linewidth=1.3)
-        _plain_log_labels(ax, "x")
+        plain_log_labels(ax, "x")
         ax.set_ylim(0, 1.02)
         ax.set_xlabel("tr P at the simulation horizon")
         ax.set_ylabel("P(tr P ≤ x)")
@@ -381,7 +298,7 @@ def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
         raw += list(sp.get("largest_gaps") or [])
     pairs = sorted({(float(g[0]), float(g[1])) for g in raw
                     if isinstance(g, (list, tuple)) and len(g) == 2
-                    and _number(g[0]) is not None and _number(g[1]) is not None
+                    and finite(g[0]) is not None and finite(g[1]) is not None
                     and g[1] > g[0]})
     by_upper: dict[float, tuple[float, float]] = {}
     for lo, hi in pairs:
@@ -403,14 +320,14 @@ def draw_invariant(record: dict[str, Any]) -> Figure | None:
         return None
     gaps = invariant_gaps(inv)
     fp = inv.get("fixed_point")
-    fixed = _number(fp.get("value") if isinstance(fp, dict) else fp)
+    fixed = finite(fp.get("value") if isinstance(fp, dict) else fp)
     if not gaps:
         return None
     ends = [v for g in gaps for v in g]
     left = fixed if fixed is not None and fixed > 0 else min(ends)
     right = max(ends) * 1.15
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure(height=1.55)
+        fig, ax = new_figure(height=1.55)
         ax.axvspan(left, right, ymin=0.25, ymax=0.75, color=COLORS["lower"], alpha=0.75,
                    linewidth=0, label="no gap found (support lies here)")
         for i, (a, b) in enumerate(gaps):
@@ -421,7 +338,7 @@ def draw_invariant(record: dict[str, Any]) -> Figure | None:
                        label=f"P* = {fixed:.4g} (Riccati fixed point)")
         ax.set_xscale("log")
         ax.set_xlim(left / 1.08, right)
-        _plain_log_labels(ax, "x")
+        plain_log_labels(ax, "x")
         ax.set_ylim(0, 1)
         ax.set_yticks([])
         ax.grid(False, axis="y")
@@ -433,24 +350,24 @@ def draw_invariant(record: dict[str, Any]) -> Figure | None:
 
 def draw_almost_sure(record: dict[str, Any]) -> Figure | None:
     """Block maxima and minima of tr P_t over dyadic time blocks of one long path (MATH §6)."""
-    blk = _section(record, "simulation", "operating_point", "almost_sure")
+    blk = section(record, "simulation", "operating_point", "almost_sure")
     if not isinstance(blk, dict):
         return None
-    start = _floats(blk.get("block_start"))
-    bmax = _floats(blk.get("block_max"))
-    bmin = _floats(blk.get("block_min"))
-    if start is None or bmax is None or len(start) != len(bmax) or not _positive(bmax):
+    start = floats(blk.get("block_start"))
+    bmax = floats(blk.get("block_max"))
+    bmin = floats(blk.get("block_min"))
+    if start is None or bmax is None or len(start) != len(bmax) or not positive(bmax):
         return None
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = _new_figure(height=2.4)
+        fig, ax = new_figure(height=2.4)
         ax.plot(start, bmax, marker="^", markersize=3.5, color=COLORS["p_c"], linewidth=1.2,
                 label="max of tr $P_t$ over the block")
-        if bmin is not None and len(bmin) == len(start) and _positive(bmin):
+        if bmin is not None and len(bmin) == len(start) and positive(bmin):
             ax.plot(start, bmin, marker="v", markersize=3.5, color=COLORS["lower"],
                     linewidth=1.2, label="min of tr $P_t$ over the block")
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
-        _plain_log_labels(ax, "y")
+        plain_log_labels(ax, "y")
         ax.set_xlabel("block start $2^k$ (time step)")
         ax.set_ylabel("tr $P_t$")
         fig.legend(loc="outside lower center", frameon=False, ncols=2)
@@ -460,7 +377,10 @@ def draw_almost_sure(record: dict[str, Any]) -> Figure | None:
 DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "phase_transition": draw_phase_transition, "traces": draw_traces,
     "operating": draw_operating, "cdf": draw_cdf, "almost_sure": draw_almost_sure,
-    "invariant": draw_invariant}
+    "invariant": draw_invariant, "network_region": draw_network_region,
+    "network_map": draw_network_map, "critical_curve": draw_critical_curve,
+    "accuracy": draw_accuracy, "arrival_distance": draw_arrival_distance,
+    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -469,7 +389,16 @@ LABELS = {
                  "covariance bounds",
     "cdf": "Distribution of the error covariance trace at the operating point",
     "almost_sure": "Block maxima and minima of the error covariance trace along one path",
-    "invariant": "Support of the invariant distribution"}
+    "invariant": "Support of the invariant distribution",
+    "network_region": "Stability region of the two weakest links with the operating point",
+    "network_map": "Map of the sensor nodes coloured by link margin",
+    "critical_curve": "Critical curve of the bursty link in the failure-rate, recovery-rate "
+                      "plane",
+    "accuracy": "Covariance bounds against the arrival probability with the accuracy "
+                "requirement",
+    "arrival_distance": "Arrival probability against distance",
+    "per_sinr": "Packet error rate against SINR",
+    "outage_distance": "Shadowing outage against distance"}
 # Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
 # costs more per figure than the rest of a page's layout.
 DENSE = frozenset(FIGURE_KEYS)

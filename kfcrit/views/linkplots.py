@@ -15,7 +15,7 @@ from matplotlib import rc_context, ticker  # noqa: E402 - after choosing the bac
 from matplotlib.figure import Figure  # noqa: E402
 
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve  # noqa: E402
-from kfcrit.views.figures import COLORS, FIG_RC, HEIGHT_IN, WIDTH_IN  # noqa: E402
+from kfcrit.views.figstyle import COLORS, FIG_RC, HEIGHT_IN, WIDTH_IN  # noqa: E402
 
 LINE_COLORS = ("#1f5fa8", "#d9730d", "#15803d", "#7c3aed", "#6b7280")
 

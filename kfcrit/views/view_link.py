@@ -251,10 +251,47 @@ def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
     else:
         rows.append(row("simulation of the bursty channel", None,
                         note="not run: the dedicated simulation covers scalar systems only"))
+    rows += certificate_rows(as_dict(lb.get("certificate")))
     claims = [{"statement": prose(as_dict(c).get("statement")),
                "source": str(as_dict(c).get("source") or ""),
                "status": str(as_dict(c).get("status") or "")} for c in as_list(lb.get("claims"))]
     return {"rows": rows, "claims": claims}
+
+
+def certificate_rows(cert: dict[str, Any]) -> list[dict[str, Any]]:
+    """The burst verdict for any system (MATH §10): the necessary burst condition, the coupled
+    fixed-gain certificate and the literature's claim, as the record states them."""
+    if not cert:
+        return []
+    verdict = cert.get("verdict")
+    rows = [row("burst verdict (MATH §10)", str(verdict).replace("-", " ") if verdict else None,
+                note=prose(cert.get("basis")),
+                status={"mean-stable": True, "mean-unstable": False}.get(str(verdict)))]
+    nec = as_dict(cert.get("necessary"))
+    if nec:
+        rows.append(row("necessary burst condition (1 − r)·ρ(A)² < 1", nec.get("value"), "num",
+                        note=("holds" if nec.get("holds") else "fails")
+                        + (f"; {prose(nec.get('how'))}" if nec.get("how") else ""),
+                        status=nec.get("holds")))
+    coupled = as_dict(cert.get("certificate"))
+    if coupled:
+        rows.append(row("coupled fixed-gain certificate", coupled.get("spectral_radius"), "num",
+                        note=("proven" if coupled.get("certified") else "not proven")
+                        + " (spectral radius of the second-moment recursion, < 1 proves "
+                        "E[P_t] bounded)"
+                        + (f"; gain: {prose(coupled.get('gain_origin'))}"
+                           if coupled.get("gain_origin") else ""),
+                        status=coupled.get("certified")))
+    else:
+        rows.append(row("coupled fixed-gain certificate", None,
+                        note="none in the record (not needed when the necessary condition "
+                             "fails, or none was found)"))
+    claim = as_dict(cert.get("claim"))
+    if claim:
+        rows.append(row("literature claim (not proven here)", None,
+                        note=f"{prose(claim.get('statement'))}; if true the verdict would be "
+                             f"{str(claim.get('verdict_if_true') or '?').replace('-', ' ')}"))
+    return rows
 
 
 def channel_view(rec: dict[str, Any]) -> dict[str, Any]:

@@ -97,7 +97,23 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "legend": verdict_legend(op, verdict, opd),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
+        "network": network_cells(rec) if channel.get("model") == "network" else None,
     }
+
+
+def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
+    """For a sensor network, what the verdict box's cells stand for: p is the bottleneck link's,
+    the margin is the uniform margin δ (its bracket when not exact), and p_c above is the
+    stacked system's (every sensor on one link), not a per-link value."""
+    net = as_dict(rec.get("network"))
+    bn = as_dict(net.get("bottleneck"))
+    crit = None
+    for s in as_list(net.get("sensors")):
+        if as_dict(s).get("name") == bn.get("name"):
+            crit = as_dict(as_dict(s).get("critical_value"))
+    return {"bottleneck": bn.get("name"),
+            "bottleneck_critical": number(crit.get("value")) if crit else None,
+            "bottleneck_interval": crit.get("interval") if crit else None}
 
 
 def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
@@ -138,8 +154,18 @@ def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
             "caution": "not demonstrated: the 95 % interval contains the allowed tail "
                        "probability; run more paths (full mode) before relying on this"
                        if status == "not demonstrated" else "",
-            "missing": "" if limit is not None else
-            "no requirement in the system file (add requirements: max_error_trace, "
-            "max_tail_probability)"}
+            "missing": "" if limit is not None else mean_requirement_text(req)}
+
+
+def mean_requirement_text(req: dict[str, Any]) -> str:
+    """The verdict box's requirement line without a tail requirement: the mean requirement's
+    assessment (``requirements.assessments``), or how to add a requirement."""
+    for a in as_list(req.get("assessments")):
+        a = as_dict(a)
+        if a.get("requirement"):
+            return (f"{prose(a.get('requirement'))}: {a.get('status') or 'not assessed'} "
+                    "(section 2)")
+    return ("no requirement in the system file (add requirements: max_error_trace, "
+            "max_tail_probability, or max_mean_error_trace)")
 
 

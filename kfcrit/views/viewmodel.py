@@ -10,7 +10,9 @@ import datetime
 from typing import Any
 
 from kfcrit.version import __version__
+from kfcrit.views.view_design import design_view, link_figures
 from kfcrit.views.view_link import channel_view
+from kfcrit.views.view_network import network_view
 from kfcrit.views.view_sim import appendix_view, figures_view, simulation_view
 from kfcrit.views.view_theory import (
     bounds_view,
@@ -22,7 +24,15 @@ from kfcrit.views.view_theory import (
     system_view,
 )
 from kfcrit.views.view_verdict import requirement_view, verdict_view
-from kfcrit.views.viewparts import as_dict, as_list, prose
+from kfcrit.views.viewparts import as_dict, as_list, figure_entry, prose
+
+IID_CAVEAT = ("The channel is bursty (Gilbert–Elliott): p_c, p_up, S̄ and V̄ assume i.i.d. "
+              "losses, so they do not decide stability at the operating point; the burst "
+              "analysis and the critical curve in section 1 do.")
+NETWORK_CAVEAT = ("Sensor network: p_c, p_up, S̄, V̄ and the bounds here treat all sensors as one "
+                  "link that delivers every measurement or none (the stacked system); the "
+                  "per-link critical values, margins and N−1 verdicts are in section 1.")
+IID_FIGURES = ("phase_transition", "traces", "operating")
 
 
 def report_date(record: dict[str, Any], today: datetime.date | None = None) -> str:
@@ -46,6 +56,22 @@ def meta_view(rec: dict[str, Any], today: datetime.date | None = None) -> dict[s
             "link_review": as_dict(rec.get("link_budget")).get("applicable") is True}
 
 
+def critical_curve_figure(rec: dict[str, Any], figures: dict[str, str | None],
+                          bursty: bool) -> dict[str, Any] | None:
+    """The critical-curve figure of a Gilbert–Elliott link (``None`` for i.i.d. channels)."""
+    if not bursty and as_dict(rec.get("link_budget")).get("critical_curve") is None:
+        return None
+    return figure_entry(
+        as_dict(figures).get("critical_curve"), "Critical curve of the bursty link",
+        "The (failure rate f, recovery rate r) plane of the Gilbert–Elliott channel (MATH §10): "
+        "at or below the necessary recovery rate r_nec(f) E[P_t] diverges (proven); at or above "
+        "the sufficient one r_suf(f) the coupled fixed-gain certificate proves it bounded "
+        "(found numerically, drawn at the record's grid of f only); between, undetermined. "
+        "The dotted diagonal f + r = 1 is the i.i.d. channel.",
+        "critical curve: not computed (the record has no critical curve: an analysis without "
+        "details, a stable plant, or more than 12 states)")
+
+
 def view_model(record: dict[str, Any], figures: dict[str, str | None],
                today: datetime.date | None = None) -> dict[str, Any]:
     """Every value the templates read, from the record and the figures (no computation left).
@@ -60,6 +86,16 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         The rendering date for the footer when the record carries none (default: today).
     """
     rec = as_dict(record)
+    bursty = as_dict(rec.get("operating_point")).get("iid") is False
+    caveat = IID_CAVEAT if bursty else NETWORK_CAVEAT if \
+        len(as_list(as_dict(rec.get("network")).get("sensors"))) > 1 else ""
+    figs = figures_view(figures, rec)
+    if caveat:
+        for key in IID_FIGURES:
+            figs[key]["caption"] = f"Caveat: {caveat} {figs[key]['caption']}"
+    channel = channel_view(rec)
+    channel["critical_curve"] = critical_curve_figure(rec, figures, bursty)
+    channel["link_figures"] = link_figures(rec, figures)
     return {
         "meta": meta_view(rec, today),
         "verdict": verdict_view(rec),
@@ -69,11 +105,14 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "classification": classification_view(rec),
         "bounds": bounds_view(rec),
         "covariance": covariance_view(rec),
-        "figures": figures_view(figures, rec),
+        "figures": figs,
+        "iid_caveat": caveat,
         "simulation": simulation_view(rec),
         "requirement": requirement_view(rec),
         "statements": statements_view(rec),
         "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
-        "channel": channel_view(rec),
+        "channel": channel,
+        "network": network_view(rec, figures),
+        "design": design_view(rec, figures),
         "appendix": appendix_view(rec),
     }

@@ -70,7 +70,6 @@ def formula(latex: str | None, expression: str | None, *, fontsize: float = 11.0
     return safe_svg(svg)
 
 
-
 def row(label: str, value: Any, kind: str = "text", note: str = "",
         status: bool | None = None, unit_title: str = "") -> dict[str, Any]:
     """One labelled row of a quantity table: the template prints ``value | quantity(kind)``.
@@ -96,3 +95,10 @@ def maybe_svg(expr: Any) -> Markup | None:
     return None
 
 
+
+
+def figure_entry(svg: str | None, title: str, caption: str, missing_text: str
+                 ) -> dict[str, Any]:
+    """A figure for the ``figure`` macro: markup, title, caption and the "not computed" text."""
+    return {"svg": safe_svg(svg), "title": title, "caption": caption,
+            "missing": missing_text or f"{title[:1].lower() + title[1:]}: {NOT_COMPUTED}"}

@@ -1,0 +1,81 @@
+"""Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (MATH §10).
+
+Reads ``link_budget.critical_curve`` (:meth:`kfcrit.theory.markov.CriticalCurve.to_dict`):
+on a grid of failure rates f, the necessary recovery rate r_nec(f) (at or below it E[P_t]
+diverges, proven) and the sufficient one r_suf(f) (at or above it the coupled fixed-gain
+certificate proves E[P_t] bounded),
+
+.. math::
+
+    r_{nec}(f) \\le r_{crit}(f) \\le r_{suf}(f),
+
+and the operating point (f, r). Nothing is computed: the curves are drawn at the record's grid
+points only (no extrapolation beyond them).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+from matplotlib.figure import Figure
+
+from kfcrit.views.figstyle import COLORS, FIG_RC, WIDTH_IN, finite, floats, section
+
+
+def critical_curve_of(record: dict[str, Any]) -> dict[str, Any] | None:
+    """The critical curve of a Gilbert–Elliott link (single link or the link budget's bursty
+    part), or ``None``."""
+    for where in (("link_budget", "critical_curve"),
+                  ("link_budget", "bursty", "critical_curve")):
+        curve = section(record, *where)
+        if isinstance(curve, dict):
+            return curve
+    return None
+
+
+def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
+    """Both bounding curves of the critical curve, the regions they decide, the operating
+    point and the line f + r = 1 (i.i.d. losses)."""
+    curve = critical_curve_of(record)
+    if curve is None:
+        return None
+    f = floats(curve.get("failure_rates"))
+    nec = floats(curve.get("necessary_recovery"))
+    suf = floats(curve.get("sufficient_recovery"))
+    if f is None or (nec is None and suf is None):
+        return None
+    nec = nec if nec is not None and len(nec) == len(f) else None
+    suf = suf if suf is not None and len(suf) == len(f) else None
+    if nec is None and suf is None:
+        return None
+    op = curve.get("operating_point") if isinstance(curve.get("operating_point"), dict) else {}
+    of, orr = finite(op.get("failure_rate")), finite(op.get("recovery_rate"))
+    with matplotlib.rc_context(FIG_RC):
+        fig = Figure(figsize=(WIDTH_IN, 3.2), layout="constrained")
+        ax = fig.add_subplot()
+        level = nec[0] if nec is not None and max(nec) - min(nec) < 1e-12 else None
+        if level is not None and curve.get("necessary_expression"):
+            # r_nec does not depend on f when the record gives it as one closed form
+            ax.axhline(level, color=COLORS["p_c"], linestyle="--", linewidth=0.9,
+                       label=f"r = {curve['necessary_expression']} (necessary, every f)")
+        if nec is not None:
+            ax.fill_between(f, 0, nec, color="#fde2e2", linewidth=0,
+                            label="r ≤ r_nec(f): mean-unstable (proven)")
+            ax.plot(f, nec, color=COLORS["p_c"], marker="o", markersize=3, linewidth=1.5,
+                    label="necessary recovery rate r_nec(f)")
+        if suf is not None:
+            ax.fill_between(f, suf, 1, color="#dcfce7", linewidth=0,
+                            label="r ≥ r_suf(f): mean-stable (certificate)")
+            ax.plot(f, suf, color=COLORS["operating"], marker="s", markersize=3,
+                    linewidth=1.5, label="sufficient recovery rate r_suf(f)")
+        ax.plot([0, 1], [1, 0], color=COLORS["p_low"], linestyle=":", linewidth=1,
+                label="f + r = 1 (i.i.d. losses, p = r)")
+        if of is not None and orr is not None:
+            ax.plot([of], [orr], marker="*", markersize=11, color=COLORS["sim"],
+                    linestyle="none", label=f"operating point f = {of:.4g}, r = {orr:.4g}")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("failure rate f = P(lost | received before)")
+        ax.set_ylabel("recovery rate r")
+        fig.legend(loc="outside right center", frameon=False)
+        return fig

@@ -1,0 +1,132 @@
+"""Shared look of the report figures: colours, rc settings, sizes and the small readers and
+axis helpers every drawing module uses (record values to floats, plain tick labels).
+
+Nothing here computes a result: the readers turn record values into floats (``None`` → NaN,
+a gap in a line) and the helpers format axes.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
+
+COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",
+          "p_up": "#7c3aed", "operating": "#15803d", "sim": "#111827", "band": "#9ca3af"}
+FIG_RC = {"font.size": 8.5, "axes.titlesize": 9, "axes.labelsize": 8.5, "legend.fontsize": 7.5,
+          "xtick.labelsize": 7.5, "ytick.labelsize": 7.5, "svg.fonttype": "path",
+          "svg.hashsalt": "kfcrit", "axes.spines.top": False, "axes.spines.right": False,
+          "axes.grid": True, "grid.color": "#e5e7eb", "grid.linewidth": 0.6,
+          "mathtext.fontset": "dejavuserif"}
+WIDTH_IN = 6.4
+HEIGHT_IN = 2.9
+
+
+def floats(values: Any) -> list[float] | None:
+    """A list of floats (``None`` entries become NaN); ``None`` if ``values`` is not a list."""
+    if not isinstance(values, (list, tuple)) or not values:
+        return None
+    out = []
+    for v in values:
+        if v is None:
+            out.append(math.nan)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            out.append(float(v))
+        else:
+            return None
+    return out
+
+
+def finite(v: Any) -> float | None:
+    """A finite float or ``None``."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+        return float(v)
+    return None
+
+
+def section(record: dict[str, Any], *keys: str) -> Any:
+    """``record[k1][k2]...`` or ``None`` when any level is missing or not a mapping."""
+    cur: Any = record
+    for k in keys:
+        if not isinstance(cur, dict):
+            return None
+        cur = cur.get(k)
+    return cur
+
+
+def positive(values: Sequence[float]) -> bool:
+    """True when at least one value is finite and positive (something to draw on a log axis)."""
+    return any(math.isfinite(v) and v > 0 for v in values)
+
+
+def new_figure(height: float = HEIGHT_IN) -> tuple[Figure, Any]:
+    fig = Figure(figsize=(WIDTH_IN, height), layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def mark(ax: Any, x: float | None, key: str, label: str, style: str = "--") -> None:
+    if x is not None:
+        ax.axvline(x, color=COLORS[key], linestyle=style, linewidth=1.1, label=label)
+
+
+SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def decade_label(value: float, _pos: Any = None) -> str:
+    """``10⁵`` for a power of ten (plain text with superscript digits: no mathtext to parse)."""
+    if value <= 0:
+        return ""
+    exp = math.log10(value)
+    if abs(exp - round(exp)) > 1e-9:
+        return ""
+    k = int(round(exp))
+    return {0: "1", 1: "10"}.get(k, "10" + str(k).translate(SUPERSCRIPT))
+
+
+def plain_label(value: float) -> str:
+    """A tick value as plain text: ``0.6``, ``2``, ``20``, ``300`` (typographic minus sign)."""
+    if value == 0 or not math.isfinite(value):
+        return ""
+    text = f"{value:.3g}"
+    if "e" in text:   # outside the plain range: the decade form
+        return decade_label(value)
+    return text.replace("-", "−")
+
+
+def plain_log_labels(ax: Any, which: str = "x") -> None:
+    """Readable tick labels on a log axis, set as plain text (no mathtext: faster, same look).
+
+    Few decades: 0.6, 2, 5, 20, 100 (plain numbers, never ``6e−01``); wide or large ranges:
+    1, 10, 10², 10³ on the decades only.
+    """
+    from matplotlib import ticker
+
+    lo, hi = ax.get_xlim() if which == "x" else ax.get_ylim()
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    if lo <= 0 or hi <= 0 or hi / lo > 1e4 or hi >= 1e5 or lo < 1e-3:
+        axis.set_major_formatter(ticker.FuncFormatter(decade_label))
+        axis.set_minor_formatter(ticker.NullFormatter())
+        return
+    decades = math.log10(hi / lo)
+    # Minor ticks sit at m·10^k, m = 2..9: label all of them over half a decade or less, the
+    # 2s and 5s up to 2 decades, none beyond.
+    mantissas = set(range(2, 10)) if decades <= 0.5 else {2, 5} if decades <= 2 else set()
+
+    def minor(value: float, _pos: Any = None) -> str:
+        if value <= 0:
+            return ""
+        mant = value / 10 ** math.floor(math.log10(value) + 1e-9)
+        return plain_label(value) if round(mant) in mantissas and \
+            abs(mant - round(mant)) < 1e-6 else ""
+
+    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _p=None: plain_label(v)))
+    axis.set_minor_formatter(ticker.FuncFormatter(minor))
+
+
+def fmt(value: float | None) -> str:
+    return "?" if value is None else f"{value:.4g}"

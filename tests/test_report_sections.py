@@ -1,0 +1,198 @@
+"""Report sections for sensor networks, bursty links and the accuracy design.
+
+Expected values are hand computations from the example files (closed forms of MATH §9–§11),
+never values copied from the analysis: the figures and tables must show what the record holds,
+and the record's numbers are checked against the closed forms where one exists.
+"""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from kfcrit.analysis.record import AnalysisOptions, analyze
+from kfcrit.analysis.spec import load_spec, spec_from_mapping
+from kfcrit.views import figures, netplots, report
+from kfcrit.views.viewmodel import IID_CAVEAT, view_model
+from tests.test_report import REPORTS, visible_text
+
+_CACHE: dict[str, dict] = {}
+
+
+def record(stem: str) -> dict:
+    """A quick analysis of an example system (made once, copied out)."""
+    if stem not in _CACHE:
+        spec = load_spec(REPORTS / f"{stem}.yaml")
+        _CACHE[stem] = analyze(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
+    return copy.deepcopy(_CACHE[stem])
+
+
+def record_of(doc: dict, key: str) -> dict:
+    if key not in _CACHE:
+        _CACHE[key] = analyze(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0)
+                              ).to_dict()
+    return copy.deepcopy(_CACHE[key])
+
+
+def html_of(rec: dict) -> str:
+    return report.render_html(rec, figures.build_figures(rec))
+
+
+# ----------------------------------------------------------------------------- network
+
+# reports/network-redundant-gauges.yaml: a = 3, p = (0.6, 0.5, 3/4) for radar, float, pressure.
+# One constraint 9·(1 − p_r)(1 − p_f)(1 − p_p) < 1, so with the others at their values:
+#   radar    : 9·0.5·0.25·(1 − p) < 1  ⇔  p > 1 − 1/1.125 = 1/9
+#   float    : 9·0.4·0.25·(1 − p) = 0.9(1 − p) < 1 for every p  ⇒  0
+#   pressure : 9·0.4·0.5·(1 − p) < 1  ⇔  p > 1 − 1/1.8 = 4/9
+GAUGES = {"radar": (0.6, 1 / 9), "float": (0.5, 0.0), "pressure": (0.75, 4 / 9)}
+
+
+def test_network_table_shows_each_node_with_its_critical_value():
+    rec = record("network-redundant-gauges")
+    model = view_model(rec, figures.build_figures(rec))
+    nodes = {n["name"]: n for n in model["network"]["nodes"]}
+    assert set(nodes) == set(GAUGES)
+    for name, (p, crit) in GAUGES.items():
+        assert float(nodes[name]["critical"]) == pytest.approx(crit, abs=1e-6), name
+        assert float(nodes[name]["margin"].replace("−", "-")) == pytest.approx(p - crit, abs=1e-4)
+    # losing the float gauge: 9·0.4·0.25 = 0.9 < 1 survives; the other two do not
+    assert nodes["float"]["n1_verdict"] == "mean-stable"
+    assert nodes["radar"]["n1_verdict"] == nodes["pressure"]["n1_verdict"] == "mean-unstable"
+    html = html_of(rec)
+    assert 'id="network-nodes"' in html and 'id="fig-network-region"' in html
+    text = visible_text(html)
+    assert "a network of 3 sensors" in text and "(bottleneck)" in text
+
+
+def test_weakest_pair_and_the_drawn_constraint_follow_the_closed_form():
+    rec = record("network-redundant-gauges")
+    names = [s["name"] for s in netplots.sensors_of(rec)]
+    pair = netplots.weakest_pair(rec)
+    # bottleneck pressure (its loss breaks stability, least certain margin 0.75 − 4/9), then
+    # radar (margin 0.6 − 1/9 ≈ 0.489 < float's 0.5)
+    assert [names[i] for i in pair] == ["pressure", "radar"]
+    grid = np.array([0.0, 4 / 9, 0.75, 1.0])
+    (_, values), = netplots.constraint_values(rec, pair, grid)
+    px, py = np.meshgrid(grid, grid)
+    np.testing.assert_allclose(values, 9 * (1 - px) * (1 - 0.5) * (1 - py))
+    # on the line through the operating point (radar at 0.6) the boundary is pressure = 4/9
+    assert values[list(grid).index(0.0), 1] == pytest.approx(9 * (5 / 9) * 0.5)   # radar 0
+    fig = netplots.draw_network_region(rec)
+    ax = fig.axes[0]
+    op = [ln for ln in ax.get_lines() if ln.get_label().startswith("operating point")]
+    assert op and tuple(op[0].get_xydata()[0]) == pytest.approx((0.75, 0.6))
+
+
+def test_network_map_draws_positions_and_the_sink_when_given():
+    rec = record("network-planar-tracker")
+    pos = netplots.positions_of(rec)
+    assert pos == {"north": (0.0, 118.0), "east": (124.0, 0.0), "corner": (90.0, 92.0)}
+    html = html_of(rec)
+    assert 'id="fig-network-map"' in html
+    model = view_model(rec, figures.build_figures(rec))
+    assert "no sink position" in model["network"]["map"]["caption"]
+    rec["system"]["sink_position_m"] = [0.0, 0.0]
+    fig = netplots.draw_network_map(rec)
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "sink" in texts and any(t.startswith("corner") for t in texts)
+    # a margin that is an interval is printed as one
+    assert any("[+0.539" in t for t in texts)
+
+
+def test_single_link_record_has_no_network_section():
+    rec = record("sinopoli-scalar")
+    assert figures.build_figures(rec)["network_region"] is None
+    assert 'id="network"' not in html_of(rec)
+
+
+# ----------------------------------------------------------------------------- bursty links
+
+def test_bursty_report_draws_the_critical_curve_and_carries_the_caveat():
+    rec = record("ge-bursty-scalar")
+    curve = rec["link_budget"]["critical_curve"]
+    # scalar a = −5/4: r_nec = 1 − 1/a² = 9/25 for every f (MATH §7)
+    assert curve["necessary_recovery"] == pytest.approx([9 / 25] * len(curve["failure_rates"]))
+    fig = figures.figure(rec, "critical_curve")
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    nec = lines["necessary recovery rate r_nec(f)"]
+    np.testing.assert_array_equal(nec.get_xdata(), curve["failure_rates"])
+    np.testing.assert_array_equal(nec.get_ydata(), curve["necessary_recovery"])
+    star = next(ln for k, ln in lines.items() if k.startswith("operating point"))
+    assert tuple(star.get_xydata()[0]) == pytest.approx((0.05, 0.1))
+    html = html_of(rec)
+    assert 'id="fig-critical-curve"' in html and 'id="iid-caveat"' in html
+    text = visible_text(html)
+    assert text.count("Caveat:") >= 1 and "burst verdict" in text
+
+
+def test_iid_report_has_no_bursty_caveat():
+    rec = record("sinopoli-scalar")
+    html = html_of(rec)
+    assert 'id="iid-caveat"' not in html and IID_CAVEAT not in html
+    assert 'id="fig-critical-curve"' not in html
+
+
+# ----------------------------------------------------------------------------- accuracy design
+
+SCALAR_DESIGN = {"name": "scalar accuracy requirement", "A": [[-1.25]], "C": [[1]], "Q": [[1]],
+                 "R": [[2.5]], "channel": {"model": "bernoulli", "arrival_probability": 0.8},
+                 "requirements": {"max_mean_error_trace": 10}}
+
+
+def test_accuracy_figure_shades_the_required_interval():
+    rec = record_of(SCALAR_DESIGN, "scalar-design")
+    # tr S̄(p) = q / (1 − (1 − p) a²) = 10  ⇔  (1 − p)·25/16 = 0.9  ⇔  p_S = 0.424 (by hand)
+    p_s, p_v = rec["design"]["required_arrival_probability"]["interval"]
+    assert p_s == pytest.approx(0.424, abs=1e-6) and p_s < p_v < 0.8
+    fig = figures.figure(rec, "accuracy")
+    ax = fig.axes[0]
+    spans = [p for p in ax.patches if "p_S, p_V" in p.get_label()]
+    assert len(spans) == 1
+    box = spans[0].get_bbox()   # an axvspan is a rectangle in data x, axes y
+    assert box.x0 == pytest.approx(p_s) and box.x1 == pytest.approx(p_v)
+    level = [ln for ln in ax.get_lines() if ln.get_label().startswith("requirement L")]
+    assert level and level[0].get_ydata()[0] == 10
+    html = html_of(rec)
+    text = visible_text(html)
+    assert 'id="design"' in html and 'id="fig-accuracy"' in html
+    assert "lim E[tr P] ≤ 10: met" in text and "no requirement in the system file" not in text
+
+
+def test_link_curves_from_the_record_are_drawn_as_given():
+    from kfcrit.link import curves
+
+    rec = record("link-oqpsk-sensor")
+    link = load_spec(REPORTS / "link-oqpsk-sensor.yaml").channel
+    arrival = curves.arrival_vs_distance(link, np.geomspace(30, 300, 25))
+    per = curves.per_vs_sinr(link.radio, (20, 127), np.linspace(-4, 4, 17))
+    outage = curves.outage_vs_distance(link, {"p_c": 0.36}, np.array([50.0, 105.0, 200.0]))
+    rec["link_budget"]["curves"] = {"arrival_vs_distance": arrival.to_dict(),
+                                    "per_vs_sinr": per.to_dict(),
+                                    "outage_vs_distance": outage.to_dict()}
+    fig = figures.figure(rec, "arrival_distance")
+    median = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("median"))
+    np.testing.assert_array_equal(median.get_ydata(), arrival.arrival)
+    assert any(ln.get_label() == "p_c = 0.36" for ln in fig.axes[0].get_lines())
+    fig = figures.figure(rec, "per_sinr")
+    psdu127 = next(ln for ln in fig.axes[0].get_lines() if ln.get_label() == "PSDU 127 bytes")
+    np.testing.assert_allclose(psdu127.get_ydata(), link.radio.per(np.linspace(-4, 4, 17), 127))
+    fig = figures.figure(rec, "outage_distance")
+    out = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("P(p_link"))
+    assert out.get_ydata()[1] == link.outage_probability(0.36)
+    html = html_of(rec)
+    assert all(f'id="fig-link-{i}"' in html for i in (1, 2, 3))
+    # malformed curves: no figure, no exception
+    rec["link_budget"]["curves"]["per_vs_sinr"]["per"] = [[0.1]]
+    assert figures.build_figures(rec)["per_sinr"] is None
+
+
+def test_tail_exponent_is_shown_with_its_label():
+    rec = record("requirements-tail")
+    ex = rec["tail"]["exponent"]
+    # β = log(1 − p)/(−2 log|a|) = log(5)/log(25/16) at p = 0.8, a = −5/4 (by hand)
+    assert ex["value"] == pytest.approx(math.log(5) / math.log(25 / 16))
+    text = visible_text(html_of(rec))
+    assert "Power-law tail exponent β = 3.60628" in text and "claim" in text
