@@ -25,15 +25,12 @@ from pathlib import Path
 import pytest
 
 from kfcrit.analysis.record import AnalysisOptions, analyze
+from kfcrit.analysis.spec import load_spec
 from kfcrit.cli import report as command
 from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
-from kfcrit.analysis.spec import load_spec
-from kfcrit.views import figures
+from kfcrit.views import figures, mathsvg, report, summary
 from kfcrit.views import jinja_filters as filters
-from kfcrit.views import mathsvg
-from kfcrit.views import report
-from kfcrit.views import summary
 from kfcrit.views.view_sim import appendix_view, seeds_text, simulation_view
 from kfcrit.views.view_theory import bounds_view
 
