@@ -1,8 +1,8 @@
 """The HTML report as a user sees it: opened in headless Chromium (Debian ``chromium``).
 
 Checks that the page loads with no failed resource and no console error, and that the rendered
-DOM shows the verdict and the critical value of a real analysis; a screenshot must be produced. Skipped only when
-chromium is not installed (``.ci/run`` installs it).
+DOM shows the verdict and the critical value of a real analysis; a screenshot must be produced.
+Skipped only when chromium is not installed (``.ci/run`` installs it).
 """
 from __future__ import annotations
 
