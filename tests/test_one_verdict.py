@@ -94,3 +94,44 @@ def test_network_sweep_points_agree(p_a: str, verdict: str) -> None:
     q = 1 - float(sp.Rational(p_a))
     delta = (-(q + 0.5) + ((q + 0.5) ** 2 - 4 * (q * 0.5 - 0.25)) ** 0.5) / 2
     assert row["margin"] == pytest.approx(delta, abs=1e-9)
+
+
+def test_bursty_link_in_a_network_uses_the_burst_condition() -> None:
+    """a = 3 seen by radar (p 0.6), float (p 0.5) and a Gilbert–Elliott pressure link
+    (f 0.1, r 0.3, stationary 3/4): all three lost for k steps has probability ~
+    (0.4·0.5·0.7)^k while P grows 9^k, and 0.4·0.5·0.7·9 = 1.26 ≥ 1, so E[P_t] diverges
+    although the stationary i.i.d. surface (0.4·0.5·0.25·9 = 0.45 < 1) would call it stable."""
+    doc = {"name": "gauges", "A": 3, "Q": 1, "sensors": [
+        {"name": "radar", "C": 1, "R": "1/2",
+         "channel": {"model": "bernoulli", "arrival_probability": "0.6"}},
+        {"name": "float", "C": 1, "R": 2,
+         "channel": {"model": "bernoulli", "arrival_probability": "0.5"}},
+        {"name": "pressure", "C": 1, "R": 1,
+         "channel": {"model": "gilbert-elliott", "failure_rate": "0.1",
+                     "recovery_rate": "0.3"}}]}
+    row, rec = row_and_record(doc, [])
+    assert rec["operating_point"]["verdict"] == "mean-unstable" == row["verdict"]
+    assert rec["review"]["decision"] == "fail" == row["decision"]
+    # recovery 0.8: 0.4·0.5·0.2·9 = 0.36 < 1 holds, but nothing sufficient is proven for
+    # bursty networks: undetermined, never a pass
+    row, rec = row_and_record(doc, [("sensors.pressure.channel.recovery_rate", "0.8")])
+    assert rec["operating_point"]["verdict"] == "undetermined" == row["verdict"]
+
+
+def test_one_bursty_sensor_equals_the_single_link() -> None:
+    """N = 1 over a Gilbert–Elliott link: (1 − r)a² = 0.9·25/16 ≥ 1, as ge-bursty-scalar."""
+    doc = {"name": "n1", "A": "-5/4", "Q": 1, "sensors": [
+        {"name": "only", "C": 1, "R": "5/2",
+         "channel": {"model": "gilbert-elliott", "failure_rate": "1/20",
+                     "recovery_rate": "1/10"}}]}
+    row, rec = row_and_record(doc, [])
+    assert rec["operating_point"]["verdict"] == "mean-unstable" == row["verdict"]
+    assert rec["review"]["decision"] == "fail" == row["decision"]
+    assert rec["network"]["sensors"][0]["critical_value"]["expression"] == "9/25"
+
+
+def test_exact_margin_keeps_a_tiny_difference() -> None:
+    doc = {**GENERAL, "channel": {"model": "bernoulli", "arrival_probability": "9/25 + 10**-40"}}
+    row, rec = row_and_record(doc, [])
+    assert rec["operating_point"]["verdict"] == "mean-stable"       # exact: p > 9/25
+    assert rec["operating_point"]["margin"] == pytest.approx(1e-40, rel=1e-12)

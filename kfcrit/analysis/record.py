@@ -106,7 +106,9 @@ def system_section(spec: SystemSpec) -> dict[str, Any]:
     if spec.continuous is not None:
         out["continuous"] = spec.continuous.to_dict()
     if spec.network is not None:
-        out["sensors"] = spec.network.to_dict().get("sensors")
+        net = spec.network.to_dict()
+        out["sensors"] = net.get("sensors")
+        out["sink_position_m"] = net.get("sink_position_m")
     return out
 
 
@@ -189,7 +191,10 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
         out.update(margin=None, margin_robust=None, bracket=None, diverges_for_all_p=True,
                    reason=vd.NOT_DETECTABLE_BASIS)
     elif cls == "stable" or pc is not None:
-        out.update(margin=p - (pc or 0.0), margin_robust=p - worst, bracket=None)
+        out.update(margin=exact_difference(p_exact, crit.critical_exact, p - (pc or 0.0)),
+                   margin_robust=p - worst, bracket=None)
+        if crit.robust is None or crit.robust <= (pc or 0.0):
+            out["margin_robust"] = out["margin"]
     else:
         lo = crit.lower if crit.lower is not None else 0.0
         out.update(margin=None, margin_robust=None, bracket=[lo, crit.upper],
@@ -226,6 +231,11 @@ def network_sections(spec: SystemSpec, opts: AnalysisOptions, warnings: list[str
                         "critical values, the uniform margin and N − 1 verdicts are in "
                         "`network`")
     verdict, basis = vd.network_verdict(net)
+    burst = network_burst_condition(spec.network)
+    if burst is not None:
+        net["burst_condition"] = burst
+        verdict, basis = vd.network_burst_verdict(verdict, basis, burst["holds"],
+                                                  burst["statement"])
     sensors = net.get("sensors") or []
     bottleneck = (net.get("bottleneck") or {}).get("name")
     row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
@@ -245,6 +255,51 @@ def network_sections(spec: SystemSpec, opts: AnalysisOptions, warnings: list[str
                   "uniform margin δ (every link degraded by δ reaches the stability boundary)",
           "verdict": verdict.value, "basis": basis}
     return net, op
+
+
+def network_burst_condition(network: Any) -> dict[str, Any] | None:
+    """The necessary burst condition of a network with bursty links (MATH §9 and §10).
+
+    A run of k steps in which every sensor outside T loses its packets has probability of order
+    Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a lost link stays lost)
+    and 1 − p_j for an i.i.d. one, while the modes unobservable through C_T grow like ρ_T^{2k}:
+    E[P_t] is unbounded unless Π_{j∉T} c_j·ρ_T² < 1 for every T — the necessary surface of
+    :func:`kfcrit.theory.network.necessary_constraints` evaluated at p_j' = 1 − c_j. None when
+    every link is memoryless.
+    """
+    import numpy as np
+
+    from kfcrit.theory.network import necessary_constraints, necessary_holds
+
+    chains = [bursty_channel(s.channel) for s in network.sensors]
+    if all(c is None for c in chains):
+        return None
+    q_exact = [c.recovery_rate if c is not None else
+               (s.channel.arrival_probability if s.channel is not None else None)
+               for s, c in zip(network.sensors, chains)]
+    q = np.array([float(v) if v is not None else 0.0 for v in q_exact])
+    holds = necessary_holds(necessary_constraints(network), q, q_exact)
+    names = ", ".join(s.name for s, c in zip(network.sensors, chains) if c is not None)
+    statement = (f"burst condition for the bursty links ({names}): Π_(j∉T) c_j·ρ_T² < 1 for "
+                 "every sensor set T, c_j = 1 − r_j (Gilbert–Elliott) or 1 − p_j (i.i.d.) — "
+                 + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
+                    if holds is False else "undecided at float precision"))
+    return {"holds": holds, "statement": statement,
+            "continuation": {s.name: 1 - float(v) for s, v in zip(network.sensors, q)}}
+
+
+def exact_difference(a: Any, b: Any, fallback: float) -> float:
+    """a − b rounded once to a double when both are exact (so 9/25 + 10⁻⁴⁰ − 9/25 is 1e-40,
+    not 0.0); the float ``fallback`` otherwise."""
+    import sympy as sp
+
+    if isinstance(a, sp.Basic) and isinstance(b, sp.Basic) and not (a.has(sp.Float)
+                                                                    or b.has(sp.Float)):
+        try:
+            return float(sp.N(a - b, 30))
+        except (TypeError, ValueError):
+            return fallback
+    return fallback
 
 
 def trace_summary(spec: SystemSpec, p: float) -> dict[str, Any]:
@@ -314,6 +369,9 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     if kwargs:
         opts = replace(opts, **kwargs)
     spec = _as_spec(system)
+    if spec.network is not None and spec.network.size == 1:
+        # one sensor is one link: every single-link result applies (its channel included)
+        spec = replace(spec, channel=spec.network.sensors[0].channel)
     s = spec.system
     if theory is None:
         theory = theory_sections(s, opts, channel=spec.channel)
@@ -327,8 +385,10 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
 
     _link_sections(spec, opts, sec, warnings, theory)
     if spec.network is not None:
-        sec["network"], sec["operating_point"] = network_sections(spec, opts, warnings)
-    else:
+        sec["network"], op = network_sections(spec, opts, warnings)
+        if spec.network.size > 1:
+            sec["operating_point"] = op
+    if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     reqs = spec.requirements
     _design_sections(spec, theory, sec, warnings)
@@ -342,6 +402,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
                              "the verdict rests on the network theory (MATH §9)"}
     elif opts.details or tail:
         _simulation_sections(spec, opts, sec, warnings)
+    tail_simulation_check(sec)
     sec["requirements"] = requirement_assessment(reqs.to_dict() if reqs else None,
                                                  sec.get("simulation"),
                                                  sec.get("covariance_bounds"),
@@ -501,12 +562,14 @@ def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str
     req = ((sec.get("design") or {}).get("required_arrival_probability") or {})
     if req.get("interval"):
         marks["p_S"], marks["p_V"] = (float(v) for v in req["interval"])
+    sizes = tuple(sorted({20, int(channel.psdu_bytes), 127}))
     out = {"arrival_vs_distance": curves.arrival_vs_distance(channel).to_dict(),
-           "per_vs_sinr": curves.per_vs_sinr(channel.radio).to_dict(),
+           "per_vs_sinr": curves.per_vs_sinr(channel.radio, sizes).to_dict(),
            "marks": marks}
     usable = {k: v for k, v in marks.items() if 0 < v < 1}
     if usable:
-        out["outage_vs_distance"] = curves.outage_vs_distance(channel, usable).to_dict()
+        out["outage_vs_distance"] = curves.outage_vs_distance(
+            channel, usable, curves.distance_grid(channel, points=60)).to_dict()
     return out
 
 
@@ -528,8 +591,11 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
                               classification=cls)
     out["certificate"] = bv.to_dict()
     if opts.details and s.n <= 12 and cls != "stable":
+        points = 5 if opts.quick else 9
+        grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
+                      | {0.01, float(ge.failure_rate)})
         curve = markov.critical_curve(
-            s, points=5 if opts.quick else 9, tol=1e-2 if opts.quick else 1e-3,
+            s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
             operating=(float(ge.failure_rate), float(ge.recovery_rate)),
             structure=theory.structure)
         out["critical_curve"] = curve.to_dict()
@@ -599,6 +665,39 @@ def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any])
     sec["tail"] = {"exponent": tail_exponent(
         spec.system, spec.channel.arrival_probability,
         classification=sec.get("classification"), structure=theory.structure).to_dict()}
+
+
+def tail_simulation_check(sec: dict[str, Any]) -> None:
+    r"""The tail exponent against the simulation: the log–log slope of the empirical CCDF.
+
+    .. math:: \log P(\operatorname{tr} P_T > M) \approx c - \beta \log M
+
+    fitted by least squares on the simulated paths at the horizon over the upper tail (CCDF
+    between 10/N and 0.2: at least ten paths beyond every point used). A finite horizon and N
+    paths bias the slope; the comparison is evidence for the labelled claim, not a proof.
+    """
+    import numpy as np
+
+    tail = (sec.get("tail") or {}).get("exponent") or {}
+    op = (sec.get("simulation") or {}).get("operating_point") or {}
+    cdf = (op.get("horizon") or {}).get("cdf") or {}
+    beta, paths = tail.get("value"), op.get("paths")
+    if beta is None or not cdf.get("trace") or not paths:
+        return
+    m = np.asarray(cdf["trace"], dtype=float)
+    ccdf = 1.0 - np.asarray(cdf["probability"], dtype=float)
+    keep = (ccdf >= 10.0 / paths) & (ccdf <= 0.2) & (m > 0) & np.isfinite(m)
+    check: dict[str, Any] = {"method": "least-squares slope of log CCDF against log tr P at "
+                             "the horizon, CCDF in [10/N, 0.2]", "paths": paths,
+                             "horizon": op.get("steps"), "points": int(keep.sum())}
+    if keep.sum() >= 4 and np.ptp(np.log(m[keep])) > 0:
+        slope = float(np.polyfit(np.log(m[keep]), np.log(ccdf[keep]), 1)[0])
+        check.update(slope=slope, exponent_estimate=-slope,
+                     relative_difference=abs(-slope - beta) / beta,
+                     trace_range=[float(m[keep].min()), float(m[keep].max())])
+    else:
+        check["note"] = "too few simulated tail points for a slope"
+    sec["tail"]["simulation_check"] = check
 
 
 def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
@@ -762,6 +861,10 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
     lower = (bounds or {}).get("lower") or {}
     upper = (bounds or {}).get("upper") or {}
     if bounds and lower.get("exists") is False:
+        if verdict == vd.Verdict.MEAN_STABLE.value:
+            return {"status": "not met", "basis": "(1 − p)ρ(A)² rounds to 1 or more in double "
+                    "precision at this p: the Lyapunov lower bound tr S̄ = Σ_k (1 − p)^k "
+                    "tr(A^k Q A'^k) is beyond float64, far above L"}
         return {"status": "not met", "basis": "the Lyapunov lower bound S̄ does not exist "
                 "((1 − p)ρ(A)² ≥ 1): lim E[tr P_t] is infinite"}
     s_tr, v_tr = lower.get("trace"), upper.get("trace")

@@ -170,6 +170,7 @@ class SystemSection:
     """The continuous-time model and its sampling (method, exactness, error bound)."""
     sensors: JSON = opt()
     """The sensors of a network file (name, rows of C, noise, channel)."""
+    sink_position_m: JSON = opt()
 
 
 @dataclass(frozen=True)

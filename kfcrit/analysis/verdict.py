@@ -247,6 +247,18 @@ def network_verdict(result: Mapping[str, Any]) -> tuple[Verdict, str]:
     return verdict, str(basis)
 
 
+def network_burst_verdict(verdict: Verdict, basis: str, holds: bool | None,
+                          statement: str) -> tuple[Verdict, str]:
+    """A network with bursty links: the burst condition decides instability; the network's
+    sufficient surface assumes independent Bernoulli links, so it proves nothing here."""
+    if holds is False:
+        return Verdict.MEAN_UNSTABLE, statement
+    if verdict is Verdict.MEAN_STABLE:
+        return (Verdict.UNDETERMINED, f"{statement}; the sufficient surface (MATH §9) assumes "
+                "independent Bernoulli links, so with bursty links it proves nothing")
+    return verdict, f"{basis}; {statement}"
+
+
 # ----------------------------------------------------------------------------- review
 
 def stability_reason(verdict: Verdict | str | None, basis: str | None) -> Reason:
