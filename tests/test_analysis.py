@@ -262,17 +262,23 @@ def test_burst_verdict_from_the_verdict_module(sufficient: bool | None, recovery
     assert verdict.value == want and basis
 
 
-def test_gilbert_elliott_non_scalar_is_undetermined(tmp_path: Path) -> None:
-    # two unstable distinct moduli, non-degenerate: (1 - r) rho^2 < 1 is only a literature claim
-    # (f + r != 1: a genuinely bursty chain; f + r = 1 would be i.i.d.)
+def test_gilbert_elliott_non_scalar_is_decided_by_the_coupled_certificate(tmp_path: Path
+                                                                         ) -> None:
+    # two unstable distinct moduli, non-degenerate: (1 - r) rho^2 < 1 alone is only the
+    # literature's claim (f + r != 1: a genuinely bursty chain); the coupled fixed-gain
+    # certificate of MATH §10 proves stability (checked in ball arithmetic)
     code, rec, _ = analyze_json(write(tmp_path, "name: ge2\nA: [[1.25, 0], [1, 1.1]]\n"
                                       "C: [[1, 1]]\nQ: 20\nR: 2.5\nchannel: {model: "
                                       "gilbert-elliott, failure_rate: 0.1, recovery_rate: 0.8}\n"),
                                 "--no-simulate")
     cond = rec["link_budget"]["condition"]
     assert cond["decides"] is False and cond["holds"] is True   # (0.2)(1.5625) < 1
-    assert rec["operating_point"]["verdict"] == "undetermined"
-    assert "claim" in rec["operating_point"]["basis"]
+    assert rec["operating_point"]["verdict"] == "mean-stable"
+    assert "coupled fixed-gain certificate" in rec["operating_point"]["basis"]
+    cert = rec["link_budget"]["certificate"]
+    assert cert["certificate"]["certified"] is True
+    assert "claim" in cert["claim"]["label"]                     # the literature stays labelled
+    assert code == 0
 
 
 def test_terminal_summary_shows_link_design_outputs() -> None:
