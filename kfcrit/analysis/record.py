@@ -416,6 +416,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
                                                  sec.get("simulation"),
                                                  sec.get("covariance_bounds"),
                                                  sec.get("operating_point"), sec.get("design"))
+    power_law_tail(sec)
     sec["verification"] = verification(sec, warnings)
     op = sec.get("operating_point") or {}
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
@@ -708,6 +709,37 @@ def tail_simulation_check(sec: dict[str, Any]) -> None:
     else:
         check["note"] = "too few simulated tail points for a slope"
     sec["tail"]["simulation_check"] = check
+
+
+def power_law_tail(sec: dict[str, Any]) -> None:
+    r"""The tail requirement read with the tail exponent beside the Monte Carlo (a claim).
+
+    .. math:: P(\operatorname{tr} P > M) \approx P(\operatorname{tr} P > m_0)\,(M/m_0)^{-\beta}
+
+    from the empirical CCDF at the highest level m_0 ≤ M that at least ten simulated paths
+    exceed; the Wilson interval of the simulation stays the basis of the status.
+    """
+    import numpy as np
+
+    req = sec.get("requirements") or {}
+    tail = (sec.get("tail") or {}).get("exponent") or {}
+    limit, beta = req.get("max_error_trace"), tail.get("value")
+    op = (sec.get("simulation") or {}).get("operating_point") or {}
+    cdf = (op.get("horizon") or {}).get("cdf") or {}
+    paths = op.get("paths")
+    if not (req.get("assessment") and limit and beta and cdf.get("trace") and paths):
+        return
+    m = np.asarray(cdf["trace"], dtype=float)
+    ccdf = 1.0 - np.asarray(cdf["probability"], dtype=float)
+    ok = (ccdf >= 10.0 / paths) & (m <= limit) & (m > 0)
+    if not ok.any():
+        return
+    i = int(np.flatnonzero(ok)[np.argmax(m[ok])])
+    estimate = float(ccdf[i] * (limit / m[i]) ** (-beta))
+    req["assessment"]["power_law_estimate"] = {
+        "value": estimate, "anchor_level": float(m[i]), "anchor_probability": float(ccdf[i]),
+        "exponent": beta, "label": tail.get("label"),
+        "formula": "P(tr P > M) ≈ P(tr P > m0) (M/m0)^(-beta)"}
 
 
 def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
