@@ -60,6 +60,38 @@ def _value_text(d: dict[str, Any] | None) -> str:
     return "—"
 
 
+def design_lines(design: dict[str, Any] | None) -> list[str]:
+    """The accuracy requirement as a required arrival probability, and what it asks of the
+    radio (MATH §11)."""
+    if not design:
+        return []
+    req = design.get("required_arrival_probability") or {}
+    lines = [f"  accuracy requirement  {design.get('requirement')}"]
+    if req.get("status") == "interval":
+        lo, hi = req["interval"]
+        lines.append(f"  required arrival p    [{_num(lo)}, {_num(hi)}]  (p ≤ p_S fails, "
+                     "p ≥ p_V meets it)")
+    else:
+        lines.append(f"  required arrival p    {req.get('status')}: {req.get('reason') or ''}")
+    radio = design.get("radio") or {}
+    for key in ("max_distance_m", "min_tx_power_dbm", "max_payload_bytes", "retries_needed"):
+        bound = radio.get(key)
+        if not isinstance(bound, dict):
+            continue
+        unit = bound.get("unit") or ""
+        ends = []
+        for end, what in (("sufficient", "meets it"), ("necessary", "beyond it fails")):
+            b = bound.get(end) or {}
+            status = b.get("status")
+            text = {"unbounded": "no limit", "unreachable": "unreachable",
+                    "phy-limit": f"{_num(b.get('value'))} {unit} (the PHY's limit)"}.get(
+                status, f"{_num(b.get('value'))} {unit}")
+            ends.append(f"{text} {what}")
+        lines.append(f"    {bound.get('quantity') or key:<19} {bound.get('sense', '')}: "
+                     + "; ".join(ends))
+    return lines
+
+
 def network_lines(net: dict[str, Any] | None) -> list[str]:
     """The sensor network: one row per node (arrival probability, critical value, margin,
     verdict with that link dead), the uniform margin and the bottleneck link."""
@@ -133,6 +165,7 @@ def summary(rec: dict[str, Any]) -> str:
             lines.append(f"      note: {op['note']}")
         lines.extend(_trace_lines(op.get("trace")))
     lines.extend(network_lines(rec.get("network")))
+    lines.extend(design_lines(rec.get("design")))
     lines.extend(_bounds_lines(rec))
     lines.extend(_simulation_lines(rec))
     lines.extend(_link_lines(rec))
