@@ -64,6 +64,7 @@ import sympy as sp
 
 from kfcrit.model.system import System
 from kfcrit.theory.cyclotomic import cyclotomic_order, trig_form
+from kfcrit.theory.structure_budget import exact_refusal, run_bounded
 from kfcrit.theory.structure_certified import certified_structure
 from kfcrit.theory.structure_exact import cmp_exact, exact_structure
 from kfcrit.theory.structure_numeric import numeric_structure
@@ -119,6 +120,23 @@ def _cyclotomic_first(system: System) -> str | None:
             "with exact rational-angle proofs, before any number-field algebra")
 
 
+def _certified_first(system: System, start: float) -> Structure | None:
+    """The certified stage with exact cyclotomic proofs when :func:`_cyclotomic_first` says it
+    should run before the number-field algebra; None otherwise or when it does not decide."""
+    first = _cyclotomic_first(system)
+    if first is None:
+        return None
+    try:
+        return certified_structure(system, start, first)
+    except Fallback:
+        return None
+
+
+def _time_left(start: float) -> float:
+    """Seconds left of ``EXACT_TIME_BUDGET`` (the hard limit of each bounded stage)."""
+    return EXACT_TIME_BUDGET - (time.monotonic() - start)
+
+
 def eigen_structure(system: System, force_numeric: bool = False,
                     tolerance: float | None = None) -> Structure:
     """Eigen-structure of (A, C): exact for small algebraic input, else numeric (see module doc).
@@ -142,22 +160,28 @@ def eigen_structure(system: System, force_numeric: bool = False,
         return numeric_structure(system, start, "numeric float64 path: binary floating-point "
                                   f"input with n > {EXACT_MAX_STATES_BINARY_FLOAT}; decisions use "
                                   "the stated tolerances", tolerance)
-    first = _cyclotomic_first(system)
+    try:
+        first = run_bounded(_certified_first, system, start, seconds=_time_left(start),
+                            what="the cyclotomic certified stage")
+    except (Fallback, NotImplementedError, sp.polys.polyerrors.BasePolynomialError,
+            ValueError, TypeError, ArithmeticError):
+        first = None                           # the number-field algebra decides what is left
     if first is not None:
+        return first
+    prior = exact_refusal(list(system.A) + list(system.C), "A and C")
+    if prior is None:
         try:
-            return certified_structure(system, start, first)
-        except (Fallback, NotImplementedError, sp.polys.polyerrors.BasePolynomialError,
-                ValueError, TypeError, ArithmeticError):
-            pass                               # the number-field algebra decides what is left
+            return run_bounded(exact_structure, system, start, seconds=_time_left(start),
+                               what="the exact path")
+        except Fallback as exc:
+            prior = str(exc)
+        except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,
+                TypeError, ArithmeticError) as exc:  # sympy failed on the algebra: say why
+            prior = f"exact algebra failed ({type(exc).__name__})"
     try:
-        return exact_structure(system, start)
-    except Fallback as exc:
-        prior = str(exc)
-    except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,
-            TypeError, ArithmeticError) as exc:  # sympy failed on the algebra: fall back, say why
-        prior = f"exact algebra failed ({type(exc).__name__})"
-    try:
-        return certified_structure(system, start, f"the exact algebra could not run ({prior})")
+        return run_bounded(certified_structure, system, start,
+                           f"the exact algebra could not run ({prior})",
+                           seconds=_time_left(start), what="the certified stage")
     except Fallback as exc:
         reason = f"{prior}; certified enclosures: {exc}"
     except (NotImplementedError, sp.polys.polyerrors.BasePolynomialError, ValueError,

@@ -33,7 +33,8 @@ from kfcrit.theory.cyclotomic import charpoly as cyclo_charpoly
 from kfcrit.theory.cyclotomic import element as cyclo_element
 from kfcrit.theory.cyclotomic import monic as cyclo_monic
 from kfcrit.theory.cyclotomic import real_expression as cyclo_real
-from kfcrit.theory.structure_exact import ExactWork, exact_controllable, field_generators
+from kfcrit.theory.structure_budget import field_degree_bound
+from kfcrit.theory.structure_exact import ExactWork, exact_controllable
 from kfcrit.theory.structure_records import (
     EXACT_MAX_STATES,
     EXACT_TIME_BUDGET,
@@ -119,14 +120,6 @@ def _arb_fraction(x: Any) -> tuple[Fraction, Fraction]:
     return mid - rad, mid + rad
 
 
-def _generator_degree_bound(gens: list[sp.Expr]) -> int:
-    """An upper bound on [K:Q] for K = Q(gens): the product of the generators' degrees."""
-    d = 1
-    for g in gens:
-        d *= sp.Poly(sp.minimal_polynomial(g, _X), _X).degree()
-    return d
-
-
 def certified_structure(system: System, start: float, prior: str) -> Structure:
     """The eigen-structure decided by rigorous ball arithmetic (python-flint arb/acb).
 
@@ -154,8 +147,14 @@ def certified_structure(system: System, start: float, prior: str) -> Structure:
     A, C = sp.Matrix(system.A), sp.Matrix(system.C)
     A_trig = A.applyfunc(trig_form)
     L = cyclotomic_order(list(A_trig))
-    d_lam = system.n * (int(sp.totient(L)) if L is not None else
-                        _generator_degree_bound(field_generators(list(A))))
+    if L is not None:
+        d_field: int | None = int(sp.totient(L))
+    else:
+        d_field = field_degree_bound(list(A))
+        if d_field is None:
+            raise Fallback("the entries of A are not all algebraic numbers (no degree bound for "
+                           "the root-of-unity test)")
+    d_lam = system.n * d_field
     q_max = 2 * (d_lam * (d_lam - 1)) ** 2 + 2
     old = flint.ctx.prec
     why = ""

@@ -32,6 +32,7 @@ import sympy as sp
 from sympy.polys.matrices import DomainMatrix
 
 from kfcrit.model.system import System
+from kfcrit.theory.structure_budget import exact_refusal
 from kfcrit.theory.structure_records import (
     EXACT_MAX_FIELD_DEGREE,
     EXACT_MAX_STATES,
@@ -652,7 +653,14 @@ def exact_structure(system: System, start: float) -> Structure:
 
 
 def exact_controllable(system: System, work: ExactWork) -> bool:
-    """(A, Q^{1/2}) controllable iff rank [Q, AQ, …, A^{n−1}Q] = n (range Q = range Q^{1/2})."""
+    """(A, Q^{1/2}) controllable iff rank [Q, AQ, …, A^{n−1}Q] = n (range Q = range Q^{1/2}).
+
+    Refused (``Fallback``) before any field is built when the entries of A, C and Q may generate
+    a field above ``EXACT_MAX_FIELD_DEGREE`` (:func:`~kfcrit.theory.structure_budget.exact_refusal`).
+    """
+    refusal = exact_refusal(list(system.A) + list(system.C) + list(system.Q), "A, C and Q")
+    if refusal is not None:
+        raise Fallback(f"controllability: {refusal}")
     qgens = field_generators(list(system.Q))
     K = sp.QQ.algebraic_field(*(work.gens + qgens)) if (work.gens or qgens) else sp.QQ
     A = DomainMatrix.from_Matrix(sp.Matrix(system.A)).convert_to(K)
