@@ -249,12 +249,13 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
     if not exact:
         return M
     n = M.shape[0]
+    entries = M.tolist()
     rows = None
     for i in range(n):
         if budget is not None:
             budget.check(f"{name}[{i}]")
         for j in range(i + 1, n):
-            a, b = M[i, j], M[j, i]
+            a, b = entries[i][j], entries[j][i]
             if a == b:
                 continue
             d = a - b
@@ -272,7 +273,7 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
                 raise InputError(f"must be symmetric ({name}[{i}][{j}] != {name}[{j}][{i}])",
                                  field=name)
             if rows is None:
-                rows = M.tolist()
+                rows = [list(r) for r in entries]
             rows[j][i] = a
     return M if rows is None else sp.ImmutableMatrix(rows)
 
