@@ -22,6 +22,14 @@ the number with sympy's adaptive ``evalf`` (``strict``: the sign is certain once
 to ``MAX_WORKING_DIGITS`` digits of working precision; a number that still shows no digit there
 is zero only if a bounded exact test (expansion, with the ``exp`` form of trigonometric
 functions, capped at ``MAX_EXPANSION_TERMS`` terms) proves it, and is refused otherwise.
+
+Cost: alongside the exact value, the walk carries a rigorous real enclosure (a python-flint arb
+ball at ``BALL_BITS`` bits) of every subexpression. A decision the ball settles (a divisor or
+the argument of ``sqrt``/``log`` certainly non-zero or positive, a result certainly inside the
+range) is taken from it; only what the ball leaves open goes to ``evalf`` and the exact zero
+test. :func:`parse_with_float` also returns the float64 view, correctly rounded when both ends
+of the ball round to the same double. The size guard counts tree nodes (capped walk), not
+``count_ops``.
 """
 from __future__ import annotations
 
@@ -29,7 +37,9 @@ import ast
 import math
 import re
 from fractions import Fraction
+from typing import Any
 
+import flint
 import sympy as sp
 from sympy.core.evalf import PrecisionExhausted
 
@@ -46,6 +56,11 @@ MAX_WORKING_DIGITS = 1200
 """Working precision (decimal digits) up to which :func:`sign_of` looks for a non-zero digit."""
 MAX_EXPANSION_TERMS = 400
 """Size guard of the exact zero test: expansions that could exceed this many terms are skipped."""
+MAX_TREE_NODES = 800
+"""Largest sympy expression tree (nodes) an operation may produce while parsing."""
+BALL_BITS = 128
+"""Working precision of the ball enclosures that settle most decisions without ``evalf``."""
+_BALL_EXP_LIMIT = 690
 _BOUND = 10**300
 _TINY = sp.Float(10, 40) ** -300
 _HUGE = sp.Float(10, 40) ** 300
@@ -145,6 +160,28 @@ def parse_expression(text: str, field: str | None = None) -> sp.Expr:
     sympy.Expr
         An exact real number (Rational or algebraic/transcendental constant expression).
     """
+    return _parse(text, field)[0]
+
+
+def parse_with_float(text: str, field: str | None = None) -> tuple[sp.Expr, float]:
+    """:func:`parse_expression` and the float64 view of the value (rounded to nearest).
+
+    The float comes from the value's ball enclosure when both of its ends round to the same
+    double (then it is the correctly rounded value), else from a 20-digit ``evalf``.
+    """
+    value, ball = _parse(text, field)
+    if value.is_Rational:
+        return value, float(value)
+    if ball is not None:
+        with flint.ctx.workprec(BALL_BITS):   # the ends, exact at the ball's precision
+            lo, hi = float(ball.lower()), float(ball.upper())
+        if lo == hi:
+            return value, lo
+    return value, float(sp.N(value, 20))
+
+
+def _parse(text: str, field: str | None) -> tuple[sp.Expr, Any]:
+    """The checked exact value of ``text`` and its ball enclosure (None when not available)."""
     if not isinstance(text, str):
         raise ExpressionError(f"expected a number or expression string, got {type(text).__name__}",
                               field=field)
@@ -169,21 +206,34 @@ def parse_expression(text: str, field: str | None = None) -> sp.Expr:
     if count > MAX_NODES:
         raise ExpressionError(f"expression has more than {MAX_NODES} terms", field=field)
     walker = _Walker(source, field, text)
-    value = walker.visit(tree.body, 0)
-    return finish_value(value, field, text)
+    with flint.ctx.workprec(BALL_BITS):
+        value, ball = walker.visit(tree.body, 0)
+        return finish_value(value, field, text, ball), ball
 
 
-def finish_value(value: sp.Expr, field: str | None, text: str) -> sp.Expr:
+def _ball_decides_range(ball: Any) -> bool:
+    """The ball is finite, excludes 0 and lies within [1e-300, 1e300] in magnitude."""
+    if ball is None or not ball.is_finite() or ball.contains(0):
+        return False
+    mag = abs(ball)
+    return bool(mag > flint.arb(10) ** -300 and mag < flint.arb(10) ** 300)
+
+
+def finish_value(value: sp.Expr, field: str | None, text: str, ball: Any = None) -> sp.Expr:
     """Check that ``value`` is a finite real number within the range rule and return it.
 
     The range rule is the literal rule (:func:`_check_magnitude`) applied to the evaluated
     value, compared in arbitrary precision (never through a float, which would underflow to 0).
-    A value that is zero but not syntactically so comes back as the exact ``0``.
+    A value that is zero but not syntactically so comes back as the exact ``0``. ``ball``, a
+    real arb enclosure of ``value`` from the parser, settles the checks when it is conclusive
+    (finite, excluding 0 and certainly within the range).
     """
     if value.has(sp.zoo, sp.oo, -sp.oo, sp.nan) or not value.is_number:
         raise ExpressionError(f"{text[:40]!r} is not a finite number", field=field)
     if value.is_Rational:
         _check_magnitude(value, field, text)
+        return value
+    if _ball_decides_range(ball):
         return value
     if value.is_real is False:
         raise ExpressionError(f"{text[:40]!r} is not a real number", field=field)
@@ -337,8 +387,48 @@ def exact_text(expr: sp.Expr) -> str:
     return _LONG_DIGITS.sub(horner, out)
 
 
+Ball = Any
+"""A python-flint ``arb`` (real ball) enclosing a subexpression's value, or None (not known)."""
+
+
+def _finite(ball: Ball) -> Ball:
+    """``ball`` when it is a finite enclosure, else None."""
+    return ball if ball is not None and ball.is_finite() else None
+
+
+def _positive(ball: Ball) -> bool:
+    return ball is not None and bool(ball > 0)
+
+
+def _negative(ball: Ball) -> bool:
+    return ball is not None and bool(ball < 0)
+
+
+def _nonzero(ball: Ball) -> bool:
+    return ball is not None and not ball.contains(0)
+
+
+def _ball_power(base: Ball, exponent: sp.Rational) -> Ball:
+    """Enclosure of base**exponent with sympy's (real) meaning, or None where that could be
+    complex or undefined (a non-integer power of a base not certainly positive)."""
+    if base is None:
+        return None
+    if exponent.is_Integer:
+        k = int(exponent)
+        if k >= 0:
+            return _finite(base ** k)
+        return _finite(1 / base ** (-k)) if _nonzero(base) else None
+    if not _positive(base):
+        return None
+    return _finite(base ** flint.arb(flint.fmpq(int(exponent.p), int(exponent.q))))
+
+
+_BALL_FUNCTIONS = {"cos": "cos", "sin": "sin", "tan": "tan", "exp": "exp"}
+
+
 class _Walker:
-    """Allow-list walk of an ``ast`` expression tree into sympy objects."""
+    """Allow-list walk of an ``ast`` expression tree into sympy objects, each paired with a
+    ball enclosure that settles the walk's decisions when it can."""
 
     def __init__(self, source: str, field: str | None, text: str) -> None:
         self.source = source
@@ -348,99 +438,136 @@ class _Walker:
     def fail(self, why: str) -> ExpressionError:
         return ExpressionError(f"{why} in {self.text[:40]!r}", field=self.field)
 
-    def visit(self, node: ast.AST, depth: int) -> sp.Expr:
+    def visit(self, node: ast.AST, depth: int) -> tuple[sp.Expr, Ball]:
         if depth > MAX_DEPTH:
             raise self.fail(f"nesting deeper than {MAX_DEPTH}")
         if isinstance(node, ast.Constant):
-            return self.constant(node)
+            value = self.constant(node)
+            return value, flint.arb(flint.fmpq(int(value.p), int(value.q)))
         if isinstance(node, ast.Name):
             if node.id in _NAMES:
-                return _NAMES[node.id]
+                return _NAMES[node.id], (flint.arb.pi() if node.id == "pi" else
+                                         flint.arb(1).exp())
             raise self.fail(f"unknown name {node.id[:20]!r}")
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
-            operand = self.visit(node.operand, depth + 1)
-            return -operand if isinstance(node.op, ast.USub) else operand
+            operand, ball = self.visit(node.operand, depth + 1)
+            if isinstance(node.op, ast.UAdd):
+                return operand, ball
+            return -operand, (-ball if ball is not None else None)
         if isinstance(node, ast.BinOp):
             return self.binop(node, depth)
         if isinstance(node, ast.Call):
             return self.call(node, depth)
         raise self.fail(_DESCRIPTIONS.get(type(node).__name__, _NOT_ALLOWED))
 
-    def constant(self, node: ast.Constant) -> sp.Expr:
+    def constant(self, node: ast.Constant) -> sp.Rational:
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
             raise self.fail("only real numeric literals are allowed")
-        segment = ast.get_source_segment(self.source, node)
-        if segment is None:
+        # the source is one line of printable ASCII (checked), so columns are character offsets
+        segment = self.source[node.col_offset:node.end_col_offset]
+        if not segment:
             raise self.fail("unreadable literal")
+        if segment.isdigit() and len(segment) <= MAX_DIGITS:
+            return sp.Integer(int(segment))
         return number_from_text(segment, self.field)
 
-    def binop(self, node: ast.BinOp, depth: int) -> sp.Expr:
-        left = self.visit(node.left, depth + 1)
-        right = self.visit(node.right, depth + 1)
+    def binop(self, node: ast.BinOp, depth: int) -> tuple[sp.Expr, Ball]:
+        left, lb = self.visit(node.left, depth + 1)
+        right, rb = self.visit(node.right, depth + 1)
+        both = lb is not None and rb is not None
         op = node.op
         if isinstance(op, ast.Add):
-            out = left + right
+            out, ball = left + right, (lb + rb if both else None)
         elif isinstance(op, ast.Sub):
-            out = left - right
+            out, ball = left - right, (lb - rb if both else None)
         elif isinstance(op, ast.Mult):
-            out = left * right
+            out, ball = left * right, (lb * rb if both else None)
         elif isinstance(op, ast.Div):
-            if right == 0 or sign_of(right, self.field, f"the divisor in {self.text[:40]!r}") == 0:
+            if right == 0 or not _nonzero(rb) and sign_of(
+                    right, self.field, f"the divisor in {self.text[:40]!r}") == 0:
                 raise self.fail("division by zero")
-            out = left / right
+            # a rational divisor: multiplying by its reciprocal builds the same value faster
+            out = left * (1 / right) if right.is_Rational else left / right
+            ball = lb / rb if both and _nonzero(rb) else None
         elif isinstance(op, ast.Pow):
-            out = self.power(left, right)
+            out = self.power(left, right, lb)
+            ball = _ball_power(lb, right)
         else:
             symbol = _OPERATORS.get(type(op).__name__)
             raise self.fail(f"the operator {symbol} is not allowed" if symbol else
                             "only the operators + - * / ** ^ are allowed")
         self.check_size(out)
-        return out
+        return out, _finite(ball)
 
-    def power(self, base: sp.Expr, exponent: sp.Expr) -> sp.Expr:
+    def power(self, base: sp.Expr, exponent: sp.Expr, ball: Ball) -> sp.Expr:
         if not exponent.is_Rational:
             raise self.fail("exponents must be rational numbers")
         if abs(exponent.p) > MAX_EXPONENT or exponent.q > MAX_EXPONENT_DENOMINATOR:
             raise self.fail(f"exponent {exponent} exceeds the limit {MAX_EXPONENT}")
         if exponent <= 0 and (base == 0 or (
-                not base.is_Rational and sign_of(base, self.field,
-                                                 f"a power's base in {self.text[:40]!r}") == 0)):
+                not base.is_Rational and not _nonzero(ball)
+                and sign_of(base, self.field, f"a power's base in {self.text[:40]!r}") == 0)):
             raise self.fail("zero to a non-positive power")
         return base**exponent
 
-    def call(self, node: ast.Call, depth: int) -> sp.Expr:
+    def _sign(self, arg: sp.Expr, ball: Ball, what: str) -> int:
+        """Sign of a function's argument: from its ball when decisive, else :func:`sign_of`."""
+        if _positive(ball):
+            return 1
+        if _negative(ball):
+            return -1
+        return sign_of(arg, self.field, what)
+
+    def call(self, node: ast.Call, depth: int) -> tuple[sp.Expr, Ball]:
         if not isinstance(node.func, ast.Name):
             raise self.fail("only calls of sqrt, cos, sin, tan, exp, log are allowed")
         if node.func.id not in _FUNCTIONS:
             raise self.fail(f"function {node.func.id[:20]!r} is not allowed")
         if len(node.args) != 1 or node.keywords:
             raise self.fail(f"{node.func.id} takes exactly one argument")
-        arg = self.visit(node.args[0], depth + 1)
+        arg, ball = self.visit(node.args[0], depth + 1)
         name = node.func.id
         what = f"the argument of {name} in {self.text[:40]!r}"
+        out_ball: Ball = None
         if name in ("log", "sqrt") and arg.is_number:
-            sign = sign_of(arg, self.field, what)
+            sign = self._sign(arg, ball, what)
             if name == "log" and sign <= 0:
                 raise self.fail("log of a non-positive number")
             if name == "sqrt" and sign < 0:
                 raise self.fail("square root of a negative number")
             if sign == 0:
-                arg = sp.Integer(0)
+                arg, ball = sp.Integer(0), flint.arb(0)
+            if sign > 0 and ball is not None:
+                out_ball = ball.log() if name == "log" else ball.sqrt()
+            elif name == "sqrt" and sign == 0:
+                out_ball = flint.arb(0)
         if name == "exp" and arg.is_number and not arg.is_Rational:
-            # a range guard, not a fine decision: 30 digits settle it (the result's magnitude is
-            # checked exactly afterwards in any case)
-            re_part, _ = _evaluate(arg, self.field, self.text)
-            if re_part is not None and abs(re_part) > 690:
+            # a range guard, not a fine decision: the ball or 30 digits settle it (the result's
+            # magnitude is checked exactly afterwards in any case)
+            limit = _BALL_EXP_LIMIT
+            if ball is not None and bool(abs(ball) < limit):
+                pass
+            elif ball is not None and bool(abs(ball) > limit):
                 raise self.fail("exp argument out of range")
-        elif name == "exp" and arg.is_Rational and abs(arg) > 690:
+            else:
+                re_part, _ = _evaluate(arg, self.field, self.text)
+                if re_part is not None and abs(re_part) > limit:
+                    raise self.fail("exp argument out of range")
+        elif name == "exp" and arg.is_Rational and abs(arg) > _BALL_EXP_LIMIT:
             raise self.fail("exp argument out of range")
+        if name in _BALL_FUNCTIONS and ball is not None:
+            out_ball = getattr(ball, _BALL_FUNCTIONS[name])()
         out = _FUNCTIONS[name](arg)
         self.check_size(out)
-        return out
+        return out, _finite(out_ball)
 
     def check_size(self, value: sp.Expr) -> None:
         if value.is_Rational:
             if value.p.bit_length() > 2000 or value.q.bit_length() > 2000:
                 raise self.fail("intermediate value out of range")
-        elif value.count_ops() > 400:
-            raise self.fail("expression too complex")
+            return
+        nodes = 0
+        for _ in sp.preorder_traversal(value):
+            nodes += 1
+            if nodes > MAX_TREE_NODES:
+                raise self.fail("expression too complex")

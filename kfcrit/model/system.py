@@ -8,6 +8,7 @@ fractions, sympy), False when any entry came from a binary float array.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -23,9 +24,52 @@ MAX_STATES_DEFAULT = 400
 """Largest state dimension accepted unless the caller raises the guard (``max_states``)."""
 
 
+PARSE_TIME_BUDGET = 15.0
+"""Seconds one System construction may spend parsing and checking expression strings; beyond
+it the input is refused (exit code 2) naming the entry reached. A backstop for files of slow
+expressions within :data:`MAX_EXPRESSION_TEXT` (measured: up to ~350 µs per character for
+expressions that need the exact zero test, 1–10 µs for typical ones)."""
+
+
+class ParseBudget:
+    """One System construction's parsing: each distinct expression string is parsed once (a
+    table local to the construction, dropped with it) and the work stops at a deadline."""
+
+    def __init__(self, seconds: float = PARSE_TIME_BUDGET) -> None:
+        self.seconds = seconds
+        self.deadline = time.monotonic() + seconds
+        self.values: dict[str, tuple[sp.Expr, float]] = {}
+
+    def check(self, where: str) -> None:
+        """Refuse the input (naming ``where``) once the deadline has passed."""
+        if time.monotonic() > self.deadline:
+            raise InputError(f"parsing and checking the expression strings took longer than "
+                             f"{self.seconds:g} s (stopped here); write plain numbers or fewer "
+                             "distinct expressions", field=where)
+
+    def parse(self, text: str, where: str) -> tuple[sp.Expr, float]:
+        """The exact value and float view of an expression string (parsed once)."""
+        from kfcrit.model.exprparse import parse_with_float
+
+        hit = self.values.get(text)
+        if hit is None:
+            self.check(where)
+            hit = self.values[text] = parse_with_float(text, where)
+        return hit
+
+
 def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
     """Convert one matrix entry to an exact sympy number; return it and whether input was exact."""
-    from kfcrit.model.exprparse import finish_value, number_from_text, parse_expression
+    if isinstance(value, str):
+        from kfcrit.model.exprparse import parse_expression
+
+        return parse_expression(value, where), True
+    return _entry_value(value, where)
+
+
+def _entry_value(value: Any, where: str) -> tuple[sp.Expr, bool]:
+    """:func:`_entry_to_sympy` for a non-string entry."""
+    from kfcrit.model.exprparse import finish_value, number_from_text
 
     if isinstance(value, bool):
         raise InputError("booleans are not numbers", field=where)
@@ -45,8 +89,6 @@ def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
         if not np.isfinite(f):
             raise InputError(f"{f} is not a finite number", field=where)
         return finish_value(sp.Rational(f), where, repr(f)), False
-    if isinstance(value, str):
-        return parse_expression(value, where), True
     if isinstance(value, (complex, np.complexfloating)):
         raise InputError("complex entries are not allowed", field=where)
     raise InputError(f"expected a number, got {type(value).__name__}", field=where)
@@ -55,6 +97,20 @@ def _entry_to_sympy(value: Any, where: str) -> tuple[sp.Expr, bool]:
 def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None,
               max_size: int = MAX_STATES_DEFAULT) -> tuple[sp.ImmutableMatrix, bool]:
     """Convert nested lists / arrays / sympy matrices to an exact immutable sympy matrix.
+
+    See :func:`matrix_and_float` (which also returns the float64 view) for the parameters.
+    """
+    M, exact, _ = matrix_and_float(value, name, allow_scalar_identity=allow_scalar_identity,
+                                   max_size=max_size, budget=ParseBudget())
+    return M, exact
+
+
+def matrix_and_float(value: Any, name: str, *, allow_scalar_identity: int | None = None,
+                     max_size: int = MAX_STATES_DEFAULT,
+                     budget: ParseBudget | None = None,
+                     ) -> tuple[sp.ImmutableMatrix, bool, np.ndarray]:
+    """Convert nested lists / arrays / sympy matrices to an exact immutable sympy matrix and
+    its float64 view (each entry rounded once; see :func:`to_float`).
 
     Parameters
     ----------
@@ -66,7 +122,12 @@ def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None
         If given, a scalar means that scalar times the identity of this size.
     max_size : int
         Guard on either dimension.
+    budget : ParseBudget, optional
+        The construction's parsing state (distinct strings parsed once, deadline); a fresh one
+        with the default deadline when omitted.
     """
+    if budget is None:
+        budget = ParseBudget()
     if isinstance(value, sp.MatrixBase):
         rows = value.tolist()
     elif isinstance(value, np.ndarray):
@@ -82,9 +143,13 @@ def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None
     else:
         rows = value
     if not isinstance(rows, (list, tuple)):
-        entry, exact = _entry_to_sympy(rows, name)
+        if isinstance(rows, str):
+            (entry, value), exact = budget.parse(rows, name), True
+        else:
+            entry, exact = _entry_value(rows, name)
+            value = _float_of(entry)
         size = allow_scalar_identity if allow_scalar_identity is not None else 1
-        return sp.ImmutableMatrix(sp.eye(size) * entry), exact
+        return sp.ImmutableMatrix(sp.eye(size) * entry), exact, np.eye(size) * value
     if len(rows) == 0:
         raise InputError("must be a non-empty matrix", field=name)
     if not all(isinstance(r, (list, tuple)) for r in rows):
@@ -95,24 +160,66 @@ def to_matrix(value: Any, name: str, *, allow_scalar_identity: int | None = None
                          "--max-states)", field=name)
     if ncols == 0:
         raise InputError("has an empty row", field=name)
+    too_much = expression_budget(rows)
+    if too_much is not None:
+        raise InputError(too_much, field=name)
     exact_all = True
     out = []
+    floats = np.empty((len(rows), ncols))
     for i, row in enumerate(rows):
         if len(row) != ncols:
             raise InputError(f"row {i} has {len(row)} entries, row 0 has {ncols}", field=name)
         new_row = []
         for j, v in enumerate(row):
-            entry, exact = _entry_to_sympy(v, f"{name}[{i}][{j}]")
+            if isinstance(v, str):
+                entry, floats[i, j] = budget.parse(v, f"{name}[{i}][{j}]")
+                exact = True
+            else:
+                entry, exact = _entry_value(v, f"{name}[{i}][{j}]")
+                floats[i, j] = _float_of(entry)
             exact_all &= exact
             new_row.append(entry)
         out.append(new_row)
-    return sp.ImmutableMatrix(out), exact_all
+    return sp.ImmutableMatrix(out), exact_all, floats
+
+
+MAX_EXPRESSION_TEXT = 500_000
+"""Most characters of distinct expression strings (entries that are not plain numbers) in one
+matrix, checked before any parsing: a documented bound on the parsing work (typical expressions
+cost 1–10 µs per character, measured: a 200×200 matrix of distinct ``sqrt(2)/k`` in a few
+seconds). Plain numbers (YAML numbers, NumPy arrays) and repeats of a string are not counted;
+:data:`PARSE_TIME_BUDGET` bounds the rest."""
+
+
+def expression_budget(rows: Any) -> str | None:
+    """Why the expression strings of a matrix exceed the parsing budget, or None.
+
+    Counts the characters of the *distinct* strings (each is parsed once), before any parsing.
+    """
+    seen: set[str] = set()
+    total = 0
+    for row in rows:
+        if not isinstance(row, (list, tuple)):
+            continue
+        for v in row:
+            if isinstance(v, str) and v not in seen:
+                seen.add(v)
+                total += len(v)
+    if total <= MAX_EXPRESSION_TEXT:
+        return None
+    return (f"holds {len(seen)} distinct expression strings with {total} characters in all, "
+            f"above the parsing budget of {MAX_EXPRESSION_TEXT} characters per matrix; write "
+            "plain numbers, or repeat a few expressions (each distinct string is parsed once)")
+
+
+def _float_of(e: sp.Expr) -> float:
+    return float(e) if e.is_Rational else float(sp.N(e, 20))
 
 
 def to_float(M: sp.MatrixBase) -> np.ndarray:
     """Float64 view of an exact matrix (each entry rounded once, to nearest)."""
     rows, cols = M.shape
-    flat = [float(e) if e.is_Rational else float(sp.N(e, 20)) for e in M.tolist() for e in e]
+    flat = [_float_of(e) for row in M.tolist() for e in row]
     return np.array(flat, dtype=float).reshape(rows, cols)
 
 
@@ -128,7 +235,7 @@ by the bounded exact test are taken as equal (the upper-triangle entry is used f
 
 
 def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
-                     exact: bool) -> sp.ImmutableMatrix:
+                     exact: bool, budget: ParseBudget | None = None) -> sp.ImmutableMatrix:
     """Refuse an asymmetric matrix; return it (exact input: symmetrised where numerically equal).
 
     The float views are compared first (a clear asymmetry is refused at once). Exact entries are
@@ -142,10 +249,13 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
     if not exact:
         return M
     n = M.shape[0]
+    entries = M.tolist()
     rows = None
     for i in range(n):
+        if budget is not None:
+            budget.check(f"{name}[{i}]")
         for j in range(i + 1, n):
-            a, b = M[i, j], M[j, i]
+            a, b = entries[i][j], entries[j][i]
             if a == b:
                 continue
             d = a - b
@@ -163,7 +273,7 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
                 raise InputError(f"must be symmetric ({name}[{i}][{j}] != {name}[{j}][{i}])",
                                  field=name)
             if rows is None:
-                rows = M.tolist()
+                rows = [list(r) for r in entries]
             rows[j][i] = a
     return M if rows is None else sp.ImmutableMatrix(rows)
 
@@ -227,32 +337,36 @@ class System:
 
     def __init__(self, A: Any, C: Any, Q: Any, R: Any, Sigma0: Any = None, name: str | None = None,
                  max_states: int = MAX_STATES_DEFAULT) -> None:
-        A_, ea = to_matrix(A, "A", max_size=max_states)
+        budget = ParseBudget()
+        A_, ea, fa = matrix_and_float(A, "A", max_size=max_states, budget=budget)
         n = A_.shape[0]
         if A_.shape != (n, n):
             raise InputError(f"must be square, got {A_.shape[0]}x{A_.shape[1]}", field="A")
-        C_, ec = to_matrix(C, "C", max_size=max_states)
+        C_, ec, fc = matrix_and_float(C, "C", max_size=max_states, budget=budget)
         if C_.shape[1] != n:
             raise InputError(f"must have {n} columns (the size of A), got {C_.shape[1]}",
                              field="C")
         m = C_.shape[0]
-        Q_, eq = to_matrix(Q, "Q", allow_scalar_identity=n, max_size=max_states)
-        R_, er = to_matrix(R, "R", allow_scalar_identity=m, max_size=max_states)
+        Q_, eq, fq = matrix_and_float(Q, "Q", allow_scalar_identity=n, max_size=max_states,
+                                      budget=budget)
+        R_, er, fr = matrix_and_float(R, "R", allow_scalar_identity=m, max_size=max_states,
+                                      budget=budget)
         if Sigma0 is None:
             S_, es = sp.ImmutableMatrix(sp.eye(n)), True
+            fs = np.eye(n)
         else:
-            S_, es = to_matrix(Sigma0, "Sigma0", allow_scalar_identity=n, max_size=max_states)
+            S_, es, fs = matrix_and_float(Sigma0, "Sigma0", allow_scalar_identity=n,
+                                          max_size=max_states, budget=budget)
         for M, nm, size in ((Q_, "Q", n), (R_, "R", m), (S_, "Sigma0", n)):
             if M.shape != (size, size):
                 raise InputError(f"must be {size}x{size}, got {M.shape[0]}x{M.shape[1]}",
                                  field=nm)
         exact = ea and ec and eq and er and es
-        floats = {nm: to_float(M) for nm, M in
-                  (("A", A_), ("C", C_), ("Q", Q_), ("R", R_), ("Sigma0", S_))}
+        floats = {"A": fa, "C": fc, "Q": fq, "R": fr, "Sigma0": fs}
         checked = {}
         for M, nm, ex, strict in ((Q_, "Q", eq, False), (R_, "R", er, True),
                                   (S_, "Sigma0", es, False)):
-            checked[nm] = _check_symmetric(M, floats[nm], nm, ex)
+            checked[nm] = _check_symmetric(M, floats[nm], nm, ex, budget)
             _check_definite(checked[nm], floats[nm], nm, ex, strict)
         Q_, R_, S_ = checked["Q"], checked["R"], checked["Sigma0"]
         set_ = object.__setattr__

@@ -129,6 +129,9 @@ def cyclotomic_order(entries: list[sp.Expr]) -> int | None:
         if k is None:
             return None
         L = math.lcm(L, k)
+    # φ(L) ≥ √(L/2): a larger L cannot qualify (and is never factored, which could be slow)
+    if L > 2 * MAX_FIELD_DEGREE**2:
+        return None
     return L if int(sp.totient(L)) <= MAX_FIELD_DEGREE else None
 
 

@@ -33,7 +33,8 @@ from kfcrit.theory.cyclotomic import charpoly as cyclo_charpoly
 from kfcrit.theory.cyclotomic import element as cyclo_element
 from kfcrit.theory.cyclotomic import monic as cyclo_monic
 from kfcrit.theory.cyclotomic import real_expression as cyclo_real
-from kfcrit.theory.structure_exact import ExactWork, exact_controllable, field_generators
+from kfcrit.theory.structure_budget import field_degree_bound
+from kfcrit.theory.structure_exact import controllability
 from kfcrit.theory.structure_records import (
     EXACT_MAX_STATES,
     EXACT_TIME_BUDGET,
@@ -119,14 +120,6 @@ def _arb_fraction(x: Any) -> tuple[Fraction, Fraction]:
     return mid - rad, mid + rad
 
 
-def _generator_degree_bound(gens: list[sp.Expr]) -> int:
-    """An upper bound on [K:Q] for K = Q(gens): the product of the generators' degrees."""
-    d = 1
-    for g in gens:
-        d *= sp.Poly(sp.minimal_polynomial(g, _X), _X).degree()
-    return d
-
-
 def certified_structure(system: System, start: float, prior: str) -> Structure:
     """The eigen-structure decided by rigorous ball arithmetic (python-flint arb/acb).
 
@@ -154,8 +147,14 @@ def certified_structure(system: System, start: float, prior: str) -> Structure:
     A, C = sp.Matrix(system.A), sp.Matrix(system.C)
     A_trig = A.applyfunc(trig_form)
     L = cyclotomic_order(list(A_trig))
-    d_lam = system.n * (int(sp.totient(L)) if L is not None else
-                        _generator_degree_bound(field_generators(list(A))))
+    if L is not None:
+        d_field: int | None = int(sp.totient(L))
+    else:
+        d_field = field_degree_bound(list(A))
+        if d_field is None:
+            raise Fallback("the entries of A are not all algebraic numbers (no degree bound for "
+                           "the root-of-unity test)")
+    d_lam = system.n * d_field
     q_max = 2 * (d_lam * (d_lam - 1)) ** 2 + 2
     old = flint.ctx.prec
     why = ""
@@ -282,7 +281,7 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
                               turn_text=str(frac) if q is not None else "irrational"))
     if time_left(start) < 0:
         raise Fallback(f"exceeded the {EXACT_TIME_BUDGET:g} s budget")
-    controllable = _certified_controllable(system, start)
+    controllable, how = _certified_controllable(system)
     form = {"eigenvalues": [e.text for e in eigen],
             "basis": (f"V: certified eigenvector enclosures (python-flint acb_mat.eig, {prec} "
                       "bits); C·V entries as balls"),
@@ -302,7 +301,8 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
                                f"Q(ζ_{math.lcm(cyclo[1] if cyclo else 1, fr.denominator)}) "
                                "(common roots of χ(x) and w⁻ⁿχ(wx), w = e^{2πi·φ/2π})"
                                for fr, ok in cyclotomic_proofs) + "; "
-                     "every decision is rigorous, eigenvalues are given as certified balls"),
+                     "every decision is rigorous, eigenvalues are given as certified balls"
+                     + how),
         tolerances={"exact": True, "certified_enclosures": True, "precision_bits": prec,
                     "time_budget_seconds": EXACT_TIME_BUDGET, "max_states": EXACT_MAX_STATES},
         eigen=tuple(eigen), blocks=tuple(blocks), pairs=tuple(pairs),
@@ -377,12 +377,12 @@ def time_left(start: float) -> float:
     return EXACT_TIME_BUDGET - (time.monotonic() - start)
 
 
-def _certified_controllable(system: System, start: float) -> bool:
+def _certified_controllable(system: System) -> tuple[bool, str]:
     """(A, Q^{1/2}) controllable: trivially when Q ≻ 0 (exact Cholesky test), else the exact
-    Krylov rank over the entry field."""
+    Krylov rank over the entry field (float64 PBH test when that is refused: see
+    :func:`~kfcrit.theory.structure_exact.controllability`)."""
     Q = sp.Matrix(system.Q)
     if all(v.is_Rational for v in Q) and Q.is_positive_definite:
-        return True
-    work = ExactWork(sp.Matrix(system.A), sp.Matrix(system.C), start)
-    return exact_controllable(system, work)
+        return True, ""
+    return controllability(system)
 

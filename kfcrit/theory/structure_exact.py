@@ -32,6 +32,7 @@ import sympy as sp
 from sympy.polys.matrices import DomainMatrix
 
 from kfcrit.model.system import System
+from kfcrit.theory.structure_budget import exact_refusal
 from kfcrit.theory.structure_records import (
     EXACT_MAX_FIELD_DEGREE,
     EXACT_MAX_STATES,
@@ -44,6 +45,7 @@ from kfcrit.theory.structure_records import (
     eigen_indices,
     float_basis,
     is_relevant,
+    numeric_controllable,
     observability_index,
     simplest_rational,
     turn_of,
@@ -619,7 +621,7 @@ def exact_structure(system: System, start: float) -> Structure:
                 pairs.append(Pair(a=a, b=b, rank=prank, size=psize, degenerate=prank < psize,
                                   q=q, turn=turn, turn_text=text))
                 work.check_time("equal-modulus pairs")
-    controllable = exact_controllable(system, work)
+    controllable, how = controllability(system, work)
     form = {"eigenvalues": [sp.sstr(e.expr) if e.expr is not None else e.text for e in eigen],
             "basis": "V: exact bases of ker(A − λI) (sympy nullspace), C·V over ℂ",
             "equi_blocks": []}
@@ -639,7 +641,7 @@ def exact_structure(system: System, start: float) -> Structure:
                      (", eigenvalues as radicals" if not any(e.algebraic for e in xeigs) else
                       ", eigenvalues as radicals and CRootOf (moduli by resultant root "
                       "isolation, ranks of mixed blocks certified at 50 digits)") +
-                     ", zero tests by minimal polynomials"),
+                     ", zero tests by minimal polynomials" + how),
         tolerances={"exact": True, "time_budget_seconds": EXACT_TIME_BUDGET,
                     "max_states": EXACT_MAX_STATES},
         eigen=tuple(eigen), blocks=tuple(blocks), pairs=tuple(pairs),
@@ -651,16 +653,35 @@ def exact_structure(system: System, start: float) -> Structure:
         seconds=time.monotonic() - start, standard_form=form)
 
 
-def exact_controllable(system: System, work: ExactWork) -> bool:
-    """(A, Q^{1/2}) controllable iff rank [Q, AQ, …, A^{n−1}Q] = n (range Q = range Q^{1/2})."""
+def controllability(system: System, work: ExactWork | None = None) -> tuple[bool, str]:
+    """(A, Q^{1/2}) controllable: exactly (:func:`exact_controllable`), or by the float64 PBH
+    test when the exact test is refused; the second item is "" or the note for the record."""
+    try:
+        return exact_controllable(system, work), ""
+    except Fallback as exc:
+        return (numeric_controllable(system.a, system.q),
+                f"; controllability of (A, Q^(1/2)) by the float64 PBH test ({exc})")
+
+
+def exact_controllable(system: System, work: ExactWork | None = None) -> bool:
+    """(A, Q^{1/2}) controllable iff rank [Q, AQ, …, A^{n−1}Q] = n (range Q = range Q^{1/2}).
+
+    Refused (``Fallback``) before any field is built when the entries of A, C and Q may generate
+    a field above ``EXACT_MAX_FIELD_DEGREE`` (:func:`~kfcrit.theory.structure_budget.exact_refusal`).
+    """
+    refusal = exact_refusal(list(system.A) + list(system.C) + list(system.Q), "A, C and Q")
+    if refusal is not None:
+        raise Fallback(f"controllability: {refusal}")
+    gens = work.gens if work is not None else field_generators(list(system.A) + list(system.C))
     qgens = field_generators(list(system.Q))
-    K = sp.QQ.algebraic_field(*(work.gens + qgens)) if (work.gens or qgens) else sp.QQ
+    K = sp.QQ.algebraic_field(*(gens + qgens)) if (gens or qgens) else sp.QQ
     A = DomainMatrix.from_Matrix(sp.Matrix(system.A)).convert_to(K)
     blk = DomainMatrix.from_Matrix(sp.Matrix(system.Q)).convert_to(K)
     cols = [blk]
-    for _ in range(work.n - 1):
+    n = system.n
+    for _ in range(n - 1):
         blk = A.matmul(blk)
         cols.append(blk)
-    return cols[0].hstack(*cols[1:]).rank() == work.n if len(cols) > 1 else cols[0].rank() == 1
+    return cols[0].hstack(*cols[1:]).rank() == n if len(cols) > 1 else cols[0].rank() == 1
 
 

@@ -38,7 +38,9 @@ def _time_budget_from_environment(default: float = 8.0) -> float:
 
 
 EXACT_TIME_BUDGET = _time_budget_from_environment()
-"""Seconds the exact path may use (checked between steps; beyond it the numeric path runs).
+"""Seconds the exact path may use (checked between steps, and enforced by killing the forked
+child each exact stage runs in: :func:`kfcrit.theory.structure_budget.run_bounded`; beyond it
+the next path runs).
 
 Typical exact analyses of n ≤ 6 take 0.01–1.3 s (see ``kfcrit.bench.bench_critical``); the
 default of 8 s is kept well above that so that results rarely depend on machine load. The
