@@ -24,10 +24,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.linalg import solve_discrete_lyapunov
 
+from kfcrit.analysis.spec import load_spec
 from kfcrit.cli.simulate import simulate_command, summary_text, with_progress
 from kfcrit.errors import InputError
 from kfcrit.io.jsonio import dumps
-from kfcrit.io.systemfile import Requirements, SystemSpec, load_spec
+from kfcrit.io.systemfile import Requirements, SystemSpec
 from kfcrit.model.channels import GilbertElliott, Trace
 from kfcrit.model.system import System
 from kfcrit.sim.kernels import LANES, lambda_max_lanes, riccati_lanes
@@ -626,10 +627,17 @@ def test_example_files_simulate(path):
     threshold; quantiles are ordered; diverged paths are counted, not propagated."""
     spec = load_spec(path)
     paths, steps = 64, 40
-    res = simulate(spec, paths, steps, 5)
+    if spec.network is not None:   # each sensor over its own link, rows of the stacked C
+        sensors = [(list(range(sl.start, sl.stop)), s.channel)
+                   for sl, s in zip(spec.network.row_slices(), spec.network.sensors)]
+        res = simulate(spec.system, paths, steps, 5, sensors=sensors)
+        model = "sensors"
+    else:
+        res = simulate(spec, paths, steps, 5)
+        model = spec.channel.model
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert d["seed"] == 5 and d["paths"] == paths and d["steps"] == steps
-    assert d["channel"]["model"] == spec.channel.model
+    assert d["channel"]["model"] == model
     mean = np.array(d["mean_trace"]["mean"])
     assert np.all(np.isfinite(mean)) and np.all(mean >= 0)
     assert mean[0] == pytest.approx(float(np.trace(spec.system.sigma0)))
@@ -639,7 +647,7 @@ def test_example_files_simulate(path):
     q = [x for x in d["horizon"]["quantiles"] if x is not None]
     assert q == sorted(q)
     assert 0 <= d["divergence"]["diverged_paths"] <= paths
-    if spec.channel.iid:                  # independent Lyapunov recursion, S_0 = Σ0
+    if spec.channel is not None and spec.channel.iid:   # independent Lyapunov recursion
         p = float(spec.channel.arrival_probability)
         A, Q = spec.system.a, spec.system.q
         S, bound = np.array(spec.system.sigma0, dtype=float), []
@@ -652,7 +660,8 @@ def test_example_files_simulate(path):
         if not censored:
             assert np.all(mean >= np.array(bound)[times] - 5 * se - 1e-9 * np.array(bound)[times])
     # the same seed gives the same numbers
-    again = simulate(spec, paths, steps, 5)
+    again = (simulate(spec.system, paths, steps, 5, sensors=sensors) if spec.network is not None
+             else simulate(spec, paths, steps, 5))
     assert np.array_equal(again.mean_trace, res.mean_trace)
 
 

@@ -7,6 +7,7 @@ relative modulus tolerance, ranks within ``rank_relative``·‖C‖, φ/2π is m
 """
 from __future__ import annotations
 
+import math
 import time
 from fractions import Fraction
 
@@ -119,7 +120,7 @@ def numeric_structure(system: System, start: float, reason: str,
             g = max(1, min(g, len(members)))
             basis = vh[n - g:].conj().T
         eigen.append(Eigen(value=mu, multiplicity=len(members), geometric=g,
-                           mod2=abs(mu) ** 2, basis=basis))
+                           mod2=abs(mu) ** 2 if abs(mu) < 1e154 else math.inf, basis=basis))
     eigen.sort(key=lambda e: (-e.modulus, turn_of(e.value)))
     diagonalizable = all(e.geometric == e.multiplicity for e in eigen)
     rank_tol = tol["rank_relative"] * max(norm_c, np.finfo(float).tiny)
