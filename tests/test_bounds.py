@@ -306,5 +306,7 @@ def test_huge_a_entry_analysis_has_no_runtime_warning(tmp_path):
                     'R: [[1e250]]\nchannel:\n  model: bernoulli\n  arrival_probability: 0.9\n')
     r = subprocess.run([sys.executable, "-W", "default", "-m", "kfcrit", "analyze", str(path),
                         "--json", "--no-simulate"], capture_output=True, text=True, timeout=600)
-    assert r.returncode in (0, 3), r.stderr[-2000:]
+    # p_c ≈ 1 − 2^-128 > 0.9: mean-unstable, so the review fails (exit 5)
+    assert r.returncode == 5, r.stderr[-2000:]
+    assert json.loads(r.stdout)["operating_point"]["verdict"] == "mean-unstable"
     assert "RuntimeWarning" not in r.stderr, r.stderr[-2000:]

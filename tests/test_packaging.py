@@ -18,7 +18,7 @@ from .conftest import ROOT
 
 
 def test_exit_codes_are_documented_enum() -> None:
-    assert [int(c) for c in ExitCode] == [0, 1, 2, 3, 4, 130, 141]
+    assert [int(c) for c in ExitCode] == [0, 1, 2, 3, 4, 5, 130, 141]
     readme = (ROOT / "README.md").read_text()
     for code in ExitCode:
         assert f"| {int(code)} |" in readme
@@ -55,7 +55,8 @@ def test_wheel_contains_package_and_templates(tmp_path: Path) -> None:
     wheels = list(out.glob("kfcrit-*.whl"))
     assert len(wheels) == 1
     names = zipfile.ZipFile(wheels[0]).namelist()
-    assert "kfcrit/__init__.py" in names and "kfcrit/cli.py" in names
+    assert "kfcrit/__init__.py" in names and "kfcrit/cli/main.py" in names
+    assert "kfcrit/analysis/verdict.py" in names and "kfcrit/api/notebook.py" in names
     templates = sorted(n for n in names if n.startswith("kfcrit/templates/"))
     repo_templates = sorted(p.name for p in (ROOT / "templates").iterdir() if p.is_file())
     assert repo_templates, "templates/ is empty"

@@ -139,7 +139,7 @@ def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any]
     return op
 
 
-DIVERGES = ("E[tr P_t] diverges at this operating point (sup_t E[tr P_t] = inf: {basis}); a "
+DIVERGES = ("E[tr P_t] diverges at this operating point (sup_t E[tr P_t] = ∞: {basis}); a "
             "sample mean over finitely many paths and steps is finite but estimates nothing, "
             "so no mean and no confidence interval is given")
 
