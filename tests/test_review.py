@@ -117,3 +117,24 @@ def test_required_arrival_interval_in_the_record(tmp_path: Path) -> None:
     p_s, p_v = req["interval"]
     assert p_s == pytest.approx(0.424, abs=1e-6) and p_v == pytest.approx(0.53, abs=1e-6)
     assert rec["review"]["decision"] == "pass" and code == 0    # p = 0.8 ≥ p_V
+
+
+def test_network_link_policy_and_requirement_enter_the_review(tmp_path: Path) -> None:
+    """A network's requirement uses its own Lyapunov bound S̄ = Π(1 − p_i)·a²·S̄ + q:
+    a = 2, p = (0.6, 0.5): S̄ = 1/(1 − 0.4·0.5·4) = 5 > L = 2, so the requirement fails; and a
+    link-budget sensor's margin policy is a reason of its own (named by the sensor)."""
+    path = write(tmp_path, "netreq", "name: n\nA: 2\nQ: 1\nsensors:\n"
+                 "  - {name: a, C: 1, R: 1, channel: {model: bernoulli, arrival_probability: 0.6}}\n"
+                 "  - {name: b, C: 1, R: 2, channel: {model: bernoulli, arrival_probability: 0.5}}\n"
+                 "requirements: {max_mean_error_trace: 2}\n")
+    code, rec = run(path, "--no-simulate")
+    item = rec["requirements"]["assessments"][0]
+    assert item["status"] == "not met" and item["interval"][0] == pytest.approx(5.0)
+    assert code == 5
+    text = (REPORTS / "network-planar-tracker.yaml").read_text().replace(
+        "  margin_db: 2\n", "  margin_db: 30\n")
+    assert "margin_db: 30" in text
+    code, rec = run(write(tmp_path, "policy", text), "--no-simulate")
+    checks = {r["check"]: r["status"] for r in rec["review"]["reasons"]}
+    assert checks.get("link policy: margin (corner)") == "fail"
+    assert rec["review"]["decision"] == "fail" and code == 5

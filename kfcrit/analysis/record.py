@@ -235,6 +235,7 @@ def network_sections(spec: SystemSpec, opts: AnalysisOptions, warnings: list[str
                         "critical values, the uniform margin and N − 1 verdicts are in "
                         "`network`")
     verdict, basis = vd.network_verdict(net)
+    network_link_designs(spec.network, net, warnings)
     burst = network_burst_condition(spec.network)
     if burst is not None:
         net["burst_condition"] = burst
@@ -259,6 +260,88 @@ def network_sections(spec: SystemSpec, opts: AnalysisOptions, warnings: list[str
                   "uniform margin δ (every link degraded by δ reaches the stability boundary)",
           "verdict": verdict.value, "basis": basis}
     return net, op
+
+
+def network_lower_bound(network: Any) -> dict[str, Any]:
+    r"""The Lyapunov lower bound of a network's error covariance (MATH §9).
+
+    .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
+              \pi(\emptyset) = \prod_i (1 - p_i)
+
+    (E[P_{t+1}] ⪰ π(∅) A E[P_t] A' + Q: with every packet lost the filter only predicts), so
+    lim E[P_t] ⪰ S̄; V̄ of the network is not computed (no upper bound, ``upper.exists`` False).
+    """
+    import numpy as np
+
+    from kfcrit.theory import bounds
+
+    lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
+                          for s in network.sensors if s.channel is not None]))
+    system = network.stacked_system()
+    S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
+    return {"p": 1.0 - lost, "lower": bounds.covariance_summary(S),
+            "upper": {**bounds.covariance_summary(None), "method": "not computed for a network"},
+            "ordered": None, "applicable": True,
+            "reason": "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
+                      "together); p is 1 − Π(1 − p_i); V̄ is not computed"}
+
+
+def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str]) -> None:
+    """Each link-budget sensor's link against its own margin policy (``link`` of its row in
+    ``network.sensors``): the arrival probability it must exceed is its critical value with the
+    other links at their operating values (the upper end of its interval when only bracketed)."""
+    from kfcrit.link import linkbudget
+
+    for row, sensor in zip(net.get("sensors") or [], network.sensors):
+        ch = sensor.channel
+        if ch is None or ch.model != "link-budget":
+            continue
+        cv = row.get("critical_value") or {}
+        value, interval = cv.get("value"), cv.get("interval")
+        bracket = (None, None) if value is not None or not interval else tuple(interval)
+        try:
+            lb = linkbudget.design_section(ch, critical_value=value, robust_value=None,
+                                           bracket=bracket, upper_bound=None)
+        except (ValueError, ArithmeticError) as exc:
+            warnings.append(f"link design of sensor {sensor.name} not computed: {exc}")
+            continue
+        if isinstance(lb, dict):
+            lb["design_check"] = design_check(lb)
+            row["link"] = {k: lb.get(k) for k in ("link", "link_margin_db", "required_sinr_db",
+                                                  "max_distance_m", "margin_policy",
+                                                  "design_check", "shadowing")}
+
+
+def network_simulation(spec: SystemSpec, opts: AnalysisOptions, op: dict[str, Any]
+                       ) -> dict[str, Any]:
+    """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
+    of C that arrived update the filter, MATH §9): E[tr P_t] at the horizon, or — when the
+    network is mean-unstable — the sample statistics labelled as not estimating a mean."""
+    from kfcrit.sim.montecarlo import Budget, simulate
+
+    net = spec.network
+    budget = Budget.for_system(spec.system.n, opts.quick)
+    sensors = [(list(range(sl.start, sl.stop)), s.channel)
+               for sl, s in zip(net.row_slices(), net.sensors)]
+    res = simulate(spec.system, budget.paths, budget.steps, opts.seed, sensors=sensors,
+                   track_lambda_max=False).to_dict()
+    mt = res.get("mean_trace") or {}
+    last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
+    diverges = op.get("verdict") == vd.Verdict.MEAN_UNSTABLE.value
+    summary = {"paths": budget.paths, "steps": budget.steps, "seed": opts.seed,
+               "sensors": [s.name for s in net.sensors],
+               "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
+               "horizon_quantiles": (res.get("horizon") or {}).get("quantiles"),
+               "horizon_levels": (res.get("horizon") or {}).get("levels")}
+    if diverges:
+        summary.update(mean_exists=False, sample_mean_trace=last["mean"],
+                       statement="E[tr P_t] diverges (the network is mean-unstable): the sample "
+                                 "mean estimates nothing")
+    else:
+        summary.update(mean_exists=None if op.get("verdict") != "mean-stable" else True,
+                       mean_trace=last)
+    return {"seed": opts.seed, "quick": opts.quick, "network": summary,
+            "reason": "per-sensor arrivals, each sensor over its own link"}
 
 
 def network_burst_condition(network: Any) -> dict[str, Any] | None:
@@ -395,15 +478,20 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     reqs = spec.requirements
-    _design_sections(spec, theory, sec, warnings)
+    if spec.network is None or spec.network.size == 1:
+        _design_sections(spec, theory, sec, warnings)
     _tail_section(spec, theory, sec)
-    if opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
+    if spec.network is not None and spec.network.size > 1:
+        sec["covariance_bounds"] = network_lower_bound(spec.network)
+    elif opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
         _bounds_sections(spec, sec, warnings, curves=opts.details, quick=opts.quick)
     tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
     if spec.network is not None and spec.network.size > 1:
-        sec["simulation"] = {"skipped": True, "reason": "the simulation of a sensor network "
-                             "(per-sensor arrivals) is not part of the analysis record yet; "
-                             "the verdict rests on the network theory (MATH §9)"}
+        if opts.simulate and opts.details and not (opts.quick and s.n >
+                                                   QUICK_SIMULATION_MAX_STATES):
+            sec["simulation"] = network_simulation(spec, opts, sec["operating_point"])
+        else:
+            sec["simulation"] = {"skipped": True, "reason": "simulation disabled"}
     elif opts.quick and s.n > QUICK_SIMULATION_MAX_STATES and not tail:
         sec["simulation"] = {"skipped": True, "reason": f"--quick draft of a system with "
                              f"n = {s.n} > {QUICK_SIMULATION_MAX_STATES} states: the Monte Carlo "
@@ -420,8 +508,10 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sec["verification"] = verification(sec, warnings)
     op = sec.get("operating_point") or {}
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
+    sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
+                    for row in (sec.get("network") or {}).get("sensors") or []]
     review = vd.review(op.get("verdict"), op.get("basis"), sec["requirements"],
-                       lb.get("design_check"))
+                       lb.get("design_check"), extra=[r for rs in sensor_links for r in rs])
     if not op and (sec.get("upper_bound") or {}).get("status") == "undetermined":
         review = vd.review(None, None, None, None, extra=[vd.Reason(
             "upper bound p_up", vd.CheckStatus.UNDETERMINED,
@@ -917,10 +1007,10 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
             and verdict == vd.Verdict.MEAN_STABLE.value:
         return {"status": "met", "basis": f"tr V̄ = {v_tr:.6g} ≤ L = {limit:g} (lim E[P_t] ⪯ V̄, "
                 "Sinopoli Thm 6)", "interval": [s_tr, v_tr]}
-    return {"status": "not demonstrated", "basis": f"L = {limit:g} lies between tr S̄ = "
-            f"{s_tr if s_tr is None else f'{s_tr:.6g}'} and tr V̄ = "
-            f"{v_tr if v_tr is None else f'{v_tr:.6g}'} (or V̄ is not available)",
-            "interval": [s_tr, v_tr]}
+    s_text = "not available" if s_tr is None else f"{s_tr:.6g}"
+    v_text = "not available" if v_tr is None or not upper.get("exists") else f"{v_tr:.6g}"
+    return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided by the "
+            f"bounds: tr S̄ = {s_text} ≤ L and tr V̄ = {v_text}", "interval": [s_tr, v_tr]}
 
 
 def requirement_assessment(requirements: dict[str, Any] | None,

@@ -589,9 +589,12 @@ def row_of(record: dict[str, Any]) -> dict[str, Any]:
                requirement_basis=basis, decision=(record.get("review") or {}).get("decision"))
     if op and record.get("network"):
         # a network: the margin is the uniform margin δ, p the bottleneck sensor's
+        bracket = op.get("bracket") or [None]
+        margin = op.get("margin") if op.get("margin") is not None else bracket[0]
         row.update(arrival_probability=op.get("arrival_probability"), iid=op.get("iid"),
-                   margin=op.get("margin"), verdict=op.get("verdict"), requirement=None,
-                   requirement_basis="uniform margin of the sensor network")
+                   margin=margin, verdict=op.get("verdict"), requirement=None,
+                   requirement_basis="uniform margin of the sensor network (the conservative "
+                                     "end of its interval when not exact)")
     elif op:
         p = op.get("arrival_probability")
         row.update(arrival_probability=p, iid=op.get("iid"),

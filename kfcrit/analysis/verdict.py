@@ -288,21 +288,26 @@ def requirement_reasons(requirements: Mapping[str, Any] | None) -> list[Reason]:
     return out
 
 
-def link_reasons(design_check: Mapping[str, Any] | None) -> list[Reason]:
-    """The link policy of a link-budget channel: the margin and the shadowing outage."""
+def link_reasons(design_check: Mapping[str, Any] | None, link: str | None = None
+                 ) -> list[Reason]:
+    """The link policy of a link-budget channel: the margin and the shadowing outage (of the
+    named sensor's link in a network)."""
     if not design_check:
         return []
+    suffix = f" ({link})" if link else ""
     out = []
     met = design_check.get("margin_policy_met")
     if met is not None:
         margin, needed = design_check.get("link_margin_db"), design_check.get("required_margin_db")
-        out.append(Reason(LINK_MARGIN_CHECK, CheckStatus.PASS if met else CheckStatus.FAIL,
+        out.append(Reason(LINK_MARGIN_CHECK + suffix,
+                          CheckStatus.PASS if met else CheckStatus.FAIL,
                           f"link margin {margin:.3g} dB {'≥' if met else '<'} the policy's "
                           f"{needed:.3g} dB"))
     ok = design_check.get("outage_within_policy")
     if ok is not None:
         outage, allowed = design_check.get("outage_probability"), design_check.get("max_outage")
-        out.append(Reason(LINK_OUTAGE_CHECK, CheckStatus.PASS if ok else CheckStatus.FAIL,
+        out.append(Reason(LINK_OUTAGE_CHECK + suffix,
+                          CheckStatus.PASS if ok else CheckStatus.FAIL,
                           f"shadowing outage {100 * outage:.3g} % {'≤' if ok else '>'} the "
                           f"allowed {100 * allowed:.3g} %"))
     return out

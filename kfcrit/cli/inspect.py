@@ -13,7 +13,9 @@ from kfcrit.cli.common import debug_option, handle_errors, max_states_option
 @click.argument("what", type=click.Choice(["record", "system", "sweep"]), required=False)
 @click.option("--markdown", is_flag=True,
               help="Print the key reference of system and sweep files (Markdown) instead.")
-def schema(what: str | None, markdown: bool) -> None:
+@debug_option
+@handle_errors
+def schema(what: str | None, markdown: bool, debug: bool) -> None:
     """Print the JSON Schema (draft 2020-12) of the analysis record, or of system or sweep
     files; with --markdown, the file reference generated from them."""
     from kfcrit.analysis.sections import record_schema
@@ -27,6 +29,18 @@ def schema(what: str | None, markdown: bool) -> None:
         raise click.UsageError("name what to print: record, system or sweep (or --markdown)")
     build = {"record": record_schema, "system": system_schema, "sweep": sweep_schema}[what]
     click.echo(json.dumps(build(), indent=2, ensure_ascii=False))
+
+
+def plain_value(value: object) -> str:
+    """A catalogue value as a reader wants it: numbers to 4 significant digits, mappings as
+    ``key = value`` pairs, missing values as "none"."""
+    if value is None:
+        return "none"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} = {plain_value(v)}" for k, v in value.items())
+    return str(value)
 
 
 def is_sweep_document(doc: object) -> bool:
@@ -60,7 +74,9 @@ def check(file: str, max_states: int, debug: bool) -> None:
 
 @click.command()
 @click.option("--json", "as_json", is_flag=True, help="Print the catalogue as JSON.")
-def radios(as_json: bool) -> None:
+@debug_option
+@handle_errors
+def radios(as_json: bool, debug: bool) -> None:
     """List the radio models a link budget may name, with their parameters."""
     from kfcrit.link.radios import radio_catalogue
 
@@ -73,4 +89,4 @@ def radios(as_json: bool) -> None:
         click.echo(f"    {e['description']}")
         params = e.get("parameters") or {}
         for key, value in (params.items() if isinstance(params, dict) else enumerate(params)):
-            click.echo(f"    {key}: {value}")
+            click.echo(f"    {key}: {plain_value(value)}")

@@ -1,6 +1,7 @@
 """The ``kfcrit simulate`` command: run the Monte Carlo, print a summary or JSON, plot."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -8,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
+from kfcrit.analysis.spec import load_spec
 from kfcrit.errors import InputError
 from kfcrit.io.jsonio import dumps
-from kfcrit.io.systemfile import load_spec
 from kfcrit.sim.engine import check_sizes, ergodic, simulate
 from kfcrit.sim.results import QUANTILE_LEVELS, ErgodicResult, SimulationResult
 from kfcrit.views.simplots import write_plot
@@ -44,15 +45,23 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
             raise InputError(f"folder {str(Path(plot).resolve().parent)[:80]!r} does not exist",
                              field="--plot")
     spec = load_spec(system_file, max_states=max_states)
-    if spec.channel is None:
+    if spec.network is not None and spec.network.size == 1:   # one sensor: one link
+        spec = dataclasses.replace(spec, channel=spec.network.sensors[0].channel)
+    sensors = network_sensors(spec)
+    if spec.channel is None and sensors is None:
         raise InputError("the system file has no channel (add channel: {model: bernoulli, "
                          "arrival_probability: ...})", field="channel")
     keep = min(paths, 5) if plot is not None and steps <= 1_000_000 else False
-    if sys.stderr.isatty() and paths * steps * spec.system.n ** 2 > 5e7:
+    if sensors is not None:
+        result = simulate(spec.system, paths, steps, seed, record_traces=keep, sensors=sensors)
+    elif sys.stderr.isatty() and paths * steps * spec.system.n ** 2 > 5e7:
         result = with_progress(spec, paths, steps, seed, keep)
     else:
         result = simulate(spec.system, paths, steps, seed, spec.channel, record_traces=keep)
     erg = None
+    if ergodic_steps is not None and sensors is not None:
+        raise InputError("time averages of a sensor network are not available; simulate without "
+                         "--ergodic-steps/--tail", field="--ergodic-steps")
     if ergodic_steps is not None:
         req = spec.requirements.max_error_trace
         lv = sorted(set(levels + ([float(req)] if req is not None else [])))
@@ -114,6 +123,19 @@ def ergodic_text(erg: ErgodicResult) -> str:
         lines.append(f"loss bursts: mean length {b['mean_length']:.4g} (channel "
                      f"{_fmt(b['expected_mean_length'])}), longest {b['longest']}")
     return "\n".join(lines)
+
+
+def network_sensors(spec: Any) -> list[tuple[list[int], Any]] | None:
+    """Each sensor of a network file over its own link: (its rows of the stacked C, channel);
+    None for a one-link file."""
+    net = getattr(spec, "network", None)
+    if net is None or net.size == 1:
+        return None
+    missing = [s.name for s in net.sensors if s.channel is None]
+    if missing:
+        raise InputError("has no channel", field=f"sensors.{missing[0]}.channel")
+    return [(list(range(sl.start, sl.stop)), s.channel)
+            for sl, s in zip(net.row_slices(), net.sensors)]
 
 
 def with_progress(spec: Any, paths: int, steps: int, seed: int,

@@ -125,7 +125,8 @@ def summary(rec: dict[str, Any]) -> str:
                  f"input {'exact' if sysd.get('exact_input') else 'floating-point'}")
     lines.append(f"  classification        {rec.get('classification') or '—'}")
     cv = rec.get("critical_value") or {}
-    lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}{_exact(cv)}")
+    lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}"
+                 f"{_exact(cv) if cv.get('exact') else ''}")
     if cv.get("reason"):
         lines.append(f"      {cv['reason']}")
     rob = rec.get("robust_critical_value")
@@ -147,12 +148,19 @@ def summary(rec: dict[str, Any]) -> str:
                      f"{'  certified' if ub.get('certified') else '  not certified'}")
     op = rec.get("operating_point")
     if op:
-        lines.append(f"  operating point p     {_num(op.get('arrival_probability'), 12)}")
+        network = rec.get("network") is not None and op.get("bottleneck") is not None
+        if network:
+            lines.append(f"  bottleneck link p     {_num(op.get('arrival_probability'), 12)}  "
+                         f"({safe_text(op.get('bottleneck'))})")
+        else:
+            lines.append(f"  operating point p     {_num(op.get('arrival_probability'), 12)}")
         if op.get("margin") is not None:
-            lines.append(f"  margin p - p_c        {op['margin']:+.6g}")
-        if op.get("bracket"):
+            label = "uniform margin δ" if network else "margin p - p_c"
+            lines.append(f"  {label:<21} {op['margin']:+.6g}")
+        if op.get("bracket") and not (network and op.get("margin") is not None):
             b = op["bracket"]
-            lines.append(f"  bracket               [{_num(b[0])}, {_num(b[1])}]")
+            label = "uniform margin δ in" if network else "bracket"
+            lines.append(f"  {label:<21} [{_num(b[0])}, {_num(b[1])}]")
         lines.append(f"  stability verdict     {op.get('verdict', '—').upper()}")
         if op.get("reason"):
             lines.append(f"      reason: {op['reason']}")
@@ -200,6 +208,15 @@ def _bounds_lines(rec: dict[str, Any]) -> list[str]:
 
 
 def _simulation_lines(rec: dict[str, Any]) -> list[str]:
+    net = (rec.get("simulation") or {}).get("network")
+    if net:
+        if net.get("mean_exists") is False:
+            return [f"  simulated E[tr P_t]   diverges (network mean-unstable); sample mean "
+                    f"{_num(net.get('sample_mean_trace'))} is not an estimate"]
+        mt = net.get("mean_trace") or {}
+        return [f"  simulated E[tr P_t]   {_num(mt.get('mean'))} at t = {net.get('steps')} "
+                f"(95% CI {_num(mt.get('lower'))} .. {_num(mt.get('upper'))}; "
+                f"{net.get('paths')} paths, each sensor over its own link)"]
     sim = (rec.get("simulation") or {}).get("operating_point")
     if not sim:
         return []
@@ -277,7 +294,8 @@ def _link_lines(rec: dict[str, Any]) -> list[str]:
     if dc:
         out.append(f"  margin policy         {_yes_no(dc.get('margin_policy_met'))}: link margin "
                    f"{_num(dc.get('link_margin_db'), 4)} dB, policy needs "
-                   f"{_num(dc.get('required_margin_db'), 4)} dB")
+                   f"{_num(dc.get('required_margin_db'), 4)} dB = max(margin_db, "
+                   "σ·Φ⁻¹(1 − max_outage))")
         if dc.get("outage_probability") is not None:
             out.append(f"  outage probability    {_num(dc['outage_probability'], 4)}"
                        + (f" (policy allows {_num(dc.get('max_outage'), 4)}: "
