@@ -174,24 +174,34 @@ def sweep_schema() -> dict[str, Any]:
     values = {"description": "a list of values, or a range",
               "anyOf": [{"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"}},
                         {"type": "object", "properties": {
-                            "start": {"$ref": "#/$defs/number"}, "stop": {"$ref": "#/$defs/number"},
-                            "num": {"type": "integer"}, "step": {"$ref": "#/$defs/number"},
-                            "scale": {"enum": ["linear", "log"]}},
+                            "start": {"$ref": "#/$defs/number",
+                                      "description": "first value of a range"},
+                            "stop": {"$ref": "#/$defs/number",
+                                     "description": "last value (included)"},
+                            "num": {"type": "integer", "description": "number of values"},
+                            "step": {"$ref": "#/$defs/number",
+                                     "description": "spacing (instead of num)"},
+                            "scale": {"enum": ["linear", "log"],
+                                      "description": "linear (default) or log spacing"}},
                          "required": ["start", "stop"], "additionalProperties": False}]}
     props = {"name": {"type": "string"}, "description": {"type": "string"},
              "system": {"description": "the base system: a system-file path (relative to the "
                                        "sweep file) or an inline system mapping",
                         "anyOf": [{"type": "string"}, {"type": "object"}]},
              "tolerance": {"$ref": "#/$defs/number"},
-             "grid": {"type": "object", "description": "parameter path (e.g. channel.distance_m,"
-                                                       " A[0][1]) → values; the grid is their "
-                                                       "product",
+             "grid": {"type": "object", "description": "parameter path → values; the grid is "
+                                                       "their product. Paths: channel.KEY[.KEY…], "
+                                                       "sensors.NAME.channel.KEY[.KEY…], "
+                                                       "links.KEY[.KEY…], a matrix entry A[i][j] "
+                                                       "(C, Q, R, Sigma0)",
                       "additionalProperties": values},
              "points": {"type": "array", "description": "explicit points: mappings of parameter "
                                                         "path → value",
                         "items": {"type": "object",
                                   "additionalProperties": {"$ref": "#/$defs/number"}}},
-             "plot": _object({"x": {"type": "string"}}, [], "the margin plot's x parameter")}
+             "plot": _object({"x": {"type": "string", "description": "the swept parameter on the "
+                                                                   "margin plot's x axis"}},
+                             [], "the margin plot")}
     return {"$schema": SCHEMA_DIALECT, "$id": "https://kfcrit.invalid/schema/sweep.json",
             "title": "kfcrit sweep file", "type": "object", "properties": props,
             "required": ["system"], "additionalProperties": False,

@@ -50,6 +50,15 @@ def _rows(obj: dict[str, Any], defs: dict[str, Any], prefix: str,
             _rows(inner, defs, f"{path}.", out)
         elif inner.get("type") == "object" and inner.get("properties") and "$ref" not in node:
             _rows(inner, defs, f"{path}.", out)
+        elif inner.get("type") == "array" and "$ref" in inner.get("items", {}):
+            item = _resolve(inner["items"], defs)
+            if item.get("properties"):
+                _rows(item, defs, f"{path}[].", out)
+        elif inner.get("type") == "object" and isinstance(inner.get("additionalProperties"),
+                                                          dict):
+            for alt in inner["additionalProperties"].get("anyOf", []):
+                if alt.get("type") == "object" and alt.get("properties"):
+                    _rows(alt, defs, f"{path}.PARAMETER.", out)
 
 
 def _table(rows: list[tuple[str, str, bool, str]]) -> list[str]:
