@@ -78,6 +78,8 @@ class TheorySections:
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
 QUICK_SIMULATION_MAX_STATES = 40
 """Largest n simulated by a ``--quick`` draft (each path-step costs O(n³))."""
+QUICK_ROBUST_MAX_STATES = 60
+"""Largest n whose robust critical value a ``--quick`` draft computes."""
 QUICK_PHASE_SECONDS = 5.0
 """Time budget of the V̄ curve in a ``--quick`` draft of a system with more than 20 states."""
 
@@ -413,7 +415,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
 
     opts = options or AnalysisOptions()
     structure = structure_of(system, opts.tolerance)
-    crit = critical.critical_value(system, opts.tolerance, channel=channel, structure=structure)
+    crit = critical.critical_value(system, opts.tolerance, channel=channel, structure=structure,
+                                   robust=not (opts.quick and system.n > QUICK_ROBUST_MAX_STATES))
     d = crit.to_dict()
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])

@@ -916,7 +916,7 @@ def _num_text(v: Num) -> str:
 
 
 def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
-                   structure: Structure | None = None) -> CriticalValue:
+                   structure: Structure | None = None, robust: bool = True) -> CriticalValue:
     """Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
 
     Parameters
@@ -932,6 +932,10 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
         The eigen-structure of ``system`` from
         :func:`kfcrit.theory.structure.structure_of` (computed here when omitted). A numeric-path
         structure decided at another tolerance is re-decided at ``tolerance``.
+    robust : bool
+        Compute the robust critical value (the systems within ``tolerance``); when False the
+        record says it was not computed (a draft of a large system: each eigenvalue group
+        costs a Sylvester separation of order k(n − k)).
 
     Returns
     -------
@@ -967,12 +971,17 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
             if not theorem:
                 warnings.append("p_c rests on the single-output identity p_up = 1 − 1/Π|λ_u|², "
                                 "a claim checked numerically (MATH §3 [beyond]), not a theorem")
-    robust = None
-    if classification != "not-detectable":
-        robust = _robust(system, st, st_tol, tolerance, value, blow, classification, warnings)
+    robust_value = None
+    if classification != "not-detectable" and robust:
+        robust_value = _robust(system, st, st_tol, tolerance, value, blow, classification,
+                               warnings)
+    elif classification != "not-detectable":
+        warnings.append(f"robust critical value not computed (a --quick draft of n = "
+                        f"{system.n} states): the verdict does not consider systems within the "
+                        f"tolerance {tolerance:g}; run without --quick for it")
     theory = _theory(system, st, classification, value, channel)
     return CriticalValue(classification=classification, value=value, reason=reason, lower=low,
-                         block_lower=blow, block_reason=bwhy, robust=robust, structure=st,
+                         block_lower=blow, block_reason=bwhy, robust=robust_value, structure=st,
                          theory=theory, warnings=tuple(warnings), basis=basis)
 
 
