@@ -645,3 +645,24 @@ def test_journal_replaced_by_a_fifo_is_refused_without_hanging(tmp_path: Path) -
     assert proc.returncode == 2, proc.stderr
     assert "output: the journal" in proc.stderr and "FIFO" in proc.stderr
     assert sorted(p.name for p in out_dir.iterdir()) == ["sweep.journal.jsonl"]
+
+
+def test_a_million_point_sweep_is_refused_in_bounded_time_and_memory(tmp_path: Path) -> None:
+    """A 130-byte sweep file asking for 10^6 points is refused before any point is keyed
+    (exit 2, one line), within a second of CPU and far below 1 GB."""
+    import resource
+
+    sweep = write_case(tmp_path, "system: system.yaml\ngrid:\n"
+                       "  channel.distance_m: {start: 1, stop: 100, num: 1000}\n"
+                       "  channel.tx_power_dbm: {start: -10, stop: 10, num: 1000}\n")
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (1_000_000_000, 1_000_000_000))
+
+    proc = subprocess.run([sys.executable, "-m", "kfcrit", "sweep", str(sweep), "-o",
+                           str(tmp_path / "o")], capture_output=True, text=True, timeout=120,
+                          preexec_fn=limit)
+    assert proc.returncode == 2, proc.stderr
+    assert "sweep.grid" in proc.stderr and "100000" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()

@@ -23,8 +23,9 @@ from typing import Any
 from kfcrit.errors import ExitCode, KfcritError, OutputError
 from kfcrit.io.safeio import read_text
 
-MAX_POINTS = 1_000_000
-"""Largest sweep (points); also bounds the journal read back."""
+MAX_POINTS = 100_000
+"""Largest sweep (points): bounds the memory of the keyed grid (about 1 KiB per point) and the
+journal read back; larger designs are several sweep files."""
 MAX_JOURNAL_BYTES = 4096 * MAX_POINTS
 """Largest journal read back on resuming (4 KiB per point of the largest sweep)."""
 
