@@ -687,8 +687,9 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
     from kfcrit.theory import markov
 
     s = spec.system
-    out = gilbert_elliott_section(s, ge, seed=opts.seed, simulate=opts.details)
     cls = theory.sections.get("classification")
+    out = gilbert_elliott_section(s, ge, seed=opts.seed, simulate=opts.details,
+                                  classification=cls)
     if cls == "not-detectable":
         return out
     bv = markov.burst_verdict(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
