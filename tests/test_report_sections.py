@@ -196,3 +196,27 @@ def test_tail_exponent_is_shown_with_its_label():
     assert ex["value"] == pytest.approx(math.log(5) / math.log(25 / 16))
     text = visible_text(html_of(rec))
     assert "Power-law tail exponent β = 3.60628" in text and "claim" in text
+
+
+# ----------------------------------------------------------------------------- divergent mean
+
+def test_divergent_mean_draws_the_sample_mean_without_a_band():
+    """ge-bursty-scalar: a = −5/4 and recovery rate r = 1/10 give (1 − r)·a² = 45/32 ≥ 1, so
+    E[P_t] is unbounded (MATH 7/10): the record has no mean and the figure shows the sample
+    mean."""
+    rec = record("ge-bursty-scalar")
+    op = rec["simulation"]["operating_point"]
+    assert op["mean_trace"]["diverges"] and op["mean_trace"]["mean"] is None
+    sample = op["sample_mean_trace"]["mean"]
+    fig = figures.draw_operating(rec)
+    assert fig is not None
+    ax = fig.axes[0]
+    lines = [ln for ln in ax.lines if len(ln.get_xdata()) == len(op["times"])]
+    assert len(lines) == 1
+    assert list(lines[0].get_ydata()) == pytest.approx(sample)
+    assert "diverges" in lines[0].get_label() and "sample mean" in lines[0].get_label()
+    assert not ax.collections  # no confidence band: the sample mean estimates nothing
+    html = html_of(rec)
+    chunk = html.split('id="fig-operating"')[1].split("</figure>")[0]
+    assert "<svg" in chunk and "diverges" in visible_text(chunk)
+    assert "sample mean of tr P_t at the horizon" in visible_text(html)
