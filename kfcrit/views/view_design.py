@@ -9,7 +9,15 @@ from __future__ import annotations
 from typing import Any
 
 from kfcrit.views import jinja_filters as filters
-from kfcrit.views.viewparts import as_dict, as_list, figure_entry, number, prose, row
+from kfcrit.views.viewparts import (
+    as_dict,
+    as_list,
+    figure_entry,
+    number,
+    prose,
+    row,
+    short_closed_form,
+)
 
 RADIO_ITEMS = (("max_distance_m", "maximum distance"),
                ("min_tx_power_dbm", "minimum transmit power"),
@@ -77,9 +85,7 @@ def tail_view(rec: dict[str, Any]) -> dict[str, Any] | None:
     ex = as_dict(as_dict(rec.get("tail")).get("exponent"))
     if not ex or not ex.get("applicable", True) or number(ex.get("value")) is None:
         return None
-    expr = ex.get("expression")
-    short = isinstance(expr, str) and len(expr) <= 40   # a float p gives an unreadable ratio
-    return {"value": ex.get("value"), "expression": expr if short else None,
+    return {"value": ex.get("value"), "expression": short_closed_form(ex.get("expression")),
             "formula": prose(ex.get("formula")), "statement": prose(ex.get("statement")),
             "label": prose(ex.get("label")), "source": str(ex.get("source") or "")}
 

@@ -73,16 +73,16 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "channel_model": CHANNEL_NAMES.get(str(channel.get("model")), channel.get("model")),
         "channel_summary": channel_summary(channel) if channel else "",
         "critical_value": number(cv.get("value")),
-        "critical_expression": cv.get("expression"),
-        "critical_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=13,
-                                label=cv.get("expression")),
+        "critical_expression": critical_form(cv),
+        "critical_svg": formula(cv.get("latex"), critical_form(cv), fontsize=13,
+                                label=critical_form(cv)) if critical_form(cv) else None,
         "critical_exact": cv.get("exact"),
         "critical_reason": prose(cv.get("reason")) or None,
         "margin": number(opd.get("margin")),
         "margin_robust": number(opd.get("margin_robust")),
         "robust": {"available": isinstance(rob, dict),
                    "value": number(robd.get("value")), "tolerance": number(robd.get("tolerance")),
-                   "expression": robd.get("expression"),
+                   "expression": exact_text(robd.get("expression")),
                    "nearby_case": robd.get("nearby_case"),
                    "missing": "not needed: the classification is decided exactly and no "
                               "perturbation within the tolerance changes it"
@@ -99,6 +99,12 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "requirement": requirement_view(rec),
         "network": network_cells(rec) if channel.get("model") == "network" else None,
     }
+
+
+def critical_form(cv: dict[str, Any]) -> str | None:
+    """The exact form of p_c for the verdict card: only an exact value's short closed form
+    (a numerical value is printed as a number, never as its 17-digit expression)."""
+    return exact_text(cv.get("expression")) if cv.get("exact") else None
 
 
 def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
