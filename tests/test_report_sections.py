@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 
 import numpy as np
 import pytest
@@ -220,3 +221,43 @@ def test_divergent_mean_draws_the_sample_mean_without_a_band():
     chunk = html.split('id="fig-operating"')[1].split("</figure>")[0]
     assert "<svg" in chunk and "diverges" in visible_text(chunk)
     assert "sample mean of tr P_t at the horizon" in visible_text(html)
+
+
+# ----------------------------------------------------------------------------- exact forms
+
+IRRATIONAL_PLANT = {"name": "three states, cubic eigenvalues",
+                    "A": [["1.1", "0.3", "0"], ["0.2", "0.9", "0.4"], ["0", "0.1", "1.05"]],
+                    "C": [[1, 0, 0]], "Q": 1, "R": 1,
+                    "channel": {"model": "bernoulli", "arrival_probability": "0.8"}}
+
+
+def test_short_closed_forms_only():
+    from kfcrit.views.viewparts import exact_text, numerical_text, short_closed_form
+    assert short_closed_form("9/25") == "9/25"
+    assert short_closed_form("1 - 2**(-3)") == "1 - 2**(-3)"
+    assert short_closed_form("sqrt(3)/2") == "sqrt(3)/2"
+    for not_a_form in ("0.96213", "1.4198034786194746e-5", "CRootOf(x**3 - 2*x - 1, 2)",
+                       "0.4263521177043613", "1/(1 - 0.13996696020413057)", "",
+                       "sqrt(" + "1 + " * 20 + "2)"):
+        assert short_closed_form(not_a_form) is None, not_a_form
+        assert exact_text(not_a_form) is None
+    assert numerical_text(0.13996696020413057) == "0.139967 (numerical)"
+
+
+def test_irrational_eigenvalues_are_shown_as_numbers_not_root_objects():
+    """A has the characteristic polynomial of a cubic with three real irrational roots; the
+    report shows them at 6 digits (numpy's eigvals, a second method) and p_c = 1 − 1/|λ₁|²
+    as a number marked numerical, never a CRootOf or a 17-digit float."""
+    rec = record_of(IRRATIONAL_PLANT, "irrational-plant")
+    A = np.array([[1.1, 0.3, 0], [0.2, 0.9, 0.4], [0, 0.1, 1.05]])
+    lam = sorted(abs(np.linalg.eigvals(A)), reverse=True)
+    pc = 1 - 1 / lam[0] ** 2
+    assert rec["critical_value"]["value"] == pytest.approx(pc, rel=1e-12)
+    text = visible_text(html_of(rec))
+    assert "RootOf(" not in text and "x^3" not in text
+    assert f"p c ≈ {pc:.6g} · numerical" in text
+    for mod in lam:
+        assert f"{mod:.6g} (numerical)".replace("-", "−") in text
+    table = text.split("exact |λ i |")[1].split("equi-block")[0]
+    assert not re.search(r"\d\.\d{9,}", table), table
+    assert "· exact" not in text.split("critical value p c")[1].split("margin")[0]
