@@ -261,3 +261,34 @@ def test_irrational_eigenvalues_are_shown_as_numbers_not_root_objects():
     table = text.split("exact |λ i |")[1].split("equi-block")[0]
     assert not re.search(r"\d\.\d{9,}", table), table
     assert "· exact" not in text.split("critical value p c")[1].split("margin")[0]
+
+
+# ----------------------------------------------------------------------------- design wording
+
+def _bound(quantity, unit, sense, suf, nec, suf_status="value", nec_status="value"):
+    return {"quantity": quantity, "unit": unit, "sense": sense,
+            "sufficient": {"value": suf, "status": suf_status},
+            "necessary": {"value": nec, "status": nec_status}}
+
+
+def test_radio_bounds_fail_on_the_side_their_sense_says():
+    from kfcrit.views.view_design import bound_text
+    # a transmit power must be at least its bound: below the necessary end it fails
+    power = bound_text(_bound("transmit power", "dBm", "at least", -2.05, -2.28))
+    assert "fails below −2.28 dBm" in power and "guaranteed at −2.05 dBm or more" in power
+    assert "beyond" not in power and "above" not in power
+    # a distance must be at most its bound: above the necessary end it fails
+    dist = bound_text(_bound("distance", "m", "at most", 76.0, 77.3))
+    assert "fails above 77.3 m" in dist and "or less" in dist
+    # the PHY's largest payload meets it: nothing fails
+    payload = bound_text(_bound("payload", "bytes", "at most", 116, 116, "phy-limit",
+                                "phy-limit"))
+    assert payload.startswith("every payload the PHY allows meets it") and "fail" not in payload
+    assert bound_text(_bound("MAC retries", "retries", "at least", 0, 0)).startswith(
+        "needed: 0")
+    assert bound_text(_bound("MAC retries", "retries", "at least", 2, 2)).startswith(
+        "needed: 2")
+    assert bound_text(_bound("distance", "m", "at most", None, None, "unbounded",
+                             "unbounded")) == "any distance meets it"
+    assert bound_text(_bound("transmit power", "dBm", "at least", None, None, "unreachable",
+                             "unreachable")) == "no transmit power meets it"
