@@ -93,12 +93,29 @@ def test_network_map_draws_positions_and_the_sink_when_given():
     assert pos == {"north": (0.0, 118.0), "east": (124.0, 0.0), "corner": (90.0, 92.0)}
     html = html_of(rec)
     assert 'id="fig-network-map"' in html
+    # the planar tracker's file puts the sink at the origin: it is drawn there, with one
+    # segment from each node to it
+    assert rec["system"]["sink_position_m"] == [0.0, 0.0]
     model = view_model(rec, figures.build_figures(rec))
-    assert "no sink position" in model["network"]["map"]["caption"]
-    rec["system"]["sink_position_m"] = [0.0, 0.0]
+    assert "no sink position" not in model["network"]["map"]["caption"]
+    fig = netplots.draw_network_map(rec)
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.texts]
+    assert "sink" in texts and any(t.startswith("corner") for t in texts)
+    sink_marks = [c for c in ax.collections
+                  if np.allclose(np.asarray(c.get_offsets(), dtype=float), [[0.0, 0.0]])]
+    assert len(sink_marks) == 1
+    to_sink = [ln for ln in ax.lines if list(ln.get_xdata())[-1:] == [0.0]
+               and list(ln.get_ydata())[-1:] == [0.0]]
+    assert len(to_sink) == len(pos)
+    # without a sink position the map says so and draws no sink
+    del rec["system"]["sink_position_m"]
+    assert "no sink position" in view_model(rec, figures.build_figures(rec))[
+        "network"]["map"]["caption"]
     fig = netplots.draw_network_map(rec)
     texts = [t.get_text() for t in fig.axes[0].texts]
-    assert "sink" in texts and any(t.startswith("corner") for t in texts)
+    assert "sink" not in texts
+    rec["system"]["sink_position_m"] = [0.0, 0.0]
     # a margin that is an interval is printed as one
     assert any("[+0.539" in t for t in texts)
 
@@ -292,3 +309,17 @@ def test_radio_bounds_fail_on_the_side_their_sense_says():
                              "unbounded")) == "any distance meets it"
     assert bound_text(_bound("transmit power", "dBm", "at least", None, None, "unreachable",
                              "unreachable")) == "no transmit power meets it"
+
+
+def test_network_margin_rows_are_labelled_as_the_uniform_margin():
+    """A network's operating_point.margin is the uniform margin δ (every link degraded by δ),
+    not p − p_c: every place that shows it says so."""
+    from kfcrit.views.summary import markdown_summary
+    rec = record("network-redundant-gauges")
+    assert isinstance(rec.get("network"), dict)
+    rec["operating_point"]["bracket"] = [0.05, 0.15]
+    text = visible_text(html_of(rec))
+    assert "p − p c" not in text.split("1. ")[0] and "bracket for" not in text
+    assert "uniform margin δ in [0.05, 0.15]" in text
+    assert "p − p_c" not in markdown_summary(rec)
+    assert "uniform margin δ" in markdown_summary(rec)

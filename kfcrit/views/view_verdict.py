@@ -94,11 +94,17 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "basis": prose(opd.get("basis")) if isinstance(opd.get("basis"), str) else None,
         "iid_verdict": iid_verdict if iid_verdict and iid_verdict != verdict else None,
         "note": sentence(opd.get("note")) if opd.get("note") else None,
-        "legend": verdict_legend(op, verdict, opd),
+        "legend": verdict_legend(op, verdict, opd, network=is_network(rec, channel)),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
-        "network": network_cells(rec) if channel.get("model") == "network" else None,
+        "network": network_cells(rec) if is_network(rec, channel) else None,
     }
+
+
+def is_network(rec: dict[str, Any], channel: dict[str, Any]) -> bool:
+    """Whether the record is a sensor network's: then ``operating_point.margin`` is the uniform
+    margin δ and ``operating_point.bracket`` its interval (not p − p_c and p_c's bracket)."""
+    return isinstance(rec.get("network"), dict) or channel.get("model") == "network"
 
 
 def critical_form(cv: dict[str, Any]) -> str | None:
@@ -122,7 +128,7 @@ def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
             "bottleneck_interval": crit.get("interval") if crit else None}
 
 
-def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
+def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any], network: bool = False) -> str:
     """The last sentence of the legend under the verdict box (after the two verdicts' meaning):
     why this verdict is not determined, when it is not (no operating point, p inside the bracket
     of p_c, or the record's reason); empty for a determined verdict."""
@@ -131,7 +137,9 @@ def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
                "channel section), so there is no arrival probability p to compare with p_c.")
     elif verdict == "undetermined":
         if isinstance(opd.get("bracket"), list):
-            why = "Undetermined: p lies inside the bracket of p_c, so the comparison is open."
+            why = ("Undetermined: the uniform margin δ is bracketed by an interval that "
+                   "contains 0, so the comparison is open." if network else
+                   "Undetermined: p lies inside the bracket of p_c, so the comparison is open.")
         else:
             why = "Undetermined: " + (sentence(opd.get("reason")) or
                                       "the comparison of p with p_c is not decided.")
