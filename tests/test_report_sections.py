@@ -323,3 +323,28 @@ def test_network_margin_rows_are_labelled_as_the_uniform_margin():
     assert "uniform margin δ in [0.05, 0.15]" in text
     assert "p − p_c" not in markdown_summary(rec)
     assert "uniform margin δ" in markdown_summary(rec)
+
+
+# ----------------------------------------------------------------------------- notation
+
+INTERNAL = re.compile(r"`|kfcrit\.[a-z]|LinAlgError|_bar\b|rho\(|>=|<=|\) a\^2")
+
+
+def test_record_prose_reads_without_program_names():
+    from kfcrit.views.jinja_filters import pretty_text
+    assert pretty_text("(1 - r) rho(A)^2 >= 1") == "(1 − r) ρ(A)² ≥ 1"
+    assert pretty_text("(1 - r) a^2 < 1") == "(1 − r) a² < 1"
+    assert pretty_text("tr S_bar > L, tr V_bar <= L") == "tr S̄ > L, tr V̄ ≤ L"
+    assert pretty_text("proof in kfcrit.theory.network (claim)") == "kfcrit's own proof (claim)"
+    assert pretty_text("failed (LinAlgError: Singular matrix)") == \
+        "failed (a linear-algebra failure: Singular matrix)"
+    assert pretty_text("the verdicts are in `network`") == "the verdicts are in the network section"
+
+
+@pytest.mark.parametrize("stem", ["ge-bursty-scalar", "network-planar-tracker",
+                                  "network-redundant-gauges"])
+def test_reports_show_no_internal_names(stem):
+    rec = record(stem)
+    rec.pop("description", None)   # the user's own words are printed as written
+    text = visible_text(report.render_html(rec, {}))
+    assert not INTERNAL.search(text), INTERNAL.search(text)

@@ -51,7 +51,7 @@ def figure_reasons(rec: dict[str, Any]) -> dict[str, str]:
     if rec.get("simulation") is None:
         sim_why = "no simulation in the record"
     elif sim.get("skipped"):
-        sim_why = str(sim.get("reason") or "simulation skipped")
+        sim_why = prose(sim.get("reason") or "simulation skipped")
     else:
         sim_why = ""
     op_why = ("the system file has no channel section, so there is no operating point"
@@ -120,7 +120,7 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     rows: list[dict[str, Any]] = []
     if d.get("skipped"):
         return {"available": False, "tail_probability": None, "rows": [],
-                "missing": missing("simulation", str(d.get("reason") or "skipped"))}
+                "missing": missing("simulation", prose(d.get("reason") or "skipped"))}
     seed = d.get("seed") if d.get("seed") is not None else op.get("seed")
     paths = op.get("paths") if op.get("paths") is not None else \
         budget.get("paths", d.get("paths"))

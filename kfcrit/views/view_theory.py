@@ -272,7 +272,7 @@ def static_gain_view(rec: dict[str, Any]) -> dict[str, Any]:
         if g.get("equals_p_up"):
             notes.append("its critical value equals p_up")
         if g.get("available") is False:
-            notes.append(str(g.get("reason") or "not available"))
+            notes.append(prose(g.get("reason") or "not available"))
         gains.append({"label": label, "available": g.get("available") is not False,
                       "critical_value": number(g.get("critical_value")),
                       "gain": g.get("gain"), "covariance_exists": g.get("covariance_exists"),
