@@ -54,3 +54,34 @@ def test_per_and_outage_figures() -> None:
     assert np.all(np.diff(oc.outage[0]) > 0)  # farther links fail more often
     fig = outage_distance_figure(oc)
     assert any(k.startswith("max_outage = 0.1") for k in lines_of(fig))
+
+
+def test_per_figure_of_a_calibrated_radio_spans_its_transition() -> None:
+    """reports/link-cc2420-retries.yaml: the CC2420 is calibrated to 1 % PER at −95 dBm for a
+    20-byte PSDU; the thermal floor of 2 MHz at 290 K is −174 + 10·log10(2e6) = −110.99 dBm, so
+    PER(20 bytes) = 0.01 at SINR 15.99 dB, far from an uncalibrated O-QPSK's 0 dB."""
+    from pathlib import Path
+
+    from kfcrit.analysis.record import AnalysisOptions, analyze
+    from kfcrit.analysis.spec import load_spec
+    from kfcrit.views.designplots import draw_per_sinr
+
+    path = Path(__file__).resolve().parents[1] / "reports" / "link-cc2420-retries.yaml"
+    rec = analyze(load_spec(path), AnalysisOptions(quick=True, seed=0)).to_dict()
+    fig = draw_per_sinr(rec)
+    assert fig is not None
+    ax = fig.axes[0]
+    configured = rec["link_budget"]["link"]["sinr_db"]
+    drawn = [ln for ln in ax.get_lines() if ln.get_label().startswith("PSDU")]
+    assert {ln.get_label() for ln in drawn} == {"PSDU 20 bytes", "PSDU 41 bytes",
+                                                "PSDU 127 bytes"}
+    for ln in drawn:
+        x = np.asarray(ln.get_xdata(), dtype=float)
+        y = np.asarray(ln.get_ydata(), dtype=float)
+        assert y.max() > 0.9 and y.min() < 0.01, ln.get_label()
+        assert x.min() < configured < x.max()
+        assert x.min() < rec["link_budget"]["required_sinr_db"] < x.max()
+    short = next(ln for ln in drawn if ln.get_label() == "PSDU 20 bytes")
+    sensitivity_sinr = -95.0 - (-174.0 + 10 * np.log10(2e6))
+    per_there = np.interp(sensitivity_sinr, short.get_xdata(), short.get_ydata())
+    assert abs(np.log10(per_there) - np.log10(0.01)) < 0.05

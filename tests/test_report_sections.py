@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 
 import numpy as np
 import pytest
@@ -92,12 +93,29 @@ def test_network_map_draws_positions_and_the_sink_when_given():
     assert pos == {"north": (0.0, 118.0), "east": (124.0, 0.0), "corner": (90.0, 92.0)}
     html = html_of(rec)
     assert 'id="fig-network-map"' in html
+    # the planar tracker's file puts the sink at the origin: it is drawn there, with one
+    # segment from each node to it
+    assert rec["system"]["sink_position_m"] == [0.0, 0.0]
     model = view_model(rec, figures.build_figures(rec))
-    assert "no sink position" in model["network"]["map"]["caption"]
-    rec["system"]["sink_position_m"] = [0.0, 0.0]
+    assert "no sink position" not in model["network"]["map"]["caption"]
+    fig = netplots.draw_network_map(rec)
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.texts]
+    assert "sink" in texts and any(t.startswith("corner") for t in texts)
+    sink_marks = [c for c in ax.collections
+                  if np.allclose(np.asarray(c.get_offsets(), dtype=float), [[0.0, 0.0]])]
+    assert len(sink_marks) == 1
+    to_sink = [ln for ln in ax.lines if list(ln.get_xdata())[-1:] == [0.0]
+               and list(ln.get_ydata())[-1:] == [0.0]]
+    assert len(to_sink) == len(pos)
+    # without a sink position the map says so and draws no sink
+    del rec["system"]["sink_position_m"]
+    assert "no sink position" in view_model(rec, figures.build_figures(rec))[
+        "network"]["map"]["caption"]
     fig = netplots.draw_network_map(rec)
     texts = [t.get_text() for t in fig.axes[0].texts]
-    assert "sink" in texts and any(t.startswith("corner") for t in texts)
+    assert "sink" not in texts
+    rec["system"]["sink_position_m"] = [0.0, 0.0]
     # a margin that is an interval is printed as one
     assert any("[+0.539" in t for t in texts)
 
@@ -196,3 +214,137 @@ def test_tail_exponent_is_shown_with_its_label():
     assert ex["value"] == pytest.approx(math.log(5) / math.log(25 / 16))
     text = visible_text(html_of(rec))
     assert "Power-law tail exponent β = 3.60628" in text and "claim" in text
+
+
+# ----------------------------------------------------------------------------- divergent mean
+
+def test_divergent_mean_draws_the_sample_mean_without_a_band():
+    """ge-bursty-scalar: a = −5/4 and recovery rate r = 1/10 give (1 − r)·a² = 45/32 ≥ 1, so
+    E[P_t] is unbounded (MATH 7/10): the record has no mean and the figure shows the sample
+    mean."""
+    rec = record("ge-bursty-scalar")
+    op = rec["simulation"]["operating_point"]
+    assert op["mean_trace"]["diverges"] and op["mean_trace"]["mean"] is None
+    sample = op["sample_mean_trace"]["mean"]
+    fig = figures.draw_operating(rec)
+    assert fig is not None
+    ax = fig.axes[0]
+    lines = [ln for ln in ax.lines if len(ln.get_xdata()) == len(op["times"])]
+    assert len(lines) == 1
+    assert list(lines[0].get_ydata()) == pytest.approx(sample)
+    assert "diverges" in lines[0].get_label() and "sample mean" in lines[0].get_label()
+    assert not ax.collections  # no confidence band: the sample mean estimates nothing
+    html = html_of(rec)
+    chunk = html.split('id="fig-operating"')[1].split("</figure>")[0]
+    assert "<svg" in chunk and "diverges" in visible_text(chunk)
+    assert "sample mean of tr P_t at the horizon" in visible_text(html)
+
+
+# ----------------------------------------------------------------------------- exact forms
+
+IRRATIONAL_PLANT = {"name": "three states, cubic eigenvalues",
+                    "A": [["1.1", "0.3", "0"], ["0.2", "0.9", "0.4"], ["0", "0.1", "1.05"]],
+                    "C": [[1, 0, 0]], "Q": 1, "R": 1,
+                    "channel": {"model": "bernoulli", "arrival_probability": "0.8"}}
+
+
+def test_short_closed_forms_only():
+    from kfcrit.views.viewparts import exact_text, numerical_text, short_closed_form
+    assert short_closed_form("9/25") == "9/25"
+    assert short_closed_form("1 - 2**(-3)") == "1 - 2**(-3)"
+    assert short_closed_form("sqrt(3)/2") == "sqrt(3)/2"
+    for not_a_form in ("0.96213", "1.4198034786194746e-5", "CRootOf(x**3 - 2*x - 1, 2)",
+                       "0.4263521177043613", "1/(1 - 0.13996696020413057)", "",
+                       "sqrt(" + "1 + " * 20 + "2)"):
+        assert short_closed_form(not_a_form) is None, not_a_form
+        assert exact_text(not_a_form) is None
+    assert numerical_text(0.13996696020413057) == "0.139967 (numerical)"
+
+
+def test_irrational_eigenvalues_are_shown_as_numbers_not_root_objects():
+    """A has the characteristic polynomial of a cubic with three real irrational roots; the
+    report shows them at 6 digits (numpy's eigvals, a second method) and p_c = 1 − 1/|λ₁|²
+    as a number marked numerical, never a CRootOf or a 17-digit float."""
+    rec = record_of(IRRATIONAL_PLANT, "irrational-plant")
+    A = np.array([[1.1, 0.3, 0], [0.2, 0.9, 0.4], [0, 0.1, 1.05]])
+    lam = sorted(abs(np.linalg.eigvals(A)), reverse=True)
+    pc = 1 - 1 / lam[0] ** 2
+    assert rec["critical_value"]["value"] == pytest.approx(pc, rel=1e-12)
+    text = visible_text(html_of(rec))
+    assert "RootOf(" not in text and "x^3" not in text
+    assert f"p c ≈ {pc:.6g} · numerical" in text
+    for mod in lam:
+        assert f"{mod:.6g} (numerical)".replace("-", "−") in text
+    table = text.split("exact |λ i |")[1].split("equi-block")[0]
+    assert not re.search(r"\d\.\d{9,}", table), table
+    assert "· exact" not in text.split("critical value p c")[1].split("margin")[0]
+
+
+# ----------------------------------------------------------------------------- design wording
+
+def _bound(quantity, unit, sense, suf, nec, suf_status="value", nec_status="value"):
+    return {"quantity": quantity, "unit": unit, "sense": sense,
+            "sufficient": {"value": suf, "status": suf_status},
+            "necessary": {"value": nec, "status": nec_status}}
+
+
+def test_radio_bounds_fail_on_the_side_their_sense_says():
+    from kfcrit.views.view_design import bound_text
+    # a transmit power must be at least its bound: below the necessary end it fails
+    power = bound_text(_bound("transmit power", "dBm", "at least", -2.05, -2.28))
+    assert "fails below −2.28 dBm" in power and "guaranteed at −2.05 dBm or more" in power
+    assert "beyond" not in power and "above" not in power
+    # a distance must be at most its bound: above the necessary end it fails
+    dist = bound_text(_bound("distance", "m", "at most", 76.0, 77.3))
+    assert "fails above 77.3 m" in dist and "or less" in dist
+    # the PHY's largest payload meets it: nothing fails
+    payload = bound_text(_bound("payload", "bytes", "at most", 116, 116, "phy-limit",
+                                "phy-limit"))
+    assert payload.startswith("every payload the PHY allows meets it") and "fail" not in payload
+    assert bound_text(_bound("MAC retries", "retries", "at least", 0, 0)).startswith(
+        "needed: 0")
+    assert bound_text(_bound("MAC retries", "retries", "at least", 2, 2)).startswith(
+        "needed: 2")
+    assert bound_text(_bound("distance", "m", "at most", None, None, "unbounded",
+                             "unbounded")) == "any distance meets it"
+    assert bound_text(_bound("transmit power", "dBm", "at least", None, None, "unreachable",
+                             "unreachable")) == "no transmit power meets it"
+
+
+def test_network_margin_rows_are_labelled_as_the_uniform_margin():
+    """A network's operating_point.margin is the uniform margin δ (every link degraded by δ),
+    not p − p_c: every place that shows it says so."""
+    from kfcrit.views.summary import markdown_summary
+    rec = record("network-redundant-gauges")
+    assert isinstance(rec.get("network"), dict)
+    rec["operating_point"]["bracket"] = [0.05, 0.15]
+    text = visible_text(html_of(rec))
+    assert "p − p c" not in text.split("1. ")[0] and "bracket for" not in text
+    assert "uniform margin δ in [0.05, 0.15]" in text
+    assert "p − p_c" not in markdown_summary(rec)
+    assert "uniform margin δ" in markdown_summary(rec)
+
+
+# ----------------------------------------------------------------------------- notation
+
+INTERNAL = re.compile(r"`|kfcrit\.[a-z]|LinAlgError|_bar\b|rho\(|>=|<=|\) a\^2")
+
+
+def test_record_prose_reads_without_program_names():
+    from kfcrit.views.jinja_filters import pretty_text
+    assert pretty_text("(1 - r) rho(A)^2 >= 1") == "(1 − r) ρ(A)² ≥ 1"
+    assert pretty_text("(1 - r) a^2 < 1") == "(1 − r) a² < 1"
+    assert pretty_text("tr S_bar > L, tr V_bar <= L") == "tr S̄ > L, tr V̄ ≤ L"
+    assert pretty_text("proof in kfcrit.theory.network (claim)") == "kfcrit's own proof (claim)"
+    assert pretty_text("failed (LinAlgError: Singular matrix)") == \
+        "failed (a linear-algebra failure: Singular matrix)"
+    assert pretty_text("the verdicts are in `network`") == "the verdicts are in the network section"
+
+
+@pytest.mark.parametrize("stem", ["ge-bursty-scalar", "network-planar-tracker",
+                                  "network-redundant-gauges"])
+def test_reports_show_no_internal_names(stem):
+    rec = record(stem)
+    rec.pop("description", None)   # the user's own words are printed as written
+    text = visible_text(report.render_html(rec, {}))
+    assert not INTERNAL.search(text), INTERNAL.search(text)

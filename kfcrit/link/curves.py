@@ -5,13 +5,14 @@ plot them.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from kfcrit.link.linkbudget import LinkBudget
-from kfcrit.link.radios import Radio
+from kfcrit.link.radios import SINR_SEARCH_DB, Radio
 
 
 @dataclass(frozen=True)
@@ -85,10 +86,48 @@ def arrival_vs_distance(link: LinkBudget, distance_m: Any = None) -> ArrivalCurv
     return ArrivalCurve(d, arrival, mean, link.distance_m, link.max_retries, link.psdu_bytes)
 
 
+def sinr_transition_db(radio: Radio, psdu_bytes: tuple[int, ...],
+                       per_high: float = 0.999, per_low: float = 1e-4) -> tuple[float, float]:
+    r"""SINR range (dB) where the radio's PER falls from ``per_high`` to ``per_low``.
+
+    The lower end is where the longest frame still has PER = ``per_high``, the upper end where
+    the shortest frame reaches PER = ``per_low``; both solve 1 − PER(s, L) = p with the radio's
+    own PER (so a calibrated radio's implementation loss moves the range):
+
+    .. math:: s_{lo} = s : \mathrm{PER}(s, L_{max}) = \mathrm{per}_{high},\quad
+              s_{hi} = s : \mathrm{PER}(s, L_{min}) = \mathrm{per}_{low}.
+    """
+    lo = radio.required_sinr_db(1.0 - per_high, int(max(psdu_bytes)))
+    hi = radio.required_sinr_db(1.0 - per_low, int(min(psdu_bytes)))
+    lo = float(SINR_SEARCH_DB[0]) if lo is None else float(lo)
+    hi = lo + 1.0 if hi is None else float(hi)
+    return lo, max(hi, lo + 1.0)
+
+
+def sinr_grid(radio: Radio, psdu_bytes: tuple[int, ...], include_db: Sequence[float] = (),
+              pad_db: float = 2.0, step_db: float = 0.05) -> np.ndarray:
+    """Evenly spaced SINR values (dB) over the radio's transition region
+    (:func:`sinr_transition_db`) widened by ``pad_db`` and to every finite value of
+    ``include_db`` (the configured and required SINR the figure marks)."""
+    lo, hi = sinr_transition_db(radio, psdu_bytes)
+    extra = [float(v) for v in include_db if v is not None and np.isfinite(v)]
+    lo, hi = min([lo, *extra]) - pad_db, max([hi, *extra]) + pad_db
+    points = int(min(2001, max(121, round((hi - lo) / step_db) + 1)))
+    return np.linspace(lo, hi, points)
+
+
 def per_vs_sinr(radio: Radio, psdu_bytes: tuple[int, ...] = (20, 60, 127),
-                sinr_db: Any = None) -> PerCurve:
-    """PER of one attempt against SINR (dB) for each PSDU length."""
-    s = np.linspace(-6.0, 6.0, 241) if sinr_db is None else np.asarray(sinr_db, dtype=float)
+                sinr_db: Any = None, include_db: Sequence[float] = ()) -> PerCurve:
+    r"""PER of one attempt against SINR (dB) for each PSDU length, with the radio's own PER
+    (implementation loss included):
+
+    .. math:: \mathrm{PER}(s, L) = 1 - (1 - \mathrm{BER}(s))^{8L}.
+
+    Without ``sinr_db`` the grid is :func:`sinr_grid` (the transition region of these frame
+    sizes, widened to the SINR values in ``include_db``).
+    """
+    s = (sinr_grid(radio, psdu_bytes, include_db) if sinr_db is None
+         else np.asarray(sinr_db, dtype=float))
     per = np.vstack([radio.per(s, int(L)) for L in psdu_bytes])
     return PerCurve(radio.to_dict().get("model", "radio"), s, tuple(int(L) for L in psdu_bytes),
                     per)

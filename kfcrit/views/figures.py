@@ -184,9 +184,24 @@ def series_of(run: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
     """
     t = floats(run.get("times"))
     mt = run.get("mean_trace")
+    if mean_diverges(run):
+        # E[tr P_t] does not exist: the record keeps only the sample mean over the paths, which
+        # is drawn as what it is (no confidence band: it estimates nothing).
+        return t, floats(as_mapping(run.get("sample_mean_trace")).get("mean")), None, None
     if isinstance(mt, dict):
         return t, floats(mt.get("mean")), floats(mt.get("lower")), floats(mt.get("upper"))
     return t, floats(mt), floats(run.get("lower")), floats(run.get("upper"))
+
+
+def mean_diverges(run: dict[str, Any]) -> bool:
+    """Whether the record says E[tr P_t] diverges at this run (``mean_trace.diverges``)."""
+    mt = run.get("mean_trace")
+    return isinstance(mt, dict) and bool(mt.get("diverges"))
+
+
+def as_mapping(value: Any) -> dict[str, Any]:
+    """``value`` if it is a dict, else an empty dict (a record section may be absent)."""
+    return value if isinstance(value, dict) else {}
 
 
 def cdf_of(record: dict[str, Any]) -> tuple[Any, Any]:
@@ -224,7 +239,9 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
             lo_c = [max(v, floor) if math.isfinite(v) else v for v in lo]
             ax.fill_between(t, lo_c, hi, color=COLORS["band"], alpha=0.35, linewidth=0,
                             label="95 % band of the simulated mean")
-        ax.plot(t, y, color=COLORS["sim"], linewidth=1.3, label="simulated mean tr $P_t$")
+        label = ("sample mean of tr $P_t$ (E[tr $P_t$] diverges)" if mean_diverges(op)
+                 else "simulated mean tr $P_t$")
+        ax.plot(t, y, color=COLORS["sim"], linewidth=1.3, label=label)
         if s_tr is not None and s_tr > 0:
             ax.axhline(s_tr, color=COLORS["lower"], linestyle="--", linewidth=1.2,
                        label=r"tr $\bar S$")

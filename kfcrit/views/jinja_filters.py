@@ -130,6 +130,28 @@ def _exp_number(m: re.Match) -> str:
     return sci(float(m.group(0)), digits)
 
 
+_BAR_RE = re.compile(r"\b([SVPX])_bar\b")
+_MODULE_RE = re.compile(r"\bkfcrit(?:\.[a-z_]+)+\b")
+_ERROR_NAMES = {"LinAlgError": "a linear-algebra failure",
+                "FloatingPointError": "a floating-point failure",
+                "ZeroDivisionError": "a division by zero", "OverflowError": "an overflow"}
+_ERROR_RE = re.compile(r"\b(" + "|".join(_ERROR_NAMES) + r")\b(?::\s*)?")
+
+
+def plain_names(text: str) -> str:
+    """Record prose without program names: ``S_bar`` → S̄, a module path
+    (``proof in kfcrit.theory.network``) → kfcrit's own proof, an exception class name
+    (``LinAlgError``) → what failed, a record key in backticks (``in `network` ``) → the section
+    of that name."""
+    s = _BAR_RE.sub(lambda m: m.group(1) + "\u0304", text)
+    s = re.sub(r"\bproof in kfcrit(?:\.[a-z_]+)+\b", "kfcrit's own proof", s)
+    s = _MODULE_RE.sub("kfcrit", s)
+    s = _ERROR_RE.sub(lambda m: _ERROR_NAMES[m.group(1)] + (": " if ":" in m.group(0) else ""),
+                      s)
+    s = re.sub(r"\bin `(\w+)`", lambda m: f"in the {m.group(1).replace('_', ' ')} section", s)
+    return re.sub(r"`([^`\n]{1,60})`", r"\1", s)
+
+
 def pretty_text(text: Any) -> str:
     """Prose of the record with its ASCII mathematics in Unicode notation.
 
@@ -142,7 +164,7 @@ def pretty_text(text: Any) -> str:
     """
     if text is None:
         return ""
-    s = str(text)
+    s = plain_names(str(text))
     s = _EXP_TEXT_RE.sub(_exp_number, s)                    # 3.19e+10 → 3.19 × 10¹⁰
     s = s.replace("**", "^")
     for _ in range(3):   # innermost square roots first

@@ -47,7 +47,8 @@ def markdown_summary(record: dict[str, Any]) -> str:
         lines.append(review["missing"])
     margin = verdict["margin"]
     lines += ["", f"Stability at the operating point: **{filters.verdict_label(verdict['verdict'])}**"
-              + (f" (p − p_c = {filters.signed(margin, 4)})" if margin is not None else ""), "",
+              + (f" ({'uniform margin δ' if verdict['network'] else 'p − p_c'} = "
+                 f"{filters.signed(margin, 4)})" if margin is not None else ""), "",
               "| quantity | value | exact form |", "|---|---|---|"]
     for row in bounds_view(rec)["rows"]:
         value = filters.num(row["value"], 8) if row["available"] else row["missing"]

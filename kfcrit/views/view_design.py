@@ -9,7 +9,15 @@ from __future__ import annotations
 from typing import Any
 
 from kfcrit.views import jinja_filters as filters
-from kfcrit.views.viewparts import as_dict, as_list, figure_entry, number, prose, row
+from kfcrit.views.viewparts import (
+    as_dict,
+    as_list,
+    figure_entry,
+    number,
+    prose,
+    row,
+    short_closed_form,
+)
 
 RADIO_ITEMS = (("max_distance_m", "maximum distance"),
                ("min_tx_power_dbm", "minimum transmit power"),
@@ -35,6 +43,43 @@ def end_value(end: dict[str, Any], unit: str) -> str:
     return filters.unit(v, unit) if UNITS.get(unit) else filters.num(v, 6)
 
 
+FAILING_SIDE = {"at least": ("or more", "below"), "at most": ("or less", "above")}
+"""For each sense of a radio bound: the side that keeps the requirement and the side that
+fails it (a power must be at least its bound, so it fails below; a distance above)."""
+
+
+def bound_text(item: dict[str, Any]) -> str:
+    """A radio bound [sufficient, necessary] in words, by its sense and its ends' statuses.
+
+    ``at least`` quantities (power, retries) fail below the necessary end, ``at most``
+    quantities (distance, payload) above it; between the ends the requirement is not decided.
+    """
+    unit = str(item.get("unit") or "")
+    quantity = str(item.get("quantity") or "value")
+    suf_d, nec_d = as_dict(item.get("sufficient")), as_dict(item.get("necessary"))
+    suf, nec = end_value(suf_d, unit), end_value(nec_d, unit)
+    keep, fail = FAILING_SIDE.get(str(item.get("sense") or ""), ("", "beyond"))
+    status = str(suf_d.get("status") or "")
+    if status == "phy-limit":
+        return f"every {quantity} the PHY allows meets it (up to {suf})"
+    if status == "unbounded":
+        return f"any {quantity} meets it"
+    if status == "unreachable":
+        if str(nec_d.get("status") or "") == "unreachable" or number(nec_d.get("value")) is None:
+            return f"no {quantity} meets it"
+        return f"no {quantity} guarantees it; it fails {fail} {nec}"
+    if number(suf_d.get("value")) is None:
+        return filters.DASH
+    if unit == "retries" and suf == nec:
+        v = number(suf_d.get("value"))
+        return ("needed: 0 (the requirement holds without retries)" if v == 0 else
+                f"needed: {suf} (with fewer it fails)")
+    if suf == nec:
+        return f"guaranteed at {suf} {keep}; fails {fail} it".replace("  ", " ")
+    return (f"guaranteed at {suf} {keep}; fails {fail} {nec} (between them the requirement "
+            f"is not decided)").replace("  ", " ")
+
+
 def radio_rows(radio: dict[str, Any]) -> list[dict[str, Any]]:
     """What the accuracy requirement asks of the radio: each quantity as [guaranteed, limit]."""
     rows = []
@@ -42,16 +87,9 @@ def radio_rows(radio: dict[str, Any]) -> list[dict[str, Any]]:
         item = as_dict(radio.get(key))
         if not item:
             continue
-        unit = str(item.get("unit") or "")
-        suf = end_value(as_dict(item.get("sufficient")), unit)
-        nec = end_value(as_dict(item.get("necessary")), unit)
         sense = str(item.get("sense") or "")
-        both_missing = number(as_dict(item.get("sufficient")).get("value")) is None and \
-            number(as_dict(item.get("necessary")).get("value")) is None
-        text = (f"{suf} at both ends" if both_missing and suf == nec else
-                f"the requirement is guaranteed at {suf} and fails beyond {nec}")
         rows.append(row(f"{label} ({sense})" if sense else label, None,
-                        note=text
+                        note=bound_text(item)
                         + (f" — {prose(item.get('method'))}" if item.get("method") else "")))
     if number(radio.get("margin_db")) is not None:
         rows.append(row("SINR kept in reserve", radio.get("margin_db"), "dB",
@@ -77,9 +115,7 @@ def tail_view(rec: dict[str, Any]) -> dict[str, Any] | None:
     ex = as_dict(as_dict(rec.get("tail")).get("exponent"))
     if not ex or not ex.get("applicable", True) or number(ex.get("value")) is None:
         return None
-    expr = ex.get("expression")
-    short = isinstance(expr, str) and len(expr) <= 40   # a float p gives an unreadable ratio
-    return {"value": ex.get("value"), "expression": expr if short else None,
+    return {"value": ex.get("value"), "expression": short_closed_form(ex.get("expression")),
             "formula": prose(ex.get("formula")), "statement": prose(ex.get("statement")),
             "label": prose(ex.get("label")), "source": str(ex.get("source") or "")}
 

@@ -152,7 +152,7 @@ def link_budget_view(lb: dict[str, Any]) -> dict[str, Any]:
     distance = link.get("distance_m")
     design = [
         row("required arrival probability", req.get("design_value"), "prob",
-            note=str(req.get("basis") or "")),
+            note=prose(req.get("basis"))),
         row("required SINR", lb.get("required_sinr_db"), "dB",
             note="smallest SINR whose packet arrival probability exceeds the requirement"),
         row("required received power", lb.get("required_rx_power_dbm"), "dBm"),
@@ -313,15 +313,15 @@ def channel_view(rec: dict[str, Any]) -> dict[str, Any]:
         if lbd.get("applicable"):
             view["link"] = link_budget_view(lbd)
         else:
-            view["explanation"] = missing("link budget", str(lbd.get("reason") or
-                                                             "no link-budget section"))
+            view["explanation"] = missing("link budget", prose(lbd.get("reason") or
+                                                              "no link-budget section"))
     elif model == "gilbert-elliott":
         if lbd.get("applicable"):
             view["bursty"] = bursty_view(lbd)
             view["rows"] = view["rows"][:1]   # the bursty table below has the rates
         else:
-            view["explanation"] = missing("bursty-link analysis", str(lbd.get("reason") or
-                                                                       "no section"))
+            view["explanation"] = missing("bursty-link analysis", prose(lbd.get("reason") or
+                                                                        "no section"))
     elif channel:
         view["explanation"] = ("The arrival probability is given directly, so there is no link "
                                "budget to design; use channel model link-budget to derive p "

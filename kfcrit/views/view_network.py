@@ -60,7 +60,9 @@ def node_rows(rec: dict[str, Any]) -> list[dict[str, Any]]:
             "critical": value_text(cv.get("value"), cv.get("interval")),
             "critical_expression": expr if expr and expr != filters.num(number(cv.get("value")))
             else None,
-            "critical_exact": cv.get("exact"), "critical_basis": prose(cv.get("basis")),
+            # "exact" describes a value: with none (only a bracket, or nothing) it is not said
+            "critical_exact": cv.get("exact") if number(cv.get("value")) is not None else None,
+            "critical_basis": prose(cv.get("basis")),
             "margin": margin_text(s), "margin_bad": low is not None and low <= 0,
             "n1_verdict": n1.get("verdict"), "n1_css": VERDICT_CSS.get(str(n1.get("verdict")),
                                                                        "none"),

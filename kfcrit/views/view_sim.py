@@ -7,7 +7,7 @@ from typing import Any
 
 from kfcrit.version import __version__
 from kfcrit.views import jinja_filters as filters
-from kfcrit.views.figures import series_of, tail_of
+from kfcrit.views.figures import mean_diverges, series_of, tail_of
 from kfcrit.views.viewparts import as_dict, as_list, missing, number, prose, row, safe_svg
 
 FIGURE_CAPTIONS = {
@@ -51,11 +51,11 @@ def figure_reasons(rec: dict[str, Any]) -> dict[str, str]:
     if rec.get("simulation") is None:
         sim_why = "no simulation in the record"
     elif sim.get("skipped"):
-        sim_why = str(sim.get("reason") or "simulation skipped")
+        sim_why = prose(sim.get("reason") or "simulation skipped")
     else:
         sim_why = ""
     op_why = ("the system file has no channel section, so there is no operating point"
-              if no_channel else sim_why or "the simulation produced no data at the operating p")
+              if no_channel else sim_why or "the simulation produced no data at the operating point")
     return {"phase_transition": "no phase-transition data in the record",
             "traces": sim_why or "the simulation produced no runs around p_c",
             "operating": op_why, "cdf": op_why, "almost_sure": op_why,
@@ -73,6 +73,18 @@ def block_maxima_text(rec: dict[str, Any]) -> str:
             f"block to {filters.num(top[-1], 4)} in the last ({len(top)} blocks).")
 
 
+DIVERGENT_OPERATING_CAPTION = (
+    "E[tr P_t] diverges at the operating p, so there is no mean to estimate and no confidence "
+    "band: the curve is the sample mean of tr P_t over the simulated paths, which is finite "
+    "for finitely many paths and steps but estimates nothing. tr S̄ and tr V̄ are drawn where "
+    "they exist.")
+
+
+def operating_run(rec: Any) -> dict[str, Any]:
+    """``simulation.operating_point`` of the record (empty if absent)."""
+    return as_dict(as_dict(as_dict(rec).get("simulation")).get("operating_point"))
+
+
 def figures_view(figures: dict[str, str | None],
                  rec: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
     """Each figure with its title, caption and "not computed" message (with the reason)."""
@@ -82,6 +94,8 @@ def figures_view(figures: dict[str, str | None],
         svg = figures.get(key) if isinstance(figures, dict) else None
         if key == "almost_sure":
             caption += block_maxima_text(as_dict(rec))
+        if key == "operating" and mean_diverges(operating_run(rec)):
+            caption = DIVERGENT_OPERATING_CAPTION
         out[key] = {"svg": safe_svg(svg), "title": title, "caption": caption,
                     "missing": missing(title[:1].lower() + title[1:], reasons.get(key))}
     return out
@@ -106,7 +120,7 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     rows: list[dict[str, Any]] = []
     if d.get("skipped"):
         return {"available": False, "tail_probability": None, "rows": [],
-                "missing": missing("simulation", str(d.get("reason") or "skipped"))}
+                "missing": missing("simulation", prose(d.get("reason") or "skipped"))}
     seed = d.get("seed") if d.get("seed") is not None else op.get("seed")
     paths = op.get("paths") if op.get("paths") is not None else \
         budget.get("paths", d.get("paths"))
@@ -135,9 +149,15 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
         bounds = (f"tr S̄ = {filters.num(s_tr, 5)}" if s_tr is not None else "") + \
             (f", tr V̄ = {filters.num(v_tr, 5)}" if v_tr is not None else
              (", V̄ does not exist at this p" if s_tr is not None else ""))
-        rows.append(row("mean tr P_t at the horizon"
-                        + (f" t = {horizon['time']}" if horizon.get("time") else ""),
-                        _last(mean), "num", note="; ".join(x for x in (band, bounds) if x)))
+        when = f" t = {horizon['time']}" if horizon.get("time") else ""
+        if mean_diverges(op):
+            rows.append(row("sample mean of tr P_t at the horizon" + when, _last(mean), "num",
+                            note="; ".join(x for x in (
+                                "E[tr P_t] diverges at this p: the sample mean over finitely "
+                                "many paths is finite but estimates nothing", bounds) if x)))
+        else:
+            rows.append(row("mean tr P_t at the horizon" + when, _last(mean), "num",
+                            note="; ".join(x for x in (band, bounds) if x)))
     levels, quants = as_list(horizon.get("levels")), as_list(horizon.get("quantiles"))
     if levels and len(levels) == len(quants):
         wanted = [(lv, qv) for lv, qv in zip(levels, quants) if lv in (0.5, 0.9, 0.99)]

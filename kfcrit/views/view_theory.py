@@ -7,6 +7,8 @@ from typing import Any
 
 from markupsafe import Markup
 
+from kfcrit.errors import ExpressionError
+from kfcrit.model.exprparse import parse_with_float
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
 from kfcrit.views.figures import invariant_gaps
@@ -19,10 +21,12 @@ from kfcrit.views.viewparts import (
     maybe_svg,
     missing,
     number,
+    numerical_text,
     prose,
     row,
     safe_svg,
     sentence,
+    short_closed_form,
 )
 
 THEOREMS: tuple[tuple[str, str, str, str], ...] = (
@@ -88,7 +92,30 @@ def system_view(rec: dict[str, Any]) -> dict[str, Any]:
 
 STRUCTURE_KNOWN = {"eigenvalues", "equi_blocks", "diagonalizable", "detectable", "controllable_Q",
                    "path", "path_reason", "tolerances", "equal_modulus_pairs",
-                   "observability_index", "observable", "standard_form"}
+                   "observability_index", "observable", "standard_form", "unresolved"}
+
+
+def eigenvalue_numerical(e: dict[str, Any]) -> str:
+    """An eigenvalue without a short closed form: re ± im·j at 6 digits, marked numerical."""
+    re_, im = number(e.get("re")), number(e.get("im"))
+    if re_ is None:
+        return filters.DASH
+    if not im:
+        return numerical_text(re_)
+    sign = "−" if im < 0 else "+"
+    return f"{filters.num(re_, 6)} {sign} {filters.num(abs(im), 6)}j (numerical)"
+
+
+def form_entry(text: Any) -> str:
+    """One entry of C·V: its short closed form, else its value at 6 digits marked numerical
+    (an entry the input parser cannot evaluate, e.g. one holding a CRootOf, is named only)."""
+    short = short_closed_form(text)
+    if short or (isinstance(text, str) and mathsvg.is_plain(text) and text):
+        return filters.pretty_expr(short or text)
+    try:
+        return numerical_text(parse_with_float(str(text))[1])
+    except (ExpressionError, ValueError, TypeError, ArithmeticError):
+        return "an algebraic number (no short closed form)"
 
 
 def standard_form_note(form: Any) -> str:
@@ -100,8 +127,8 @@ def standard_form_note(form: Any) -> str:
         if cols:
             # one column of C·V per eigenvalue; a column of m > 1 entries reads (a; b)
             text = ", ".join(
-                filters.pretty_expr(as_list(c)[0]) if len(as_list(c)) == 1 else
-                "(" + "; ".join(filters.pretty_expr(e) for e in as_list(c)) + ")" for c in cols)
+                form_entry(as_list(c)[0]) if len(as_list(c)) == 1 else
+                "(" + "; ".join(form_entry(e) for e in as_list(c)) + ")" for c in cols)
             parts.append(f"C·V on I = {filters.indices(as_dict(b).get('indices'))}: [{text}]")
     return "; ".join(parts)
 
@@ -113,11 +140,14 @@ def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
     eigs = []
     for e in as_list(d.get("eigenvalues")):
         e = as_dict(e)
-        expr = e.get("modulus_expression")
-        value = e.get("value")
+        expr = exact_text(e.get("modulus_expression"))
+        value = short_closed_form(e.get("value")) or (
+            e.get("value") if mathsvg.is_plain(str(e.get("value") or "")) and e.get("value")
+            else eigenvalue_numerical(e))
         eigs.append({"value": value, "value_svg": maybe_svg(value),
                      "re": number(e.get("re")), "im": number(e.get("im")),
-                     "modulus": number(e.get("modulus")), "modulus_expression": expr,
+                     "modulus": number(e.get("modulus")),
+                     "modulus_expression": expr or numerical_text(e.get("modulus")),
                      "modulus_svg": maybe_svg(expr)})
     blocks = [{"indices": as_dict(b).get("indices"), "modulus": number(as_dict(b).get("modulus")),
                "modulus_expression": as_dict(b).get("modulus_expression"),
@@ -136,6 +166,10 @@ def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
     if d.get("observability_index") is not None:
         rows.append(row("observability index I_o", d.get("observability_index"), "num",
                         note="smallest k with rank [C; CA; …; CAᵏ⁻¹] = n"))
+    if isinstance(d.get("unresolved"), list):
+        rows.append(row("undecided structural questions", None,
+                        note="; ".join(prose(str(u)) for u in d["unresolved"])
+                        or "none: every structural question was decided"))
     if isinstance(d.get("standard_form"), dict):
         rows.append(row("standard form (eigenbasis V)", None,
                         note=standard_form_note(d["standard_form"]) or filters.DASH))
@@ -238,7 +272,7 @@ def static_gain_view(rec: dict[str, Any]) -> dict[str, Any]:
         if g.get("equals_p_up"):
             notes.append("its critical value equals p_up")
         if g.get("available") is False:
-            notes.append(str(g.get("reason") or "not available"))
+            notes.append(prose(g.get("reason") or "not available"))
         gains.append({"label": label, "available": g.get("available") is not False,
                       "critical_value": number(g.get("critical_value")),
                       "gain": g.get("gain"), "covariance_exists": g.get("covariance_exists"),
@@ -260,7 +294,7 @@ def upper_expression(ub: dict[str, Any]) -> str | None:
     value, ev_value = number(ub.get("value")), number(ev.get("value"))
     if ub.get("method") == "exact" and ev.get("expression") and value is not None and \
             ev_value is not None and abs(value - ev_value) <= 1e-12 * max(1.0, abs(value)):
-        return str(ev["expression"])
+        return exact_text(ev["expression"])
     return None
 
 

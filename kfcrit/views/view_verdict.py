@@ -73,16 +73,16 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "channel_model": CHANNEL_NAMES.get(str(channel.get("model")), channel.get("model")),
         "channel_summary": channel_summary(channel) if channel else "",
         "critical_value": number(cv.get("value")),
-        "critical_expression": cv.get("expression"),
-        "critical_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=13,
-                                label=cv.get("expression")),
+        "critical_expression": critical_form(cv),
+        "critical_svg": formula(cv.get("latex"), critical_form(cv), fontsize=13,
+                                label=critical_form(cv)) if critical_form(cv) else None,
         "critical_exact": cv.get("exact"),
         "critical_reason": prose(cv.get("reason")) or None,
         "margin": number(opd.get("margin")),
         "margin_robust": number(opd.get("margin_robust")),
         "robust": {"available": isinstance(rob, dict),
                    "value": number(robd.get("value")), "tolerance": number(robd.get("tolerance")),
-                   "expression": robd.get("expression"),
+                   "expression": exact_text(robd.get("expression")),
                    "nearby_case": robd.get("nearby_case"),
                    "missing": "not needed: the classification is decided exactly and no "
                               "perturbation within the tolerance changes it"
@@ -94,11 +94,23 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "basis": prose(opd.get("basis")) if isinstance(opd.get("basis"), str) else None,
         "iid_verdict": iid_verdict if iid_verdict and iid_verdict != verdict else None,
         "note": sentence(opd.get("note")) if opd.get("note") else None,
-        "legend": verdict_legend(op, verdict, opd),
+        "legend": verdict_legend(op, verdict, opd, network=is_network(rec, channel)),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
-        "network": network_cells(rec) if channel.get("model") == "network" else None,
+        "network": network_cells(rec) if is_network(rec, channel) else None,
     }
+
+
+def is_network(rec: dict[str, Any], channel: dict[str, Any]) -> bool:
+    """Whether the record is a sensor network's: then ``operating_point.margin`` is the uniform
+    margin δ and ``operating_point.bracket`` its interval (not p − p_c and p_c's bracket)."""
+    return isinstance(rec.get("network"), dict) or channel.get("model") == "network"
+
+
+def critical_form(cv: dict[str, Any]) -> str | None:
+    """The exact form of p_c for the verdict card: only an exact value's short closed form
+    (a numerical value is printed as a number, never as its 17-digit expression)."""
+    return exact_text(cv.get("expression")) if cv.get("exact") else None
 
 
 def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
@@ -116,7 +128,7 @@ def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
             "bottleneck_interval": crit.get("interval") if crit else None}
 
 
-def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
+def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any], network: bool = False) -> str:
     """The last sentence of the legend under the verdict box (after the two verdicts' meaning):
     why this verdict is not determined, when it is not (no operating point, p inside the bracket
     of p_c, or the record's reason); empty for a determined verdict."""
@@ -125,7 +137,9 @@ def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any]) -> str:
                "channel section), so there is no arrival probability p to compare with p_c.")
     elif verdict == "undetermined":
         if isinstance(opd.get("bracket"), list):
-            why = "Undetermined: p lies inside the bracket of p_c, so the comparison is open."
+            why = ("Undetermined: the uniform margin δ is bracketed by an interval that "
+                   "contains 0, so the comparison is open." if network else
+                   "Undetermined: p lies inside the bracket of p_c, so the comparison is open.")
         else:
             why = "Undetermined: " + (sentence(opd.get("reason")) or
                                       "the comparison of p with p_c is not decided.")

@@ -6,6 +6,7 @@ empty mapping, an empty list or ``None`` so that the section views never raise a
 """
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 from typing import Any
 
@@ -81,16 +82,43 @@ def row(label: str, value: Any, kind: str = "text", note: str = "",
             "title": unit_title}
 
 
-def exact_text(expression: Any) -> str | None:
-    """An exact expression worth printing beside its number (not a plain decimal like 0.96213…)."""
-    if not isinstance(expression, str) or not expression.strip():
+SHORT_FORM_CHARS = 40
+"""Longest exact expression the report prints (longer ones read as a dump, not a form)."""
+
+_LONG_DECIMAL_RE = re.compile(r"\d\.\d{7,}|\d[eE][+-]?\d")
+
+
+def short_closed_form(expression: Any) -> str | None:
+    """``expression`` if it is a short closed form worth printing beside its number, else None.
+
+    Not a closed form here: a plain decimal (``0.96213``), text holding a long float or a float
+    in e-notation (``1.4198034786194746e-5``), a ``CRootOf``/``RootOf`` (an indexed root of a
+    polynomial: exact, but not readable) and anything over :data:`SHORT_FORM_CHARS` characters.
+    """
+    if not isinstance(expression, str):
         return None
-    return None if mathsvg.is_plain(expression) else expression
+    text = expression.strip()
+    if not text or "\n" in text or mathsvg.is_plain(text) or "RootOf" in text:
+        return None
+    if len(text) > SHORT_FORM_CHARS or _LONG_DECIMAL_RE.search(text):
+        return None
+    return text
+
+
+def exact_text(expression: Any) -> str | None:
+    """An exact expression worth printing beside its number (:func:`short_closed_form`)."""
+    return short_closed_form(expression)
+
+
+def numerical_text(value: Any, digits: int = 6) -> str:
+    """A value that has no short closed form: ``digits`` significant digits, marked numerical."""
+    v = number(value)
+    return f"{filters.num(v, digits)} (numerical)" if v is not None else filters.DASH
 
 
 def maybe_svg(expr: Any) -> Markup | None:
     """SVG of an exact expression that does not read well as plain text (else ``None``)."""
-    if isinstance(expr, str) and expr and not mathsvg.is_plain(expr):
+    if short_closed_form(expr):
         return safe_svg(mathsvg.expression_svg(expr))
     return None
 
