@@ -668,7 +668,10 @@ def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str
         marks["p_S"], marks["p_V"] = (float(v) for v in req["interval"])
     sizes = tuple(sorted({20, int(channel.psdu_bytes), 127}))
     out = {"arrival_vs_distance": curves.arrival_vs_distance(channel).to_dict(),
-           "per_vs_sinr": curves.per_vs_sinr(channel.radio, sizes).to_dict(),
+           "per_vs_sinr": curves.per_vs_sinr(
+               channel.radio, sizes, include_db=[v for v in (
+                   channel.sinr_db, (sec.get("link_budget") or {}).get("required_sinr_db"))
+                   if v is not None]).to_dict(),
            "marks": marks}
     usable = {k: v for k, v in marks.items() if 0 < v < 1}
     if usable:

@@ -164,7 +164,7 @@ def summary(rec: dict[str, Any]) -> str:
         lines.append(f"  stability verdict     {op.get('verdict', '—').upper()}")
         if op.get("reason"):
             lines.append(f"      reason: {op['reason']}")
-        if op.get("iid_comparison_verdict"):
+        if op.get("iid_comparison_verdict") and op["iid_comparison_verdict"] != op.get("verdict"):
             lines.append(f"      (the i.i.d. comparison p vs p_c alone would say "
                          f"{op['iid_comparison_verdict']})")
         if op.get("basis"):
