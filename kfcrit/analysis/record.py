@@ -27,6 +27,13 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.links import bursty_channel, design_check, link_curves
+from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
+from kfcrit.analysis.requirements import (
+    power_law_tail,
+    requirement_assessment,
+    tail_simulation_check,
+)
 from kfcrit.analysis.sections import SCHEMA_VERSION, Analysis, record_from_json
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
@@ -134,18 +141,6 @@ def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
         p_low_exact=theory.p_low_exact)
 
 
-def bursty_channel(channel: Any) -> Any:
-    """The Gilbert–Elliott chain of a bursty channel: the channel itself, or the two-state
-    approximation of a link budget's time-correlated shadowing; None for memoryless channels."""
-    if channel is None:
-        return None
-    if channel.model == "gilbert-elliott":
-        return channel
-    if channel.model == "link-budget" and not channel.iid:
-        return channel.gilbert_elliott()
-    return None
-
-
 def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
     """The Gilbert–Elliott chain for the verdict, with the sufficient condition the link
     section proved (the exact scalar condition of MATH §7 or a coupled certificate, §10).
@@ -216,165 +211,6 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     out["verdict"] = verdict.value
     out["basis"] = basis
     return out
-
-
-def network_sections(spec: SystemSpec, opts: AnalysisOptions, warnings: list[str]
-                     ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The ``network`` section (MATH §9: per-sensor critical values, uniform margin, N − 1
-    verdicts, bottleneck) and the operating point of a ``sensors:`` file.
-
-    The top-level critical value and p_up of such a record are those of the stacked system —
-    every sensor's packet arriving together, as over one joint link; the network's own values
-    are in ``network``.
-    """
-    from kfcrit.theory.network import network_analysis
-
-    net = network_analysis(spec.network, tol=opts.tolerance).to_dict()
-    warnings.extend(net.get("warnings") or [])
-    if spec.network.size > 1:
-        warnings.append("sensor network: the top-level critical value and p_up are those of the "
-                        "stacked system (all sensors' packets arriving together); per-sensor "
-                        "critical values, the uniform margin and N − 1 verdicts are in "
-                        "`network`")
-    verdict, basis = vd.network_verdict(net)
-    network_link_designs(spec.network, net, warnings)
-    burst = network_burst_condition(spec.network)
-    if burst is not None:
-        net["burst_condition"] = burst
-        verdict, basis = vd.network_burst_verdict(verdict, basis, burst["holds"],
-                                                  burst["statement"])
-    sensors = net.get("sensors") or []
-    bottleneck = (net.get("bottleneck") or {}).get("name")
-    row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
-    channels = [s.channel.to_dict() if s.channel is not None else None
-                for s in spec.network.sensors]
-    margin = net.get("uniform_margin") or {}
-    op = {"arrival_probability": row.get("arrival_probability"),
-          "channel": {"model": "network", "sensors": [
-              {"name": s.name, "channel": c} for s, c in zip(spec.network.sensors, channels)]},
-          "iid": all(s.channel is None or s.channel.iid for s in spec.network.sensors),
-          "margin": margin.get("value"), "margin_robust": None,
-          "bracket": margin.get("interval"),
-          "arrival_probabilities": {s.get("name"): s.get("arrival_probability")
-                                    for s in sensors},
-          "bottleneck": bottleneck,
-          "note": "network: arrival_probability is the bottleneck sensor's; margin is the "
-                  "uniform margin δ (every link degraded by δ reaches the stability boundary)",
-          "verdict": verdict.value, "basis": basis}
-    return net, op
-
-
-def network_lower_bound(network: Any) -> dict[str, Any]:
-    r"""The Lyapunov lower bound of a network's error covariance (MATH §9).
-
-    .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
-              \pi(\emptyset) = \prod_i (1 - p_i)
-
-    (E[P_{t+1}] ⪰ π(∅) A E[P_t] A' + Q: with every packet lost the filter only predicts), so
-    lim E[P_t] ⪰ S̄; V̄ of the network is not computed (no upper bound, ``upper.exists`` False).
-    """
-    import numpy as np
-
-    from kfcrit.theory import bounds
-
-    lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
-                          for s in network.sensors if s.channel is not None]))
-    system = network.stacked_system()
-    S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
-    return {"p": 1.0 - lost, "lower": bounds.covariance_summary(S),
-            "upper": {**bounds.covariance_summary(None), "method": "not computed for a network"},
-            "ordered": None, "applicable": True,
-            "reason": "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
-                      "together); p is 1 − Π(1 − p_i); V̄ is not computed"}
-
-
-def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str]) -> None:
-    """Each link-budget sensor's link against its own margin policy (``link`` of its row in
-    ``network.sensors``): the arrival probability it must exceed is its critical value with the
-    other links at their operating values (the upper end of its interval when only bracketed)."""
-    from kfcrit.link import linkbudget
-
-    for row, sensor in zip(net.get("sensors") or [], network.sensors):
-        ch = sensor.channel
-        if ch is None or ch.model != "link-budget":
-            continue
-        cv = row.get("critical_value") or {}
-        value, interval = cv.get("value"), cv.get("interval")
-        bracket = (None, None) if value is not None or not interval else tuple(interval)
-        try:
-            lb = linkbudget.design_section(ch, critical_value=value, robust_value=None,
-                                           bracket=bracket, upper_bound=None)
-        except (ValueError, ArithmeticError) as exc:
-            warnings.append(f"link design of sensor {sensor.name} not computed: {exc}")
-            continue
-        if isinstance(lb, dict):
-            lb["design_check"] = design_check(lb)
-            row["link"] = {k: lb.get(k) for k in ("link", "link_margin_db", "required_sinr_db",
-                                                  "max_distance_m", "margin_policy",
-                                                  "design_check", "shadowing")}
-
-
-def network_simulation(spec: SystemSpec, opts: AnalysisOptions, op: dict[str, Any]
-                       ) -> dict[str, Any]:
-    """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
-    of C that arrived update the filter, MATH §9): E[tr P_t] at the horizon, or — when the
-    network is mean-unstable — the sample statistics labelled as not estimating a mean."""
-    from kfcrit.sim.montecarlo import Budget, simulate
-
-    net = spec.network
-    budget = Budget.for_system(spec.system.n, opts.quick)
-    sensors = [(list(range(sl.start, sl.stop)), s.channel)
-               for sl, s in zip(net.row_slices(), net.sensors)]
-    res = simulate(spec.system, budget.paths, budget.steps, opts.seed, sensors=sensors,
-                   track_lambda_max=False).to_dict()
-    mt = res.get("mean_trace") or {}
-    last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
-    diverges = op.get("verdict") == vd.Verdict.MEAN_UNSTABLE.value
-    summary = {"paths": budget.paths, "steps": budget.steps, "seed": opts.seed,
-               "sensors": [s.name for s in net.sensors],
-               "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
-               "horizon_quantiles": (res.get("horizon") or {}).get("quantiles"),
-               "horizon_levels": (res.get("horizon") or {}).get("levels")}
-    if diverges:
-        summary.update(mean_exists=False, sample_mean_trace=last["mean"],
-                       statement="E[tr P_t] diverges (the network is mean-unstable): the sample "
-                                 "mean estimates nothing")
-    else:
-        summary.update(mean_exists=None if op.get("verdict") != "mean-stable" else True,
-                       mean_trace=last)
-    return {"seed": opts.seed, "quick": opts.quick, "network": summary,
-            "reason": "per-sensor arrivals, each sensor over its own link"}
-
-
-def network_burst_condition(network: Any) -> dict[str, Any] | None:
-    """The necessary burst condition of a network with bursty links (MATH §9 and §10).
-
-    A run of k steps in which every sensor outside T loses its packets has probability of order
-    Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a lost link stays lost)
-    and 1 − p_j for an i.i.d. one, while the modes unobservable through C_T grow like ρ_T^{2k}:
-    E[P_t] is unbounded unless Π_{j∉T} c_j·ρ_T² < 1 for every T — the necessary surface of
-    :func:`kfcrit.theory.network.necessary_constraints` evaluated at p_j' = 1 − c_j. None when
-    every link is memoryless.
-    """
-    import numpy as np
-
-    from kfcrit.theory.network import necessary_constraints, necessary_holds
-
-    chains = [bursty_channel(s.channel) for s in network.sensors]
-    if all(c is None for c in chains):
-        return None
-    q_exact = [c.recovery_rate if c is not None else
-               (s.channel.arrival_probability if s.channel is not None else None)
-               for s, c in zip(network.sensors, chains)]
-    q = np.array([float(v) if v is not None else 0.0 for v in q_exact])
-    holds = necessary_holds(necessary_constraints(network), q, q_exact)
-    names = ", ".join(s.name for s, c in zip(network.sensors, chains) if c is not None)
-    statement = (f"burst condition for the bursty links ({names}): Π_(j∉T) c_j·ρ_T² < 1 for "
-                 "every sensor set T, c_j = 1 − r_j (Gilbert–Elliott) or 1 − p_j (i.i.d.) — "
-                 + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
-                    if holds is False else "undecided at float precision"))
-    return {"holds": holds, "statement": statement,
-            "continuation": {s.name: 1 - float(v) for s, v in zip(network.sensors, q)}}
 
 
 def exact_difference(a: Any, b: Any, fallback: float) -> float:
@@ -650,36 +486,6 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     warnings.extend((sim or {}).get("warnings") or [])
 
 
-def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str, Any]:
-    """The link's curves for the report: arrival probability and outage against distance, PER
-    against SINR (:mod:`kfcrit.link.curves`), with the arrival probabilities they are read
-    against (p_c or the bracket's upper end, and the accuracy requirement's [p_S, p_V])."""
-    from kfcrit.link import curves
-
-    marks: dict[str, float] = {}
-    pc = (sec.get("critical_value") or {}).get("value")
-    up = (sec.get("upper_bound") or {}).get("value")
-    if pc is not None:
-        marks["p_c"] = float(pc)
-    elif up is not None:
-        marks["p_up"] = float(up)
-    req = ((sec.get("design") or {}).get("required_arrival_probability") or {})
-    if req.get("interval"):
-        marks["p_S"], marks["p_V"] = (float(v) for v in req["interval"])
-    sizes = tuple(sorted({20, int(channel.psdu_bytes), 127}))
-    out = {"arrival_vs_distance": curves.arrival_vs_distance(channel).to_dict(),
-           "per_vs_sinr": curves.per_vs_sinr(
-               channel.radio, sizes, include_db=[v for v in (
-                   channel.sinr_db, (sec.get("link_budget") or {}).get("required_sinr_db"))
-                   if v is not None]).to_dict(),
-           "marks": marks}
-    usable = {k: v for k, v in marks.items() if 0 < v < 1}
-    if usable:
-        out["outage_vs_distance"] = curves.outage_vs_distance(
-            channel, usable, curves.distance_grid(channel, points=60)).to_dict()
-    return out
-
-
 def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
                         ge: Any) -> dict[str, Any]:
     """The Gilbert–Elliott section of a bursty chain: the conditions of MATH §7 (scalar) and
@@ -775,97 +581,6 @@ def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any])
         classification=sec.get("classification"), structure=theory.structure).to_dict()}
 
 
-def tail_simulation_check(sec: dict[str, Any]) -> None:
-    r"""The tail exponent against the simulation: the log–log slope of the empirical CCDF.
-
-    .. math:: \log P(\operatorname{tr} P_T > M) \approx c - \beta \log M
-
-    fitted by least squares on the simulated paths at the horizon over the upper tail (CCDF
-    between 10/N and 0.2: at least ten paths beyond every point used). A finite horizon and N
-    paths bias the slope; the comparison is evidence for the labelled claim, not a proof.
-    """
-    import numpy as np
-
-    tail = (sec.get("tail") or {}).get("exponent") or {}
-    op = (sec.get("simulation") or {}).get("operating_point") or {}
-    cdf = (op.get("horizon") or {}).get("cdf") or {}
-    beta, paths = tail.get("value"), op.get("paths")
-    if beta is None or not cdf.get("trace") or not paths:
-        return
-    m = np.asarray(cdf["trace"], dtype=float)
-    ccdf = 1.0 - np.asarray(cdf["probability"], dtype=float)
-    keep = (ccdf >= 10.0 / paths) & (ccdf <= 0.2) & (m > 0) & np.isfinite(m)
-    check: dict[str, Any] = {"method": "least-squares slope of log CCDF against log tr P at "
-                             "the horizon, CCDF in [10/N, 0.2]", "paths": paths,
-                             "horizon": op.get("steps"), "points": int(keep.sum())}
-    if keep.sum() >= 4 and np.ptp(np.log(m[keep])) > 0:
-        slope = float(np.polyfit(np.log(m[keep]), np.log(ccdf[keep]), 1)[0])
-        check.update(slope=slope, exponent_estimate=-slope,
-                     relative_difference=abs(-slope - beta) / beta,
-                     trace_range=[float(m[keep].min()), float(m[keep].max())])
-    else:
-        check["note"] = "too few simulated tail points for a slope"
-    sec["tail"]["simulation_check"] = check
-
-
-def power_law_tail(sec: dict[str, Any]) -> None:
-    r"""The tail requirement read with the tail exponent beside the Monte Carlo (a claim).
-
-    .. math:: P(\operatorname{tr} P > M) \approx P(\operatorname{tr} P > m_0)\,(M/m_0)^{-\beta}
-
-    from the empirical CCDF at the highest level m_0 ≤ M that at least ten simulated paths
-    exceed; the Wilson interval of the simulation stays the basis of the status.
-    """
-    import numpy as np
-
-    req = sec.get("requirements") or {}
-    tail = (sec.get("tail") or {}).get("exponent") or {}
-    limit, beta = req.get("max_error_trace"), tail.get("value")
-    op = (sec.get("simulation") or {}).get("operating_point") or {}
-    cdf = (op.get("horizon") or {}).get("cdf") or {}
-    paths = op.get("paths")
-    if not (req.get("assessment") and limit and beta and cdf.get("trace") and paths):
-        return
-    m = np.asarray(cdf["trace"], dtype=float)
-    ccdf = 1.0 - np.asarray(cdf["probability"], dtype=float)
-    ok = (ccdf >= 10.0 / paths) & (m <= limit) & (m > 0)
-    if not ok.any():
-        return
-    i = int(np.flatnonzero(ok)[np.argmax(m[ok])])
-    estimate = float(ccdf[i] * (limit / m[i]) ** (-beta))
-    req["assessment"]["power_law_estimate"] = {
-        "value": estimate, "anchor_level": float(m[i]), "anchor_probability": float(ccdf[i]),
-        "exponent": beta, "label": tail.get("label"),
-        "formula": "P(tr P > M) ≈ P(tr P > m0) (M/m0)^(-beta)"}
-
-
-def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
-    """The configured link against its own margin policy (read from the link-budget section).
-
-    ``margin_policy_met``: the link margin at the configured distance is at least the policy's
-    effective margin max(margin_db, σ·Φ⁻¹(1 − max_outage)) (equivalently, the distance is within
-    ``max_distance_m``); ``outage_within_policy``: the per-link shadowing outage below the design
-    requirement is at most ``max_outage``. Either is ``None`` when its inputs are missing.
-    """
-    if not lb.get("applicable"):
-        return None
-    policy = lb.get("margin_policy") or {}
-    link = lb.get("link") or {}
-    shadow = lb.get("shadowing") or {}
-    margin, needed = lb.get("link_margin_db"), policy.get("effective_margin_db")
-    design = (lb.get("required_arrival_probability") or {}).get("design_value")
-    rows = [r for r in lb.get("thresholds") or []
-            if r.get("arrival_probability") == design and r.get("outage_probability") is not None]
-    outage = rows[0]["outage_probability"] if rows else shadow.get("outage_below_critical")
-    max_outage = policy.get("max_outage")
-    return {"link_margin_db": margin, "required_margin_db": needed,
-            "margin_policy_met": (margin >= needed) if None not in (margin, needed) else None,
-            "distance_m": link.get("distance_m"), "max_distance_m": lb.get("max_distance_m"),
-            "outage_probability": outage, "max_outage": max_outage,
-            "outage_within_policy": (outage <= max_outage)
-            if None not in (outage, max_outage) else None}
-
-
 def _simulated_mean_between_bounds(cb: dict[str, Any],
                                    sim_op: dict[str, Any]) -> dict[str, Any] | None:
     """Sinopoli Thm 4/6 cross-check: the simulated E[tr P_t] at the horizon lies in
@@ -951,99 +666,6 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
                        "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
     status = {True: "passed", False: "failed", None: "not applicable"}
     return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
-
-
-def tail_assessment(limit: float | None, allowed: float | None,
-                    simulation: dict[str, Any] | None) -> dict[str, Any]:
-    """The tail requirement P(tr P > limit) ≤ allowed against the simulated exceedance.
-
-    With k of N paths above ``limit`` and the 95 % Wilson interval [lo, hi] of the exceedance:
-    ``met`` if hi ≤ allowed, ``not met`` if lo > allowed, else ``not demonstrated`` (more paths
-    are needed); ``status`` None when an input is missing.
-    """
-    op = (simulation or {}).get("operating_point") or {}
-    exc = op.get("exceedance") or {}
-    status, basis = None, None
-    if limit is None or allowed is None:
-        basis = "needs both max_error_trace and max_tail_probability"
-    elif not exc or exc.get("lower") is None:
-        basis = "no simulation at the operating point"
-    else:
-        lo, hi, est = exc["lower"], exc["upper"], exc.get("estimate")
-        status = "met" if hi <= allowed else "not met" if lo > allowed else "not demonstrated"
-        basis = (f"P(tr P > {limit:g}) ≈ {est:.4g} at t = {op.get('steps')} "
-                 f"({exc.get('count')} of {exc.get('total')} paths; 95 % interval "
-                 f"[{lo:.3g}, {hi:.3g}]) against the allowed {allowed:g}")
-    return {"status": status, "basis": basis, "estimate": exc.get("estimate"),
-            "interval": [exc.get("lower"), exc.get("upper")] if exc else None}
-
-
-def mean_assessment(limit: float, bounds: dict[str, Any] | None,
-                    op: dict[str, Any] | None,
-                    design: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (MATH §11).
-
-    ``not met`` when the filter is mean-unstable (E[tr P_t] diverges) or tr S̄ > L (S̄ is a lower
-    bound for every p); ``met`` when tr V̄ ≤ L (V̄ an upper bound above p_up); otherwise ``not
-    demonstrated`` (L lies between the bounds).
-    """
-    verdict = (op or {}).get("verdict")
-    if verdict is None:
-        return {"status": None, "basis": "no channel: no operating point to assess"}
-    if verdict == vd.Verdict.MEAN_UNSTABLE.value:
-        return {"status": "not met", "basis": "the filter is mean-unstable at the operating "
-                "point: lim E[tr P_t] is infinite"}
-    req = (design or {}).get("required_arrival_probability") or {}
-    if req.get("status") == "impossible":
-        return {"status": "not met", "basis": "no arrival probability meets it: "
-                + str(req.get("reason") or "L is below the no-loss floor")}
-    lower = (bounds or {}).get("lower") or {}
-    upper = (bounds or {}).get("upper") or {}
-    if bounds and lower.get("exists") is False:
-        if verdict == vd.Verdict.MEAN_STABLE.value:
-            return {"status": "not met", "basis": "(1 − p)ρ(A)² rounds to 1 or more in double "
-                    "precision at this p: the Lyapunov lower bound tr S̄ = Σ_k (1 − p)^k "
-                    "tr(A^k Q A'^k) is beyond float64, far above L"}
-        return {"status": "not met", "basis": "the Lyapunov lower bound S̄ does not exist "
-                "((1 − p)ρ(A)² ≥ 1): lim E[tr P_t] is infinite"}
-    s_tr, v_tr = lower.get("trace"), upper.get("trace")
-    if s_tr is not None and s_tr > limit:
-        return {"status": "not met", "basis": f"tr S̄ = {s_tr:.6g} > L = {limit:g} (S̄ ⪯ lim "
-                "E[P_t], Sinopoli Thm 4)", "interval": [s_tr, v_tr]}
-    if v_tr is not None and upper.get("exists") and v_tr <= limit \
-            and verdict == vd.Verdict.MEAN_STABLE.value:
-        return {"status": "met", "basis": f"tr V̄ = {v_tr:.6g} ≤ L = {limit:g} (lim E[P_t] ⪯ V̄, "
-                "Sinopoli Thm 6)", "interval": [s_tr, v_tr]}
-    s_text = "not available" if s_tr is None else f"{s_tr:.6g}"
-    v_text = "not available" if v_tr is None or not upper.get("exists") else f"{v_tr:.6g}"
-    return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided by the "
-            f"bounds: tr S̄ = {s_text} ≤ L and tr V̄ = {v_text}", "interval": [s_tr, v_tr]}
-
-
-def requirement_assessment(requirements: dict[str, Any] | None,
-                           simulation: dict[str, Any] | None,
-                           bounds: dict[str, Any] | None = None,
-                           op: dict[str, Any] | None = None,
-                           design: dict[str, Any] | None = None) -> dict[str, Any] | None:
-    """The system file's requirements, each assessed (``assessments``, in file order; the tail
-    requirement's assessment also as ``assessment`` for scripts written against schema 1)."""
-    if not requirements:
-        return requirements
-    out = dict(requirements)
-    items = []
-    limit, allowed = out.get("max_error_trace"), out.get("max_tail_probability")
-    if limit is not None or allowed is not None:
-        tail = tail_assessment(limit, allowed, simulation)
-        out["assessment"] = tail
-        name = (f"P(tr P > {limit:g}) ≤ {allowed:g}" if None not in (limit, allowed)
-                else "tail requirement (incomplete)")
-        items.append({"requirement": name, **tail})
-    mean_limit = out.get("max_mean_error_trace")
-    if mean_limit is not None:
-        items.append({"requirement": f"lim E[tr P] ≤ {mean_limit:g}",
-                      **mean_assessment(mean_limit, bounds, op, design)})
-    out["assessments"] = items
-    return out
 
 
 def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:

@@ -1,0 +1,76 @@
+"""The link of the operating point as the analysis reads it: bursty chains behind a channel,
+the link policy check, the curves the report draws."""
+from __future__ import annotations
+
+from typing import Any
+
+from kfcrit.io.systemfile import SystemSpec
+
+
+def bursty_channel(channel: Any) -> Any:
+    """The Gilbert–Elliott chain of a bursty channel: the channel itself, or the two-state
+    approximation of a link budget's time-correlated shadowing; None for memoryless channels."""
+    if channel is None:
+        return None
+    if channel.model == "gilbert-elliott":
+        return channel
+    if channel.model == "link-budget" and not channel.iid:
+        return channel.gilbert_elliott()
+    return None
+
+
+def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
+    """The configured link against its own margin policy (read from the link-budget section).
+
+    ``margin_policy_met``: the link margin at the configured distance is at least the policy's
+    effective margin max(margin_db, σ·Φ⁻¹(1 − max_outage)) (equivalently, the distance is within
+    ``max_distance_m``); ``outage_within_policy``: the per-link shadowing outage below the design
+    requirement is at most ``max_outage``. Either is ``None`` when its inputs are missing.
+    """
+    if not lb.get("applicable"):
+        return None
+    policy = lb.get("margin_policy") or {}
+    link = lb.get("link") or {}
+    shadow = lb.get("shadowing") or {}
+    margin, needed = lb.get("link_margin_db"), policy.get("effective_margin_db")
+    design = (lb.get("required_arrival_probability") or {}).get("design_value")
+    rows = [r for r in lb.get("thresholds") or []
+            if r.get("arrival_probability") == design and r.get("outage_probability") is not None]
+    outage = rows[0]["outage_probability"] if rows else shadow.get("outage_below_critical")
+    max_outage = policy.get("max_outage")
+    return {"link_margin_db": margin, "required_margin_db": needed,
+            "margin_policy_met": (margin >= needed) if None not in (margin, needed) else None,
+            "distance_m": link.get("distance_m"), "max_distance_m": lb.get("max_distance_m"),
+            "outage_probability": outage, "max_outage": max_outage,
+            "outage_within_policy": (outage <= max_outage)
+            if None not in (outage, max_outage) else None}
+
+
+def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str, Any]:
+    """The link's curves for the report: arrival probability and outage against distance, PER
+    against SINR (:mod:`kfcrit.link.curves`), with the arrival probabilities they are read
+    against (p_c or the bracket's upper end, and the accuracy requirement's [p_S, p_V])."""
+    from kfcrit.link import curves
+
+    marks: dict[str, float] = {}
+    pc = (sec.get("critical_value") or {}).get("value")
+    up = (sec.get("upper_bound") or {}).get("value")
+    if pc is not None:
+        marks["p_c"] = float(pc)
+    elif up is not None:
+        marks["p_up"] = float(up)
+    req = ((sec.get("design") or {}).get("required_arrival_probability") or {})
+    if req.get("interval"):
+        marks["p_S"], marks["p_V"] = (float(v) for v in req["interval"])
+    sizes = tuple(sorted({20, int(channel.psdu_bytes), 127}))
+    out = {"arrival_vs_distance": curves.arrival_vs_distance(channel).to_dict(),
+           "per_vs_sinr": curves.per_vs_sinr(
+               channel.radio, sizes, include_db=[v for v in (
+                   channel.sinr_db, (sec.get("link_budget") or {}).get("required_sinr_db"))
+                   if v is not None]).to_dict(),
+           "marks": marks}
+    usable = {k: v for k, v in marks.items() if 0 < v < 1}
+    if usable:
+        out["outage_vs_distance"] = curves.outage_vs_distance(
+            channel, usable, curves.distance_grid(channel, points=60)).to_dict()
+    return out

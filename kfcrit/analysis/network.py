@@ -1,0 +1,168 @@
+"""Sensor networks in the analysis (MATH §9): the network section, its operating point, each
+link's policy, the network's Lyapunov bound, its simulation and the burst condition."""
+from __future__ import annotations
+
+from typing import Any
+
+from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.links import bursty_channel, design_check
+from kfcrit.io.systemfile import SystemSpec
+
+
+def network_sections(spec: SystemSpec, opts: Any, warnings: list[str]
+                     ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The ``network`` section (MATH §9: per-sensor critical values, uniform margin, N − 1
+    verdicts, bottleneck) and the operating point of a ``sensors:`` file.
+
+    The top-level critical value and p_up of such a record are those of the stacked system —
+    every sensor's packet arriving together, as over one joint link; the network's own values
+    are in ``network``.
+    """
+    from kfcrit.theory.network import network_analysis
+
+    net = network_analysis(spec.network, tol=opts.tolerance).to_dict()
+    warnings.extend(net.get("warnings") or [])
+    if spec.network.size > 1:
+        warnings.append("sensor network: the top-level critical value and p_up are those of the "
+                        "stacked system (all sensors' packets arriving together); per-sensor "
+                        "critical values, the uniform margin and N − 1 verdicts are in "
+                        "`network`")
+    verdict, basis = vd.network_verdict(net)
+    network_link_designs(spec.network, net, warnings)
+    burst = network_burst_condition(spec.network)
+    if burst is not None:
+        net["burst_condition"] = burst
+        verdict, basis = vd.network_burst_verdict(verdict, basis, burst["holds"],
+                                                  burst["statement"])
+    sensors = net.get("sensors") or []
+    bottleneck = (net.get("bottleneck") or {}).get("name")
+    row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
+    channels = [s.channel.to_dict() if s.channel is not None else None
+                for s in spec.network.sensors]
+    margin = net.get("uniform_margin") or {}
+    op = {"arrival_probability": row.get("arrival_probability"),
+          "channel": {"model": "network", "sensors": [
+              {"name": s.name, "channel": c} for s, c in zip(spec.network.sensors, channels)]},
+          "iid": all(s.channel is None or s.channel.iid for s in spec.network.sensors),
+          "margin": margin.get("value"), "margin_robust": None,
+          "bracket": margin.get("interval"),
+          "arrival_probabilities": {s.get("name"): s.get("arrival_probability")
+                                    for s in sensors},
+          "bottleneck": bottleneck,
+          "note": "network: arrival_probability is the bottleneck sensor's; margin is the "
+                  "uniform margin δ (every link degraded by δ reaches the stability boundary)",
+          "verdict": verdict.value, "basis": basis}
+    return net, op
+
+
+def network_lower_bound(network: Any) -> dict[str, Any]:
+    r"""The Lyapunov lower bound of a network's error covariance (MATH §9).
+
+    .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
+              \pi(\emptyset) = \prod_i (1 - p_i)
+
+    (E[P_{t+1}] ⪰ π(∅) A E[P_t] A' + Q: with every packet lost the filter only predicts), so
+    lim E[P_t] ⪰ S̄; V̄ of the network is not computed (no upper bound, ``upper.exists`` False).
+    """
+    import numpy as np
+
+    from kfcrit.theory import bounds
+
+    lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
+                          for s in network.sensors if s.channel is not None]))
+    system = network.stacked_system()
+    S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
+    return {"p": 1.0 - lost, "lower": bounds.covariance_summary(S),
+            "upper": {**bounds.covariance_summary(None), "method": "not computed for a network"},
+            "ordered": None, "applicable": True,
+            "reason": "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
+                      "together); p is 1 − Π(1 − p_i); V̄ is not computed"}
+
+
+def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str]) -> None:
+    """Each link-budget sensor's link against its own margin policy (``link`` of its row in
+    ``network.sensors``): the arrival probability it must exceed is its critical value with the
+    other links at their operating values (the upper end of its interval when only bracketed)."""
+    from kfcrit.link import linkbudget
+
+    for row, sensor in zip(net.get("sensors") or [], network.sensors):
+        ch = sensor.channel
+        if ch is None or ch.model != "link-budget":
+            continue
+        cv = row.get("critical_value") or {}
+        value, interval = cv.get("value"), cv.get("interval")
+        bracket = (None, None) if value is not None or not interval else tuple(interval)
+        try:
+            lb = linkbudget.design_section(ch, critical_value=value, robust_value=None,
+                                           bracket=bracket, upper_bound=None)
+        except (ValueError, ArithmeticError) as exc:
+            warnings.append(f"link design of sensor {sensor.name} not computed: {exc}")
+            continue
+        if isinstance(lb, dict):
+            lb["design_check"] = design_check(lb)
+            row["link"] = {k: lb.get(k) for k in ("link", "link_margin_db", "required_sinr_db",
+                                                  "max_distance_m", "margin_policy",
+                                                  "design_check", "shadowing")}
+
+
+def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
+                       ) -> dict[str, Any]:
+    """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
+    of C that arrived update the filter, MATH §9): E[tr P_t] at the horizon, or — when the
+    network is mean-unstable — the sample statistics labelled as not estimating a mean."""
+    from kfcrit.sim.montecarlo import Budget, simulate
+
+    net = spec.network
+    budget = Budget.for_system(spec.system.n, opts.quick)
+    sensors = [(list(range(sl.start, sl.stop)), s.channel)
+               for sl, s in zip(net.row_slices(), net.sensors)]
+    res = simulate(spec.system, budget.paths, budget.steps, opts.seed, sensors=sensors,
+                   track_lambda_max=False).to_dict()
+    mt = res.get("mean_trace") or {}
+    last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
+    diverges = op.get("verdict") == vd.Verdict.MEAN_UNSTABLE.value
+    summary = {"paths": budget.paths, "steps": budget.steps, "seed": opts.seed,
+               "sensors": [s.name for s in net.sensors],
+               "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
+               "horizon_quantiles": (res.get("horizon") or {}).get("quantiles"),
+               "horizon_levels": (res.get("horizon") or {}).get("levels")}
+    if diverges:
+        summary.update(mean_exists=False, sample_mean_trace=last["mean"],
+                       statement="E[tr P_t] diverges (the network is mean-unstable): the sample "
+                                 "mean estimates nothing")
+    else:
+        summary.update(mean_exists=None if op.get("verdict") != "mean-stable" else True,
+                       mean_trace=last)
+    return {"seed": opts.seed, "quick": opts.quick, "network": summary,
+            "reason": "per-sensor arrivals, each sensor over its own link"}
+
+
+def network_burst_condition(network: Any) -> dict[str, Any] | None:
+    """The necessary burst condition of a network with bursty links (MATH §9 and §10).
+
+    A run of k steps in which every sensor outside T loses its packets has probability of order
+    Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a lost link stays lost)
+    and 1 − p_j for an i.i.d. one, while the modes unobservable through C_T grow like ρ_T^{2k}:
+    E[P_t] is unbounded unless Π_{j∉T} c_j·ρ_T² < 1 for every T — the necessary surface of
+    :func:`kfcrit.theory.network.necessary_constraints` evaluated at p_j' = 1 − c_j. None when
+    every link is memoryless.
+    """
+    import numpy as np
+
+    from kfcrit.theory.network import necessary_constraints, necessary_holds
+
+    chains = [bursty_channel(s.channel) for s in network.sensors]
+    if all(c is None for c in chains):
+        return None
+    q_exact = [c.recovery_rate if c is not None else
+               (s.channel.arrival_probability if s.channel is not None else None)
+               for s, c in zip(network.sensors, chains)]
+    q = np.array([float(v) if v is not None else 0.0 for v in q_exact])
+    holds = necessary_holds(necessary_constraints(network), q, q_exact)
+    names = ", ".join(s.name for s, c in zip(network.sensors, chains) if c is not None)
+    statement = (f"burst condition for the bursty links ({names}): Π_(j∉T) c_j·ρ_T² < 1 for "
+                 "every sensor set T, c_j = 1 − r_j (Gilbert–Elliott) or 1 − p_j (i.i.d.) — "
+                 + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
+                    if holds is False else "undecided at float precision"))
+    return {"holds": holds, "statement": statement,
+            "continuation": {s.name: 1 - float(v) for s, v in zip(network.sensors, q)}}
