@@ -437,7 +437,11 @@ class _Sensitivity:
                   - T_{11}^T \\otimes I)
 
         Only the separation of the two spectral parts enters: a defective eigenvalue *outside*
-        I does not make the subspace of I sensitive unless it is close to I's eigenvalues."""
+        I does not make the subspace of I sensitive unless it is close to I's eigenvalues.
+        Above :data:`STEWART_MAX_STATES` states the first-order estimate is used (each Stewart
+        bound costs a Schur reordering and a Sylvester separation)."""
+        if a.shape[0] > STEWART_MAX_STATES:
+            return self._first_order_turn(st, ids)
         turn = subspace_turn(a, st, ids, self.eps)
         return turn if turn is not None else self._first_order_turn(st, ids)
 
@@ -456,6 +460,8 @@ class _Sensitivity:
 
 
 _SEP_MAX_ORDER = 600
+STEWART_MAX_STATES = 100
+"""Largest n whose invariant-subspace turns use Stewart's bound (first order beyond)."""
 """Largest k·(n − k) for which sep(T₁₁, T₂₂) is computed from the Kronecker form."""
 
 
