@@ -467,9 +467,6 @@ def test_huge_but_finite_entries_never_exit_4(case: str, tmp_path: Path) -> None
     assert code in (ExitCode.INCONCLUSIVE, ExitCode.REVIEW_FAILED), err
 
 
-@pytest.mark.xfail(reason="root cause in kfcrit/theory/structure.py _numeric_structure: "
-                          "mod2=abs(mu) ** 2 overflows a Python float for |mu| > 1.34e154",
-                   strict=False)
 @pytest.mark.parametrize("case", ["exp(690)", "7x7 of 1e200"])
 def test_huge_entries_are_analysed_not_undetermined(case: str, tmp_path: Path) -> None:
     path = _big_7x7(tmp_path) if case.startswith("7x7") else _system(tmp_path, f"[[{case}]]")
@@ -477,9 +474,6 @@ def test_huge_entries_are_analysed_not_undetermined(case: str, tmp_path: Path) -
     assert code == ExitCode.REVIEW_FAILED, err  # 0.5 < p_c = 1 - 1/|a|^2 (> 0.99)
 
 
-@pytest.mark.xfail(reason="root cause in kfcrit/sim/montecarlo.py _threshold: 1e10 x the "
-                          "problem's scale overflows to inf and is then refused as if the user "
-                          "had written divergence_threshold", strict=False)
 @pytest.mark.parametrize("case", ["Sigma0", "Q-R"])
 def test_huge_scales_do_not_blame_a_field_the_user_never_wrote(case: str,
                                                               tmp_path: Path) -> None:
