@@ -348,3 +348,17 @@ def test_reports_show_no_internal_names(stem):
     rec.pop("description", None)   # the user's own words are printed as written
     text = visible_text(report.render_html(rec, {}))
     assert not INTERNAL.search(text), INTERNAL.search(text)
+
+
+def test_network_simulation_summary_is_shown() -> None:
+    """A network's per-sensor-arrival simulation is a row of the simulation table (not
+    "not computed"): its paths and the simulated mean with its band, read from the record."""
+    from kfcrit.views.view_sim import simulation_view
+
+    rec = {"operating_point": {"verdict": "mean-stable"}, "covariance_bounds": None,
+           "simulation": {"seed": 3, "quick": True, "network": {
+               "paths": 300, "steps": 200, "mean_exists": True,
+               "mean_trace": {"mean": 8.0, "lower": 6.0, "upper": 10.0}}}}
+    rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
+    assert "each sensor over its own link" in rows["operating-point runs"]["note"]
+    assert rows["simulated E[tr P_t] at the horizon"]["value"] == 8.0

@@ -126,7 +126,20 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
         budget.get("paths", d.get("paths"))
     steps = op.get("steps") if op.get("steps") is not None else \
         budget.get("steps", d.get("steps"))
-    if not op:
+    net = as_dict(d.get("network"))
+    if not op and net:
+        rows.append(row("operating-point runs", None, note=f"{filters.count(net.get('paths'))} "
+                        f"paths × {filters.count(net.get('steps'))} steps, each sensor over its "
+                        f"own link" + (f", seed {seed}" if seed is not None else "")))
+        mt = as_dict(net.get("mean_trace"))
+        if net.get("mean_exists") is False:
+            rows.append(row("simulated E[tr P_t]", None, note="diverges (the network is "
+                            "mean-unstable); the sample mean estimates nothing"))
+        elif number(mt.get("mean")) is not None:
+            band = filters.span(number(mt.get("lower")), number(mt.get("upper")), 5)
+            rows.append(row("simulated E[tr P_t] at the horizon", number(mt.get("mean")), "num",
+                            note=f"95 % band {band}"))
+    elif not op:
         rows.append(row("operating-point runs", None, note="none: the record has no operating "
                         "point (no channel in the system file)"
                         if rec.get("operating_point") is None else
