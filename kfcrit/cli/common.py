@@ -61,12 +61,18 @@ def interrupted_exit() -> None:
     import os
 
     click.echo("kfcrit: error: interrupted; nothing was written", err=True)
+    flush_std_streams()
+    os._exit(ExitCode.INTERRUPTED)
+
+
+def flush_std_streams() -> None:
+    """Flush stdout and stderr before ``os._exit`` (which skips the interpreter's own flush);
+    a stream that is already closed or broken is left alone."""
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError):
             pass
-    os._exit(ExitCode.INTERRUPTED)
 
 
 def broken_pipe_exit() -> None:

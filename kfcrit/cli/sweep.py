@@ -18,6 +18,7 @@ from kfcrit.analysis.sweep import (
     run_sweep,
     table_csv,
 )
+from kfcrit.cli.common import flush_std_streams
 from kfcrit.errors import ExitCode
 from kfcrit.io.atomic import write_atomic
 from kfcrit.io.jsonio import jsonable
@@ -80,11 +81,7 @@ def _interrupted(journal: Journal) -> None:
     print(f"kfcrit: error: interrupted; {journal.count()} finished points are kept in "
           f"{printable(str(journal.path))} (run the same command again to resume); the table "
           "and plots were not updated", file=sys.stderr)
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
+    flush_std_streams()
     os._exit(ExitCode.INTERRUPTED)
 
 
