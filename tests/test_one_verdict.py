@@ -19,8 +19,8 @@ GENERAL = {"name": "general", "A": [[1.25, 0], [1, 1.1]], "C": [[1, 1]], "Q": 20
 """Sinopoli's general example: p_c = 9/25, p_up = 57/121 (MATH §3)."""
 
 THEORY: dict = {}
-GE_EXAMPLES = 40 if PROFILE == "thorough" else 5
-"""Each bursty point runs the coupled-certificate LMI twice (sweep row and analyze)."""
+GE_EXAMPLES = 100 if PROFILE == "thorough" else 15
+"""Each bursty point runs the coupled-certificate LMI (sweep row and analyze) and the critical curve."""
 
 
 def row_and_record(doc: dict, assignments: list[tuple[str, str]]) -> tuple[dict, dict]:

@@ -292,39 +292,66 @@ def adjoint_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, f: float, r: floa
     return symmetrize(X0) / s, symmetrize(X1) / s
 
 
-def lmi_gain(A: np.ndarray, C: np.ndarray, f: float, r: float) -> tuple[np.ndarray | None, float]:
-    """The gain of the coupled Lyapunov LMI (module docstring), maximising the margin t:
-    returns (K = S_1⁻¹ Z or None, t*). t* > 0 means feasible (numerically)."""
-    import cvxpy as cp
+class CoupledLmi:
+    """The coupled Lyapunov LMI of (A, C) with the transition rates (f, r) as parameters.
 
-    n, m = A.shape[0], C.shape[0]
-    X0 = cp.Variable((n, n), symmetric=True)
-    X1 = cp.Variable((n, n), symmetric=True)
-    Z = cp.Variable((n, m))
-    t = cp.Variable()
-    S0 = (1 - r) * X0 + r * X1
-    S1 = f * X0 + (1 - f) * X1
-    off = S1 @ A + Z @ C
-    block = cp.bmat([[X1, off.T], [off, S1]])
-    I = np.eye(n)
-    cons = [X0 - A.T @ S0 @ A - t * I >> 0,
-            0.5 * (block + block.T) - t * np.eye(2 * n) >> 0,
-            I - X0 >> 0, I - X1 >> 0]
-    prob = cp.Problem(cp.Maximize(t), cons)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            prob.solve(solver=cp.CLARABEL, **CLARABEL_SETTINGS)
-    except (cp.error.SolverError, ValueError, ArithmeticError):
-        return None, float("nan")
-    if prob.status not in ("optimal", "optimal_inaccurate") or t.value is None:
-        return None, float("nan")
-    S1v = f * X0.value + (1 - f) * X1.value
-    try:
-        K = np.linalg.solve(S1v, Z.value)
-    except np.linalg.LinAlgError:
-        return None, float(t.value)
-    return (K if np.all(np.isfinite(K)) else None), float(t.value)
+    .. math::
+
+        \max t \ \text{s.t.}\ X_0 - A^\top S_0 A \succeq tI,\
+        \begin{bmatrix} X_1 & (S_1 A + Z C)^\top \\ S_1 A + Z C & S_1 \end{bmatrix}
+        \succeq tI,\ X_i \preceq I,
+
+    with :math:`S_0 = (1-r)X_0 + rX_1`, :math:`S_1 = fX_0 + (1-f)X_1` (affine in the parameters
+    times the variables, so the problem is DPP: cvxpy compiles it once and each
+    :meth:`solve` only re-fills the numbers — the critical curve solves it ~100 times).
+    """
+
+    def __init__(self, A: np.ndarray, C: np.ndarray) -> None:
+        import cvxpy as cp
+
+        n, m = A.shape[0], C.shape[0]
+        self.f = cp.Parameter(nonneg=True)
+        self.r = cp.Parameter(nonneg=True)
+        self.X0 = cp.Variable((n, n), symmetric=True)
+        self.X1 = cp.Variable((n, n), symmetric=True)
+        self.Z = cp.Variable((n, m))
+        self.t = cp.Variable()
+        S0 = (1 - self.r) * self.X0 + self.r * self.X1
+        S1 = self.f * self.X0 + (1 - self.f) * self.X1
+        off = S1 @ A + self.Z @ C
+        block = cp.bmat([[self.X1, off.T], [off, S1]])
+        eye = np.eye(n)
+        cons = [self.X0 - A.T @ S0 @ A - self.t * eye >> 0,
+                0.5 * (block + block.T) - self.t * np.eye(2 * n) >> 0,
+                eye - self.X0 >> 0, eye - self.X1 >> 0]
+        self.problem = cp.Problem(cp.Maximize(self.t), cons)
+
+    def solve(self, f: float, r: float) -> tuple[np.ndarray | None, float]:
+        """(K = S_1⁻¹ Z or None, t*) at (f, r); t* > 0 means feasible (numerically)."""
+        import cvxpy as cp
+
+        self.f.value, self.r.value = float(f), float(r)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                self.problem.solve(solver=cp.CLARABEL, **CLARABEL_SETTINGS)
+        except (cp.error.SolverError, ValueError, ArithmeticError):
+            return None, float("nan")
+        t = self.t.value
+        if self.problem.status not in ("optimal", "optimal_inaccurate") or t is None:
+            return None, float("nan")
+        S1v = f * self.X0.value + (1 - f) * self.X1.value
+        try:
+            K = np.linalg.solve(S1v, self.Z.value)
+        except np.linalg.LinAlgError:
+            return None, float(t)
+        return (K if np.all(np.isfinite(K)) else None), float(t)
+
+
+def lmi_gain(A: np.ndarray, C: np.ndarray, f: float, r: float) -> tuple[np.ndarray | None, float]:
+    """The gain of the coupled Lyapunov LMI (:class:`CoupledLmi`), maximising the margin t:
+    returns (K = S_1⁻¹ Z or None, t*). t* > 0 means feasible (numerically)."""
+    return CoupledLmi(A, C).solve(f, r)
 
 
 def candidate_gains(A: np.ndarray, C: np.ndarray) -> list[tuple[str, np.ndarray]]:
@@ -532,15 +559,19 @@ CURVE_MAX_STATES = 12
 
 
 def certificate_feasible(A: np.ndarray, C: np.ndarray, f: float, r: float,
-                         use_lmi: bool = True) -> bool:
+                         use_lmi: bool = True, lmi: CoupledLmi | None = None,
+                         candidates: list[tuple[str, np.ndarray]] | None = None) -> bool:
     """Numerical test: some gain (LMI or candidates) gives spectral radius < 1 of the coupled
-    second-moment recursion (no ball check: used for the curve, not for verdicts)."""
+    second-moment recursion (no ball check: used for the curve, not for verdicts).
+
+    ``lmi`` (the compiled LMI of (A, C)) and ``candidates`` (:func:`candidate_gains`) may be
+    passed in when the test is repeated for many (f, r)."""
     gains = []
     if use_lmi:
-        K, t = lmi_gain(A, C, f, r)
+        K, t = (lmi or CoupledLmi(A, C)).solve(f, r)
         if K is not None and t > LMI_FEASIBLE_MARGIN:
             gains.append(K)
-    gains.extend(K for _, K in candidate_gains(A, C))
+    gains.extend(K for _, K in (candidate_gains(A, C) if candidates is None else candidates))
     for K in gains:
         try:
             if coupled_radius(A, C, K, f, r) < 1:
@@ -575,8 +606,9 @@ def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
         notes.append(f"sufficient curve not computed for n = {system.n} > {CURVE_MAX_STATES}")
         suff = [None] * len(fs)
     else:
+        lmi, candidates = CoupledLmi(A, C), candidate_gains(A, C)
         for f in fs:
-            suff.append(_sufficient_threshold(A, C, f, r_nec, tol))
+            suff.append(_sufficient_threshold(A, C, f, r_nec, tol, lmi, candidates))
         if any(v is None for v in suff):
             notes.append("no certificate even at r = 1 for some f (None): the fixed-gain bound "
                          "does not decide there")
@@ -590,13 +622,14 @@ def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
 
 
 def _sufficient_threshold(A: np.ndarray, C: np.ndarray, f: float, r_nec: float,
-                          tol: float) -> float | None:
+                          tol: float, lmi: CoupledLmi,
+                          candidates: list[tuple[str, np.ndarray]]) -> float | None:
     lo, hi = r_nec, 1.0
-    if not certificate_feasible(A, C, f, hi):
+    if not certificate_feasible(A, C, f, hi, lmi=lmi, candidates=candidates):
         return None
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        if certificate_feasible(A, C, f, mid):
+        if certificate_feasible(A, C, f, mid, lmi=lmi, candidates=candidates):
             hi = mid
         else:
             lo = mid

@@ -23,8 +23,14 @@ FIG_RC = {"font.size": 8.5, "axes.titlesize": 9, "axes.labelsize": 8.5, "legend.
           "svg.hashsalt": "kfcrit", "axes.spines.top": False, "axes.spines.right": False,
           "axes.grid": True, "grid.color": "#e5e7eb", "grid.linewidth": 0.6,
           "mathtext.fontset": "dejavuserif"}
-WIDTH_IN = 6.4
-HEIGHT_IN = 2.9
+# Full-width figures: the A4 text width (182 mm) at the height they print at (print CSS caps a
+# figure at 58 mm), so that their text prints at about its nominal size.
+WIDTH_IN = 7.0
+HEIGHT_IN = 2.6
+# Figures printed side by side (two per row of the A4 text width, 182 mm) are drawn at the size
+# they print at, so that their text keeps the size of the full-width figures' text.
+HALF_WIDTH_IN = 3.45
+HALF_HEIGHT_IN = 2.55
 
 
 def floats(values: Any) -> list[float] | None:
@@ -64,8 +70,9 @@ def positive(values: Sequence[float]) -> bool:
     return any(math.isfinite(v) and v > 0 for v in values)
 
 
-def new_figure(height: float = HEIGHT_IN) -> tuple[Figure, Any]:
-    fig = Figure(figsize=(WIDTH_IN, height), layout="constrained")
+def new_figure(height: float = HEIGHT_IN, width: float = WIDTH_IN) -> tuple[Figure, Any]:
+    """A figure with one axes, ``width`` × ``height`` inches, constrained layout."""
+    fig = Figure(figsize=(width, height), layout="constrained")
     return fig, fig.add_subplot()
 
 

@@ -49,6 +49,8 @@ from kfcrit.views.designplots import (  # noqa: E402
 from kfcrit.views.figstyle import (  # noqa: E402,F401
     COLORS,
     FIG_RC,
+    HALF_HEIGHT_IN,
+    HALF_WIDTH_IN,
     HEIGHT_IN,
     WIDTH_IN,
     finite,
@@ -149,7 +151,7 @@ def draw_traces(record: dict[str, Any]) -> Figure | None:
     if not isinstance(demo, list) or not demo:
         return None
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = new_figure()
+        fig, ax = new_figure(HALF_HEIGHT_IN, HALF_WIDTH_IN)
         palette = ["#b91c1c", "#d9730d", "#1f5fa8", "#15803d", "#7c3aed"]
         drawn = 0
         for i, run in enumerate(demo):
@@ -232,7 +234,7 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
     shown = [v for v in list(y) + [s_tr or 0.0, v_tr or 0.0] if math.isfinite(v) and v > 0]
     floor = 0.5 * min(shown)
     with matplotlib.rc_context(FIG_RC):
-        fig, ax = new_figure()
+        fig, ax = new_figure(HALF_HEIGHT_IN, HALF_WIDTH_IN)
         if lo is not None and hi is not None and len(lo) == len(t) == len(hi):
             # A lower band end at or below zero cannot be drawn on a log axis: it is drawn to
             # the bottom of the plot (the band extends below it).
@@ -253,7 +255,7 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
         plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")
-        fig.legend(loc="outside lower center", frameon=False, ncols=4)
+        fig.legend(loc="outside lower center", frameon=False, ncols=2)
         return fig
 
 

@@ -15,13 +15,20 @@ from matplotlib import rc_context, ticker  # noqa: E402 - after choosing the bac
 from matplotlib.figure import Figure  # noqa: E402
 
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve  # noqa: E402
-from kfcrit.views.figstyle import COLORS, FIG_RC, HEIGHT_IN, WIDTH_IN  # noqa: E402
+from kfcrit.views.figstyle import (  # noqa: E402
+    COLORS,
+    FIG_RC,
+    HALF_HEIGHT_IN,
+    HALF_WIDTH_IN,
+    HEIGHT_IN,
+    WIDTH_IN,
+)
 
 LINE_COLORS = ("#1f5fa8", "#d9730d", "#15803d", "#7c3aed", "#6b7280")
 
 
-def _figure(height: float = HEIGHT_IN) -> tuple[Figure, object]:
-    fig = Figure(figsize=(WIDTH_IN, height), layout="constrained")
+def _figure(height: float = HEIGHT_IN, width: float = WIDTH_IN) -> tuple[Figure, object]:
+    fig = Figure(figsize=(width, height), layout="constrained")
     return fig, fig.add_subplot()
 
 
@@ -32,10 +39,10 @@ def _plain_log_x(ax: object) -> None:
     ax.xaxis.set_minor_formatter(ticker.NullFormatter())
 
 
-def _legend_below(fig: Figure, ax: object) -> None:
+def _legend_below(fig: Figure, ax: object, ncols: int = 2) -> None:
     """The legend under the axes, so that it never hides a curve."""
     handles, labels = ax.get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=2, frameon=False)
+    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, frameon=False)
 
 
 def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None = None,
@@ -55,7 +62,7 @@ def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None
         The largest distance meeting the requirement under the margin policy.
     """
     with rc_context(FIG_RC):
-        fig, ax = _figure(HEIGHT_IN + 0.9)
+        fig, ax = _figure(HEIGHT_IN + 0.5)
         retries = f", {curve.max_retries} retries" if curve.max_retries else ""
         ax.plot(curve.distance_m, curve.arrival, color=COLORS["lower"],
                 label=f"median link, p = 1 − PER^(k+1) (PSDU {curve.psdu_bytes} B{retries})")
@@ -84,7 +91,7 @@ def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None
         ax.set_ylabel("arrival probability")
         ax.set_title("Arrival probability against distance")
         _plain_log_x(ax)
-        _legend_below(fig, ax)
+        _legend_below(fig, ax, ncols=3)
     return fig
 
 
@@ -94,7 +101,7 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = ())
     ``marks``: (label, SINR dB) pairs drawn as vertical lines (e.g. the configured SINR).
     """
     with rc_context(FIG_RC):
-        fig, ax = _figure()
+        fig, ax = _figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
         for i, length in enumerate(curve.psdu_bytes):
             y = curve.per[i]
             ax.plot(curve.sinr_db, y, color=LINE_COLORS[i % len(LINE_COLORS)],
@@ -106,15 +113,15 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = ())
         ax.set_ylim(1e-8, 1.5)
         ax.set_xlabel("SINR (dB)")
         ax.set_ylabel("packet error rate")
-        ax.set_title(f"PER = 1 − (1 − BER)^(8L), radio {curve.radio}")
-        ax.legend(loc="lower left", frameon=False)
+        ax.set_title(f"radio {curve.radio}")
+        _legend_below(fig, ax)
     return fig
 
 
 def outage_distance_figure(curve: OutageCurve) -> Figure:
     """P(p_link < p) over per-link shadowing against distance, with the allowed outage."""
     with rc_context(FIG_RC):
-        fig, ax = _figure(HEIGHT_IN + 0.6)
+        fig, ax = _figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
         for i, (label, p) in enumerate(curve.requirements):
             ax.plot(curve.distance_m, curve.outage[i], color=LINE_COLORS[i % len(LINE_COLORS)],
                     label=f"P(p_link < {p:.4g}) ({label})")
@@ -127,7 +134,7 @@ def outage_distance_figure(curve: OutageCurve) -> Figure:
         ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("distance d (m)")
         ax.set_ylabel("outage probability")
-        ax.set_title(f"Shadowing outage against distance (σ = {curve.sigma_db:g} dB, per link)")
+        ax.set_title(f"σ = {curve.sigma_db:g} dB, per link")
         _plain_log_x(ax)
         _legend_below(fig, ax)
     return fig

@@ -193,7 +193,9 @@ def link_budget_view(lb: dict[str, Any]) -> dict[str, Any]:
                        "outage_probability", "reachable")}}
                   for t in as_list(lb.get("thresholds"))]
     radio = as_dict(lb.get("radio"))
-    return {"chain": chain, "design": design, "thresholds": thresholds,
+    half = (len(chain) + 1) // 2
+    return {"chain": chain, "chain_columns": [chain[:half], chain[half:]],
+            "design": design, "thresholds": thresholds,
             "radio": radio.get("model"), "radio_formula": prose(radio.get("formula")) or None,
             "radio_svg": radio_formula_svg(radio),
             "radio_source": radio.get("source"), "policy_rule": prose(policy.get("rule")),
