@@ -293,7 +293,7 @@ def adjoint_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, f: float, r: floa
 
 
 class CoupledLmi:
-    """The coupled Lyapunov LMI of (A, C) with the transition rates (f, r) as parameters.
+    r"""The coupled Lyapunov LMI of (A, C) with the transition rates (f, r) as parameters.
 
     .. math::
 
