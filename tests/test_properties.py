@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 from kfcrit.model.system import System
 from kfcrit.theory import critical
 
+from .balls import Unsupported, certainly_positive_definite
 from .strategies import (
     PAPER_CASES,
     PAPER_FLOAT_CASES,
@@ -549,8 +550,16 @@ def check_upper_certificate_exact(system: System, rec: dict) -> None:
     A, C = system.A, system.C
     F = A + K * C
     M = X - (1 - p) * A * X * A.T - p * F * X * F.T
-    if not (X.is_positive_definite and sp.simplify(M - M.T) == sp.zeros(*M.shape)
-            and M.is_positive_definite):
+    # X is rational: symmetric and ≻ 0 decided exactly. M is then symmetric by construction;
+    # its definiteness is decided by Sylvester's criterion in 256-bit balls (rigorous), or by
+    # sympy's exact algebra where the entries have a form the ball evaluator does not know.
+    if X != X.T or not X.is_positive_definite:
+        raise PropertyViolation(f"certificate at p = {float(p)}: X is not symmetric ≻ 0")
+    try:
+        m_ok = certainly_positive_definite(M)
+    except Unsupported:
+        m_ok = M.is_positive_definite
+    if not m_ok:
         raise PropertyViolation(f"certificate at p = {float(p)} fails the exact re-check")
 
 
@@ -856,3 +865,19 @@ def test_covariance_bounds_paper_cases() -> None:
     assert abs(rec["lower"]["trace"] - 1 / (1 - 0.5 * 25 / 16)) < 1e-9
     assert abs(rec["upper"]["trace"] - (5.5 + 8169 ** 0.5 / 14)) < 1e-7
     assert rec["ordered"] is True
+
+
+def test_ball_definiteness_check_decides_like_exact_algebra() -> None:
+    """The tests' ball re-check (tests/balls.py) against hand-known and sympy-exact answers."""
+    c, s = sp.cos(sp.pi / 7), sp.sin(sp.pi / 7)
+    assert certainly_positive_definite(sp.Matrix([[2, 1], [1, 2]]))
+    assert not certainly_positive_definite(sp.Matrix([[1, 2], [2, 1]]))      # det = −3
+    assert not certainly_positive_definite(sp.Matrix([[1, 1], [1, 1]]))      # det = 0 exactly
+    tiny = sp.Rational(1, 10**60)
+    assert certainly_positive_definite(sp.Matrix([[1, 1], [1, 1 + tiny]]))   # det = 10⁻⁶⁰
+    # cos²(π/7) + sin²(π/7) = 1: det [[1, c], [c, 1 − s²]] = 1 − s² − c² = 0, not ≻ 0
+    assert not certainly_positive_definite(sp.Matrix([[1, c], [c, 1 - s**2]]))
+    near = sp.Matrix([[1, c], [c, 1 - s**2 + tiny]])
+    assert certainly_positive_definite(near) == near.is_positive_definite is True
+    with pytest.raises(Unsupported):
+        certainly_positive_definite(sp.Matrix([[sp.exp(1)]]))
