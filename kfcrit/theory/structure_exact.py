@@ -623,7 +623,7 @@ def exact_structure(system: System, start: float) -> Structure:
                 work.check_time("equal-modulus pairs")
     controllable, how = controllability(system, work)
     form = {"eigenvalues": [sp.sstr(e.expr) if e.expr is not None else e.text for e in eigen],
-            "basis": "V: exact bases of ker(A − λI) (sympy nullspace), C·V over ℂ",
+            "basis": "V: exact bases of ker(A − λI) (exact linear algebra), C·V over ℂ",
             "equi_blocks": []}
     for grp in groups:
         _, CV = work.images(xeigs, grp)

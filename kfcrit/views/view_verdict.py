@@ -168,17 +168,21 @@ def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
             "caution": "not demonstrated: the 95 % interval contains the allowed tail "
                        "probability; run more paths (full mode) before relying on this"
                        if status == "not demonstrated" else "",
-            "missing": "" if limit is not None else mean_requirement_text(req)}
+            "missing": "" if limit is not None else mean_requirement_text(req),
+            "box_text": "" if limit is not None else mean_requirement_text(req, short=True)}
 
 
-def mean_requirement_text(req: dict[str, Any]) -> str:
-    """The verdict box's requirement line without a tail requirement: the mean requirement's
-    assessment (``requirements.assessments``), or how to add a requirement."""
+def mean_requirement_text(req: dict[str, Any], short: bool = False) -> str:
+    """The requirement line without a tail requirement: the mean requirement's assessment
+    (``requirements.assessments``), or how to add a requirement (``short``: the verdict box's
+    pointer to section 2, which says how)."""
     for a in as_list(req.get("assessments")):
         a = as_dict(a)
         if a.get("requirement"):
             return (f"{prose(a.get('requirement'))}: {a.get('status') or 'not assessed'} "
                     "(section 2)")
+    if short:
+        return "none in the system file (section 2 says how to add one)"
     return ("no requirement in the system file (add requirements: max_error_trace, "
             "max_tail_probability, or max_mean_error_trace)")
 
