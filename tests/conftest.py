@@ -9,6 +9,8 @@ Profiles (choose with ``HYPOTHESIS_PROFILE``; CI uses ``ci``):
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -20,7 +22,7 @@ SHARED_CASES = ROOT / "tests" / "data" / "cases"
 """The papers' example systems and their expected values (facts from the papers, kept in the
 repository: ``expected.json`` and one system file per case)."""
 
-settings.register_profile("ci", derandomize=True, deadline=None, max_examples=40,
+settings.register_profile("ci", derandomize=True, deadline=None, max_examples=30,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("dev", deadline=None, max_examples=100)
 settings.register_profile("thorough", deadline=None, max_examples=1000,
@@ -30,6 +32,27 @@ PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "dev")
 # for the ``kfcrit`` subprocesses the tests start (read when kfcrit.theory.structure is imported).
 os.environ.setdefault("KFCRIT_EXACT_TIME_BUDGET", "120")
 settings.load_profile(PROFILE)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With pytest-xdist workers, compile the numba kernels once, before the workers start.
+
+    Two processes (``tests/warm_jit.py``) fill the kernels' on-disk cache side by side; without
+    this, on a fresh clone every worker would compile the same kernels itself at its first
+    simulation. A warm cache makes this a few seconds of loading; a failure here is left for
+    the tests themselves to report.
+    """
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    procs = [subprocess.Popen([sys.executable, "-m", "tests.warm_jit", part], cwd=ROOT,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for part in ("rre", "ergodic")]
+    for proc in procs:
+        try:
+            proc.wait(timeout=600)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
