@@ -165,3 +165,15 @@ def test_bad_rates_are_refused():
         markov.burst_necessary(BURSTY, 1.5)
     with pytest.raises(TypeError, match="failure_rate"):
         markov.burst_verdict(BURSTY, "0.1", 0.5)
+
+
+def test_compiled_lmi_reused_across_rates_equals_a_fresh_one() -> None:
+    """The critical curve re-solves one compiled LMI (f, r as parameters): each solve must
+    equal a problem built afresh at that (f, r), whatever was solved before it."""
+    A = np.array([[1.25, 0.0], [1.0, 1.1]])
+    C = np.array([[1.0, 1.0]])
+    reused = markov.CoupledLmi(A, C)
+    for f, r in [(0.3, 0.9), (0.05, 0.45), (0.6, 0.2), (0.1, 0.5)]:
+        _, t_reused = reused.solve(f, r)
+        _, t_fresh = markov.CoupledLmi(A, C).solve(f, r)
+        assert t_reused == pytest.approx(t_fresh, rel=1e-6, abs=1e-9), (f, r)

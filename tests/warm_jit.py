@@ -20,8 +20,9 @@ def main(part: str) -> None:
     system = System([[1.25, 0], [1, 1.1]], [[1, 1]], [[20, 0], [0, 20]], [[2.5]])
     if part == "rre":
         simulate(system, paths=8, steps=4, seed=0, arrival_probability=0.9)
-        simulate(system, paths=8, steps=4, seed=0, channel=GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
-                 record_traces=True, track_lambda_max=False)
+        bursty = GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2))
+        simulate(system, paths=8, steps=4, seed=0, channel=bursty, record_traces=True,
+                 track_lambda_max=False)
     else:
         ergodic(system, steps=64, seed=0, arrival_probability=0.9, levels=(10.0,))
 

@@ -70,6 +70,16 @@ def resolve_channel(channel: Channel | None, arrival_probability: Any) -> Channe
     return Bernoulli(exact_probability(arrival_probability, "arrival_probability"))
 
 
+def kernel_array(x: Any, dtype: Any = None) -> np.ndarray:
+    """``x`` as a C-contiguous, aligned, writable array (a copy only where it is not one).
+
+    numba compiles one specialization per combination of array flags: passing the system's
+    read-only matrices in one call and computed (writable) arrays in another would compile the
+    kernels (tens of seconds) once per combination.
+    """
+    return np.require(np.asarray(x, dtype=dtype), requirements=("C", "A", "W"))
+
+
 def sample_times(steps: int, samples: int) -> np.ndarray:
     """At most ``samples`` sample times in 0 … steps, evenly spread, always with 0 and steps."""
     if samples < 2:
@@ -374,9 +384,8 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     link = SensorLinks.of(links, m)
     process = chan.arrival_process()
     kind, p, f, r, seq = process_arrays(process)
-    A, C, Q, R = (np.ascontiguousarray(x, dtype=float) for x in
-                  (system.a, system.c, system.q, system.r))
-    P0 = initial_covariance(system, initial)
+    A, C, Q, R = (kernel_array(x, float) for x in (system.a, system.c, system.q, system.r))
+    P0 = kernel_array(initial_covariance(system, initial), float)
     threshold = resolve_threshold(system, P0, divergence_threshold)
     times = sample_times(steps, horizon_samples)
     S = times.size
@@ -407,7 +416,8 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     workers = resolve_threads(threads, float(n * n) * paths * steps)
     total = paths * steps
     fixed = (A, C, Q, R, P0)
-    chan_args = (link.kinds, link.ps, link.fs, link.rs, link.seqs, link.seq_len, link.row_sensor)
+    chan_args = tuple(kernel_array(a) for a in (link.kinds, link.ps, link.fs, link.rs, link.seqs,
+                                                 link.seq_len, link.row_sensor))
     with ThreadPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
         for start in range(0, paths, batch_size):
             stop = min(start + batch_size, paths)
@@ -612,9 +622,8 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     chan = resolve_channel(channel, arrival_probability)
     process = chan.arrival_process()
     kind, p, f, r, seq = process_arrays(process)
-    A, C, Q, R = (np.ascontiguousarray(x, dtype=float) for x in
-                  (system.a, system.c, system.q, system.r))
-    P0 = initial_covariance(system, initial)
+    A, C, Q, R = (kernel_array(x, float) for x in (system.a, system.c, system.q, system.r))
+    P0 = kernel_array(initial_covariance(system, initial), float)
     threshold = resolve_threshold(system, P0, divergence_threshold)
     burn = steps // 10 if burn_in is None else int(burn_in)
     if not 0 <= burn < steps:
@@ -632,6 +641,7 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     div = np.empty(replicas, dtype=np.int64)
     losses = np.zeros(replicas, dtype=np.int64)
     longest = np.zeros(replicas, dtype=np.int64)
+    seq = kernel_array(seq)
     ergodic_paths(A, C, Q, R, P0, keys, trace_offsets(keys, seq.size), kind, p, f, r, seq,
                    steps, burn, lv, max_burst,
                    n_batches, threshold, sums, exceed, batch_sums, burst_count, burst_trace,
