@@ -7,6 +7,7 @@ non-degenerate p_c = 1 − |λ_1|^{-2}; degenerate pair p_c = 1 − |λ_1|^{-2q/
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -655,3 +656,14 @@ def test_compare_probability_reads_critical_value_records():
     assert compare_probability(sp.Rational(9, 25), cv.value) == 0
     assert compare_probability(sp.Rational(9, 25), cv.to_dict()["critical_value"]["expression"]) \
         == 0
+
+
+def test_indexed_root_modulus_reads_as_an_approximation_not_17_digits():
+    """x⁵ − x − 1 (companion matrix) has no radical roots: the reason names the degenerate
+    block's modulus (its complex pair, from numpy.roots here) to 12 digits marked ≈."""
+    A = [[0, 1, 0, 0, 0], [0, 0, 1, 0, 0], [0, 0, 0, 1, 0], [0, 0, 0, 0, 1], [1, 1, 0, 0, 0]]
+    d = critical.critical_section(_sys(A, [[1, 0, 0, 0, 0]]))
+    reason = d["critical_value"]["reason"]
+    pair = max(abs(z) for z in np.roots([1, 0, 0, 0, -1, -1]) if abs(z.imag) > 1e-9)
+    assert f"|λ| ≈ {float(pair):.12g}" in reason
+    assert not re.search(r"\d\.\d{13,}", reason), reason

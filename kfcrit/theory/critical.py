@@ -239,8 +239,17 @@ def _mod_text(st: Structure, i: int) -> str:
     path: the float of the exact value) or as computed (numeric path)."""
     e = st.eigen[i]
     if e.mod2_expr is not None:
-        return _short(sp.sstr(sp.sqrt(e.mod2_expr)), f"≈ {e.modulus!r}")
+        return _short(sp.sstr(sp.sqrt(e.mod2_expr)), f"≈ {_approx_text(e.modulus)}")
+    if e.text is not None:   # exact path, an indexed root without a closed form
+        return f"≈ {_approx_text(e.modulus)}"
     return repr(e.modulus)
+
+
+def _approx_text(x: float) -> str:
+    """``x`` to 12 digits, unless rounding would show a short value it does not have
+    (1.9999999999999998 stays as computed, never "2")."""
+    text = f"{x:.12g}"
+    return repr(x) if float(text) != x and len(text) < 8 else text
 
 
 def _decided_text(system: System, st: Structure, what: str) -> str:

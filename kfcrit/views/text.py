@@ -1,7 +1,11 @@
 """Terminal view of the analysis record (a pure function of ``Analysis.to_dict()``)."""
 from __future__ import annotations
 
+import re
 from typing import Any
+
+_DECIMAL = re.compile(r"-?\d+(\.\d+)?(e[-+]?\d+)?")
+_LONG_DECIMAL = re.compile(r"\d\.\d{9,}")
 
 
 def _num(v: Any, digits: int = 6) -> str:
@@ -24,10 +28,10 @@ EXACT_TEXT_MAX = 100
 
 def _exact(d: dict[str, Any]) -> str:
     """``  (= expression)`` for a quantity with an exact form; long forms point to ``--json``."""
-    expr = d.get("expression")
-    if not expr:
-        return ""
-    if len(expr) > EXACT_TEXT_MAX:
+    expr = (d.get("expression") or "").strip()
+    if not expr or _DECIMAL.fullmatch(expr) or _LONG_DECIMAL.search(expr):
+        return ""   # a decimal (or text holding one) is the value itself, not an exact form
+    if "RootOf" in expr or len(expr) > EXACT_TEXT_MAX:
         return f"  (exact form of {len(expr)} characters: see --json)"
     return f"  (= {expr})"
 
