@@ -527,17 +527,23 @@ def test_link_review_pdf_layout(link_documents, records):
     for i, page in enumerate(flat, 1):
         assert name in page and f"kfcrit {__version__}" in page and f"page {i} of" in page
     before_appendix = next(i for i, p in enumerate(flat) if "Appendix: details" in p)
-    # the record also carries the tail exponent and the frame notes: six pages at most
-    assert before_appendix <= 6, f"{before_appendix} pages before the appendix"
+    # verdict, link design, requirement and theory sections in four pages; details after
+    assert before_appendix <= 4, f"{before_appendix} pages before the appendix"
     # the link design comes before the theory sections
     text = " ".join(flat)
     assert text.index("Design outputs") < text.index("3. The system")
-    # no numbered section heading is the last text line of a page (footer lines excluded)
+    # no heading (section, subsection, table caption) is the last text line of a page
+    # (footer lines excluded)
+    html = link_documents["html"].decode()
+    headings = {" ".join(re.sub(r"<[^>]+>", "", h).split()) for h in re.findall(
+        r'<h[23][^>]*>(.*?)</h[23]>|<p class="kv-caption">(.*?)</p>', html, re.S) for h in h if h}
+    assert "1. The link: radio link budget" in headings and "Design outputs" in headings
     for page in pages:
         lines = [ln.strip() for ln in page.splitlines() if ln.strip()]
         body = [ln for ln in lines if name not in ln and "page " not in ln and
                 "DRAFT" not in ln and "kfcrit " not in ln]
         assert body and not re.match(r"^\d\. [A-Z]", body[-1]), body[-3:]
+        assert " ".join(body[-1].split()) not in headings, body[-3:]
 
 
 def test_pdf_fetcher_refuses_external_urls(monkeypatch):
