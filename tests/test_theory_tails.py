@@ -34,3 +34,24 @@ def test_degenerate_systems_are_not_given_the_formula():
     s = System(np.diag([2.0, -2.0]), np.array([[1.0, 1.0]]), np.eye(2), np.eye(1))
     t = tail_exponent(s, 0.9, classification="degenerate")
     assert not t.applicable and t.value is None and "non-degenerate" in t.statement
+
+
+@pytest.mark.parametrize("A, C", [([[1]], [[1]]), ([[1, 0], [0, "1/2"]], [[1, 1]]),
+                                  ([[-1, 0], [0, "1/2"]], [[1, 1]])])
+def test_unit_spectral_radius_has_no_power_law_tail(A, C):
+    """ρ(A) = 1 exactly (a random walk, a diagonalizable mode on the unit circle): log ρ = 0,
+    no unstable mode, so no power-law tail — decided exactly, never a division by log 1."""
+    n, m = len(A), len(C)
+    s = System(A, C, np.eye(n).astype(int).tolist(), np.eye(m).astype(int).tolist())
+    t = tail_exponent(s, Fraction(9, 10), "non-degenerate")
+    assert t.value is None and t.expression == "oo" and t.finite_mean and t.finite_variance
+
+
+def test_marginal_random_walk_is_analysed_end_to_end():
+    from kfcrit.analysis.record import analyze
+    from kfcrit.analysis.spec import spec_from_mapping
+
+    spec = spec_from_mapping({"name": "walk", "A": 1, "C": 1, "Q": 1, "R": 1,
+                              "channel": {"model": "bernoulli", "arrival_probability": "9/10"}})
+    rec = analyze(spec, simulate=False).to_dict()
+    assert rec["critical_value"]["value"] == 0 and rec["review"]["decision"] == "pass"

@@ -68,9 +68,15 @@ def tail_exponent(system: System, p: Any, classification: str | None = None,
                             f"the tail exponent formula is stated for non-degenerate systems; "
                             f"this system is {classification}")
     rho = spectral_radius2(system, structure)
-    if rho.hi <= 1:
+    at_most_one = (rho.hi <= 1 if rho.exact is None
+                   else sp.sympify(rho.exact - 1).is_nonpositive)
+    if at_most_one:
         return TailExponent(None, "oo", True, True, True,
                             "rho(A) <= 1: no power-law tail from unstable modes")
+    if rho.exact is None and rho.lo <= 1 or at_most_one is None:
+        return TailExponent(None, None, False, None, None,
+                            "rho(A) is not separated from 1 by its enclosure: the tail exponent "
+                            "log(1 - p) / (-2 log rho(A)) is not determined")
     if pe == 1:
         return TailExponent(None, "oo", True, True, True, "p = 1: no losses, no tail")
     if rho.exact is not None:
