@@ -1,9 +1,9 @@
 """kfcrit — will a Kalman filter stay stable over a lossy link, and by how much margin?
 
 Public API: :class:`System`, :func:`load_system`, :func:`load_spec`, :func:`analyze`,
-:func:`critical_value`, :func:`upper_bound`, :func:`simulate`. The numerical modules (cvxpy,
-matplotlib, …) are imported lazily, on first use, so that ``kfcrit --help`` and input errors
-answer at once.
+:func:`critical_value`, :func:`upper_bound`, :func:`simulate`, :func:`from_statespace`. The
+numerical modules (cvxpy, matplotlib, …) are imported lazily, on first use, so that
+``kfcrit --help`` and input errors answer at once.
 """
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ _LAZY = {"Analysis": "api", "AnalysisOptions": "analysis.record",
          "critical_value": "theory.critical", "upper_bound": "theory.upper",
          "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds",
          "from_continuous_statespace": "model.continuous", "sample": "model.continuous",
+         "from_statespace": "model.continuous",
          "network_analysis": "theory.network"}
 
 
@@ -41,4 +42,4 @@ def __dir__() -> list[str]:
 __all__ = ["Analysis", "AnalysisOptions", "ExitCode", "KfcritError", "System", "SystemSpec",
            "__version__", "analyze", "covariance_bounds", "critical_value", "load_spec",
            "load_system", "simulate", "upper_bound", "from_continuous_statespace", "sample",
-           "network_analysis", "sweep", "SweepTable"]
+           "network_analysis", "sweep", "SweepTable", "from_statespace"]

@@ -44,6 +44,7 @@ from kfcrit.model.system import (
     MAX_STATES_DEFAULT,
     System,
     is_definite,
+    statespace_entries,
     sym_tolerance,
     to_float,
     to_matrix,
@@ -204,8 +205,14 @@ def sample(A_c: Any, Q_c: Any, T: Any) -> SampledModel:
 
 def from_continuous_statespace(sys: Any, sampling_time: Any, Q_c: Any, R: Any,
                                Sigma0: Any = None, name: str | None = None,
-                               max_states: int = MAX_STATES_DEFAULT) -> System:
-    """Build the sampled :class:`System` of a continuous-time python-control ``StateSpace``.
+                               max_states: int = MAX_STATES_DEFAULT, *, A_c: Any = None,
+                               C: Any = None) -> System:
+    r"""Build the sampled :class:`System` of a continuous-time python-control ``StateSpace``.
+
+    .. math::
+
+        A = e^{A_c T}, \qquad Q = \int_0^T e^{A_c s} Q_c e^{A_c' s}\, ds
+        \quad (\text{see } :func:`sample`).
 
     Parameters
     ----------
@@ -213,24 +220,132 @@ def from_continuous_statespace(sys: Any, sampling_time: Any, Q_c: Any, R: Any,
         Continuous time (``sys.dt == 0``). ``sys.A`` and ``sys.C`` are used; ``sys.B`` is not
         (process noise enters through ``Q_c``: for noise ``B_w w`` write ``Q_c = B_w S B_w'``).
     sampling_time : number or str
-        ``T > 0``; a string such as ``"1/10"`` is exact.
+        ``T > 0``; a string such as ``"1/10"`` is exact (parsed by
+        :mod:`kfcrit.model.exprparse`), a Python float is the binary number it is.
     Q_c : array_like
-        Spectral density of the process noise (n × n), or a scalar times the identity.
+        Spectral density of the process noise (n × n), or a scalar times the identity; strings,
+        integers and sympy numbers are exact.
     R : array_like
         Covariance of the *discrete* measurement noise of the sampled sensor.
+    A_c, C : array_like, optional
+        Exact matrices (lists of strings, integers, sympy numbers) to use instead of
+        ``sys.A`` and ``sys.C``; they must agree with the system's floats.
 
     Notes
     -----
-    python-control stores float arrays, so the result is built from float64 values
-    (``System.exact`` is False), as with :meth:`System.from_statespace`.
+    python-control stores float arrays. Entries equal to their shortest decimal (integers,
+    ``0.5``, ``-1.25``) are read exactly; every other float entry (``0.1``) is taken as its
+    binary value, and then the system is built from float64 values (``System.exact`` False).
+    With exact entries throughout (``sys`` of integers, ``T = "1/10"``) the sampled ``A`` and
+    ``Q`` are exact: the double integrator gives ``A = [[1, T], [0, 1]]`` and
+    ``Q = q [[T³/3, T²/2], [T²/2, T]]`` for ``Q_c = diag(0, q)``.
     """
     dt = getattr(sys, "dt", None)
     if dt is None or dt is True or (dt is not False and dt != 0):
         raise InputError("must be a continuous-time StateSpace (dt = 0); for a discrete one "
-                         "use System.from_statespace", field="sys")
-    model = sample(np.asarray(sys.A, dtype=float), Q_c, sampling_time)
-    return model.system(np.asarray(sys.C, dtype=float), R, Sigma0, name=name,
-                        max_states=max_states)
+                         "use kfcrit.from_statespace(sys, Q=Q, R=R)", field="sys")
+    return _sampled_system(sys, sampling_time, Q_c, R, Sigma0, name, max_states,
+                           (A_c, "A_c"), C)
+
+
+def _sampled_system(sys: Any, sampling_time: Any, Q_c: Any, R: Any, Sigma0: Any,
+                    name: str | None, max_states: int, a_override: tuple[Any, str],
+                    c_override: Any) -> System:
+    """The sampled system of a continuous ``sys`` (``a_override``: exact A_c and its name)."""
+    a = _statespace_matrix(sys.A, a_override[0], a_override[1], "sys.A")
+    c = _statespace_matrix(sys.C, c_override, "C", "sys.C")
+    model = sample(a, Q_c, sampling_time)
+    return model.system(c, R, Sigma0, name=name, max_states=max_states)
+
+
+def from_statespace(sys: Any, sampling_time: Any = None, Q: Any = None, R: Any = None,
+                    Sigma0: Any = None, name: str | None = None, *, A: Any = None,
+                    C: Any = None, max_states: int = MAX_STATES_DEFAULT) -> System:
+    r"""The kfcrit :class:`System` of a python-control ``StateSpace``, discrete or continuous.
+
+    A discrete ``sys`` (``dt > 0`` or ``True``) gives ``x_{k+1} = A x_k + w_k`` with
+    ``E[w w'] = Q`` directly. A continuous ``sys`` (``dt == 0``) needs ``sampling_time`` T and
+    takes ``Q`` as the spectral density ``Q_c`` of ``dx = A_c x dt + dw``; it is sampled with a
+    zero-order hold by :func:`sample` (Van Loan, exact for integrator chains and rational poles)
+    and gives
+
+    .. math::
+
+        A = e^{A_c T}, \qquad Q = \int_0^T e^{A_c s} Q_c e^{A_c' s}\, ds .
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        ``sys.A`` and ``sys.C`` are used (``sys.B``, ``sys.D`` are not).
+    sampling_time : number or str, optional
+        Required for (and only for) a continuous ``sys``; ``"1/10"`` is exact.
+    Q : array_like
+        Discrete process-noise covariance, or for a continuous ``sys`` the spectral density.
+    R : array_like
+        Discrete measurement-noise covariance (of the sampled sensor).
+    Sigma0 : array_like, optional
+        Initial error covariance (identity by default).
+    A, C : array_like, optional
+        Exact matrices (strings, integers, sympy numbers) to use instead of ``sys.A`` (for a
+        continuous ``sys``: A_c) and ``sys.C``; they must agree with the system's floats.
+
+    Notes
+    -----
+    python-control stores float arrays. Entries equal to their shortest decimal (integers,
+    ``0.5``, ``-1.25``) are read exactly; every other float entry (``0.1``) is taken as its
+    binary value, and the system is then inexact (``System.exact`` False). Pass ``A``/``C``
+    as text (``"1/10"``) for exact values. Errors are :class:`~kfcrit.errors.InputError`
+    naming the argument.
+    """
+    for value, field in ((Q, "Q"), (R, "R")):
+        if value is None:
+            raise InputError("is required (from_statespace(sys, sampling_time, Q=..., R=...))",
+                             field=field)
+    dt = getattr(sys, "dt", _MISSING)
+    if dt is _MISSING or not hasattr(sys, "A") or not hasattr(sys, "C"):
+        raise InputError(f"must be a python-control StateSpace, got {type(sys).__name__}",
+                         field="sys")
+    if dt is None:
+        raise InputError("has no timebase (dt = None): build it with dt=0 (continuous, then "
+                         "give sampling_time) or dt > 0 (discrete)", field="sys")
+    continuous = dt is not True and (dt is False or dt == 0)
+    if not continuous:
+        if sampling_time is not None:
+            raise InputError(f"applies to a continuous-time sys only; this one is discrete "
+                             f"(dt = {dt})", field="sampling_time")
+        a = _statespace_matrix(sys.A, A, "A", "sys.A")
+        c = _statespace_matrix(sys.C, C, "C", "sys.C")
+        return System(a, c, Q, R, Sigma0, name=name, max_states=max_states)
+    if sampling_time is None:
+        raise InputError("is required for a continuous-time sys (dt = 0): "
+                         "kfcrit.from_statespace(sys, sampling_time=T, Q=Q_c, R=R), Q_c the "
+                         "spectral density of the process noise", field="sampling_time")
+    return _sampled_system(sys, sampling_time, Q, R, Sigma0, name, max_states, (A, "A"), C)
+
+
+_MISSING = object()
+"""Marker of an absent attribute (``dt`` may legitimately be None)."""
+
+_AGREEMENT = 1e-12
+"""Relative difference up to which an exact override of ``sys.A``/``sys.C`` agrees with it."""
+
+
+def _statespace_matrix(floats: Any, override: Any, field: str, source: str) -> Any:
+    """The matrix to use: ``override`` (exact, checked against the system's floats) or the
+    system's own floats read by :func:`~kfcrit.model.system.statespace_entries`."""
+    if override is None:
+        return statespace_entries(floats)
+    M, _ = to_matrix(override, field)
+    ref = np.atleast_2d(np.asarray(floats, dtype=float))
+    mf = to_float(M)
+    if mf.shape != ref.shape:
+        raise InputError(f"must have the shape of {source}, {ref.shape[0]}x{ref.shape[1]}, "
+                         f"got {mf.shape[0]}x{mf.shape[1]}", field=field)
+    scale = max(float(np.max(np.abs(ref), initial=0.0)), 1.0)
+    if np.max(np.abs(mf - ref), initial=0.0) > _AGREEMENT * scale:
+        raise InputError(f"differs from {source} (more than {_AGREEMENT:g} relative): give the "
+                         "exact values of the same system", field=field)
+    return M
 
 
 def _sampling_time(T: Any) -> tuple[sp.Expr, bool]:

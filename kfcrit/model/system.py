@@ -392,11 +392,21 @@ class System:
     @classmethod
     def from_statespace(cls, sys: Any, Q: Any, R: Any, Sigma0: Any = None,
                         name: str | None = None) -> System:
-        """Build from a discrete-time python-control ``StateSpace`` (needs ``control``)."""
+        """Build from a discrete-time python-control ``StateSpace`` (needs ``control``).
+
+        ``sys.A`` and ``sys.C`` are float arrays: entries that are their own shortest decimal
+        (integers, 0.5, 1.25) are read exactly, every other entry as the binary number it is
+        (:func:`statespace_entries`). A continuous-time ``sys`` (dt = 0) is sampled by
+        ``kfcrit.from_statespace(sys, sampling_time=T, Q=Q_c, R=R)``.
+        """
         dt = getattr(sys, "dt", None)
         if dt is None or dt is False or dt == 0:
-            raise InputError("must be a discrete-time StateSpace (dt > 0 or True)", field="sys")
-        return cls(np.asarray(sys.A), np.asarray(sys.C), Q, R, Sigma0, name=name)
+            raise InputError(
+                "must be a discrete-time StateSpace (dt > 0 or True); for a continuous-time one "
+                "(dt = 0) give the sampling_time: kfcrit.from_statespace(sys, "
+                "sampling_time=T, Q=Q_c, R=R) with Q_c the noise spectral density", field="sys")
+        return cls(statespace_entries(sys.A), statespace_entries(sys.C), Q, R, Sigma0,
+                   name=name)
 
     def is_positive_definite(self, name: str) -> bool:
         """Whether ``Q``, ``R`` or ``Sigma0`` is positive definite (:func:`is_definite`: exact
@@ -413,6 +423,29 @@ class System:
         return {nm: [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
                 for nm, M in (("A", self.A), ("C", self.C), ("Q", self.Q), ("R", self.R),
                               ("Sigma0", self.Sigma0))}
+
+
+def statespace_entries(M: Any) -> list[list[Any]]:
+    """The entries of a python-control float matrix, exact where the float is.
+
+    A python-control ``StateSpace`` stores float64 arrays, so the numbers the user meant are
+    lost; an entry equal to its own shortest decimal (``1.0``, ``0.0``, ``0.5``, ``-1.25``:
+    ``Fraction(repr(x)) == Fraction(x)``) is returned as that exact rational, so integer and
+    short dyadic matrices stay exact. Every other entry (``0.1`` is
+    3602879701896397/36028797018963968 in binary) stays a float: :func:`matrix_and_float`
+    takes it as the binary number it is and marks the matrix inexact.
+    """
+    rows = np.atleast_2d(np.asarray(M, dtype=float))
+    out: list[list[Any]] = []
+    for row in rows:
+        new_row: list[Any] = []
+        for x in row.tolist():
+            if np.isfinite(x) and Fraction(repr(x)) == Fraction(x):
+                new_row.append(sp.Rational(Fraction(x).numerator, Fraction(x).denominator))
+            else:
+                new_row.append(x)
+        out.append(new_row)
+    return out
 
 
 ILL_CONDITIONED = 1e8

@@ -42,23 +42,27 @@ import functools
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+import scipy.linalg as sla
 import sympy as sp
 
 from kfcrit.model.system import System
 from kfcrit.theory import lmi
-from kfcrit.theory.cone import reduce_system
+from kfcrit.theory.cone import NEWTON_MAX_REDUCED, full_gain, reduce_system
 from kfcrit.theory.newton import newton_method
 from kfcrit.theory.plow import PLow, c_invertible, p_low_bounds, p_low_from_structure, p_low_of
-from kfcrit.theory.upper_certs import invariant_block_of
-from kfcrit.theory.upper_record import UpperBound, evidence_p_low
+from kfcrit.theory.riccati import symmetrize
+from kfcrit.theory.upper_certs import invariant_block_of, lower_end, stein_certificate
+from kfcrit.theory.upper_record import UpperBound, certificate_summary, evidence_p_low
 
 __all__ = ["METHODS", "PLow", "UpperBound", "c_invertible", "invariant_block_of",
-           "is_numerical_failure", "numerical_failure_types", "p_low_bounds", "p_low_of",
-           "reduce_system", "upper_bound", "upper_section"]
+           "is_numerical_failure", "marginal_certificate", "numerical_failure_types",
+           "p_low_bounds", "p_low_of", "reduce_system", "slow_observer_gain", "upper_bound",
+           "upper_section"]
 
 
 def _c_invertible_bound(system: System, how: str, known: PLow | None) -> UpperBound:
@@ -260,6 +264,13 @@ def _upper_bound_raw(system: System, tol: float, method: str,
     result = newton_method(system, tol, progress)
     if result.extras.get("not_applicable"):
         return result            # not detectable: no LMI fallback (it cannot succeed either)
+    if result.status != "determined" and p_low_of(system.a) < tol:
+        # ρ(A) ≤ 1 (in float64): the threshold sits at p = 0, where the cone eigenvector is
+        # singular; a slow observer certifies p_up ≤ tol instead.
+        progress.update(stage="slow-observer certificate (marginal modes)")
+        marginal = marginal_certificate(system, tol)
+        if marginal is not None:
+            return marginal
     if method == "auto" and not result.certified and system.n <= 30:
         progress.update(stage="LMI fallback", method="lmi")
         alt = lmi.lmi_upper_bound(system, tol=max(tol, 1e-7))
@@ -271,6 +282,88 @@ def _upper_bound_raw(system: System, tol: float, method: str,
                               + alt.solver.get("ends", "ends not stated") + ")",)
                            + alt.warnings)
     return result
+
+
+MARGINAL_RATES = (0.1, 0.03, 0.3, 0.01)
+"""Decay rates a = c·p of the slow observers tried by :func:`marginal_certificate` (c here)."""
+
+
+def slow_observer_gain(Au: np.ndarray, Cu: np.ndarray, a: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""Gain G with A_u + G C_u stable at rate ≈ a, and its (balancing) covariance P⁺.
+
+    The minimum-energy filter (Q = 0, R = I) of the expanded system Ã = A_u / (1 − a): with the
+    observability Gramian Y of (Ã^{-1}, C_u Ã^{-1}),
+
+    .. math::
+
+        Y = Ã'^{-1} Y Ã^{-1} + Ã'^{-1} C_u' C_u Ã^{-1}, \quad P^+ = (Y + C_u' C_u)^{-1},
+        \quad G = -A_u P^+ C_u',
+
+    the poles of Ã + G̃ C_u are those of Ã reflected into the unit disc, so A_u + G C_u has
+    its poles at radius (1 − a)² when every |λ(A_u)| = 1; G and P⁺ carry the Jordan scaling
+    (entries of order a, a², …) that a fixed-shape gain lacks. Only a proposal: the
+    certificate built from it is checked in ball arithmetic.
+    """
+    B = (1.0 - a) * np.linalg.inv(Au)
+    CB = Cu @ B
+    with warnings.catch_warnings():
+        # Y is ill-conditioned by design (entries of order a^{-1}, a^{-3}, …)
+        warnings.simplefilter("ignore", sla.LinAlgWarning)
+        Y = symmetrize(sla.solve_discrete_lyapunov(B.T, CB.T @ CB))
+        M = Y + Cu.T @ Cu
+        d = 1.0 / np.sqrt(np.diag(M))
+        P = symmetrize(d[:, None] * np.linalg.inv(d[:, None] * M * d[None, :]) * d[None, :])
+    return -Au @ P @ Cu.T, P
+
+
+def marginal_certificate(system: System, tol: float) -> UpperBound | None:
+    r"""p_up ≤ tol certified by a slow observer, for A with every |λ| ≤ 1 (marginal modes).
+
+    At p = tol the gain K = G / p of :func:`slow_observer_gain` (rate a = c·p) makes the jump
+    system mean-square stable: with F = A + K C,
+
+    .. math::
+
+        L_{K,p}(X) = (A + G C) X (A + G C)' + \frac{1-p}{p} G C X C' G',
+
+    a stable observer of bandwidth a plus a multiplicative noise of size a²/p = c² p. The
+    Stein solution X_u = L_{K,p}(X_u) + I, balanced by P⁺, is lifted and proven
+    (X ≻ 0, X − L_{K,p}(X) ≻ 0) in ball arithmetic by :func:`stein_certificate`. With the
+    trivial lower end p_up ≥ p_low = 0 the bracket is [0, tol]. None when no rate certifies.
+    """
+    red = reduce_system(system)
+    if red.k == 0 or red.k > NEWTON_MAX_REDUCED:
+        return None
+    p = float(tol)
+    stats: dict[str, Any] = {"power_iterations": 0, "newton_iterations": 0,
+                             "certificate_checks": 0, "reduced_states": red.k}
+    t0 = time.perf_counter()
+    for c in MARGINAL_RATES:
+        try:
+            G, P = slow_observer_gain(red.Au, red.Cu, c * p)
+        except (np.linalg.LinAlgError, ValueError, ArithmeticError):
+            continue
+        if not (np.all(np.isfinite(G)) and np.all(np.isfinite(P))):
+            continue
+        found = stein_certificate(system, red, p, G / p, stats, balance=P)
+        if found is None:
+            continue
+        (Z, Xz, Kz), check = found
+        X, K = symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz)
+        origin = (f"slow observer (marginal modes): K = G/p with A_u + G C_u stable at rate "
+                  f"a = {c:g}·p (minimum-energy filter of A_u/(1 − a)); Stein solution "
+                  "X_u = L_{K,p}(X_u) + I balanced by its covariance, lifted from the Schur "
+                  "block; checked as Z X_z Z', Z K_z with the float Schur basis Z")
+        cert = certificate_summary(system, check, X, K, origin, (Z, Xz, Kz), red.M)
+        p_low = p_low_of(system.a)
+        lo = lower_end(p, tol, p_low)
+        stats.update(seconds=time.perf_counter() - t0, solves=stats["newton_iterations"],
+                     observer_rate=c * p)
+        return UpperBound(p, (lo, p), check.ok, "determined" if p - lo <= tol else
+                          "undetermined", "newton", cert, evidence_p_low(p_low), stats, (),
+                          {"X": X, "K": K, "basis": Z, "X_basis": Xz, "K_basis": Kz,
+                           "output_map": red.M})
+    return None
 
 
 def upper_section(system: System, tol: float = 1e-9,
