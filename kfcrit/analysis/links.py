@@ -26,6 +26,12 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
     effective margin max(margin_db, σ·Φ⁻¹(1 − max_outage)) (equivalently, the distance is within
     ``max_distance_m``); ``outage_within_policy``: the per-link shadowing outage below the design
     requirement is at most ``max_outage``. Either is ``None`` when its inputs are missing.
+
+    The design requirement is the binding one of the section
+    (:func:`kfcrit.link.requirement.binding_requirement`). With an accuracy requirement the
+    check also states ``design_value`` and ``basis`` and ``requirement_reachable``: False when
+    no arrival probability, or none the radio reaches at any SINR, meets the binding
+    requirement (the policy then fails: no margin exists).
     """
     if not lb.get("applicable"):
         return None
@@ -33,17 +39,27 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
     link = lb.get("link") or {}
     shadow = lb.get("shadowing") or {}
     margin, needed = lb.get("link_margin_db"), policy.get("effective_margin_db")
-    design = (lb.get("required_arrival_probability") or {}).get("design_value")
+    req = lb.get("required_arrival_probability") or {}
+    design = req.get("design_value")
     rows = [r for r in lb.get("thresholds") or []
             if r.get("arrival_probability") == design and r.get("outage_probability") is not None]
     outage = rows[0]["outage_probability"] if rows else shadow.get("outage_below_critical")
     max_outage = policy.get("max_outage")
-    return {"link_margin_db": margin, "required_margin_db": needed,
-            "margin_policy_met": (margin >= needed) if None not in (margin, needed) else None,
-            "distance_m": link.get("distance_m"), "max_distance_m": lb.get("max_distance_m"),
-            "outage_probability": outage, "max_outage": max_outage,
-            "outage_within_policy": (outage <= max_outage)
-            if None not in (outage, max_outage) else None}
+    out = {"link_margin_db": margin, "required_margin_db": needed,
+           "margin_policy_met": (margin >= needed) if None not in (margin, needed) else None,
+           "distance_m": link.get("distance_m"), "max_distance_m": lb.get("max_distance_m"),
+           "outage_probability": outage, "max_outage": max_outage,
+           "outage_within_policy": (outage <= max_outage)
+           if None not in (outage, max_outage) else None}
+    if req.get("accuracy") is None:
+        return out
+    reachable = not (design is None and req.get("binding") == "accuracy") and not (
+        design is not None and margin is None and not lb.get("max_distance_unbounded"))
+    if not reachable:
+        out.update(margin_policy_met=False, outage_probability=1.0,
+                   outage_within_policy=False if max_outage is not None else None)
+    out.update(design_value=design, basis=req.get("basis"), requirement_reachable=reachable)
+    return out
 
 
 def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str, Any]:

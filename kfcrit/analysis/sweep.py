@@ -569,12 +569,25 @@ def requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:
     return None, None
 
 
+def binding_requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:
+    """The requirement column of a point: the link design's binding requirement when an
+    accuracy requirement binds it (p_V, or none when no arrival probability meets it; the
+    value is the record's ``link_budget.required_arrival_probability.design_value``, computed
+    once by :func:`kfcrit.link.requirement.binding_requirement`), else
+    :func:`requirement_of`."""
+    lb = record.get("link_budget") or {}
+    req = lb.get("required_arrival_probability") if lb.get("applicable") else None
+    if isinstance(req, dict) and req.get("binding") == "accuracy":
+        return _value(req.get("design_value")), req.get("short_basis")
+    return requirement_of(record)
+
+
 def row_of(record: dict[str, Any]) -> dict[str, Any]:
     """The result columns of one point, read from its analysis record (nothing recomputed:
     the verdict and the decision are the record's)."""
     op = record.get("operating_point") or {}
     lb = record.get("link_budget") or {}
-    req, basis = requirement_of(record)
+    req, basis = binding_requirement_of(record)
     low = _value(record.get("block_lower_bound"))
     p_low = _value(record.get("lower_bound"))
     row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)

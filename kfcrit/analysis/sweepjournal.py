@@ -22,6 +22,7 @@ from typing import Any
 
 from kfcrit.errors import ExitCode, KfcritError, OutputError
 from kfcrit.io.safeio import read_text
+from kfcrit.link.requirement import ACCURACY_BASIS, ACCURACY_IMPOSSIBLE_BASIS
 
 MAX_POINTS = 100_000
 """Largest sweep (points): bounds the memory of the keyed grid (about 1 KiB per point) and the
@@ -40,7 +41,8 @@ _WORD_COLUMNS = {"status": ("ok", "error"),
                  "decision": (None, "pass", "fail", "undetermined"),
                  "requirement_basis": (None, "robust critical value", "critical value",
                                        "upper bound (sufficient)",
-                                       "lower bound (necessary only)")}
+                                       "lower bound (necessary only)", ACCURACY_BASIS,
+                                       ACCURACY_IMPOSSIBLE_BASIS)}
 POINT_ERROR_CODES = (int(ExitCode.VERIFICATION_FAILED), int(ExitCode.BAD_INPUT),
                       int(ExitCode.INCONCLUSIVE))
 """Exit codes a point's error row may carry (those of KfcritError and of numerical faults)."""

@@ -297,12 +297,19 @@ def link_reasons(design_check: Mapping[str, Any] | None, link: str | None = None
     suffix = f" ({link})" if link else ""
     out = []
     met = design_check.get("margin_policy_met")
-    if met is not None:
+    design = design_check.get("design_value")
+    against = (f" above the required p = {design:.6g} ({design_check.get('basis')})"
+               if design is not None and design_check.get("basis") else "")
+    if design_check.get("requirement_reachable") is False:
+        out.append(Reason(LINK_MARGIN_CHECK + suffix, CheckStatus.FAIL,
+                          "no link margin: the radio reaches no arrival probability that meets "
+                          f"the binding requirement ({design_check.get('basis')})"))
+    elif met is not None:
         margin, needed = design_check.get("link_margin_db"), design_check.get("required_margin_db")
         out.append(Reason(LINK_MARGIN_CHECK + suffix,
                           CheckStatus.PASS if met else CheckStatus.FAIL,
                           f"link margin {margin:.3g} dB {'≥' if met else '<'} the policy's "
-                          f"{needed:.3g} dB"))
+                          f"{needed:.3g} dB{against}"))
     ok = design_check.get("outage_within_policy")
     if ok is not None:
         outage, allowed = design_check.get("outage_probability"), design_check.get("max_outage")

@@ -34,6 +34,7 @@ the outage probabilities. The bursty-loss condition is an analysis section
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -49,6 +50,7 @@ from kfcrit.link.fields import exact_number, integer_field, real_field
 from kfcrit.link.frames import arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
 from kfcrit.link.radios import CalibratedOqpsk, Radio, db_to_linear, radio_from_mapping
+from kfcrit.link.requirement import binding_requirement, stability_requirement
 from kfcrit.link.shadowing import ShadowingCorrelation, ShadowingMarkov, markov_from_mean_arrival
 from kfcrit.link.units import BOLTZMANN, SPEED_OF_LIGHT, thermal_noise_dbm
 from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check_keys
@@ -427,29 +429,16 @@ def _frame_notes(channel: LinkBudget) -> list[str]:
     return notes
 
 
-def _design_requirement(critical_value: float | None, robust_value: float | None,
-                        bracket: tuple[float | None, float | None],
-                        upper_bound: float | None) -> tuple[float | None, str]:
-    """The arrival probability a design must exceed, and why.
-
-    max(p_c, robust value) when p_c is known; otherwise the upper end of the bracket (or p_up):
-    exceeding it is sufficient for mean stability.
-    """
-    if critical_value is not None:
-        if robust_value is not None and robust_value > critical_value:
-            return robust_value, "robust critical value"
-        return critical_value, "critical value p_c"
-    high = bracket[1] if bracket and bracket[1] is not None else upper_bound
-    if high is not None:
-        return high, "upper end of the bracket (sufficient; p_c unknown)"
-    return None, "no requirement known"
-
-
 def design_section(channel: Channel, *, critical_value: float | None,
                    robust_value: float | None,
                    bracket: tuple[float | None, float | None],
-                   upper_bound: float | None) -> dict[str, Any]:
+                   upper_bound: float | None,
+                   accuracy: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The ``link_budget`` section of the analysis record.
+
+    The design value is the binding requirement of :func:`kfcrit.link.requirement.
+    binding_requirement`: max(p_stab, p_V) with an accuracy requirement, p_stab otherwise; the
+    required SINR, link margin, maximum distance and outage are read against it.
 
     Parameters
     ----------
@@ -461,13 +450,17 @@ def design_section(channel: Channel, *, critical_value: float | None,
         Lower and upper ends bracketing p_c when it is unknown.
     upper_bound : float or None
         p_up.
+    accuracy : mapping, optional
+        The record's ``design`` section of an accuracy requirement (``requirement`` and
+        ``required_arrival_probability`` with the interval [p_S, p_V]); None without one.
 
     Returns
     -------
     dict
         ``applicable, radio, link, frame, gilbert_elliott | null, margin_policy,
         required_arrival_probability {critical_value, robust_value, bracket, design_value,
-        basis}, required_sinr_db, required_rx_power_dbm,
+        basis[, binding, stability_value, stability_basis, accuracy, fails_below, determined,
+        short_basis]}, required_sinr_db, required_rx_power_dbm,
         link_margin_db, max_distance_m, max_distance_unbounded, mean_stable_at_distance,
         shadowing {sigma_db, mode, mean_arrival_probability, outage_below_critical,
         outage_below_upper}, thresholds [rows], notes, warnings``.
@@ -475,7 +468,9 @@ def design_section(channel: Channel, *, critical_value: float | None,
     if not isinstance(channel, LinkBudget):
         return {"applicable": False, "reason": "the channel is not a link-budget model"}
     bracket = tuple(bracket) if bracket is not None else (None, None)
-    p_design, basis = _design_requirement(critical_value, robust_value, bracket, upper_bound)
+    need = binding_requirement(
+        stability_requirement(critical_value, robust_value, bracket, upper_bound), accuracy)
+    p_design, basis = need.value, need.basis
     rows = []
     for label, value in (("critical_value", critical_value), ("robust_critical_value",
                                                               robust_value),
@@ -484,6 +479,10 @@ def design_section(channel: Channel, *, critical_value: float | None,
                          ("upper_bound", upper_bound)):
         if value is not None:
             rows.append(_threshold_row(channel, label, float(value)))
+    if need.accuracy is not None and need.accuracy.get("interval"):
+        p_s, p_v = need.accuracy["interval"]
+        rows.append(_threshold_row(channel, "accuracy_necessary", float(p_s)))
+        rows.append(_threshold_row(channel, "accuracy_sufficient", float(p_v)))
     design = _threshold_row(channel, "design", p_design) if p_design is not None else None
     sinr = channel.sinr_db
     p_link = channel.arrival_value
@@ -517,13 +516,14 @@ def design_section(channel: Channel, *, critical_value: float | None,
         "required_arrival_probability": {"critical_value": critical_value,
                                          "robust_value": robust_value,
                                          "bracket": list(bracket), "design_value": p_design,
-                                         "basis": basis},
+                                         "basis": basis, **need.record_fields()},
         "required_sinr_db": design["required_sinr_db"] if design else None,
         "required_rx_power_dbm": design["required_rx_power_dbm"] if design else None,
         "link_margin_db": design["link_margin_db"] if design else None,
         "max_distance_m": design["max_distance_m"] if design else None,
         "max_distance_unbounded": bool(design["max_distance_unbounded"]) if design else False,
-        "mean_stable_at_distance": (p_link > p_design) if p_design is not None else None,
+        "mean_stable_at_distance": (p_link > need.stability_value)
+        if need.stability_value is not None else None,
         "shadowing": {
             "sigma_db": channel.sigma_db, "mode": channel.path_loss.shadowing,
             "mean_arrival_probability": channel.mean_arrival(sinr),

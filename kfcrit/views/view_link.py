@@ -95,10 +95,17 @@ def link_design_view(rec: dict[str, Any]) -> dict[str, Any] | None:
                         f"{filters.num(number(lb.get('max_mean_burst_length')), 4)} packets "
                         f"({prose(cond.get('status')) or 'status unknown'})"}
     dc = as_dict(lb.get("design_check"))
+    req = as_dict(lb.get("required_arrival_probability"))
     parts = [f"link margin {filters.unit(lb.get('link_margin_db'), 'dB')} at "
              f"{filters.unit(dc.get('distance_m'), 'm')}"]
     if dc.get("required_margin_db") is not None:
         parts[0] += f" (policy needs {filters.unit(dc.get('required_margin_db'), 'dB')})"
+    if req.get("accuracy") is not None:
+        # an accuracy requirement may bind instead of p_c: say which value the margin is read at
+        parts.insert(0, "required arrival probability "
+                     + (f"{filters.prob(req.get('design_value'))} ({prose(req.get('basis'))})"
+                        if req.get("design_value") is not None
+                        else f"unreachable ({prose(req.get('basis'))})"))
     if lb.get("max_distance_unbounded"):
         parts.append("no distance limit at the margin policy")
     elif lb.get("max_distance_m") is not None:
@@ -136,7 +143,9 @@ THRESHOLD_LABELS = {"critical_value": "critical value p_c",
                     "robust_critical_value": "robust critical value",
                     "bracket_low": "lower end of the p_c bracket",
                     "bracket_high": "upper end of the p_c bracket",
-                    "upper_bound": "upper bound p_up", "design": "design requirement"}
+                    "upper_bound": "upper bound p_up", "design": "design requirement",
+                    "accuracy_necessary": "accuracy requirement p_S (at or below: fails)",
+                    "accuracy_sufficient": "accuracy requirement p_V (guarantees it)"}
 
 
 def link_budget_view(lb: dict[str, Any]) -> dict[str, Any]:
