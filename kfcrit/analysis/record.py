@@ -309,6 +309,9 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sec["system"] = system_section(spec)
     warnings: list[str] = conditioning_warnings(s) + list(theory.warnings)
 
+    if spec.network is None or spec.network.size == 1:
+        # before the link: the link design reads the accuracy requirement's [p_S, p_V]
+        _design_sections(spec, theory, sec, warnings)
     _link_sections(spec, opts, sec, warnings, theory)
     if spec.network is not None:
         sec["network"], op = network_sections(spec, opts, warnings)
@@ -317,8 +320,6 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     reqs = spec.requirements
-    if spec.network is None or spec.network.size == 1:
-        _design_sections(spec, theory, sec, warnings)
     _tail_section(spec, theory, sec)
     if spec.network is not None and spec.network.size > 1:
         sec["covariance_bounds"] = network_lower_bound(spec.network)
@@ -535,7 +536,8 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
     sec["link_budget"] = linkbudget.design_section(
         ch, critical_value=crit.get("value"),
         robust_value=(sec.get("robust_critical_value") or {}).get("value"),
-        bracket=bracket, upper_bound=(sec.get("upper_bound") or {}).get("value"))
+        bracket=bracket, upper_bound=(sec.get("upper_bound") or {}).get("value"),
+        accuracy=sec.get("design"))
     if isinstance(sec["link_budget"], dict):
         sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
         if opts.details:
