@@ -136,4 +136,39 @@ def plain_log_labels(ax: Any, which: str = "x") -> None:
 
 
 def fmt(value: float | None) -> str:
-    return "?" if value is None else f"{value:.4g}"
+    """A probability-like value with 4 significant digits, typographic minus (``?`` if None)."""
+    return "?" if value is None else f"{value:.4g}".replace("-", "−")
+
+
+UNIT_DECIMALS = {"dB": 2, "dBm": 2, "m": 1}
+"""Decimals of a physical quantity per unit, as the report's tables print them."""
+
+
+def quantity(value: float, unit: str) -> str:
+    r"""``value`` with its unit in the tables' style: ``0.13 dB``, ``−1.48 dB``, ``80.2 m``.
+
+    Fixed decimals per unit (:data:`UNIT_DECIMALS`; 3 significant digits for other units) and
+    the typographic minus sign U+2212, so that a legend and a table show the same text.
+    """
+    places = UNIT_DECIMALS.get(unit)
+    text = f"{value:.{places}f}" if places is not None else f"{value:.3g}"
+    if text.lstrip("-").strip("0.") == "":
+        text = text.lstrip("-")     # −0.00 prints as 0.00
+    return f"{text.replace('-', '−')} {unit}"
+
+
+def percent(value: float) -> str:
+    """A probability as a percentage with 3 significant digits: ``0.1`` → ``10 %``."""
+    return f"{100 * value:.3g} %".replace("-", "−")
+
+
+def arrival_formula(max_retries: int) -> str:
+    """The arrival probability of one packet with ``k`` MAC retries, in plain text.
+
+    .. math:: p = 1 - \mathrm{PER}^{k+1}
+
+    (``1 − PER`` without retries; the exponent as Unicode superscripts otherwise).
+    """
+    if max_retries <= 0:
+        return "p = 1 − PER"
+    return "p = 1 − PER" + str(max_retries + 1).translate(SUPERSCRIPT)
