@@ -167,7 +167,23 @@ def draw_per_sinr(record: dict[str, Any]) -> Figure | None:
         ("configured SINR", finite(section(record, "link_budget", "link", "sinr_db"))),
         ("required SINR", finite(section(record, "link_budget", "required_sinr_db"))))
         if v is not None]
-    return per_sinr_figure(curve, marks=marks)
+    return per_sinr_figure(curve, marks=marks, title=radio_title(record))
+
+
+def radio_title(record: dict[str, Any]) -> str | None:
+    """The radio in words for a figure title: its display name when the record has one
+    (``link_budget.radio.display_name``), else its frame standard (``IEEE 802.15.4 O-QPSK
+    2450 MHz radio``), else ``None`` (no title: the model key is a code name)."""
+    radio = section(record, "link_budget", "radio")
+    if not isinstance(radio, dict):
+        return None
+    name = radio.get("display_name")
+    if isinstance(name, str) and name.strip():
+        return name.strip()
+    standard = section(radio, "frame", "standard")
+    if isinstance(standard, str) and standard.strip():
+        return f"{standard.strip()} radio"
+    return None
 
 
 def draw_outage_distance(record: dict[str, Any]) -> Figure | None:
