@@ -163,7 +163,7 @@ def percent(value: float) -> str:
 
 
 def arrival_formula(max_retries: int) -> str:
-    """The arrival probability of one packet with ``k`` MAC retries, in plain text.
+    r"""The arrival probability of one packet with ``k`` MAC retries, in plain text.
 
     .. math:: p = 1 - \mathrm{PER}^{k+1}
 
