@@ -19,7 +19,16 @@ from typing import Any
 import matplotlib
 from matplotlib.figure import Figure
 
-from kfcrit.views.figstyle import COLORS, FIG_RC, HEIGHT_IN, WIDTH_IN, finite, floats, fmt, section
+from kfcrit.views.figstyle import (
+    COLORS,
+    HEIGHT_IN,
+    WIDTH_IN,
+    finite,
+    floats,
+    fmt,
+    readable_rc,
+    section,
+)
 
 R_NEC = r"$r_{\mathrm{nec}}(f)$"
 R_SUF = r"$r_{\mathrm{suf}}(f)$"
@@ -54,7 +63,7 @@ def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
     op = curve.get("operating_point") if isinstance(curve.get("operating_point"), dict) else {}
     of, orr = finite(op.get("failure_rate")), finite(op.get("recovery_rate"))
     gap = max_gap(nec, suf) if nec is not None and suf is not None else None
-    with matplotlib.rc_context(FIG_RC):
+    with matplotlib.rc_context(readable_rc()):
         fig = Figure(figsize=(WIDTH_IN, HEIGHT_IN), layout="constrained")
         ax = fig.add_subplot()
         level = nec[0] if nec is not None and max(nec) - min(nec) < 1e-12 else None
@@ -110,4 +119,4 @@ def coincidence_note(gap: float | None) -> str:
         return ""
     if gap <= 1e-12:
         return f" (coincides with {R_NEC}: the critical curve is exact)"
-    return f" (coincides with {R_NEC} to within {gap:.2g})".replace("-", "−")
+    return f" (on {R_NEC}: within {gap:.2g})".replace("-", "−")

@@ -31,6 +31,32 @@ HEIGHT_IN = 2.6
 # they print at, so that their text keeps the size of the full-width figures' text.
 HALF_WIDTH_IN = 3.45
 HALF_HEIGHT_IN = 2.55
+PRINT_WIDTH_MM = 182.0
+PRINT_MAX_HEIGHT_MM = 58.0
+"""The A4 text width and the print CSS's cap on a figure's height (templates/report.css)."""
+MIN_PRINT_PT = 7.0
+"""Smallest text size a printed figure may show."""
+
+
+def print_scale(width_in: float, height_in: float) -> float:
+    r"""Factor by which a full-width figure of ``width_in`` × ``height_in`` inches prints.
+
+    .. math:: s = \min(1, W / w, H_{max} / h)
+
+    with W the text width and H_max the print CSS's height cap (both in inches).
+    """
+    return min(1.0, PRINT_WIDTH_MM / 25.4 / width_in, PRINT_MAX_HEIGHT_MM / 25.4 / height_in)
+
+
+def readable_rc(width_in: float = WIDTH_IN, height_in: float = HEIGHT_IN) -> dict[str, Any]:
+    """:data:`FIG_RC` with every text size raised so that it prints at ≥ :data:`MIN_PRINT_PT`
+    once the figure is scaled by :func:`print_scale`."""
+    least = math.ceil(2 * MIN_PRINT_PT / print_scale(width_in, height_in)) / 2
+    rc = dict(FIG_RC)
+    for key in ("font.size", "axes.titlesize", "axes.labelsize", "legend.fontsize",
+                "xtick.labelsize", "ytick.labelsize"):
+        rc[key] = max(float(rc[key]), least)
+    return rc
 
 
 def floats(values: Any) -> list[float] | None:

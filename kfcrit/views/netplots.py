@@ -22,7 +22,16 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from kfcrit.views.figstyle import COLORS, FIG_RC, HEIGHT_IN, WIDTH_IN, finite, fmt, section
+from kfcrit.views.figstyle import (
+    COLORS,
+    FIG_RC,
+    HEIGHT_IN,
+    WIDTH_IN,
+    finite,
+    fmt,
+    readable_rc,
+    section,
+)
 
 REGION_GRID = 241
 """Points per axis of the grid on which the necessary constraints are drawn."""
@@ -126,7 +135,7 @@ def draw_network_region(record: dict[str, Any]) -> Figure | None:
         return None
     grid = np.linspace(0.0, 1.0, REGION_GRID)
     constraints = constraint_values(record, pair, grid)
-    with matplotlib.rc_context(FIG_RC):
+    with matplotlib.rc_context(readable_rc()):
         # Full-width size: the print CSS caps the height, so a taller figure prints narrower
         # (and its text smaller); the legend right of the square axes uses the width.
         fig = Figure(figsize=(WIDTH_IN, HEIGHT_IN), layout="constrained")

@@ -1,4 +1,5 @@
-"""The sweep's margin figure: the arrival-probability margin p − p_req (and the link margin in dB) against one parameter."""
+"""The sweep's margin figure: the arrival-probability margin p − p_req (and the link margin in
+dB) against one parameter."""
 from __future__ import annotations
 
 import io
@@ -111,7 +112,8 @@ def margin_figure(rows: Sequence[dict[str, Any]], parameters: Sequence[str], x_n
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from kfcrit.views.figstyle import WIDTH_IN   # here: matplotlib loads only when drawing
+    # matplotlib loads only when drawing
+    from kfcrit.views.figstyle import WIDTH_IN
 
     others = [p for p in parameters if p != x_name]
     series: dict[tuple, list[dict]] = {}
