@@ -36,8 +36,8 @@ def test_arrival_figure_draws_the_curve_and_marks() -> None:
     lines = lines_of(fig)
     median = next(v for k, v in lines.items() if k.startswith("median link"))
     np.testing.assert_array_equal(median, c.arrival)
-    assert any(k.startswith("p_c = 0.36") for k in lines)
-    assert any("max distance" in k for k in lines)
+    assert any(k.startswith("critical arrival probability $p_c$ = 0.36") for k in lines)
+    assert any("largest distance meeting the margin policy = 80.0 m" in k for k in lines)
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert any("[0.6, 0.9]" in t for t in labels)
 
@@ -53,7 +53,7 @@ def test_per_and_outage_figures() -> None:
     assert oc.outage[0, 1] == link.outage_probability(0.36)
     assert np.all(np.diff(oc.outage[0]) > 0)  # farther links fail more often
     fig = outage_distance_figure(oc)
-    assert any(k.startswith("max_outage = 0.1") for k in lines_of(fig))
+    assert any(k == "allowed outage 10 %" for k in lines_of(fig))
 
 
 def test_per_figure_of_a_calibrated_radio_spans_its_transition() -> None:

@@ -135,7 +135,7 @@ def test_bursty_report_draws_the_critical_curve_and_carries_the_caveat():
     assert curve["necessary_recovery"] == pytest.approx([9 / 25] * len(curve["failure_rates"]))
     fig = figures.figure(rec, "critical_curve")
     lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
-    nec = lines["necessary recovery rate r_nec(f)"]
+    nec = lines[r"necessary recovery rate $r_{\mathrm{nec}}(f)$"]
     np.testing.assert_array_equal(nec.get_xdata(), curve["failure_rates"])
     np.testing.assert_array_equal(nec.get_ydata(), curve["necessary_recovery"])
     star = next(ln for k, ln in lines.items() if k.startswith("operating point"))
@@ -193,12 +193,13 @@ def test_link_curves_from_the_record_are_drawn_as_given():
     fig = figures.figure(rec, "arrival_distance")
     median = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("median"))
     np.testing.assert_array_equal(median.get_ydata(), arrival.arrival)
-    assert any(ln.get_label() == "p_c = 0.36" for ln in fig.axes[0].get_lines())
+    assert any(ln.get_label() == "critical arrival probability $p_c$ = 0.36"
+               for ln in fig.axes[0].get_lines())
     fig = figures.figure(rec, "per_sinr")
     psdu127 = next(ln for ln in fig.axes[0].get_lines() if ln.get_label() == "PSDU 127 bytes")
     np.testing.assert_allclose(psdu127.get_ydata(), link.radio.per(np.linspace(-4, 4, 17), 127))
     fig = figures.figure(rec, "outage_distance")
-    out = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("P(p_link"))
+    out = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("P(arrival prob."))
     assert out.get_ydata()[1] == link.outage_probability(0.36)
     html = html_of(rec)
     assert all(f'id="fig-link-{i}"' in html for i in (1, 2, 3))

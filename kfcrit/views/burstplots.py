@@ -19,7 +19,19 @@ from typing import Any
 import matplotlib
 from matplotlib.figure import Figure
 
-from kfcrit.views.figstyle import COLORS, FIG_RC, WIDTH_IN, finite, floats, section
+from kfcrit.views.figstyle import (
+    COLORS,
+    HEIGHT_IN,
+    WIDTH_IN,
+    finite,
+    floats,
+    fmt,
+    readable_rc,
+    section,
+)
+
+R_NEC = r"$r_{\mathrm{nec}}(f)$"
+R_SUF = r"$r_{\mathrm{suf}}(f)$"
 
 
 def critical_curve_of(record: dict[str, Any]) -> dict[str, Any] | None:
@@ -50,32 +62,61 @@ def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
         return None
     op = curve.get("operating_point") if isinstance(curve.get("operating_point"), dict) else {}
     of, orr = finite(op.get("failure_rate")), finite(op.get("recovery_rate"))
-    with matplotlib.rc_context(FIG_RC):
-        fig = Figure(figsize=(WIDTH_IN, 3.2), layout="constrained")
+    gap = max_gap(nec, suf) if nec is not None and suf is not None else None
+    with matplotlib.rc_context(readable_rc()):
+        fig = Figure(figsize=(WIDTH_IN, HEIGHT_IN), layout="constrained")
         ax = fig.add_subplot()
         level = nec[0] if nec is not None and max(nec) - min(nec) < 1e-12 else None
-        if level is not None and curve.get("necessary_expression"):
-            # r_nec does not depend on f when the record gives it as one closed form
-            ax.axhline(level, color=COLORS["p_c"], linestyle="--", linewidth=0.9,
-                       label=f"r = {curve['necessary_expression']} (necessary, every f)")
         if nec is not None:
             ax.fill_between(f, 0, nec, color="#fde2e2", linewidth=0,
-                            label="r ≤ r_nec(f): mean-unstable (proven)")
-            ax.plot(f, nec, color=COLORS["p_c"], marker="o", markersize=3, linewidth=1.5,
-                    label="necessary recovery rate r_nec(f)")
+                            label=rf"r ≤ {R_NEC}: mean-unstable (proven)")
         if suf is not None:
             ax.fill_between(f, suf, 1, color="#dcfce7", linewidth=0,
-                            label="r ≥ r_suf(f): mean-stable (certificate)")
-            ax.plot(f, suf, color=COLORS["operating"], marker="s", markersize=3,
-                    linewidth=1.5, label="sufficient recovery rate r_suf(f)")
+                            label=rf"r ≥ {R_SUF}: mean-stable (certificate)")
+        # Coinciding curves stay distinguishable: r_nec wide and solid with dots at every grid
+        # point, r_suf narrower and dashed with open squares at every other point, the closed
+        # form thin and dotted on top of both.
+        if nec is not None:
+            ax.plot(f, nec, color=COLORS["p_c"], marker="o", markersize=4, linewidth=3.0,
+                    alpha=0.85, label=rf"necessary recovery rate {R_NEC}")
+        if suf is not None:
+            ax.plot(f, suf, color=COLORS["operating"], marker="s", markersize=4.5,
+                    markerfacecolor="none", markevery=(1, 2), linewidth=1.4,
+                    linestyle=(0, (5, 2.5)),
+                    label=rf"sufficient recovery rate {R_SUF}"
+                          + coincidence_note(gap))
+        if level is not None and curve.get("necessary_expression"):
+            ax.axhline(level, color=COLORS["sim"], linestyle=(0, (1, 1.5)), linewidth=0.9,
+                       label=f"r = {curve['necessary_expression']}: {R_NEC} in closed form "
+                             "(every f)")
         ax.plot([0, 1], [1, 0], color=COLORS["p_low"], linestyle=":", linewidth=1,
                 label="f + r = 1 (i.i.d. losses, p = r)")
         if of is not None and orr is not None:
             ax.plot([of], [orr], marker="*", markersize=11, color=COLORS["sim"],
-                    linestyle="none", label=f"operating point f = {of:.4g}, r = {orr:.4g}")
+                    linestyle="none", clip_on=False,
+                    label=f"operating point f = {fmt(of)}, r = {fmt(orr)}")
         ax.set_xlim(0, 1)
         ax.set_ylim(0, 1)
         ax.set_xlabel("failure rate f = P(lost | received before)")
         ax.set_ylabel("recovery rate r")
         fig.legend(loc="outside right center", frameon=False)
         return fig
+
+
+VISIBLE_GAP = 0.01
+"""Gap between r_nec and r_suf (the axis spans 1) below which the two lines overlap in print."""
+
+
+def max_gap(a: list[float], b: list[float]) -> float | None:
+    """Largest |a − b| over the grid points where both are finite (``None``: no such point)."""
+    gaps = [abs(x - y) for x, y in zip(a, b) if x == x and y == y]
+    return max(gaps) if gaps else None
+
+
+def coincidence_note(gap: float | None) -> str:
+    """Legend note for r_suf when it lies on r_nec (gap below :data:`VISIBLE_GAP`)."""
+    if gap is None or gap >= VISIBLE_GAP:
+        return ""
+    if gap <= 1e-12:
+        return f" (coincides with {R_NEC}: the critical curve is exact)"
+    return f" (on {R_NEC}: within {gap:.2g})".replace("-", "−")

@@ -24,6 +24,7 @@ from kfcrit.views.figstyle import (
     FIG_RC,
     finite,
     floats,
+    fmt,
     mark,
     new_figure,
     plain_log_labels,
@@ -75,16 +76,14 @@ def draw_accuracy(record: dict[str, Any]) -> Figure | None:
         if not drawn:
             return None
         ax.axhline(level, color=COLORS["p_c"], linewidth=1.2, linestyle="--",
-                   label=f"requirement L = {level:.4g}")
+                   label=f"requirement L = {fmt(level)}")
         if floor is not None and floor > 0:
             ax.axhline(floor, color=COLORS["p_low"], linewidth=1, linestyle=":",
-                       label=f"floor tr P∞ = {floor:.4g} (every packet arrives)")
+                       label=f"floor tr P∞ = {fmt(floor)} (every packet arrives)")
         if interval is not None:
             ax.axvspan(interval[0], interval[1], color=COLORS["operating"], alpha=0.18,
-                       linewidth=0, label=f"[p_S, p_V] = [{interval[0]:.4g}, {interval[1]:.4g}]"
+                       linewidth=0, label=f"[p_S, p_V] = [{fmt(interval[0])}, {fmt(interval[1])}]"
                        " (bounds do not decide)")
-        mark(ax, operating, "operating", f"operating p = {operating:.4g}"
-             if operating is not None else "", "-.")
         ax.set_yscale("log")
         shown = [v for v in (lower or []) + (upper or []) if math.isfinite(v) and v > 0]
         top = max(level * 30, floor or 0)
@@ -93,11 +92,33 @@ def draw_accuracy(record: dict[str, Any]) -> Figure | None:
         marks = [v for v in (interval or ()) if v is not None]
         lo = min(left + marks) if left or marks else min(p)
         ax.set_xlim(max(min(p), lo - 0.08 * (max(p) - lo)), max(p))
+        mark_operating(ax, operating)
         plain_log_labels(ax, "y")
         ax.set_xlabel("arrival probability p")
         ax.set_ylabel("trace of the bound")
         fig.legend(loc="outside lower center", frameon=False, ncols=2)
         return fig
+
+
+def mark_operating(ax: Any, operating: float | None) -> None:
+    """The operating p: a vertical line inside the x range; outside it, an arrow at the axis
+    edge pointing towards it (with its value), so that the legend never names an unseen line."""
+    if operating is None:
+        return
+    lo, hi = ax.get_xlim()
+    label = f"operating p = {fmt(operating)}"
+    if lo <= operating <= hi:
+        mark(ax, operating, "operating", label, "-.")
+        return
+    left = operating < lo
+    ax.annotate(f"{label} {'left' if left else 'right'} of the axis",
+                xy=(0.0 if left else 1.0, 0.92), xycoords="axes fraction",
+                xytext=(16 if left else -16, 0), textcoords="offset points",
+                ha="left" if left else "right", va="center", fontsize=7.5,
+                color=COLORS["operating"], bbox={"fc": "white", "ec": "none", "pad": 1.0},
+                arrowprops={"arrowstyle": "->", "color": COLORS["operating"], "lw": 1.2})
+    ax.plot([], [], color=COLORS["operating"], marker="<" if left else ">", linestyle="none",
+            label=f"{label} (off the axis: arrow at its {'left' if left else 'right'} edge)")
 
 
 def _curves(record: dict[str, Any]) -> dict[str, Any]:
@@ -167,7 +188,23 @@ def draw_per_sinr(record: dict[str, Any]) -> Figure | None:
         ("configured SINR", finite(section(record, "link_budget", "link", "sinr_db"))),
         ("required SINR", finite(section(record, "link_budget", "required_sinr_db"))))
         if v is not None]
-    return per_sinr_figure(curve, marks=marks)
+    return per_sinr_figure(curve, marks=marks, title=radio_title(record))
+
+
+def radio_title(record: dict[str, Any]) -> str | None:
+    """The radio in words for a figure title: its display name when the record has one
+    (``link_budget.radio.display_name``), else its frame standard (``IEEE 802.15.4 O-QPSK
+    2450 MHz radio``), else ``None`` (no title: the model key is a code name)."""
+    radio = section(record, "link_budget", "radio")
+    if not isinstance(radio, dict):
+        return None
+    name = radio.get("display_name")
+    if isinstance(name, str) and name.strip():
+        return name.strip()
+    standard = section(radio, "frame", "standard")
+    if isinstance(standard, str) and standard.strip():
+        return f"{standard.strip()} radio"
+    return None
 
 
 def draw_outage_distance(record: dict[str, Any]) -> Figure | None:

@@ -31,6 +31,32 @@ HEIGHT_IN = 2.6
 # they print at, so that their text keeps the size of the full-width figures' text.
 HALF_WIDTH_IN = 3.45
 HALF_HEIGHT_IN = 2.55
+PRINT_WIDTH_MM = 182.0
+PRINT_MAX_HEIGHT_MM = 58.0
+"""The A4 text width and the print CSS's cap on a figure's height (templates/report.css)."""
+MIN_PRINT_PT = 7.0
+"""Smallest text size a printed figure may show."""
+
+
+def print_scale(width_in: float, height_in: float) -> float:
+    r"""Factor by which a full-width figure of ``width_in`` × ``height_in`` inches prints.
+
+    .. math:: s = \min(1, W / w, H_{max} / h)
+
+    with W the text width and H_max the print CSS's height cap (both in inches).
+    """
+    return min(1.0, PRINT_WIDTH_MM / 25.4 / width_in, PRINT_MAX_HEIGHT_MM / 25.4 / height_in)
+
+
+def readable_rc(width_in: float = WIDTH_IN, height_in: float = HEIGHT_IN) -> dict[str, Any]:
+    """:data:`FIG_RC` with every text size raised so that it prints at ≥ :data:`MIN_PRINT_PT`
+    once the figure is scaled by :func:`print_scale`."""
+    least = math.ceil(2 * MIN_PRINT_PT / print_scale(width_in, height_in)) / 2
+    rc = dict(FIG_RC)
+    for key in ("font.size", "axes.titlesize", "axes.labelsize", "legend.fontsize",
+                "xtick.labelsize", "ytick.labelsize"):
+        rc[key] = max(float(rc[key]), least)
+    return rc
 
 
 def floats(values: Any) -> list[float] | None:
@@ -136,4 +162,39 @@ def plain_log_labels(ax: Any, which: str = "x") -> None:
 
 
 def fmt(value: float | None) -> str:
-    return "?" if value is None else f"{value:.4g}"
+    """A probability-like value with 4 significant digits, typographic minus (``?`` if None)."""
+    return "?" if value is None else f"{value:.4g}".replace("-", "−")
+
+
+UNIT_DECIMALS = {"dB": 2, "dBm": 2, "m": 1}
+"""Decimals of a physical quantity per unit, as the report's tables print them."""
+
+
+def quantity(value: float, unit: str) -> str:
+    r"""``value`` with its unit in the tables' style: ``0.13 dB``, ``−1.48 dB``, ``80.2 m``.
+
+    Fixed decimals per unit (:data:`UNIT_DECIMALS`; 3 significant digits for other units) and
+    the typographic minus sign U+2212, so that a legend and a table show the same text.
+    """
+    places = UNIT_DECIMALS.get(unit)
+    text = f"{value:.{places}f}" if places is not None else f"{value:.3g}"
+    if text.lstrip("-").strip("0.") == "":
+        text = text.lstrip("-")     # −0.00 prints as 0.00
+    return f"{text.replace('-', '−')} {unit}"
+
+
+def percent(value: float) -> str:
+    """A probability as a percentage with 3 significant digits: ``0.1`` → ``10 %``."""
+    return f"{100 * value:.3g} %".replace("-", "−")
+
+
+def arrival_formula(max_retries: int) -> str:
+    r"""The arrival probability of one packet with ``k`` MAC retries, in plain text.
+
+    .. math:: p = 1 - \mathrm{PER}^{k+1}
+
+    (``1 − PER`` without retries; the exponent as Unicode superscripts otherwise).
+    """
+    if max_retries <= 0:
+        return "p = 1 − PER"
+    return "p = 1 − PER" + str(max_retries + 1).translate(SUPERSCRIPT)

@@ -22,9 +22,26 @@ from kfcrit.views.figstyle import (  # noqa: E402
     HALF_WIDTH_IN,
     HEIGHT_IN,
     WIDTH_IN,
+    arrival_formula,
+    fmt,
+    percent,
+    quantity,
 )
 
 LINE_COLORS = ("#1f5fa8", "#d9730d", "#15803d", "#7c3aed", "#6b7280")
+
+
+REQUIREMENT_WORDS = {"p_c": "$p_c$", "p_up": "$p_{up}$", "p_low": "$p_{low}$",
+                     "p_S": "$p_S$", "p_V": "$p_V$"}
+"""Symbols (mathtext subscripts) for the requirement names of
+:class:`kfcrit.link.curves.OutageCurve` (``kfcrit.analysis.links`` names them p_c, p_up, p_S,
+p_V)."""
+
+
+def requirement_words(name: str) -> str:
+    """A requirement's name for a legend: the symbol with its subscript (``$p_c$``), other
+    code names with spaces for underscores."""
+    return REQUIREMENT_WORDS.get(name, name.replace("_", " "))
 
 
 def _figure(height: float = HEIGHT_IN, width: float = WIDTH_IN) -> tuple[Figure, object]:
@@ -45,6 +62,17 @@ def _legend_below(fig: Figure, ax: object, ncols: int = 2) -> None:
     fig.legend(handles, labels, loc="outside lower center", ncols=ncols, frameon=False)
 
 
+def _distance_lines(ax: object, configured_m: float, design_m: float | None) -> None:
+    """The configured distance (thick, light, solid) and the largest distance of the margin
+    policy (thin, dark, dashed, drawn on top): both stay visible when they nearly coincide."""
+    ax.axvline(configured_m, color=COLORS["band"], ls="-", lw=3.2, alpha=0.8, zorder=1.5,
+               label=f"configured distance d = {quantity(configured_m, 'm')}")
+    if design_m is not None:
+        ax.axvline(design_m, color=COLORS["p_up"], ls=(0, (4, 2)), lw=1.1, zorder=2.5,
+                   label=f"largest distance meeting the margin policy = "
+                         f"{quantity(design_m, 'm')}")
+
+
 def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None = None,
                             requirement: Sequence[float] | None = None,
                             design_distance_m: float | None = None) -> Figure:
@@ -63,42 +91,42 @@ def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None
     """
     with rc_context(FIG_RC):
         fig, ax = _figure(HEIGHT_IN + 0.5)
-        retries = f", {curve.max_retries} retries" if curve.max_retries else ""
+        retries = f", k = {curve.max_retries} retries" if curve.max_retries else ""
         ax.plot(curve.distance_m, curve.arrival, color=COLORS["lower"],
-                label=f"median link, p = 1 − PER^(k+1) (PSDU {curve.psdu_bytes} B{retries})")
+                label=f"median link, {arrival_formula(curve.max_retries)} "
+                      f"(PSDU {curve.psdu_bytes} bytes{retries})")
         if curve.mean_arrival is not None:
             ax.plot(curve.distance_m, curve.mean_arrival, color=COLORS["upper"], ls="-.",
                     label="shadowing average (per-packet mean)")
         if critical_value is not None:
             ax.axhline(critical_value, color=COLORS["p_c"], ls="--", lw=1,
-                       label=f"p_c = {critical_value:.4g}")
+                       label=f"critical arrival probability $p_c$ = {fmt(critical_value)}")
         if requirement is not None and len(requirement) == 2 \
                 and requirement[0] != requirement[1]:
             ax.axhspan(requirement[0], requirement[1], color=COLORS["operating"], alpha=0.15,
-                       label=f"required [p_S, p_V] = [{requirement[0]:.4g}, "
-                             f"{requirement[1]:.4g}]")
+                       label=f"required interval [$p_S$, $p_V$] = [{fmt(requirement[0])}, "
+                             f"{fmt(requirement[1])}]")
         elif requirement is not None:
             ax.axhline(requirement[-1], color=COLORS["operating"], ls=":", lw=1.2,
-                       label=f"required p = {requirement[-1]:.4g}")
-        ax.axvline(curve.configured_distance_m, color=COLORS["sim"], ls=":", lw=1,
-                   label=f"configured d = {curve.configured_distance_m:.4g} m")
-        if design_distance_m is not None:
-            ax.axvline(design_distance_m, color=COLORS["p_up"], ls="--", lw=1,
-                       label=f"max distance at margin policy = {design_distance_m:.4g} m")
+                       label=f"required p = {fmt(requirement[-1])}")
+        _distance_lines(ax, curve.configured_distance_m, design_distance_m)
         ax.set_xscale("log")
         ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("distance d (m)")
         ax.set_ylabel("arrival probability")
         ax.set_title("Arrival probability against distance")
         _plain_log_x(ax)
-        _legend_below(fig, ax, ncols=3)
+        _legend_below(fig, ax, ncols=2)
     return fig
 
 
-def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = ()) -> Figure:
+def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = (),
+                    title: str | None = None) -> Figure:
     """PER of one attempt against SINR (dB) for each PSDU length, log scale.
 
     ``marks``: (label, SINR dB) pairs drawn as vertical lines (e.g. the configured SINR).
+    ``title``: the radio in words (e.g. its display name); ``None`` draws no title (the
+    curve's radio is a code name, not a title).
     """
     with rc_context(FIG_RC):
         fig, ax = _figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
@@ -108,33 +136,36 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = ())
                     label=f"PSDU {length} bytes")
         for j, (label, x) in enumerate(marks):
             ax.axvline(x, color=COLORS["sim"], ls=(":" if j % 2 == 0 else "--"), lw=1,
-                       label=f"{label} = {x:.3g} dB")
+                       label=f"{label} = {quantity(x, 'dB')}")
         ax.set_yscale("log")
         ax.set_ylim(1e-8, 1.5)
         ax.set_xlabel("SINR (dB)")
         ax.set_ylabel("packet error rate")
-        ax.set_title(f"radio {curve.radio}")
+        if title:
+            ax.set_title(title)
         _legend_below(fig, ax)
     return fig
 
 
 def outage_distance_figure(curve: OutageCurve) -> Figure:
-    """P(p_link < p) over per-link shadowing against distance, with the allowed outage."""
+    """P(p_link < p) over per-link shadowing against distance, with the allowed outage.
+
+    Legends in words: ``P(arrival prob. < 0.36), p_c`` and ``allowed outage 10 %``.
+    """
     with rc_context(FIG_RC):
         fig, ax = _figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
         for i, (label, p) in enumerate(curve.requirements):
             ax.plot(curve.distance_m, curve.outage[i], color=LINE_COLORS[i % len(LINE_COLORS)],
-                    label=f"P(p_link < {p:.4g}) ({label})")
+                    label=f"P(arrival prob. < {fmt(p)}), {requirement_words(label)}")
         if curve.max_outage is not None:
             ax.axhline(curve.max_outage, color=COLORS["p_c"], ls="--", lw=1,
-                       label=f"max_outage = {curve.max_outage:.3g}")
-        ax.axvline(curve.configured_distance_m, color=COLORS["sim"], ls=":", lw=1,
-                   label=f"configured d = {curve.configured_distance_m:.4g} m")
+                       label=f"allowed outage {percent(curve.max_outage)}")
+        _distance_lines(ax, curve.configured_distance_m, None)
         ax.set_xscale("log")
         ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("distance d (m)")
         ax.set_ylabel("outage probability")
-        ax.set_title(f"σ = {curve.sigma_db:g} dB, per link")
+        ax.set_title(f"shadowing σ = {curve.sigma_db:g} dB, per link")
         _plain_log_x(ax)
-        _legend_below(fig, ax)
+        _legend_below(fig, ax, ncols=1)
     return fig

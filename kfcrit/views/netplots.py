@@ -22,7 +22,16 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from kfcrit.views.figstyle import COLORS, FIG_RC, WIDTH_IN, finite, section
+from kfcrit.views.figstyle import (
+    COLORS,
+    FIG_RC,
+    HEIGHT_IN,
+    WIDTH_IN,
+    finite,
+    fmt,
+    readable_rc,
+    section,
+)
 
 REGION_GRID = 241
 """Points per axis of the grid on which the necessary constraints are drawn."""
@@ -126,8 +135,10 @@ def draw_network_region(record: dict[str, Any]) -> Figure | None:
         return None
     grid = np.linspace(0.0, 1.0, REGION_GRID)
     constraints = constraint_values(record, pair, grid)
-    with matplotlib.rc_context(FIG_RC):
-        fig = Figure(figsize=(WIDTH_IN, 3.3), layout="constrained")
+    with matplotlib.rc_context(readable_rc()):
+        # Full-width size: the print CSS caps the height, so a taller figure prints narrower
+        # (and its text smaller); the legend right of the square axes uses the width.
+        fig = Figure(figsize=(WIDTH_IN, HEIGHT_IN), layout="constrained")
         ax = fig.add_subplot()
         ax.set_box_aspect(1)
         if constraints:
@@ -146,11 +157,13 @@ def draw_network_region(record: dict[str, Any]) -> Figure | None:
         _critical_segment(ax, sx, oy, horizontal=True)
         _critical_segment(ax, sy, ox, horizontal=False)
         ax.plot([ox], [oy], marker="o", markersize=6, color=COLORS["operating"],
-                linestyle="none", label=f"operating point ({ox:.4g}, {oy:.4g})", clip_on=False)
+                linestyle="none", label=f"operating point ({fmt(ox)}, {fmt(oy)})", clip_on=False)
         ax.set_xlim(-0.02, 1.02)
         ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel(f"arrival probability of {sx['name']}")
         ax.set_ylabel(f"arrival probability of {sy['name']}")
+        # The square axes sit next to the legend (no gap opens between them).
+        ax.set_anchor("E")
         fig.legend(loc="outside right center", frameon=False)
         return fig
 
@@ -173,12 +186,12 @@ def _critical_segment(ax: Any, sensor: dict[str, Any], other_p: float, *,
     name = sensor["name"]
     if hi - lo > 1e-9:
         ax.plot(xs, ys, color=COLORS["p_up"], linewidth=3.0, alpha=0.6, solid_capstyle="butt",
-                label=f"critical interval of {name} [{lo:.4g}, {hi:.4g}]")
+                label=f"critical interval of {name} [{fmt(lo)}, {fmt(hi)}]")
         ax.plot(xs[-1:], ys[-1:], marker="s", markersize=4.5, color=COLORS["p_up"],
                 linestyle="none")
     else:
         ax.plot(xs[:1], ys[:1], marker="D", markersize=5, color=COLORS["p_c"],
-                linestyle="none", clip_on=False, label=f"critical value of {name} = {lo:.4g}")
+                linestyle="none", clip_on=False, label=f"critical value of {name} = {fmt(lo)}")
 
 
 def positions_of(record: dict[str, Any]) -> dict[str, tuple[float, float]]:

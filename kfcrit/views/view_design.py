@@ -123,16 +123,19 @@ def tail_view(rec: dict[str, Any]) -> dict[str, Any] | None:
 LINK_FIGURES = {
     "arrival_distance": ("Arrival probability against distance",
                          "Arrival probability of the median link (and its average over the "
-                         "shadowing) against distance, with p_c, the required interval "
-                         "[p_S, p_V] of the accuracy requirement and the largest distance of "
-                         "the margin policy."),
+                         "shadowing) against distance, with the critical arrival probability "
+                         "p_c, the configured distance and the largest distance of the margin "
+                         "policy; when the system file states an accuracy requirement, its "
+                         "required interval [p_S, p_V] is shaded as well."),
     "per_sinr": ("Packet error rate against SINR",
                  "Packet error rate of one attempt against SINR for several PSDU lengths, with "
                  "the configured SINR and the SINR the stability requirement needs."),
     "outage_distance": ("Shadowing outage against distance",
                         "Probability that a deployed link (per-link log-normal shadowing) "
-                        "falls below each required arrival probability, against distance, "
-                        "with the policy's allowed outage."),
+                        "falls below the arrival probability it needs (one curve per value "
+                        "named in the legend: p_c, and p_S and p_V when an accuracy "
+                        "requirement is stated), against distance, with the policy's allowed "
+                        "outage and the configured distance."),
 }
 
 
