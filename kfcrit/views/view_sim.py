@@ -115,8 +115,8 @@ def network_scopes(rec: dict[str, Any]) -> dict[str, str]:
     network record keeps its simulation's values at the horizon only (``simulation.network``),
     and the sweeps over one arrival probability p do not apply to per-sensor arrivals."""
     net = network_run(rec)
-    kept = ("The network simulation keeps its values at the horizon only, not a curve over "
-            "time: " + network_mean_text(rec)) if net else \
+    kept = (network_mean_text(rec) + " The record keeps the network simulation's values at "
+            "the horizon only, so no curve over time is drawn.") if net else \
         "The record has no simulation of the network."
     return {
         "phase_transition": "The phase transition (S̄ and V̄ against one arrival probability p) "
