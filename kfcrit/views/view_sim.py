@@ -215,9 +215,8 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
                             "mean-unstable); the sample mean estimates nothing"))
         elif number(mt.get("mean")) is not None:
             band = filters.span(number(mt.get("lower")), number(mt.get("upper")), 5)
-            rows.append(row(f"simulated E[tr P_t] at the horizon t = "
-                            f"{filters.count(net.get('steps'))}", number(mt.get("mean")), "num",
-                            note=f"95 % band {band}"))
+            rows.append(row("simulated E[tr P_t] at the horizon", number(mt.get("mean")), "num",
+                            note=f"t = {filters.count(net.get('steps'))}; 95 % band {band}"))
         quant = horizon_quantiles_text(net.get("horizon_levels"), net.get("horizon_quantiles"))
         if quant:
             rows.append(row("quantiles of tr P at the horizon", None, note=quant))
