@@ -288,8 +288,9 @@ def static_gain_reason(rec: dict[str, Any]) -> str:
     """Why the record has no fixed-gain section: a network (the analysis is made for one
     link), no operating point (no channel), or simply absent."""
     if is_network(rec):
-        return ("computed for single-link systems only; a sensor network's arrivals are one "
-                "per sensor, so one gain against one arrival probability does not describe it")
+        return ("the fixed-gain analysis is made for single-link systems only; a sensor "
+                "network's arrivals are one per sensor, so one gain against one arrival "
+                "probability does not describe it")
     if rec.get("operating_point") is None:
         return "no operating point: the system file has no channel"
     return "the record has no fixed-gain section"
