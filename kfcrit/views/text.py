@@ -8,7 +8,6 @@ from kfcrit.views.netmargin import (
     NETWORK_P_MEANING,
     bottleneck_margin_text,
     margin_text,
-    value_text,
 )
 
 _DECIMAL = re.compile(r"-?\d+(\.\d+)?(e[-+]?\d+)?")
