@@ -62,7 +62,9 @@ def network_lower_bound(network: Any) -> dict[str, Any]:
               \pi(\emptyset) = \prod_i (1 - p_i)
 
     (E[P_{t+1}] ⪰ π(∅) A E[P_t] A' + Q: with every packet lost the filter only predicts), so
-    lim E[P_t] ⪰ S̄; V̄ of the network is not computed (no upper bound, ``upper.exists`` False).
+    lim E[P_t] ⪰ S̄; V̄ of the network is not computed (``upper.computed`` False, so
+    ``upper.exists`` False says nothing about existence). ``p = 1 − π(∅)`` is the probability
+    that at least one sensor's packet arrives.
     """
     import numpy as np
 
@@ -72,8 +74,10 @@ def network_lower_bound(network: Any) -> dict[str, Any]:
                           for s in network.sensors if s.channel is not None]))
     system = network.stacked_system()
     S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
-    return {"p": 1.0 - lost, "lower": bounds.covariance_summary(S),
-            "upper": {**bounds.covariance_summary(None), "method": "not computed for a network"},
+    return {"p": 1.0 - lost,
+            "lower": bounds.covariance_summary(S),
+            "upper": {**bounds.covariance_summary(None), "computed": False,
+                      "method": "not computed for a network"},
             "ordered": None, "applicable": True,
             "reason": "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
                       "together); p is 1 − Π(1 − p_i); V̄ is not computed"}

@@ -4,6 +4,12 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from kfcrit.views.netmargin import (
+    NETWORK_P_MEANING,
+    bottleneck_margin_text,
+    margin_text,
+)
+
 _DECIMAL = re.compile(r"-?\d+(\.\d+)?(e[-+]?\d+)?")
 _LONG_DECIMAL = re.compile(r"\d\.\d{9,}")
 
@@ -103,20 +109,21 @@ def network_lines(net: dict[str, Any] | None) -> list[str]:
         return []
     lines = ["  sensor network        " + f"{len(net.get('sensors') or [])} sensors, verdict "
              f"{(net.get('verdict') or '—').upper()}",
-             f"    {'sensor':<12} {'p_i':>9}  {'critical p_i':<24} {'margin':>9}  N−1 (link dead)"]
+             f"    {'sensor':<12} {'p_i':>9}  {'critical p_i':<24} {'margin':>19}  N−1 (link dead)"]
     for s in net.get("sensors") or []:
-        margin = (s.get("margin") or {}).get("value")
+        # the report's margin text (an interval when p_c,i is only bracketed): one rendering
         lines.append(f"    {safe_text(s.get('name'))[:12]:<12} "
                      f"{_num(s.get('arrival_probability')):>9}  "
                      f"{_value_text(s.get('critical_value')):<24} "
-                     f"{(f'{margin:+.4g}' if margin is not None else '—'):>9}  "
+                     f"{margin_text(s):>19}  "
                      f"{(s.get('n_minus_1') or {}).get('verdict', '—')}")
     um = net.get("uniform_margin") or {}
     lines.append(f"    uniform margin δ      {_value_text(um)}  (every link degraded by δ "
                  "reaches the boundary)")
     bn = net.get("bottleneck") or {}
     if bn.get("name"):
-        lines.append(f"    bottleneck link       {safe_text(bn['name'])}")
+        lines.append(f"    bottleneck link       {safe_text(bn['name'])}  (margin "
+                     f"{bottleneck_margin_text(bn)})")
     return lines
 
 
@@ -201,6 +208,8 @@ def _bounds_lines(rec: dict[str, Any]) -> list[str]:
     if not cb:
         return []
     lo, up = cb.get("lower") or {}, cb.get("upper") or {}
+    if up.get("computed") is False or str(up.get("method") or "").startswith("not computed"):
+        return _uncomputed_upper_lines(cb)
     out = [f"  lim E[P] bounds at p   tr S̄ = {_num(lo.get('trace')) if lo.get('exists') else '∞'}"
            f" ≤ tr lim E[P] ≤ tr V̄ = {_num(up.get('trace')) if up.get('exists') else '∞'}"]
     if (rec.get("operating_point") or {}).get("iid") is False:
@@ -208,6 +217,20 @@ def _bounds_lines(rec: dict[str, Any]) -> list[str]:
                    "bound E[P] for this channel)")
     if cb.get("applicable") is False and cb.get("reason"):
         out.append(f"      V̄ {cb['reason']}")
+    return out
+
+
+def _uncomputed_upper_lines(cb: dict[str, Any]) -> list[str]:
+    """Bounds of lim E[P] when V̄ was not computed (a sensor network): S̄ only, at the p the
+    record states with its meaning (``p_meaning``), and V̄ "not computed", never ∞."""
+    lo, up = cb.get("lower") or {}, cb.get("upper") or {}
+    s_text = _num(lo.get("trace")) if lo.get("exists") else "∞"
+    out = [f"  lim E[P] bounds       tr S̄ = {s_text} ≤ tr lim E[P]  at p = {_num(cb.get('p'))}; "
+           f"tr V̄ {safe_text(up.get('method') or 'not computed')}"]
+    meaning = cb.get("p_meaning") or (NETWORK_P_MEANING if up.get("method") ==
+                                      "not computed for a network" else None)
+    if meaning:
+        out.append(f"      p = {_num(cb.get('p'))} is {safe_text(meaning)}")
     return out
 
 

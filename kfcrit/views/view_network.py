@@ -10,33 +10,16 @@ from __future__ import annotations
 from typing import Any
 
 from kfcrit.views import jinja_filters as filters
+from kfcrit.views.netmargin import bottleneck_margin_text, margin_text, value_text
 from kfcrit.views.netplots import margin_bounds, positions_of, sink_of, weakest_pair
 from kfcrit.views.viewparts import as_dict, as_list, exact_text, figure_entry, number, prose
 
 VERDICT_CSS = {"mean-stable": "ok", "mean-unstable": "no", "undetermined": "none"}
 
 
-def value_text(value: Any, interval: Any, digits: int = 6) -> str:
-    """A number, or an interval [a, b] when only bounds are known (— when neither)."""
-    v = number(value)
-    if v is not None:
-        return filters.num(v, digits)
-    iv = as_list(interval)
-    if len(iv) == 2 and number(iv[0]) is not None and number(iv[1]) is not None:
-        if abs(iv[1] - iv[0]) < 1e-12:
-            return filters.num(iv[0], digits)
-        return filters.interval(iv, digits)
-    return "—"
-
-
-def margin_text(sensor: dict[str, Any]) -> str:
-    """The margin p_i − p_c,i with its sign (an interval when p_c,i is bracketed)."""
-    low, high = margin_bounds(sensor)
-    if low is None:
-        return "—"
-    if high is None or abs(high - low) < 1e-12:
-        return filters.signed(low, 4)
-    return f"[{filters.signed(low, 4)}, {filters.signed(high, 4)}]"
+def is_network(rec: dict[str, Any]) -> bool:
+    """Whether the record is a sensor network of two or more sensors (MATH §9)."""
+    return len(as_list(as_dict(as_dict(rec).get("network")).get("sensors"))) > 1
 
 
 def node_rows(rec: dict[str, Any]) -> list[dict[str, Any]]:
@@ -150,7 +133,7 @@ def network_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]
         if not um.get("unbounded") else "unbounded",
         "uniform_reason": prose(um.get("reason")), "uniform_rule": prose(um.get("rule")),
         "bottleneck": bn.get("name"),
-        "bottleneck_margin": value_text(bn.get("margin"), bn.get("margin_interval"), 4),
+        "bottleneck_margin": bottleneck_margin_text(bn),
         "bottleneck_rule": prose(bn.get("rule")),
         "constraints": constraint_lines(rec),
         "exact_region": None if not ex else

@@ -8,6 +8,7 @@ from typing import Any
 from kfcrit.version import __version__
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views.figures import mean_diverges, series_of, tail_of
+from kfcrit.views.view_network import is_network
 from kfcrit.views.viewparts import as_dict, as_list, missing, number, prose, row, safe_svg
 
 FIGURE_CAPTIONS = {
@@ -62,6 +63,78 @@ def figure_reasons(rec: dict[str, Any]) -> dict[str, str]:
             "invariant": "the invariant-distribution analysis did not run"}
 
 
+SINGLE_LINK_ONLY = "computed for single-link systems only"
+HORIZON_LEVELS = (0.5, 0.9, 0.99)
+
+
+def network_run(rec: Any) -> dict[str, Any]:
+    """``simulation.network`` of the record: the per-sensor-arrival Monte Carlo of a sensor
+    network (empty if absent)."""
+    return as_dict(as_dict(as_dict(rec).get("simulation")).get("network"))
+
+
+def horizon_quantiles_text(levels: Any, quants: Any) -> str:
+    """Quantiles of tr P at the horizon at the levels 50 %, 90 %, 99 % ("" when absent)."""
+    levels, quants = as_list(levels), as_list(quants)
+    if not levels or len(levels) != len(quants):
+        return ""
+    return ", ".join(f"{filters.pct(lv, 3)}: {filters.num(number(qv), 5)}"
+                     for lv, qv in zip(levels, quants)
+                     if lv in HORIZON_LEVELS and number(qv) is not None)
+
+
+def network_mean_text(rec: dict[str, Any]) -> str:
+    """What the network's simulation found at the horizon, in one sentence ("" without one).
+
+    The record keeps E[tr P_t] at the last step t = steps with its 95 % band (or, when the
+    network is mean-unstable, that the mean does not exist) and quantiles of tr P there.
+    """
+    net = network_run(rec)
+    if not net:
+        return ""
+    head = (f"Simulated with each sensor over its own link ({filters.count(net.get('paths'))} "
+            f"paths × {filters.count(net.get('steps'))} steps"
+            + (f", seed {net.get('seed')}" if net.get("seed") is not None else "") + "): ")
+    mt = as_dict(net.get("mean_trace"))
+    if net.get("mean_exists") is False:
+        body = ("E[tr P_t] diverges (the network is mean-unstable), so the sample mean "
+                f"{filters.num(number(net.get('sample_mean_trace')), 5)} at t = "
+                f"{filters.count(net.get('steps'))} estimates nothing")
+    elif number(mt.get("mean")) is not None:
+        body = (f"E[tr P_t] at t = {filters.count(net.get('steps'))} is "
+                f"{filters.num(number(mt.get('mean')), 6)}, 95 % band "
+                f"{filters.span(number(mt.get('lower')), number(mt.get('upper')), 5)}")
+    else:
+        body = "the record has no mean at the horizon"
+    quant = horizon_quantiles_text(net.get("horizon_levels"), net.get("horizon_quantiles"))
+    return head + body + (f"; quantiles of tr P there: {quant}" if quant else "") + "."
+
+
+def network_scopes(rec: dict[str, Any]) -> dict[str, str]:
+    """For a sensor network, why each single-link figure is absent, in one sentence each: the
+    network record keeps its simulation's values at the horizon only (``simulation.network``),
+    and the sweeps over one arrival probability p do not apply to per-sensor arrivals."""
+    net = network_run(rec)
+    kept = (network_mean_text(rec) + " The record keeps the network simulation's values at "
+            "the horizon only, so no curve over time is drawn.") if net else \
+        "The record has no simulation of the network."
+    return {
+        "phase_transition": "The phase transition (S̄ and V̄ against one arrival probability p) "
+                            f"is {SINGLE_LINK_ONLY}: a network's arrivals are one per sensor, "
+                            "and its stability region over the links' p_i, with each link's "
+                            "critical value, is in section 1.",
+        "traces": f"Runs just below and above the critical value are {SINGLE_LINK_ONLY}: a "
+                  "network has no single critical value (each link's is in section 1).",
+        "operating": kept,
+        "cdf": ("The empirical distribution of tr P is kept for single-link systems only; the "
+                "network record keeps its quantiles at the horizon: "
+                + (horizon_quantiles_text(net.get("horizon_levels"),
+                                          net.get("horizon_quantiles")) or "none") + ".")
+        if net else "The record has no simulation of the network.",
+        "almost_sure": f"The block maxima along one long path are {SINGLE_LINK_ONLY}.",
+    }
+
+
 def block_maxima_text(rec: dict[str, Any]) -> str:
     """What the plotted block maxima did, in numbers (no claim about the infinite path)."""
     blk = as_dict(as_dict(as_dict(rec.get("simulation")).get("operating_point"))
@@ -89,6 +162,8 @@ def figures_view(figures: dict[str, str | None],
                  rec: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
     """Each figure with its title, caption and "not computed" message (with the reason)."""
     reasons = figure_reasons(as_dict(rec))
+    # a network's absent figure is replaced by one sentence (``scope``), not an empty figure
+    scopes = network_scopes(as_dict(rec)) if is_network(as_dict(rec)) else {}
     out = {}
     for key, (title, caption) in FIGURE_CAPTIONS.items():
         svg = figures.get(key) if isinstance(figures, dict) else None
@@ -96,8 +171,11 @@ def figures_view(figures: dict[str, str | None],
             caption += block_maxima_text(as_dict(rec))
         if key == "operating" and mean_diverges(operating_run(rec)):
             caption = DIVERGENT_OPERATING_CAPTION
+        scope = scopes.get(key) if not safe_svg(svg) else None
         out[key] = {"svg": safe_svg(svg), "title": title, "caption": caption,
-                    "missing": missing(title[:1].lower() + title[1:], reasons.get(key))}
+                    "missing": missing(title[:1].lower() + title[1:],
+                                       reasons.get(key)) if not scope else scope,
+                    "scope": scope}
     return out
 
 
@@ -138,7 +216,13 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
         elif number(mt.get("mean")) is not None:
             band = filters.span(number(mt.get("lower")), number(mt.get("upper")), 5)
             rows.append(row("simulated E[tr P_t] at the horizon", number(mt.get("mean")), "num",
-                            note=f"95 % band {band}"))
+                            note=f"t = {filters.count(net.get('steps'))}; 95 % band {band}"))
+        quant = horizon_quantiles_text(net.get("horizon_levels"), net.get("horizon_quantiles"))
+        if quant:
+            rows.append(row("quantiles of tr P at the horizon", None, note=quant))
+        if net.get("diverged_paths") is not None:
+            rows.append(row("diverged paths", net.get("diverged_paths"), "count",
+                            note=f"of {filters.count(net.get('paths'))}"))
     elif not op:
         rows.append(row("operating-point runs", None, note="none: the record has no operating "
                         "point (no channel in the system file)"

@@ -12,6 +12,8 @@ from kfcrit.model.exprparse import parse_with_float
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
 from kfcrit.views.figures import invariant_gaps
+from kfcrit.views.netmargin import NETWORK_P_MEANING
+from kfcrit.views.view_network import is_network
 from kfcrit.views.viewparts import (
     as_dict,
     as_list,
@@ -279,8 +281,19 @@ def static_gain_view(rec: dict[str, Any]) -> dict[str, Any]:
                       "covariance_trace": number(g.get("covariance_trace")),
                       "note": "; ".join(notes)})
     return {"available": isinstance(sg, dict), "p": number(d.get("p")), "gains": gains,
-            "missing": missing("fixed-gain estimators",
-                                "no operating point: the system file has no channel")}
+            "missing": missing("fixed-gain estimators", static_gain_reason(rec))}
+
+
+def static_gain_reason(rec: dict[str, Any]) -> str:
+    """Why the record has no fixed-gain section: a network (the analysis is made for one
+    link), no operating point (no channel), or simply absent."""
+    if is_network(rec):
+        return ("the fixed-gain analysis is made for single-link systems only; a sensor "
+                "network's arrivals are one per sensor, so one gain against one arrival "
+                "probability does not describe it")
+    if rec.get("operating_point") is None:
+        return "no operating point: the system file has no channel"
+    return "the record has no fixed-gain section"
 
 
 def upper_expression(ub: dict[str, Any]) -> str | None:
@@ -332,14 +345,33 @@ def covariance_view(rec: dict[str, Any]) -> dict[str, Any]:
 
     def side(x: Any) -> dict[str, Any]:
         x = as_dict(x)
-        return {"exists": x.get("exists"), "trace": number(x.get("trace")),
+        # ``computed: False`` (a network's V̄; older records say so only in ``method``):
+        # "exists" is then unknown, never a red "no"
+        computed = x.get("computed") is not False and \
+            not str(x.get("method") or "").startswith("not computed")
+        return {"exists": x.get("exists") if computed else None, "computed": computed,
+                "trace": number(x.get("trace")),
                 "max_eig": number(x.get("max_eig")), "residual": number(x.get("residual")),
                 "method": prose(x.get("method")) or None}
 
     why = "no operating point: the system file has no channel section" \
         if rec.get("operating_point") is None else None
     return {"available": isinstance(cb, dict), "missing": missing("covariance bounds", why),
-            "p": number(d.get("p")), "lower": side(d.get("lower")), "upper": side(d.get("upper"))}
+            "p": number(d.get("p")), "p_meaning": covariance_p_meaning(rec),
+            "lower": side(d.get("lower")), "upper": side(d.get("upper"))}
+
+
+def covariance_p_meaning(rec: dict[str, Any]) -> str | None:
+    r"""What the ``p`` of ``covariance_bounds`` is, when it is not the operating point's p.
+
+    For a sensor network the record's S̄ solves :math:`\bar S = \prod_i (1 - p_i) A \bar S A'
+    + Q` (its ``reason`` says so), so :math:`p = 1 - \prod_i (1 - p_i)`; a ``p_meaning`` in
+    the record, when present, is used as written. ``None`` for a single link.
+    """
+    cb = as_dict(rec.get("covariance_bounds"))
+    if cb.get("p_meaning"):
+        return prose(cb.get("p_meaning"))
+    return NETWORK_P_MEANING if is_network(rec) else None
 
 
 def _is_series(value: Any) -> bool:
