@@ -43,25 +43,24 @@ def plain_value(value: object) -> str:
     return str(value)
 
 
-def is_sweep_document(doc: object) -> bool:
-    """A sweep file names a base ``system`` and a ``grid`` or ``points``; a system file does not."""
-    return isinstance(doc, dict) and "system" in doc and ("grid" in doc or "points" in doc)
-
-
 @click.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @max_states_option
 @debug_option
 @handle_errors
 def check(file: str, max_states: int, debug: bool) -> None:
-    """Validate a system or sweep FILE without analysing it (exit 0 valid, 2 invalid)."""
+    """Validate a system or sweep FILE without analysing it (exit 0 valid, 2 invalid).
+
+    A sweep file is checked point by point: every swept value, and every point's whole
+    assignment, is set in the base system and validated as a system file."""
     from kfcrit.analysis.spec import load_spec
-    from kfcrit.analysis.sweep import load_sweep
-    from kfcrit.io.systemfile import read_yaml
+    from kfcrit.io.systemfile import is_sweep_document, read_yaml
 
     doc, _ = read_yaml(file)
     if is_sweep_document(doc):
-        sweep = load_sweep(file, max_states=max_states)
+        from kfcrit.analysis.sweepcheck import check_sweep_file
+
+        sweep = check_sweep_file(file, max_states=max_states)
         click.echo(f"{file}: valid sweep file: {len(sweep.points)} points over "
                    f"{', '.join(sweep.parameters)}")
     else:
