@@ -16,10 +16,13 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from kfcrit.errors import InputError, KfcritError
 from kfcrit.io.systemfile import read_yaml
+
+if TYPE_CHECKING:
+    from kfcrit.analysis.sweep import SweepSpec
 
 SWEEP_FILE_KEYS = ("name", "description", "system", "tolerance", "grid", "points", "plot")
 """Top-level keys of a sweep file (the same set as :data:`kfcrit.analysis.sweep.SWEEP_KEYS`)."""
@@ -82,7 +85,7 @@ def _refusal(doc: dict, base_dir: Path, max_states: int, *,
     return None
 
 
-def check_points(spec: Any, doc: dict, *, max_states: int) -> None:
+def check_points(spec: SweepSpec, doc: dict, *, max_states: int) -> None:
     """Validate every value, then every point, of a loaded sweep against the system-file rules.
 
     Parameters
@@ -123,7 +126,7 @@ def check_points(spec: Any, doc: dict, *, max_states: int) -> None:
                              field="sweep.points" if "points" in doc else "sweep.grid") from None
 
 
-def check_sweep_file(path: str | Path, *, max_states: int = 400) -> Any:
+def check_sweep_file(path: str | Path, *, max_states: int = 400) -> SweepSpec:
     """Validate a sweep file as ``kfcrit check`` does and return its
     :class:`~kfcrit.analysis.sweep.SweepSpec` (nothing is analysed or written)."""
     from kfcrit.analysis.sweep import load_sweep
