@@ -14,11 +14,22 @@ from typing import Any
 from kfcrit.io import systemfile
 from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
 from kfcrit.io.systemfile import SystemSpec
-from kfcrit.link.linkbudget import LinkBudget
 from kfcrit.model.channels import Channel
 from kfcrit.model.system import MAX_STATES_DEFAULT, System
 
-CHANNELS: Mapping[str, ChannelParser] = {**BASIC_CHANNELS, "link-budget": LinkBudget.from_mapping}
+
+def link_budget_from_mapping(data: dict, prefix: str, base_dir: Path | None) -> Channel:
+    """A link-budget channel from its system-file mapping.
+
+    :mod:`kfcrit.link.linkbudget` (and SciPy behind it) is imported here, when a file names
+    a link budget, so that checking any other system file never pays for it.
+    """
+    from kfcrit.link.linkbudget import LinkBudget
+
+    return LinkBudget.from_mapping(data, prefix, base_dir)
+
+
+CHANNELS: Mapping[str, ChannelParser] = {**BASIC_CHANNELS, "link-budget": link_budget_from_mapping}
 """Parser of every channel model a system file may name."""
 
 

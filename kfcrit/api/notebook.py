@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -10,6 +11,9 @@ from typing import Any
 
 from kfcrit.analysis import sections
 from kfcrit.analysis.record import analyze as record_analyze
+from kfcrit.analysis.spec import load_spec
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.model.system import MAX_STATES_DEFAULT, System
 
 
 @dataclass(frozen=True, repr=False)
@@ -48,13 +52,46 @@ class Analysis(sections.Analysis):
         return cls(**{f.name: getattr(record, f.name) for f in dataclasses.fields(record)})
 
 
-def analyze(system: Any, options: Any = None, **kwargs: Any) -> Analysis:
-    """Analyse a :class:`~kfcrit.model.system.System` or a loaded system file.
+def as_spec(system: Any, *, max_states: int = MAX_STATES_DEFAULT) -> System | SystemSpec:
+    """What :func:`kfcrit.analysis.record.analyze` takes, from what a notebook user passes.
 
-    See :func:`kfcrit.analysis.record.analyze` (same parameters); the record returned displays
-    itself in notebooks.
+    A path (``str`` or :class:`os.PathLike`) is a system file, loaded as ``kfcrit analyze``
+    loads it (:func:`kfcrit.analysis.spec.load_spec`: channel, requirements and provenance
+    included); a :class:`~kfcrit.model.system.System` or
+    :class:`~kfcrit.io.systemfile.SystemSpec` is used as it is.
+
+    Raises
+    ------
+    TypeError
+        For anything else, naming the type received and the types accepted.
+    kfcrit.errors.InputError
+        For a path whose file is missing or invalid (one line naming the field).
     """
-    return Analysis.of(record_analyze(system, options, **kwargs))
+    if isinstance(system, (System, SystemSpec)):
+        return system
+    if isinstance(system, (str, os.PathLike)):
+        return load_spec(os.fspath(system), max_states=max_states)
+    raise TypeError("analyze() takes a system file path (str or pathlib.Path), a "
+                    "kfcrit.System or a kfcrit.SystemSpec (from kfcrit.load_spec), not "
+                    f"{type(system).__name__}")
+
+
+def analyze(system: Any, options: Any = None, *, max_states: int = MAX_STATES_DEFAULT,
+            **kwargs: Any) -> Analysis:
+    """Analyse a system file (its path), a :class:`~kfcrit.model.system.System` or a loaded
+    system file (:class:`~kfcrit.io.systemfile.SystemSpec`).
+
+    See :func:`kfcrit.analysis.record.analyze` (same parameters; keyword arguments override
+    fields of :class:`~kfcrit.analysis.record.AnalysisOptions`, e.g. ``simulate=False``);
+    ``max_states`` is the size cap applied when loading a path, as ``--max-states`` on the
+    command line. The record returned displays itself in notebooks.
+
+    Examples
+    --------
+    >>> record = kfcrit.analyze("reports/link-oqpsk-sensor.yaml", quick=True)  # doctest: +SKIP
+    >>> record.decision, record.figure_names()                                 # doctest: +SKIP
+    """
+    return Analysis.of(record_analyze(as_spec(system, max_states=max_states), options, **kwargs))
 
 
 @dataclass(frozen=True)

@@ -43,25 +43,24 @@ def plain_value(value: object) -> str:
     return str(value)
 
 
-def is_sweep_document(doc: object) -> bool:
-    """A sweep file names a base ``system`` and a ``grid`` or ``points``; a system file does not."""
-    return isinstance(doc, dict) and "system" in doc and ("grid" in doc or "points" in doc)
-
-
 @click.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @max_states_option
 @debug_option
 @handle_errors
 def check(file: str, max_states: int, debug: bool) -> None:
-    """Validate a system or sweep FILE without analysing it (exit 0 valid, 2 invalid)."""
+    """Validate a system or sweep FILE without analysing it (exit 0 valid, 2 invalid).
+
+    A sweep file is checked point by point: every swept value, and every point's whole
+    assignment, is set in the base system and validated as a system file."""
     from kfcrit.analysis.spec import load_spec
-    from kfcrit.analysis.sweep import load_sweep
-    from kfcrit.io.systemfile import read_yaml
+    from kfcrit.io.systemfile import is_sweep_document, read_yaml
 
     doc, _ = read_yaml(file)
     if is_sweep_document(doc):
-        sweep = load_sweep(file, max_states=max_states)
+        from kfcrit.analysis.sweepcheck import check_sweep_file
+
+        sweep = check_sweep_file(file, max_states=max_states)
         click.echo(f"{file}: valid sweep file: {len(sweep.points)} points over "
                    f"{', '.join(sweep.parameters)}")
     else:
@@ -72,21 +71,49 @@ def check(file: str, max_states: int, debug: bool) -> None:
     sys.exit(0)
 
 
+def settable_keys(entry: dict) -> dict[str, str]:
+    """The keys a ``radio:`` mapping of this model may set besides ``model``, each with what
+    it takes ("required" or its default)."""
+    from kfcrit.io.fileschema import RADIO_MAPPING_KEYS, RADIO_REQUIRED_KEYS
+
+    name = entry["name"]
+    params = entry.get("parameters") or {}
+    required = RADIO_REQUIRED_KEYS.get(name, ())
+    return {key: "required" if key in required else f"default {plain_value(params.get(key))}"
+            for key in RADIO_MAPPING_KEYS.get(name, {})}
+
+
 @click.command()
 @click.option("--json", "as_json", is_flag=True, help="Print the catalogue as JSON.")
 @debug_option
 @handle_errors
 def radios(as_json: bool, debug: bool) -> None:
-    """List the radio models a link budget may name, with their parameters."""
+    """List the radio models a link budget may name, with their parameters.
+
+    For each radio, "settable keys" are what a system file's ``radio: {model: NAME, ...}``
+    mapping may set; the "descriptive" lines (formula, source, frame, datasheet values) say
+    what the model is and cannot be set."""
     from kfcrit.link.radios import radio_catalogue
 
-    entries = [r.to_dict() for r in radio_catalogue()]
+    entries = [{**r.to_dict()} for r in radio_catalogue()]
+    for e in entries:
+        e["settable_keys"] = sorted(settable_keys(e))
     if as_json:
         click.echo(json.dumps(entries, indent=2, ensure_ascii=False))
         return
     for e in entries:
         click.echo(f"{e['name']}  ({e['kind']})")
         click.echo(f"    {e['description']}")
+        keys = settable_keys(e)
+        if keys:
+            click.echo(f"    settable keys (radio: {{model: {e['name']}, KEY: VALUE}}): "
+                       + ", ".join(f"{k} ({v})" for k, v in keys.items()))
+        else:
+            click.echo(f"    settable keys: none (radio: {e['name']})")
         params = e.get("parameters") or {}
-        for key, value in (params.items() if isinstance(params, dict) else enumerate(params)):
-            click.echo(f"    {key}: {plain_value(value)}")
+        items = params.items() if isinstance(params, dict) else enumerate(params)
+        shown = [(k, v) for k, v in items if k != "model" and k not in keys]
+        if shown:
+            click.echo("    descriptive (what the model is; not settable):")
+        for key, value in shown:
+            click.echo(f"      {key}: {plain_value(value)}")

@@ -20,7 +20,27 @@ MATRIX = {"description": "a list of rows of numbers or expression strings; for Q
                     {"type": "array", "minItems": 1,
                      "items": {"type": "array", "minItems": 1,
                                "items": {"$ref": "#/$defs/number"}}}]}
+INTEGER = {"description": "an integer (or an exact expression string whose value is one)",
+           "anyOf": [{"type": "integer"}, {"type": "string", "maxLength": 500}]}
 PROBABILITY = {"$ref": "#/$defs/number", "description": "a probability in [0, 1]"}
+
+CALIBRATED_RADIO = "ieee802154-oqpsk-calibrated"
+RADIO_MAPPING_KEYS: dict[str, dict[str, tuple[str, str]]] = {
+    "bpsk": {"processing_gain_db": ("number", "processing gain G (dB), in [-60, 60]; "
+                                    "default 0")},
+    CALIBRATED_RADIO: {
+        "sensitivity_dbm": ("number", "required: the receiver sensitivity S (dBm) at "
+                            "reference_per"),
+        "reference_per": ("number", "packet error rate of the sensitivity test, in (0, 0.5]; "
+                          "default 0.01"),
+        "reference_psdu_bytes": ("integer", "PSDU length of the sensitivity test (1 to 127 "
+                                 "bytes); default 20")},
+}
+"""The keys a ``radio:`` mapping may set besides ``model``, per radio model, as (type,
+meaning). Every other radio (the ideal ``ieee802154-oqpsk-2450`` and each datasheet profile)
+takes ``model`` alone; what ``kfcrit radios`` prints beyond these keys (formula, source, frame,
+datasheet, calibrated losses) describes the model and cannot be set."""
+RADIO_REQUIRED_KEYS: dict[str, tuple[str, ...]] = {CALIBRATED_RADIO: ("sensitivity_dbm",)}
 
 
 def _object(properties: dict[str, Any], required: list[str], description: str) -> dict[str, Any]:
@@ -31,6 +51,7 @@ def _object(properties: dict[str, Any], required: list[str], description: str) -
 def channel_defs() -> dict[str, Any]:
     """Schemas of the channel models (``channel.model`` selects one)."""
     num = {"$ref": "#/$defs/number"}
+    integer = {"$ref": "#/$defs/integer"}
     bernoulli = _object({"model": {"const": "bernoulli"},
                          "arrival_probability": {**PROBABILITY,
                                                  "description": "P(packet arrives), i.i.d."}},
@@ -63,23 +84,21 @@ def channel_defs() -> dict[str, Any]:
                      "interference_dbm": {**num, "description": "interference power (dBm)"}},
                     [], "noise floor, or thermal noise from bandwidth and noise figure")
     radio = {"description": "a radio model name (see `kfcrit radios`), or a mapping with "
-                            "`model` and that model's parameters",
-             "anyOf": [{"type": "string"},
-                       {"type": "object", "required": ["model"],
-                        "properties": {"model": {"type": "string"}}}]}
+                            "`model` and the keys that model can set (`channel.radio.*` below)",
+             "anyOf": [{"type": "string"}, {"$ref": "#/$defs/radio_mapping"}]}
     link = _object({"model": {"const": "link-budget"}, "radio": radio,
                     "tx_power_dbm": {**num, "description": "transmit power (dBm)"},
                     "distance_m": {**num, "description": "transmitter–receiver distance (m)"},
-                    "packet_bytes": {**num, "description": "application payload per packet "
-                                     "(bytes)"},
+                    "packet_bytes": {**integer, "description": "application payload per "
+                                     "packet (bytes)"},
                     "path_loss": path_loss, "noise": noise,
                     "antenna_gain_db": {**num, "description": "total antenna gain (dB)"},
                     "margin_db": {**num, "description": "link margin the policy requires (dB)"},
                     "max_outage": {**num, "description": "largest shadowing outage the policy "
                                    "allows, in [0, 0.5]"},
-                    "max_retries": {**num, "description": "MAC retransmissions per sample "
+                    "max_retries": {**integer, "description": "MAC retransmissions per sample "
                                     "(0 to 7 for 802.15.4): arrival 1 − PER^(k+1)"},
-                    "mac_overhead_bytes": {**num, "description": "MAC header + FCS bytes added "
+                    "mac_overhead_bytes": {**integer, "description": "MAC header + FCS bytes added "
                                            "to the payload (default: the radio's frame, 11 for "
                                            "802.15.4)"},
                     "shadowing_correlation": _object({
@@ -94,9 +113,40 @@ def channel_defs() -> dict[str, Any]:
                    ["model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
                     "noise"], "a radio link: transmit power, distance, packet size, path loss")
     return {"bernoulli": bernoulli, "gilbert_elliott": ge, "trace": trace, "link_budget": link,
+            "radio_mapping": radio_mapping_schema(),
             "channel": {"description": "the packet channel of the operating point",
                         "oneOf": [{"$ref": f"#/$defs/{k}"} for k in
                                   ("bernoulli", "gilbert_elliott", "trace", "link_budget")]}}
+
+
+def radio_mapping_schema() -> dict[str, Any]:
+    """Schema of ``radio: {model: NAME, ...}``: the keys of :data:`RADIO_MAPPING_KEYS`, each
+    allowed only with its model (``if``/``then`` per model; any other model takes ``model``
+    alone)."""
+    props: dict[str, Any] = {"model": {"type": "string", "description": "the radio model "
+                                       "(`kfcrit radios` lists them)"}}
+    rules: list[dict[str, Any]] = []
+    for model, keys in RADIO_MAPPING_KEYS.items():
+        for key, (kind, meaning) in keys.items():
+            props[key] = {"$ref": f"#/$defs/{kind}", "description": f"{meaning} "
+                          f"(`model: {model}` only)"}
+        rules.append({"if": {"properties": {"model": {"const": model}}, "required": ["model"]},
+                      "then": {"propertyNames": {"enum": ["model", *keys]},
+                               "required": ["model", *RADIO_REQUIRED_KEYS.get(model, ())]}})
+    rules.append({"if": {"properties": {"model": {"not": {"enum": list(RADIO_MAPPING_KEYS)}}}},
+                  "then": {"propertyNames": {"const": "model"}}})
+    return {"type": "object", "description": "a radio with parameters", "properties": props,
+            "required": ["model"], "additionalProperties": False, "allOf": rules}
+
+
+def links_schema() -> dict[str, Any]:
+    """Schema of a network file's ``links:``: link-budget keys merged into every sensor's
+    channel (all but ``distance_m``, which is per sensor)."""
+    link = channel_defs()["link_budget"]
+    props = {k: v for k, v in link["properties"].items() if k != "distance_m"}
+    return _object(props, [], "defaults merged into every sensor's link-budget channel: any "
+                   "link-budget key except distance_m (per sensor: its channel's distance_m or "
+                   "position_m); a sensor's own channel keys take precedence")
 
 
 def system_schema() -> dict[str, Any]:
@@ -133,8 +183,7 @@ def system_schema() -> dict[str, Any]:
              "sensors": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/sensor"},
                          "description": "several sensors, each over its own link (instead of "
                                         "C, R, channel; MATH §9)"},
-             "links": {"type": "object", "description": "defaults merged into every sensor's "
-                                                        "link-budget channel"},
+             "links": links_schema(),
              "sink_position_m": {"type": "array", "items": num,
                                  "description": "position of the estimator (with the sensors' "
                                                 "position_m: distances)"},
@@ -151,7 +200,8 @@ def system_schema() -> dict[str, Any]:
                                      "description": "position (replaces the channel's "
                                                     "distance_m, with sink_position_m)"}},
                      ["name", "C", "R"], "one sensor of a network")
-    defs = {"number": NUMBER, "matrix": MATRIX, "requirements": requirements, "sensor": sensor,
+    defs = {"number": NUMBER, "integer": INTEGER, "matrix": MATRIX,
+            "requirements": requirements, "sensor": sensor,
             **channel_defs()}
     discrete = {"required": ["A", "Q"],
                 "not": {"anyOf": [{"required": ["continuous"]}, {"required": ["sampling_time"]}]}}
@@ -171,8 +221,11 @@ def system_schema() -> dict[str, Any]:
 
 def sweep_schema() -> dict[str, Any]:
     """JSON Schema of a sweep file."""
-    values = {"description": "a list of values, or a range",
+    values = {"description": "the parameter's values: a list (`[20, 40, 116]`; words such as "
+                             "radio names where the base value is a word), one value, or a "
+                             "range `{start, stop, num}` / `{start, stop, step}` (keys below)",
               "anyOf": [{"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/number"}},
+                        {"$ref": "#/$defs/number"},
                         {"type": "object", "properties": {
                             "start": {"$ref": "#/$defs/number",
                                       "description": "first value of a range"},

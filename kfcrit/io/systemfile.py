@@ -202,6 +202,9 @@ def _exact_numbers(obj: Any, where: str, depth: int = 0) -> Any:
     """
     if isinstance(obj, YamlNumber):
         return number_from_text(str(obj), where)
+    if isinstance(obj, dict):
+        raise InputError("expected a number or a matrix (list of rows), got a mapping"
+                         if depth == 0 else "expected a number, got a mapping", field=where)
     if isinstance(obj, list):
         if depth >= 2:
             raise InputError("must be a matrix: a list of rows of numbers", field=where)
@@ -342,6 +345,9 @@ def _plain(obj: Any) -> Any:
 
 def _raw_shape(value: Any, name: str, max_states: int) -> tuple[int, int] | None:
     """Shape of a raw (unconverted) matrix: None for a scalar; errors name the matrix."""
+    if isinstance(value, dict):
+        raise InputError("expected a number or a matrix (list of rows), got a mapping",
+                         field=name)
     if not isinstance(value, (list, tuple)):
         return None
     if len(value) == 0:
@@ -423,6 +429,60 @@ def _sampled(doc: dict) -> SampledModel | None:
                   _exact_numbers(doc["sampling_time"], "sampling_time"))
 
 
+RECORD_MARKERS = ("schema_version", "review")
+"""Top-level keys every record saved by ``kfcrit analyze --json`` has and no system file has."""
+SWEEP_ONLY_KEYS = ("system", "grid", "points")
+"""Top-level keys of a sweep file that no system file has."""
+
+
+def is_saved_record(doc: Any) -> bool:
+    """Whether a parsed document is an analysis record saved by ``kfcrit analyze --json``."""
+    return isinstance(doc, dict) and all(k in doc for k in RECORD_MARKERS)
+
+
+def is_sweep_document(doc: Any) -> bool:
+    """Whether a parsed document is a sweep file rather than a system file.
+
+    A sweep file names its base ``system:`` (no system file has that key); ``grid:`` or
+    ``points:`` without any matrix also mark one, so that a sweep file whose ``system:`` key is
+    misspelled is still reported as a sweep file.
+    """
+    if not isinstance(doc, dict):
+        return False
+    return "system" in doc or (any(k in doc for k in SWEEP_ONLY_KEYS)
+                               and not any(k in doc for k in MATRIX_KEYS | {"continuous"}))
+
+
+def wrong_kind_error(doc: Any, path: str | Path | None = None) -> InputError | None:
+    """The one-line error for a saved record or a sweep file given where a system file is
+    expected (None for anything else)."""
+    import shlex
+
+    name = shlex.quote(str(path)) if path is not None else "FILE"
+    if is_saved_record(doc):
+        return InputError(f"this is a saved analysis record (kfcrit analyze --json), not a system "
+                          f"file; render it with 'kfcrit report {name} -o review.html'",
+                          field="file")
+    if is_sweep_document(doc):
+        return InputError(f"this is a sweep file, not a system file; validate it with 'kfcrit "
+                          f"check {name}' and run it with 'kfcrit sweep {name}'", field="file")
+    return None
+
+
+def _json_record(text: str) -> Any:
+    """The JSON document ``text`` holds when it looks like a saved record (else None): such a
+    record is recognised before the YAML reader's size guards, sized for system files, see it."""
+    if text.lstrip("\ufeff \t\r\n")[:1] != "{":
+        return None
+    import json
+
+    try:
+        doc = json.loads(text.lstrip("\ufeff"))
+    except (ValueError, RecursionError):
+        return None
+    return doc if is_saved_record(doc) else None
+
+
 def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                       max_states: int = MAX_STATES_DEFAULT,
                       channels: Mapping[str, ChannelParser] = BASIC_CHANNELS) -> SystemSpec:
@@ -434,6 +494,9 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     if not isinstance(doc, dict):
         raise InputError("the file must be a YAML mapping (name:, A:, C:, Q:, R:, ...)",
                          field="file")
+    wrong = wrong_kind_error(doc)
+    if wrong is not None:
+        raise wrong
     for key in doc:
         if not isinstance(key, str) or key not in TOP_KEYS:
             raise InputError(f"unknown key (allowed: {', '.join(sorted(TOP_KEYS))})",
@@ -514,8 +577,14 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
     state-size guard ``max_states``); then the shapes, then the exact entries.
     """
     text, digest = _read_text(path)
+    wrong = wrong_kind_error(_json_record(text), path)
+    if wrong is not None:
+        raise wrong
     doc = parse_yaml_text(text, name=Path(path).name, max_nodes=max_nodes_for(max_states),
                           matrix_keys=SCAN_MATRIX_KEYS, max_items=max_states)
+    wrong = wrong_kind_error(doc, path)
+    if wrong is not None:
+        raise wrong
     spec = spec_from_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states,
                              channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,

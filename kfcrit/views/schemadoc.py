@@ -16,6 +16,8 @@ def _type_text(node: dict[str, Any], defs: dict[str, Any]) -> str:
     ref = node.get("$ref", "")
     if ref.endswith("/number"):
         return "number or exact expression"
+    if ref.endswith("/integer"):
+        return "integer"
     if ref.endswith("/matrix"):
         return "matrix (rows of numbers/expressions) or scalar"
     node = _resolve(node, defs)
@@ -36,6 +38,26 @@ def _type_text(node: dict[str, Any], defs: dict[str, Any]) -> str:
     return "any"
 
 
+SHALLOW_PREFIXES = ("links.",)
+"""Mappings listed one level deep: their keys are the link-budget channel's, whose nested keys
+the ``channel`` table of ``model: link-budget`` lists in full."""
+
+
+def _values_text(node: dict[str, Any], defs: dict[str, Any]) -> str:
+    """The forms a sweep grid's values take (list, one value, range mapping)."""
+    forms = []
+    for alt in node.get("anyOf", []):
+        alt = _resolve(alt, defs) if "$ref" in alt and not alt["$ref"].endswith("/number") \
+            else alt
+        if alt.get("type") == "array":
+            forms.append(f"list of {_type_text(alt.get('items', {}), defs)}")
+        elif alt.get("type") == "object":
+            forms.append("range (mapping)")
+        else:
+            forms.append(f"one {_type_text(alt, defs)}")
+    return ", ".join(forms) or _type_text(node, defs)
+
+
 def _rows(obj: dict[str, Any], defs: dict[str, Any], prefix: str,
           out: list[tuple[str, str, bool, str]]) -> None:
     obj = _resolve(obj, defs)
@@ -43,6 +65,10 @@ def _rows(obj: dict[str, Any], defs: dict[str, Any], prefix: str,
     for key, node in (obj.get("properties") or {}).items():
         path = f"{prefix}{key}"
         desc = node.get("description") or _resolve(node, defs).get("description") or ""
+        if prefix.startswith(SHALLOW_PREFIXES):
+            out.append((path, _type_text(node, defs), key in required,
+                        f"as `channel.{key}` of a link-budget channel (below)"))
+            continue
         out.append((path, _type_text(node, defs), key in required, desc))
         inner = _resolve(node, defs)
         if inner.get("type") == "object" and inner.get("properties") and "$ref" in node \
@@ -54,9 +80,18 @@ def _rows(obj: dict[str, Any], defs: dict[str, Any], prefix: str,
             item = _resolve(inner["items"], defs)
             if item.get("properties"):
                 _rows(item, defs, f"{path}[].", out)
+        elif any(_resolve(alt, defs).get("properties") for alt in inner.get("anyOf", [])
+                 if "$ref" in alt):
+            # a name or a mapping (``radio``): the mapping's keys
+            for alt in inner["anyOf"]:
+                if "$ref" in alt and _resolve(alt, defs).get("properties"):
+                    _rows(_resolve(alt, defs), defs, f"{path}.", out)
         elif inner.get("type") == "object" and isinstance(inner.get("additionalProperties"),
                                                           dict):
-            for alt in inner["additionalProperties"].get("anyOf", []):
+            values = inner["additionalProperties"]
+            out.append((f"{path}.PARAMETER", _values_text(values, defs), False,
+                        values.get("description", "")))
+            for alt in values.get("anyOf", []):
                 if alt.get("type") == "object" and alt.get("properties"):
                     _rows(alt, defs, f"{path}.PARAMETER.", out)
 
