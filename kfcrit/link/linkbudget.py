@@ -42,8 +42,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 import sympy as sp
-from scipy.optimize import brentq
-from scipy.special import ndtr, ndtri
 
 from kfcrit.errors import InputError
 from kfcrit.link.fields import exact_number, integer_field, real_field
@@ -283,6 +281,8 @@ class LinkBudget(Channel):
         margin = self.margin_db
         if self.max_outage is not None and self.sigma_db > 0 \
                 and not self.per_packet_shadowing:
+            from scipy.special import ndtri
+
             margin = max(margin, float(self.sigma_db * ndtri(1.0 - self.max_outage)))
         return margin
 
@@ -303,6 +303,8 @@ class LinkBudget(Channel):
             return None
         if p >= self.mean_arrival(hi):
             raise ValueError(f"arrival probability {p!r} is not reached")
+        from scipy.optimize import brentq
+
         return float(brentq(lambda s: self.mean_arrival(s) - p, lo, hi, xtol=1e-9))
 
     def outage_probability(self, p: float) -> float:
@@ -312,6 +314,8 @@ class LinkBudget(Channel):
             return 0.0
         if self.sigma_db == 0:
             return 1.0 if self.sinr_db < s_req else 0.0
+        from scipy.special import ndtr
+
         return float(ndtr((s_req - self.sinr_db) / self.sigma_db))
 
     def max_distance_m(self, sinr_required_db: float, margin_db: float) -> float | None:

@@ -30,8 +30,6 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.special import comb, erfc
 
 from kfcrit.errors import InputError
 from kfcrit.link.fields import integer_field, real_field
@@ -109,6 +107,8 @@ class Radio:
         unreachable = fn(hi) > 0 if p > 0.5 else fn(hi) < 0
         if unreachable:
             raise ValueError(f"arrival probability {p!r} needs more than {hi} dB SINR")
+        from scipy.optimize import brentq
+
         return float(brentq(fn, lo, hi, xtol=1e-12, rtol=4 * np.finfo(float).eps, maxiter=200))
 
 
@@ -127,6 +127,8 @@ def oqpsk_ber(sinr: Any) -> np.ndarray:
     """
     s = np.asarray(sinr, dtype=float)
     k = np.arange(2, 17, dtype=float)
+    from scipy.special import comb
+
     coeff = (-1.0) ** k * comb(16, k, exact=False)
     terms = coeff * np.exp(20.0 * s[..., None] * (1.0 / k - 1.0))
     return np.clip(terms.sum(axis=-1) * (8.0 / 15.0) / 16.0, 0.0, 0.5)
@@ -292,6 +294,8 @@ class CoherentBpsk(Radio):
 
     def ber(self, sinr: Any) -> np.ndarray:
         ebn0 = np.asarray(sinr, dtype=float) * 10.0 ** (self.processing_gain_db / 10.0)
+        from scipy.special import erfc
+
         return 0.5 * erfc(np.sqrt(ebn0))
 
     def to_dict(self) -> dict[str, Any]:

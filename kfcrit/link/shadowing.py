@@ -37,8 +37,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from scipy.special import ndtr, ndtri, owens_t
-
 from kfcrit.errors import InputError
 from kfcrit.link.fields import mapping_field, real_field
 from kfcrit.model.channels import check_keys
@@ -108,6 +106,8 @@ class ShadowingMarkov:
     @property
     def stationary_arrival_probability(self) -> float:
         """r / (f + r) = 1 − Φ(a*)."""
+        from scipy.special import ndtr
+
         return float(ndtr(-self.threshold_z))
 
     @property
@@ -137,6 +137,8 @@ def markov_from_threshold(correlation: float, threshold_z: float) -> ShadowingMa
         raise ValueError("the correlation must lie in (-1, 1)")
     a = float(threshold_z)
     alpha = math.sqrt((1.0 - rho) / (1.0 + rho))
+    from scipy.special import ndtr, owens_t
+
     q = 2.0 * float(owens_t(a, alpha))
     good, bad = float(ndtr(-a)), float(ndtr(a))
     f = min(1.0, q / good) if good > 0 else 1.0
@@ -147,4 +149,6 @@ def markov_from_threshold(correlation: float, threshold_z: float) -> ShadowingMa
 def markov_from_mean_arrival(correlation: float, mean_arrival: float) -> ShadowingMarkov:
     """:func:`markov_from_threshold` at a* = Φ^{-1}(1 − p̄) (the stationary law matches p̄)."""
     p = min(max(float(mean_arrival), 1e-300), 1.0 - 1e-16)
+    from scipy.special import ndtri
+
     return markov_from_threshold(correlation, float(ndtri(1.0 - p)))
