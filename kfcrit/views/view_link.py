@@ -252,13 +252,19 @@ def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
             note="packets"),
     ]
     if sim:
+        ratio = number(sim.get("growth_ratio"))
+        consistent = lb.get("simulation_consistent")
+        reading = "" if ratio is None else ("; reads as growing (bounded below 2)" if ratio >= 2
+                                            else "; reads as bounded (below 2)")
+        verdict = ("; agrees with the burst condition" if consistent else
+                   "; DISAGREES with the burst condition" if consistent is False else "")
         rows.append(row("simulated growth of mean P (last / second quarter)",
                         sim.get("growth_ratio"), "num",
                         note=f"{filters.count(sim.get('paths'))} paths × "
                              f"{filters.count(sim.get('steps'))} steps, seed "
-                             f"{filters.num(sim.get('seed'))}; < 2 reads as bounded"
+                             f"{filters.num(sim.get('seed'))}{reading}{verdict}"
                              + ("; capped" if sim.get("capped") else ""),
-                        status=lb.get("simulation_consistent")))
+                        status=consistent))
     else:
         rows.append(row("simulation of the bursty channel", None,
                         note="not run: the dedicated simulation covers scalar systems only"))
