@@ -91,8 +91,11 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         len(as_list(as_dict(rec.get("network")).get("sensors"))) > 1 else ""
     figs = figures_view(figures, rec)
     if caveat:
+        # the caveat in full once (section 4); figures and tables point to it
+        short = ("i.i.d. losses assumed (see the caveat in section 4)." if bursty else
+                 "all sensors treated as one link (see the note in section 4).")
         for key in IID_FIGURES:
-            figs[key]["caption"] = f"Caveat: {caveat} {figs[key]['caption']}"
+            figs[key]["caption"] = f"Caveat: {short} {figs[key]['caption']}"
     channel = channel_view(rec)
     channel["critical_curve"] = critical_curve_figure(rec, figures, bursty)
     channel["link_figures"] = link_figures(rec, figures)
@@ -107,6 +110,9 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "covariance": covariance_view(rec),
         "figures": figs,
         "iid_caveat": caveat,
+        "iid_caveat_short": ("These bounds assume i.i.d. losses: see the caveat in section 4."
+                             if bursty else "These bounds treat all sensors as one link: see "
+                             "section 4." if caveat else ""),
         "simulation": simulation_view(rec),
         "requirement": requirement_view(rec),
         "statements": statements_view(rec),
