@@ -11,6 +11,11 @@ from __future__ import annotations
 
 import re
 
+import sympy as sp
+
+from kfcrit.errors import ExpressionError
+from kfcrit.model.exprparse import parse_with_float
+
 PROSE_DIGITS = 12
 """Most significant digits of a number in prose (the record's values keep full precision)."""
 
@@ -67,3 +72,25 @@ def value_text(value: float, expression: str | None, exact_input: bool = True) -
     if exact_input and is_short_expression(expression):
         return expression
     return f"≈ {approx_text(value)}"
+
+
+def modulus_from_p_low(expression: str) -> tuple[str, float] | None:
+    """ρ(A) in closed form from an exact ``p_low = 1 − ρ(A)⁻²`` (Sinopoli Thm 3), or ``None``
+    when ``p_low`` is 0 (no information on ρ(A) ≤ 1) or ρ(A) has no short form.
+
+    .. math:: \\rho(A) = (1 - p_{low})^{-1/2}
+
+    The expression text is read with :func:`kfcrit.model.exprparse.parse_with_float` (never
+    with sympify), so it may come from a record file.
+    """
+    try:
+        p_low, value = parse_with_float(expression)
+    except (ExpressionError, ValueError, TypeError, ArithmeticError):
+        return None
+    if not 0 < value < 1:
+        return None
+    rho = sp.sqrt(1 / (1 - p_low))
+    text = sp.sstr(rho)
+    if not is_short_expression(text):
+        return None
+    return text, float(sp.N(rho, 20))
