@@ -37,7 +37,14 @@ import sympy as sp
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import MAX_DIGITS, exact_text
 from kfcrit.model.system import System
-from kfcrit.theory.numtext import approx_text, complex_text, is_short_expression, value_text
+from kfcrit.theory.numtext import (
+    approx_text,
+    complex_text,
+    is_short_expression,
+    p_c_text,
+    superscript,
+    value_text,
+)
 from kfcrit.theory.structure import (
     MAX_DENOMINATOR,
     NUMERIC_FLOOR,
@@ -206,14 +213,6 @@ class CriticalValue:
 
 # --------------------------------------------------------------------------- bounds
 
-_SUPERSCRIPT = str.maketrans("0123456789-−", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻⁻")
-
-
-def _sup(k: int) -> str:
-    """An integer as Unicode superscript digits (h² for the second iterate)."""
-    return str(k).translate(_SUPERSCRIPT)
-
-
 def _eig_text(st: Structure, i: int) -> str:
     """λ_i: its short exact expression, else its float (``≈`` when it rounds an exact value)."""
     e = st.eigen[i]
@@ -334,7 +333,7 @@ def _marginal_reason(system: System, st: Structure) -> str:
            "|λ| < 1 by detectability and stay bounded)")
     growth = ("A is diagonalizable on the unit circle, so ‖Aᵗ‖ is bounded" if k == 1 else
               f"the largest Jordan block on the unit circle has size ≤ {k}, so ‖Aᵗ‖ = "
-              f"O(t{_sup(k - 1) if k > 2 else ''})")
+              f"O(t{superscript(k - 1) if k > 2 else ''})")
     return (f"marginal modes (MATH §11): ρ(A) {_is_mod(st, 0)} (eigenvalues on the unit "
             "circle, none outside) and (C, A) detectable, so p_c = 0 whatever the Jordan "
             "structure. Argument: "
@@ -720,14 +719,6 @@ def _turn_of(z: complex) -> float:
 
 # --------------------------------------------------------------------------- theory
 
-def _pc_text(pc: Num, exact_input: bool) -> str:
-    """``p_c = expression`` for a short exact form on exact input, else ``p_c ≈ decimal``."""
-    text = value_text(pc.value, pc.expression if pc.expr is not None else None, exact_input)
-    if pc.expr is not None and not text.startswith("≈"):
-        return f"p_c = {text}"
-    return f"p_c ≈ {text.removeprefix('≈ ')}"
-
-
 def _theory(system: System, st: Structure, classification: str, pc: Num | None,
             channel: Any) -> dict[str, Any]:
     top = st.eigen[0]
@@ -744,7 +735,8 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
             v = Num(1 - top.mod2 ** (-q))
         moments.append({"q": q, "value": v.value, "expression": v.expression,
                         "applies": applies})
-    pc_text = "p_c (not known in closed form)" if pc is None else _pc_text(pc, system.exact)
+    pc_text = "p_c (not known in closed form)" if pc is None else p_c_text(
+        pc.value, pc.expression if pc.expr is not None else None, system.exact)
     if st.detectable:
         sb = ("Kar–Sinopoli–Moura Thm 9: for every arrival probability p > 0 the random Riccati "
               "sequence Pₜ is stochastically bounded and converges weakly to a unique invariant "
@@ -776,7 +768,7 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
     io = st.observability_index
     critical = not any(_eig_above(e, st) for e in st.eigen)
     if io is not None:
-        m_text = f"liminf tr Pₖ ≤ tr M with M = h{_sup(io)}(M₀) (Iₒ = {io})"
+        m_text = f"liminf tr Pₖ ≤ tr M with M = h{superscript(io)}(M₀) (Iₒ = {io})"
     elif st.observable:
         m_text = ("liminf tr Pₖ ≤ tr M with M = h^(Iₒ)(M₀) ((C, A) is observable by the PBH "
                   "test; Iₒ itself is not determined in floating point at this size)")

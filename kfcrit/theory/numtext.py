@@ -74,6 +74,23 @@ def value_text(value: float, expression: str | None, exact_input: bool = True) -
     return f"≈ {approx_text(value)}"
 
 
+def p_c_text(value: float, expression: str | None, exact_input: bool = True) -> str:
+    """``p_c = expression`` for a short exact form on exact input, else ``p_c ≈ decimal``
+    (:func:`value_text`)."""
+    text = value_text(value, expression, exact_input)
+    if expression is not None and not text.startswith("≈"):
+        return f"p_c = {text}"
+    return f"p_c ≈ {text.removeprefix('≈ ')}"
+
+
+_SUPERSCRIPT = str.maketrans("0123456789-−", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻⁻")
+
+
+def superscript(k: int) -> str:
+    """An integer as Unicode superscript digits (h² for the second iterate)."""
+    return str(k).translate(_SUPERSCRIPT)
+
+
 def modulus_from_p_low(expression: str) -> tuple[str, float] | None:
     """ρ(A) in closed form from an exact ``p_low = 1 − ρ(A)⁻²`` (Sinopoli Thm 3), or ``None``
     when ``p_low`` is 0 (no information on ρ(A) ≤ 1) or ρ(A) has no short form.

@@ -22,9 +22,9 @@ from kfcrit.views.viewparts import (
     exact_claim,
     exact_p_low,
     exact_plain,
-    input_exact,
     exact_text,
     formula,
+    input_exact,
     kv_rows,
     maybe_svg,
     missing,
@@ -34,7 +34,6 @@ from kfcrit.views.viewparts import (
     row,
     safe_svg,
     sentence,
-    short_closed_form,
 )
 
 THEOREMS: tuple[tuple[str, str, str, str], ...] = (
