@@ -167,12 +167,14 @@ def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
     d = as_dict(st)
     exact = d.get("path") == "exact" and input_exact(rec)
     top = top_modulus_form(rec)
+    # the structure's own tolerance for equal moduli decides which |λ| equal ρ(A)
+    tol = number(as_dict(d.get("tolerances")).get("modulus_relative")) or 1e-14
     eigs = []
     for e in as_list(d.get("eigenvalues")):
         e = as_dict(e)
         expr = exact_plain(e.get("modulus_expression")) if exact else None
         if expr is None and top and number(e.get("modulus")) is not None \
-                and abs(e["modulus"] - top[1]) <= 1e-12 * top[1]:
+                and abs(e["modulus"] - top[1]) <= tol * top[1]:
             expr = top[0]
         value = (exact_plain(e.get("value")) if exact else None) or eigenvalue_numerical(e)
         if top and expr == top[0] and not number(e.get("im")) and number(e.get("re")):
