@@ -275,8 +275,9 @@ def test_irrational_eigenvalues_are_shown_as_numbers_not_root_objects():
     assert "RootOf(" not in text and "x^3" not in text
     assert f"p c ≈ {pc:.6g} · numerical" in text
     for mod in lam:
-        assert f"{mod:.6g} (numerical)".replace("-", "−") in text
-    table = text.split("exact |λ i |")[1].split("equi-block")[0]
+        # six significant digits with trailing zeros kept (1.06900, not a shorter 1.069)
+        assert f"{mod:#.6g} (numerical)".replace("-", "−") in text
+    table = text.split("exact form of |λ i |")[1].split("equi-block")[0]
     assert not re.search(r"\d\.\d{9,}", table), table
     assert "· exact" not in text.split("critical value p c")[1].split("margin")[0]
 

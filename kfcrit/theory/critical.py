@@ -37,6 +37,14 @@ import sympy as sp
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import MAX_DIGITS, exact_text
 from kfcrit.model.system import System
+from kfcrit.theory.numtext import (
+    approx_text,
+    complex_text,
+    is_short_expression,
+    p_c_text,
+    superscript,
+    value_text,
+)
 from kfcrit.theory.structure import (
     MAX_DENOMINATOR,
     NUMERIC_FLOOR,
@@ -205,51 +213,30 @@ class CriticalValue:
 
 # --------------------------------------------------------------------------- bounds
 
-_SUPERSCRIPT = str.maketrans("0123456789-−", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻⁻")
-
-
-def _sup(k: int) -> str:
-    """An integer as Unicode superscript digits (h² for the second iterate)."""
-    return str(k).translate(_SUPERSCRIPT)
-
-
-def _short(text: str | None, approx: str) -> str:
-    """Exact text when it is short enough to read, else the float approximation."""
-    return text if text is not None and len(text) <= 48 else approx
-
-
-def _float_text(z: complex) -> str:
-    """A computed complex number in full (shortest round-trip repr of each part): a float
-    result is never shown rounded to a value it does not have (1.9999999999999998, not 2)."""
-    if z.imag == 0:
-        return repr(float(z.real))
-    return f"{float(z.real)!r}{'+' if z.imag > 0 else '-'}{abs(float(z.imag))!r}j"
-
-
 def _eig_text(st: Structure, i: int) -> str:
+    """λ_i: its short exact expression, else its float (``≈`` when it rounds an exact value)."""
     e = st.eigen[i]
     text = sp.sstr(e.expr) if e.expr is not None else None
-    if text is not None and _LONG_NUMBER.search(text):
-        return "≈ " + _float_text(e.value)     # e.g. binary-float input: 2^51 denominators
-    return _short(text, _float_text(e.value))
+    if text is not None and is_short_expression(text):
+        return text
+    return ("≈ " if text is not None else "") + complex_text(e.value)
 
 
 def _mod_text(st: Structure, i: int) -> str:
-    """|λ_i|: the exact expression when short, else the computed float marked "≈" (exact
-    path: the float of the exact value) or as computed (numeric path)."""
+    """|λ_i|: the exact expression when short, else the float marked "≈" (exact path: the
+    float of the exact value) or as computed (numeric path), to 12 significant digits."""
     e = st.eigen[i]
     if e.mod2_expr is not None:
-        return _short(sp.sstr(sp.sqrt(e.mod2_expr)), f"≈ {_approx_text(e.modulus)}")
+        return value_text(e.modulus, sp.sstr(sp.sqrt(e.mod2_expr)))
     if e.text is not None:   # exact path, an indexed root without a closed form
-        return f"≈ {_approx_text(e.modulus)}"
-    return repr(e.modulus)
+        return f"≈ {approx_text(e.modulus)}"
+    return approx_text(e.modulus)
 
 
-def _approx_text(x: float) -> str:
-    """``x`` to 12 digits, unless rounding would show a short value it does not have
-    (1.9999999999999998 stays as computed, never "2")."""
-    text = f"{x:.12g}"
-    return repr(x) if float(text) != x and len(text) < 8 else text
+def _is_mod(st: Structure, i: int) -> str:
+    """``= |λ_i|`` (exact or computed) or ``≈ |λ_i|`` (an exact value rounded), for prose."""
+    text = _mod_text(st, i)
+    return text if text.startswith("≈") else f"= {text}"
 
 
 def _decided_text(system: System, st: Structure, what: str) -> str:
@@ -257,7 +244,7 @@ def _decided_text(system: System, st: Structure, what: str) -> str:
     if st.path == "numeric":
         tol = st.tolerances.get("modulus_relative", NUMERIC_TOLERANCES["modulus_relative"])
         return (f" ({what} decided in floating point: equal within relative tolerance "
-                f"{tol:g}; the numbers shown are the computed float64 values)")
+                f"{tol:g}; the numbers shown are computed float64 values to 12 digits)")
     if not system.exact:
         return (f" ({what} decided exactly on the binary-float input taken as the rationals "
                 "it represents; numbers marked ≈ are float64 roundings of exact values)")
@@ -346,8 +333,8 @@ def _marginal_reason(system: System, st: Structure) -> str:
            "|λ| < 1 by detectability and stay bounded)")
     growth = ("A is diagonalizable on the unit circle, so ‖Aᵗ‖ is bounded" if k == 1 else
               f"the largest Jordan block on the unit circle has size ≤ {k}, so ‖Aᵗ‖ = "
-              f"O(t{_sup(k - 1) if k > 2 else ''})")
-    return (f"marginal modes (MATH §11): ρ(A) = {_mod_text(st, 0)} (eigenvalues on the unit "
+              f"O(t{superscript(k - 1) if k > 2 else ''})")
+    return (f"marginal modes (MATH §11): ρ(A) {_is_mod(st, 0)} (eigenvalues on the unit "
             "circle, none outside) and (C, A) detectable, so p_c = 0 whatever the Jordan "
             "structure. Argument: "
             f"(1) Pₜ₊₁ ⪯ A Pₜ A' + Q and {growth}, so Pₜ grows at most polynomially in the time "
@@ -355,8 +342,9 @@ def _marginal_reason(system: System, st: Structure) -> str:
             "whatever Pₜ was before it (the Iₒ-step observability of (C, A) bounds the error of "
             "the best estimate from those measurements, and the Kalman filter is optimal); "
             "(3) for every p > 0 the waiting time W for such a run has a geometric tail, "
-            "P(W > w) ≤ (1 − p^Iₒ)^⌊w/Iₒ⌋, so E[Pₜ] ⪯ E[poly(W)]·(‖M‖ + ‖Q‖) < ∞. "
-            "Steps checked mechanically in proofs_checks/check_marginal_modes.py"
+            "P(W > w) ≤ θᵏ with θ = 1 − pᴵᵒ and k = ⌊w/Iₒ⌋, so E[Pₜ] ⪯ E[poly(W)]·(‖M‖ + ‖Q‖) "
+            "< ∞. The steps are checked mechanically by kfcrit's proof checks "
+            "(check_marginal_modes)"
             + _decided_text(system, st, "|λ| = 1"))
 
 
@@ -370,7 +358,7 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
                 "probability, even with no losses (PBH test)")
     if st.stable:
         return ("stable", Num(0.0, sp.Integer(0)),
-                f"ρ(A) = {_mod_text(st, 0)} < 1: E[Pₜ] is bounded for every p, p_c = 0")
+                f"ρ(A) {_is_mod(st, 0)} < 1: E[Pₜ] is bounded for every p, p_c = 0")
     if not any(_eig_above(e, st) for e in st.eigen):
         return (_structural_class(st), Num(0.0, sp.Integer(0)), _marginal_reason(system, st))
     if not st.diagonalizable:
@@ -390,11 +378,11 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
     degenerate = [b for b in rel_blocks if not b.one_step_observable]
     if not degenerate:
         facts = "; ".join(
-            f"|λ| = {_mod_text(st, b.members[0])}: rank C_I = {b.rank} = size {b.size}"
+            f"|λ| {_is_mod(st, b.members[0])}: rank C_I = {b.rank} = size {b.size}"
             for b in rel_blocks)
         return ("non-degenerate", low,
                 f"Mo–Sinopoli Thm 4: every equi-block with |λ| ≥ 1 is one-step observable "
-                f"({facts}); p_c = max(1 − |λ₁|⁻², 0) with |λ₁| = {_mod_text(st, 0)}"
+                f"({facts}); p_c = max(1 − |λ₁|⁻², 0) with |λ₁| {_is_mod(st, 0)}"
                 + _decided_text(system, st, "equi-blocks and ranks"))
     blk = degenerate[0]
     second_order = (len(rel_blocks) == 1 and len(blk.members) == 2 and blk.size == 2)
@@ -408,12 +396,12 @@ def _classify(system: System, st: Structure, low: Num) -> tuple[str, Num | None,
                  "φ/2π irrational, D_M = 0 (Thm 10)" if st.path == "exact" else
                  f"φ/2π ≈ {pair.turn:.12g}: {pair.turn_text}, treated as irrational (Thm 10)")
         return ("degenerate-second-order", val,
-                f"Mo–Sinopoli Thm 5{extra}: equal moduli |{_eig_text(st, a)}| = "
-                f"|{_eig_text(st, b)}| = {_mod_text(st, a)}, rank C_I = {pair.rank} < 2, "
+                f"Mo–Sinopoli Thm 5{extra}: equal moduli |λ| {_is_mod(st, a)} of "
+                f"the eigenvalues {_eig_text(st, a)} and {_eig_text(st, b)}, rank C_I = {pair.rank} < 2, "
                 f"{qtext}" + _decided_text(system, st, "equal moduli, rank and φ/2π"))
     return ("degenerate", None,
-            f"degenerate equi-block of size {blk.size} with rank C_I = {blk.rank} at |λ| = "
-            f"{_mod_text(st, blk.members[0])}"
+            f"degenerate equi-block of size {blk.size} with rank C_I = {blk.rank} at |λ| "
+            f"{_is_mod(st, blk.members[0])}"
             + ("" if len(rel_blocks) == 1 else f" among {len(rel_blocks)} equi-blocks with |λ| ≥ 1")
             + ": beyond second order the papers give no closed form; p_c lies in "
               "[block lower bound, LMI upper bound]")
@@ -623,12 +611,12 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
     for i in near:
         if i not in st.undetectable and _sigma_min(st, c, [i]) <= ctol([i]):
             where = ("|λ| ≥ 1" if st.relevant(i) else
-                     f"|λ| = {_mod_text(st, i)} < 1 but within {rad(i)} of the unit circle")
+                     f"|λ| {_is_mod(st, i)} < 1 but within {rad(i)} of the unit circle")
             cases.append((Num(1.0, sp.Integer(1)),
                           f"eigenvalue {_eig_text(st, i)} ({where}) is within relative {tol:g} of "
                           "being unobservable: a nearby system is not detectable"))
         elif not st.relevant(i):
-            notes.append(f"eigenvalue {_eig_text(st, i)} (|λ| = {_mod_text(st, i)} < 1) is within "
+            notes.append(f"eigenvalue {_eig_text(st, i)} (|λ| {_is_mod(st, i)} < 1) is within "
                          f"{rad(i)} of the unit circle: a system within relative {tol:g} is "
                          "critically stable or unstable (p_c moves continuously from 0)")
     pairs = {(p.a, p.b): p for p in st.pairs}
@@ -669,7 +657,7 @@ def _nearby_cases(system: System, st: Structure, tol: float) -> tuple[list[tuple
     for b in st.blocks:
         if b.relevant and b.one_step_observable and b.size >= 3 \
                 and _sigma_min(st, c, list(b.members)) <= ctol(list(b.members)):
-            notes.append(f"equi-block at |λ| = {_mod_text(st, b.members[0])} is within relative "
+            notes.append(f"equi-block at |λ| {_is_mod(st, b.members[0])} is within relative "
                          f"{tol:g} of a degenerate block of order {b.size}, for which the papers "
                          "give no closed form")
     return cases, notes
@@ -747,7 +735,8 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
             v = Num(1 - top.mod2 ** (-q))
         moments.append({"q": q, "value": v.value, "expression": v.expression,
                         "applies": applies})
-    pc_text = pc.expression if pc is not None else "p_c (not known in closed form)"
+    pc_text = "p_c (not known in closed form)" if pc is None else p_c_text(
+        pc.value, pc.expression if pc.expr is not None else None, system.exact)
     if st.detectable:
         sb = ("Kar–Sinopoli–Moura Thm 9: for every arrival probability p > 0 the random Riccati "
               "sequence Pₜ is stochastically bounded and converges weakly to a unique invariant "
@@ -779,7 +768,7 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
     io = st.observability_index
     critical = not any(_eig_above(e, st) for e in st.eigen)
     if io is not None:
-        m_text = f"liminf tr Pₖ ≤ tr M with M = h{_sup(io)}(M₀) (Iₒ = {io})"
+        m_text = f"liminf tr Pₖ ≤ tr M with M = h{superscript(io)}(M₀) (Iₒ = {io})"
     elif st.observable:
         m_text = ("liminf tr Pₖ ≤ tr M with M = h^(Iₒ)(M₀) ((C, A) is observable by the PBH "
                   "test; Iₒ itself is not determined in floating point at this size)")

@@ -40,6 +40,23 @@ def num(value: Any, digits: int = 6) -> str:
     return str(value)
 
 
+def sig(value: Any, digits: int = 6) -> str:
+    """A computed number to ``digits`` significant digits, trailing zeros kept (1.22140, so a
+    rounding never reads as a shorter exact value); a float equal to a shorter decimal prints
+    short (1, 0.5). Integers print in full; ``None`` or non-finite → em dash.
+
+    .. math:: \\mathrm{sig}_d(x) = x \\text{ rounded to } d \\text{ significant digits}
+    """
+    if not isinstance(value, float) or not math.isfinite(value) or value == 0:
+        return num(value, digits)
+    short = num(value, digits)
+    if value != 0 and not SCI_LOW <= abs(value) < SCI_HIGH:
+        return short
+    if float(f"{value:.{digits}g}") == value:
+        return short
+    return f"{value:#.{digits}g}".rstrip(".")
+
+
 def span(low: Any, high: Any, digits: int = 6) -> str:
     """``a – b`` for a range; both ends in one style (scientific when either end needs it)."""
     ends = [v for v in (low, high) if _finite(v) and v != 0]
@@ -371,7 +388,7 @@ FILTERS: dict[str, Callable[..., str]] = {
     "indices": indices, "short_hash": short_hash, "text": text, "key_label": key_label,
     "fixed": fixed, "sci": sci, "unit": unit, "prob": prob, "count": count, "vector": vector,
     "signed_plain": signed_plain, "quantity": quantity, "pretty_text": pretty_text,
-    "span": span, "supmath": supmath,
+    "span": span, "supmath": supmath, "sig": sig,
 }
 
 

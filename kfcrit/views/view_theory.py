@@ -9,16 +9,24 @@ from markupsafe import Markup
 
 from kfcrit.errors import ExpressionError
 from kfcrit.model.exprparse import parse_with_float
+from kfcrit.theory.numtext import modulus_from_p_low
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
 from kfcrit.views.figures import invariant_gaps
 from kfcrit.views.netmargin import NETWORK_P_MEANING
 from kfcrit.views.view_network import is_network
 from kfcrit.views.viewparts import (
+    INPUT_DIGITS,
     as_dict,
     as_list,
+    complex_text,
+    decimal_entry,
+    exact_claim,
+    exact_p_low,
+    exact_plain,
     exact_text,
     formula,
+    input_exact,
     kv_rows,
     maybe_svg,
     missing,
@@ -28,7 +36,6 @@ from kfcrit.views.viewparts import (
     row,
     safe_svg,
     sentence,
-    short_closed_form,
 )
 
 THEOREMS: tuple[tuple[str, str, str, str], ...] = (
@@ -67,16 +74,23 @@ def theorem_for(classification: str | None) -> tuple[str, str, str]:
 
 # --------------------------------------------------------------------------- view model sections
 
-def matrices_view(system: dict[str, Any]) -> list[dict[str, Any]]:
-    """Exact matrices as rows of cells ``{text, svg}`` (svg for entries that are not plain)."""
+def matrix_cell(entry: Any, exact_input: bool) -> dict[str, Any]:
+    """One matrix entry ``{text, svg}``: an exact input's entry as read (typeset unless plain),
+    a floating-point input's entry as a decimal (never its binary expansion's fraction)."""
+    text = str(entry)
+    if not exact_input:
+        return {"text": decimal_entry(text), "svg": None}
+    return {"text": text,
+            "svg": None if mathsvg.is_plain(text) else safe_svg(mathsvg.expression_svg(text))}
+
+
+def matrices_view(system: dict[str, Any], exact_input: bool = True) -> list[dict[str, Any]]:
+    """The matrices as rows of cells (:func:`matrix_cell`)."""
     out = []
     for name, rows in as_dict(system.get("matrices")).items():
         if not isinstance(rows, list):
             continue
-        cells = [[{"text": str(e),
-                   "svg": None if mathsvg.is_plain(str(e))
-                   else safe_svg(mathsvg.expression_svg(str(e)))} for e in as_list(row)]
-                 for row in rows]
+        cells = [[matrix_cell(e, exact_input) for e in as_list(row)] for row in rows]
         label = {"Sigma0": "Σ₀"}.get(name, name)
         out.append({"name": label, "rows": cells})
     return out
@@ -88,7 +102,8 @@ def system_view(rec: dict[str, Any]) -> dict[str, Any]:
     d = as_dict(sysd)
     return {"available": isinstance(sysd, dict), "missing": missing("system"),
             "n": d.get("n"), "m": d.get("m"), "exact_input": d.get("exact_input"),
-            "matrices": matrices_view(d)}
+            "input_digits": INPUT_DIGITS,
+            "matrices": matrices_view(d, d.get("exact_input") is not False)}
 
 
 
@@ -99,29 +114,29 @@ STRUCTURE_KNOWN = {"eigenvalues", "equi_blocks", "diagonalizable", "detectable",
 
 def eigenvalue_numerical(e: dict[str, Any]) -> str:
     """An eigenvalue without a short closed form: re ± im·j at 6 digits, marked numerical."""
-    re_, im = number(e.get("re")), number(e.get("im"))
-    if re_ is None:
+    if number(e.get("re")) is None:
         return filters.DASH
-    if not im:
-        return numerical_text(re_)
-    sign = "−" if im < 0 else "+"
-    return f"{filters.num(re_, 6)} {sign} {filters.num(abs(im), 6)}j (numerical)"
+    return f"{complex_text(e.get('re'), e.get('im'))} (numerical)"
 
 
-def form_entry(text: Any) -> str:
-    """One entry of C·V: its short closed form, else its value at 6 digits marked numerical
-    (an entry the input parser cannot evaluate, e.g. one holding a CRootOf, is named only)."""
-    short = short_closed_form(text)
-    if short or (isinstance(text, str) and mathsvg.is_plain(text) and text):
-        return filters.pretty_expr(short or text)
+def form_entry(entry: Any, exact: bool = True) -> str:
+    """One entry of C·V: its short closed form (exact analysis of exact input), else its value
+    at 6 digits marked numerical; a float pair ``[re, im]`` is a computed complex number."""
+    pair = as_list(entry)
+    if len(pair) == 2 and all(number(x) is not None for x in pair):
+        return f"{complex_text(pair[0], pair[1])} (numerical)"
+    short = exact_plain(entry) if exact else None
+    if short:
+        return filters.pretty_expr(short)
     try:
-        return numerical_text(parse_with_float(str(text))[1])
+        return numerical_text(parse_with_float(str(entry))[1])
     except (ExpressionError, ValueError, TypeError, ArithmeticError):
-        return "an algebraic number (no short closed form)"
+        return "a number with no short closed form"
 
 
-def standard_form_note(form: Any) -> str:
-    """The standard form of (A, C) in words: the basis and C·V of each equi-block."""
+def standard_form_note(form: Any, exact: bool = True) -> str:
+    """The standard form of (A, C) in words: the basis and C·V of each equi-block
+    (``exact``: the analysis was exact on exact input, so short closed forms are shown)."""
     d = as_dict(form)
     parts = [prose(d["basis"])] if d.get("basis") else []
     for b in as_list(d.get("equi_blocks")):
@@ -129,27 +144,48 @@ def standard_form_note(form: Any) -> str:
         if cols:
             # one column of C·V per eigenvalue; a column of m > 1 entries reads (a; b)
             text = ", ".join(
-                form_entry(as_list(c)[0]) if len(as_list(c)) == 1 else
-                "(" + "; ".join(form_entry(e) for e in as_list(c)) + ")" for c in cols)
+                form_entry(as_list(c)[0], exact) if len(as_list(c)) == 1 else
+                "(" + "; ".join(form_entry(e, exact) for e in as_list(c)) + ")" for c in cols)
             parts.append(f"C·V on I = {filters.indices(as_dict(b).get('indices'))}: [{text}]")
     return "; ".join(parts)
+
+
+def top_modulus_form(rec: dict[str, Any]) -> tuple[str, float] | None:
+    """ρ(A) in closed form from the record's exact p_low (the upper bound's lower evidence,
+    computed from exact eigenvalues) when the structure itself has only floats: exact input
+    only (:func:`kfcrit.theory.numtext.modulus_from_p_low`)."""
+    if not input_exact(rec):
+        return None
+    ev = as_dict(as_dict(rec.get("upper_bound")).get("lower_evidence"))
+    expr = ev.get("expression")
+    if not isinstance(expr, str) or not str(ev.get("p_low_how", "")).startswith("exact"):
+        return None
+    return modulus_from_p_low(expr)
 
 
 def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
     """Eigenvalues with moduli, equi-blocks, equal-modulus pairs and the structural flags."""
     st = rec.get("structure")
     d = as_dict(st)
+    exact = d.get("path") == "exact" and input_exact(rec)
+    top = top_modulus_form(rec)
+    # the structure's own tolerance for equal moduli decides which |λ| equal ρ(A)
+    tol = number(as_dict(d.get("tolerances")).get("modulus_relative")) or 1e-14
     eigs = []
     for e in as_list(d.get("eigenvalues")):
         e = as_dict(e)
-        expr = exact_text(e.get("modulus_expression"))
-        value = short_closed_form(e.get("value")) or (
-            e.get("value") if mathsvg.is_plain(str(e.get("value") or "")) and e.get("value")
-            else eigenvalue_numerical(e))
+        expr = exact_plain(e.get("modulus_expression")) if exact else None
+        if expr is None and top and number(e.get("modulus")) is not None \
+                and abs(e["modulus"] - top[1]) <= tol * top[1]:
+            expr = top[0]
+        value = (exact_plain(e.get("value")) if exact else None) or eigenvalue_numerical(e)
+        if top and expr == top[0] and not number(e.get("im")) and number(e.get("re")):
+            value = expr if e["re"] > 0 else f"-{expr}"   # a real λ is ±|λ|
         eigs.append({"value": value, "value_svg": maybe_svg(value),
                      "re": number(e.get("re")), "im": number(e.get("im")),
                      "modulus": number(e.get("modulus")),
-                     "modulus_expression": expr or numerical_text(e.get("modulus")),
+                     "modulus_expression": expr or (
+                         "no short closed form" if exact else "— (numerical)"),
                      "modulus_svg": maybe_svg(expr)})
     blocks = [{"indices": as_dict(b).get("indices"), "modulus": number(as_dict(b).get("modulus")),
                "modulus_expression": as_dict(b).get("modulus_expression"),
@@ -174,7 +210,7 @@ def structure_view(rec: dict[str, Any]) -> dict[str, Any]:
                         or "none: every structural question was decided"))
     if isinstance(d.get("standard_form"), dict):
         rows.append(row("standard form (eigenbasis V)", None,
-                        note=standard_form_note(d["standard_form"]) or filters.DASH))
+                        note=standard_form_note(d["standard_form"], exact) or filters.DASH))
     return {"available": isinstance(st, dict), "missing": missing("structure analysis"),
             "eigenvalues": eigs, "equi_blocks": blocks, "pairs": pairs,
             "pairs_listed": isinstance(d.get("equal_modulus_pairs"), list),
@@ -187,15 +223,33 @@ def classification_view(rec: dict[str, Any]) -> dict[str, Any]:
     cls = rec.get("classification")
     cv = as_dict(rec.get("critical_value"))
     name, latex, why = theorem_for(cls if isinstance(cls, str) else None)
+    exact = exact_claim(rec, cv)
     return {"available": isinstance(cls, str) and bool(cls),
             "missing": missing("classification", prose(cv.get("reason")) or None),
             "name": cls, "theorem": name, "why": why, "general_latex": latex,
             "general_svg": safe_svg(mathsvg.latex_svg(latex, fontsize=12)),
             "instance_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=12,
-                                    label=cv.get("expression")),
-            "instance_expression": exact_text(cv.get("expression")) if cv.get("exact") else None,
+                                    label=cv.get("expression")) if exact else None,
+            "instance_expression": exact_text(cv.get("expression")) if exact else None,
             "value": number(cv.get("value")),
-            "reason": prose(cv.get("reason")) or None, "exact": cv.get("exact")}
+            "reason": prose(cv.get("reason")) or None, "exact": exact}
+
+
+FLOAT_INPUT_DECIDED = ("not computed: the structure was decided on the rationals that the "
+                       "floating-point input's binary floats represent")
+
+
+def critical_detail(cv: dict[str, Any], exact_input: bool) -> str:
+    """How p_c was obtained, for the bounds table: exact only for an exact value of an exact
+    input; a floating-point input's value is numerical even when decided on its rationals."""
+    if cv.get("exact") and exact_input:
+        return "exact (decided symbolically)"
+    if cv.get("exact"):
+        return ("numerical: floating-point input (the structure decided on the rationals its "
+                "binary floats represent)")
+    if cv.get("exact") is False:
+        return "numerical (bracket closed to the tolerance)"
+    return ""
 
 
 def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
@@ -205,36 +259,37 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
         rec.get("upper_bound")
     cvd, ubd = as_dict(cv), as_dict(ub)
     cls = rec.get("classification") if isinstance(rec.get("classification"), str) else None
+    exact_in, cv_exact = input_exact(rec), exact_claim(rec, cvd)
     rows = [
         {"symbol": "p_low", "name": "lower bound p_low", "available": isinstance(lb, dict),
          "value": number(as_dict(lb).get("value")),
-         "expression": exact_text(as_dict(lb).get("expression")),
+         "expression": exact_p_low(rec) if isinstance(lb, dict) else None,
          "detail": "1 − 1/max|λᵢ|²: necessary for mean stability",
          "source": "Sinopoli et al., Theorem 3"},
         {"symbol": "p_block", "name": "block lower bound", "available": isinstance(blb, dict),
          "value": number(as_dict(blb).get("value")),
-         "expression": exact_text(as_dict(blb).get("expression")),
+         "expression": exact_text(as_dict(blb).get("expression")) if exact_in else None,
          "detail": "largest critical value of an equi-block",
          "source": "Mo–Sinopoli, Theorem 3"},
         {"symbol": "p_c", "name": "critical value p_c",
          "available": number(cvd.get("value")) is not None,
          "value": number(cvd.get("value")),
-         "expression": exact_text(cvd.get("expression")) if cvd.get("exact") else None,
-         "detail": "exact (decided symbolically)" if cvd.get("exact") else
-         "numerical (bracket closed to the tolerance)" if cvd.get("exact") is False else "",
+         "expression": exact_text(cvd.get("expression")) if cv_exact else None,
+         "detail": critical_detail(cvd, exact_in),
          "source": theorem_for(cls)[0],
          "missing": "not computed: " + prose(cvd.get("reason")) if cvd.get("reason")
          else "not computed"},
         {"symbol": "p_c,robust", "name": "robust critical value",
          "available": isinstance(rob, dict),
          "value": number(as_dict(rob).get("value")),
-         "expression": exact_text(as_dict(rob).get("expression")),
+         "expression": exact_text(as_dict(rob).get("expression")) if exact_in else None,
          "detail": _robust_detail(as_dict(rob)),
          "source": "largest p_c within the stated relative perturbation",
          "missing": "not needed: the decision is exact and robust to perturbations"
-         if cvd.get("exact") else "not computed"},
+         if cv_exact else FLOAT_INPUT_DECIDED if cvd.get("exact") else "not computed"},
         {"symbol": "p_up", "name": "upper bound p_up", "available": isinstance(ub, dict),
-         "value": number(ubd.get("value")), "expression": upper_expression(ubd),
+         "value": number(ubd.get("value")),
+         "expression": upper_expression(ubd) if exact_in else None,
          "detail": _upper_detail(ubd), "source": "Sinopoli et al., Theorem 5 (LMI)",
          "missing": "not computed"},
     ]
@@ -242,7 +297,7 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
         r.setdefault("missing", "not computed")
     th = as_dict(rec.get("theory"))
     moments = [{"q": as_dict(m).get("q"), "value": number(as_dict(m).get("value")),
-                "expression": exact_text(as_dict(m).get("expression")),
+                "expression": exact_text(as_dict(m).get("expression")) if exact_in else None,
                 "applies": as_dict(m).get("applies")}
                for m in as_list(th.get("moment_thresholds"))]
     note = th.get("moment_thresholds_note")

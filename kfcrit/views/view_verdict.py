@@ -9,8 +9,11 @@ from kfcrit.views.view_link import CHANNEL_NAMES, channel_summary, link_design_v
 from kfcrit.views.viewparts import (
     as_dict,
     as_list,
+    exact_claim,
+    exact_p_low,
     exact_text,
     formula,
+    input_exact,
     missing,
     number,
     prose,
@@ -61,6 +64,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
     css = {"mean-stable": "stable", "mean-unstable": "unstable",
            "undetermined": "undetermined"}.get(str(verdict), "unknown")
     review = review_view(rec)
+    exact_in = input_exact(rec)
     iid_verdict = opd.get("iid_comparison_verdict")
     return {
         "available": isinstance(op, dict),
@@ -73,10 +77,12 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "channel_model": CHANNEL_NAMES.get(str(channel.get("model")), channel.get("model")),
         "channel_summary": channel_summary(channel) if channel else "",
         "critical_value": number(cv.get("value")),
-        "critical_expression": critical_form(cv),
-        "critical_svg": formula(cv.get("latex"), critical_form(cv), fontsize=13,
-                                label=critical_form(cv)) if critical_form(cv) else None,
-        "critical_exact": cv.get("exact"),
+        "critical_expression": critical_form(cv, exact_in),
+        "critical_svg": formula(cv.get("latex"), critical_form(cv, exact_in), fontsize=13,
+                                label=critical_form(cv, exact_in))
+        if critical_form(cv, exact_in) else None,
+        "critical_exact": exact_claim(rec, cv),
+        "p_low_expression": exact_p_low(rec) if not exact_claim(rec, cv) else None,
         "critical_reason": prose(cv.get("reason")) or None,
         "margin": number(opd.get("margin")),
         "margin_robust": number(opd.get("margin_robust")),
@@ -86,7 +92,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
                    "nearby_case": robd.get("nearby_case"),
                    "missing": "not needed: the classification is decided exactly and no "
                               "perturbation within the tolerance changes it"
-                   if cv.get("exact") else "not computed"},
+                   if exact_claim(rec, cv) else "not computed"},
         "bracket": opd.get("bracket") if isinstance(opd.get("bracket"), list) else None,
         "margin_to_bracket": opd.get("margin_to_bracket")
         if isinstance(opd.get("margin_to_bracket"), list) else None,
@@ -107,10 +113,11 @@ def is_network(rec: dict[str, Any], channel: dict[str, Any]) -> bool:
     return isinstance(rec.get("network"), dict) or channel.get("model") == "network"
 
 
-def critical_form(cv: dict[str, Any]) -> str | None:
-    """The exact form of p_c for the verdict card: only an exact value's short closed form
-    (a numerical value is printed as a number, never as its 17-digit expression)."""
-    return exact_text(cv.get("expression")) if cv.get("exact") else None
+def critical_form(cv: dict[str, Any], exact_input: bool = True) -> str | None:
+    """The exact form of p_c for the verdict card: only an exact value's short closed form on
+    exact input (a numerical value is printed as a number, never as its 17-digit expression,
+    and a floating-point input's value never as the fraction of its binary expansion)."""
+    return exact_text(cv.get("expression")) if cv.get("exact") and exact_input else None
 
 
 def network_cells(rec: dict[str, Any]) -> dict[str, Any]:

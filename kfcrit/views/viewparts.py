@@ -12,6 +12,8 @@ from typing import Any
 
 from markupsafe import Markup
 
+from kfcrit.errors import ExpressionError
+from kfcrit.model.exprparse import parse_with_float
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views import mathsvg
 
@@ -110,10 +112,81 @@ def exact_text(expression: Any) -> str | None:
     return short_closed_form(expression)
 
 
+def exact_plain(text: Any) -> str | None:
+    """An exact expression that reads as itself: a short closed form or an integer/short
+    decimal such as ``1`` (a long decimal is a float's digits, not an exact form)."""
+    if short_closed_form(text):
+        return str(text).strip()
+    if isinstance(text, str) and text.strip() and mathsvg.is_plain(text) \
+            and len(text.strip()) <= 8:
+        return text.strip()
+    return None
+
+
+def exact_p_low(rec: dict[str, Any]) -> str | None:
+    """The short exact form of p_low: the lower bound's own expression (exact input, exact
+    structure), else the upper bound's exact lower evidence (eigenvalues by exact arithmetic)."""
+    if not input_exact(rec):
+        return None
+    if as_dict(rec.get("structure")).get("path") == "exact":
+        own = exact_text(as_dict(rec.get("lower_bound")).get("expression"))
+        if own:
+            return own
+    ev = as_dict(as_dict(rec.get("upper_bound")).get("lower_evidence"))
+    if str(ev.get("p_low_how", "")).startswith("exact"):
+        return exact_text(ev.get("expression"))
+    return None
+
+
 def numerical_text(value: Any, digits: int = 6) -> str:
-    """A value that has no short closed form: ``digits`` significant digits, marked numerical."""
+    """A computed value: ``digits`` significant digits (:func:`~kfcrit.views.jinja_filters.sig`),
+    marked numerical."""
     v = number(value)
-    return f"{filters.num(v, digits)} (numerical)" if v is not None else filters.DASH
+    if v is None:
+        return filters.DASH
+    return f"{filters.sig(float(v), digits).replace('-', '−')} (numerical)"
+
+
+def complex_text(re_: Any, im: Any, digits: int = 6) -> str:
+    """A computed complex number as ``a + bj`` (``a − bj``) at ``digits`` significant digits;
+    a real one as its real part."""
+    a, b = number(re_), number(im)
+    if a is None:
+        return filters.DASH
+    real = filters.sig(float(a), digits).replace("-", "−")
+    if not b:
+        return real
+    sign = "−" if b < 0 else "+"
+    return f"{real} {sign} {filters.sig(abs(float(b)), digits)}j"
+
+
+def input_exact(rec: dict[str, Any]) -> bool:
+    """Whether the record's input was read as exact numbers (``system.exact_input``); a
+    floating-point input's values are numerical even where they were decided exactly on the
+    rationals its binary floats represent."""
+    return as_dict(rec.get("system")).get("exact_input") is not False
+
+
+def exact_claim(rec: dict[str, Any], quantity: Any) -> bool | None:
+    """Whether the report may call ``quantity`` exact: its own ``exact`` flag and an exact
+    input (``None`` when the quantity carries no flag)."""
+    flag = as_dict(quantity).get("exact")
+    if flag is None:
+        return None
+    return bool(flag) and input_exact(rec)
+
+
+INPUT_DIGITS = 10
+"""Significant digits of the entries of a floating-point input's matrices in the report."""
+
+
+def decimal_entry(text: Any, digits: int = INPUT_DIGITS) -> str:
+    """An entry of a floating-point input (the rational of its binary float, such as
+    ``986919187616889/1125899906842624``) as a decimal to ``digits`` significant digits."""
+    try:
+        return filters.pretty_expr(filters.sig(float(parse_with_float(str(text))[1]), digits))
+    except (ExpressionError, ValueError, TypeError, ArithmeticError):
+        return str(text)
 
 
 def maybe_svg(expr: Any) -> Markup | None:
