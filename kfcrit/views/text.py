@@ -136,8 +136,10 @@ def summary(rec: dict[str, Any]) -> str:
                  f"input {'exact' if sysd.get('exact_input') else 'floating-point'}")
     lines.append(f"  classification        {rec.get('classification') or '—'}")
     cv = rec.get("critical_value") or {}
+    # a floating-point input's values are numerical even where decided on its binary rationals
+    exact_input = sysd.get("exact_input") is not False
     lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}"
-                 f"{_exact(cv) if cv.get('exact') else ''}")
+                 f"{_exact(cv) if cv.get('exact') and exact_input else ''}")
     if cv.get("reason"):
         lines.append(f"      {cv['reason']}")
     rob = rec.get("robust_critical_value")
@@ -145,10 +147,12 @@ def summary(rec: dict[str, Any]) -> str:
         lines.append(f"  robust critical value {_num(rob.get('value'), 12)}  "
                      f"(tolerance {rob.get('tolerance')})")
     lb = rec.get("lower_bound") or {}
-    lines.append(f"  lower bound p_low     {_num(lb.get('value'), 12)}{_exact(lb)}")
+    lines.append(f"  lower bound p_low     {_num(lb.get('value'), 12)}"
+                 f"{_exact(lb) if exact_input else ''}")
     blb = rec.get("block_lower_bound")
     if blb:
-        lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}{_exact(blb)}")
+        lines.append(f"  block lower bound     {_num(blb.get('value'), 12)}"
+                     f"{_exact(blb) if exact_input else ''}")
     ub = rec.get("upper_bound")
     if ub and ub.get("status") == "not applicable":
         lines.append(f"  upper bound p_up      {ub.get('reason') or 'not applicable'}")

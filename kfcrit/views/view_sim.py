@@ -9,7 +9,16 @@ from kfcrit.version import __version__
 from kfcrit.views import jinja_filters as filters
 from kfcrit.views.figures import mean_diverges, series_of, tail_of
 from kfcrit.views.view_network import is_network
-from kfcrit.views.viewparts import as_dict, as_list, missing, number, prose, row, safe_svg
+from kfcrit.views.viewparts import (
+    as_dict,
+    as_list,
+    exact_claim,
+    missing,
+    number,
+    prose,
+    row,
+    safe_svg,
+)
 
 FIGURE_CAPTIONS = {
     "phase_transition": ("Phase transition",
@@ -477,10 +486,10 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
     st = as_dict(rec.get("structure"))
     checks = [check_view(c) for c in as_list(rec.get("verification"))]
     # how p_c was decided is information, not a check: "numerical" is never shown as a failure
+    claim = exact_claim(rec, cv)
     checks.append({"name": "critical value decided exactly",
-                   "css": "pass" if cv.get("exact") else "none",
-                   "label": {True: "exact", False: "numerical"}.get(cv.get("exact"),
-                                                                    "not computed"),
+                   "css": "pass" if claim else "none",
+                   "label": {True: "exact", False: "numerical"}.get(claim, "not computed"),
                    "detail": prose(cv.get("reason"))})
     opts = as_dict(prov.get("options"))
     stol = as_dict(st.get("tolerances"))
