@@ -218,7 +218,16 @@ def supmath(text: Any) -> Markup:
             body = body[1:-1]
         return f"<sup>{body}</sup>"
 
-    return Markup(_CARET_RE.sub(sup, escaped))
+    return Markup(_SYMBOL_RE.sub(_symbol, _CARET_RE.sub(sup, escaped)))
+
+
+# The theory's named symbols, set with a real subscript in HTML prose (p_c → p<sub>c</sub>).
+# Other identifiers with underscores (file keys such as max_outage) are kept as written.
+_SYMBOL_RE = re.compile(r"\b([pPrCI])_(c|up|low|S|V|t|k|I|o|link|nec|suf|stab)\b")
+
+
+def _symbol(m: re.Match[str]) -> str:
+    return f"{m.group(1)}<sub>{m.group(2)}</sub>"
 
 
 def verdict_label(value: Any) -> str:
