@@ -830,3 +830,10 @@ def test_write_atomic_failure_keeps_old_file(tmp_path, monkeypatch):
         write_atomic(target, b"new")
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+
+
+def test_prose_sets_theory_symbols_with_subscripts_and_keeps_file_keys():
+    out = str(filters.supmath("p > p_c = 9/25; p_up, p_low; P(p_link < p_S); max_outage"))
+    assert "p<sub>c</sub>" in out and "p<sub>up</sub>" in out and "p<sub>low</sub>" in out
+    assert "p<sub>link</sub>" in out and "p<sub>S</sub>" in out
+    assert "max_outage" in out            # a file key stays as the user writes it
