@@ -251,7 +251,9 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
             ax.axhline(v_tr, color=COLORS["upper"], linestyle="--", linewidth=1.2,
                        label=r"tr $\bar V$")
         ax.set_yscale("log")
-        ax.set_ylim(bottom=floor)
+        # headroom above the highest curve, so that the settled mean and tr V̄ are read
+        # against a labelled tick rather than against the frame
+        ax.set_ylim(floor, 2.5 * max(shown))
         plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")

@@ -23,7 +23,7 @@ from kfcrit.views.viewparts import (
 FIGURE_CAPTIONS = {
     "phase_transition": ("Phase transition",
                          "Trace of the lower bound S̄ and the upper bound V̄ of lim E[P_t] "
-                         "against the arrival probability p (log scale), with p_low, p_c, p_up "
+                         "against the arrival probability p (traces on a log scale), with p_low, p_c, p_up "
                          "and the operating point marked. Below p_c the expected error "
                          "covariance diverges."),
     "traces": ("Simulated error traces around the critical value",

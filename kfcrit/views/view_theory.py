@@ -500,7 +500,11 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
         rows.append(row("support points computed", len(sp), "count"))
     skip = {"gaps", "support_points", "gap_levels", "holes", "fixed_point", "maps",
             "arrival_limit", "self_similarity", "first_gap", "note", "warnings"}
-    return {"applies": n == 1, "available": isinstance(inv, dict),
+    network = len(as_list(as_dict(rec.get("network")).get("sensors"))) > 1
+    return {"applies": n == 1 and not network, "available": isinstance(inv, dict),
+            "scope": ("The support of the invariant distribution is characterised for one link "
+                      "(Kar–Sinopoli–Moura, Theorem 10); a sensor network has one arrival per "
+                      "sensor, so it is not computed here.") if network else "",
             "missing": missing("invariant distribution support"),
             "exact_gaps": exact[:10], "gaps": gaps[:10], "more_gaps": max(0, len(gaps) - 10),
             "rows": rows, "note": sentence(d.get("note")),
