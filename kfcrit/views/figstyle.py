@@ -112,7 +112,7 @@ SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 def decade_label(value: float, _pos: Any = None) -> str:
     """``10⁵`` for a power of ten (plain text with superscript digits: no mathtext to parse)."""
-    if value <= 0:
+    if value <= 0 or not math.isfinite(value):
         return ""
     exp = math.log10(value)
     if abs(exp - round(exp)) > 1e-9:

@@ -253,7 +253,8 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
         ax.set_yscale("log")
         # headroom above the highest curve, so that the settled mean and tr V̄ are read
         # against a labelled tick rather than against the frame
-        ax.set_ylim(floor, 2.5 * max(shown))
+        top = 2.5 * max(shown)
+        ax.set_ylim(floor, top if math.isfinite(top) else max(shown))
         plain_log_labels(ax, "y")
         ax.set_xlabel("time step t")
         ax.set_ylabel("tr $P_t$")
