@@ -506,12 +506,7 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
     for key in sorted(REQUIRED_KEYS):
         if key not in doc or doc[key] is None:
             raise InputError("is required", field=key)
-    name = doc["name"]
-    if not isinstance(name, (str, YamlNumber)) or not str(name).strip():
-        raise InputError("must be a non-empty string", field="name")
-    description = doc.get("description") or ""
-    if not isinstance(description, str):
-        raise InputError("must be a string", field="description")
+    name, description = _name_and_description(doc)
     _check_model_form(doc)
     _check_shapes(doc, max_states)  # on the raw structure, before any exact conversion
     mats = {k: _exact_numbers(doc[k], k) for k in ("A", "C", "Q", "R", "Sigma0") if k in doc}
@@ -520,14 +515,14 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
         mats["A"], mats["Q"] = (sampled.A, sampled.Q) if sampled.exact \
             else (sampled.float_a(), sampled.float_q())
     system = System(mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
-                    name=str(name)[:200], max_states=max_states)
+                    name=name, max_states=max_states)
     channel = (channel_from_mapping(_plain(doc["channel"]), "channel", base_dir,
                                     parsers=channels)
                if doc.get("channel") is not None else None)
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()
     return SystemSpec(system=system, channel=channel, requirements=reqs,
-                      description=description[:2000], continuous=sampled)
+                      description=description, continuous=sampled)
 
 
 def _name_and_description(doc: dict) -> tuple[str, str]:

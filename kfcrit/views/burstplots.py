@@ -21,11 +21,10 @@ from matplotlib.figure import Figure
 
 from kfcrit.views.figstyle import (
     COLORS,
-    HEIGHT_IN,
-    WIDTH_IN,
     finite,
     floats,
     fmt,
+    new_figure,
     readable_rc,
     section,
 )
@@ -64,8 +63,7 @@ def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
     of, orr = finite(op.get("failure_rate")), finite(op.get("recovery_rate"))
     gap = max_gap(nec, suf) if nec is not None and suf is not None else None
     with matplotlib.rc_context(readable_rc()):
-        fig = Figure(figsize=(WIDTH_IN, HEIGHT_IN), layout="constrained")
-        ax = fig.add_subplot()
+        fig, ax = new_figure()
         level = nec[0] if nec is not None and max(nec) - min(nec) < 1e-12 else None
         if nec is not None:
             ax.fill_between(f, 0, nec, color="#fde2e2", linewidth=0,

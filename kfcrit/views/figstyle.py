@@ -16,6 +16,8 @@ matplotlib.use("Agg")
 
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
+from kfcrit.views import jinja_filters  # noqa: E402
+
 COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",
           "p_up": "#7c3aed", "operating": "#15803d", "sim": "#111827", "band": "#9ca3af"}
 FIG_RC = {"font.size": 8.5, "axes.titlesize": 9, "axes.labelsize": 8.5, "legend.fontsize": 7.5,
@@ -166,26 +168,18 @@ def fmt(value: float | None) -> str:
     return "?" if value is None else f"{value:.4g}".replace("-", "−")
 
 
-UNIT_DECIMALS = {"dB": 2, "dBm": 2, "m": 1}
-"""Decimals of a physical quantity per unit, as the report's tables print them."""
-
-
 def quantity(value: float, unit: str) -> str:
-    r"""``value`` with its unit in the tables' style: ``0.13 dB``, ``−1.48 dB``, ``80.2 m``.
-
-    Fixed decimals per unit (:data:`UNIT_DECIMALS`; 3 significant digits for other units) and
-    the typographic minus sign U+2212, so that a legend and a table show the same text.
-    """
-    places = UNIT_DECIMALS.get(unit)
-    text = f"{value:.{places}f}" if places is not None else f"{value:.3g}"
-    if text.lstrip("-").strip("0.") == "":
-        text = text.lstrip("-")     # −0.00 prints as 0.00
-    return f"{text.replace('-', '−')} {unit}"
+    r"""``value`` with its unit exactly as the report's tables print it
+    (:func:`kfcrit.views.jinja_filters.unit`: ``0.13 dB``, ``−1.48 dB``, ``80.2 m``), except
+    that a negative value rounded to zero prints without its sign in a legend."""
+    text = jinja_filters.unit(value, unit)
+    number = text.split(" ", 1)[0]
+    return text[1:] if number.startswith("−") and number.strip("−0.") == "" else text
 
 
 def percent(value: float) -> str:
-    """A probability as a percentage with 3 significant digits: ``0.1`` → ``10 %``."""
-    return f"{100 * value:.3g} %".replace("-", "−")
+    """A probability as a percentage, as the tables print it: ``0.1`` → ``10 %``."""
+    return jinja_filters.pct(value)
 
 
 def arrival_formula(max_retries: int) -> str:

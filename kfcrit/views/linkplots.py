@@ -21,9 +21,9 @@ from kfcrit.views.figstyle import (  # noqa: E402
     HALF_HEIGHT_IN,
     HALF_WIDTH_IN,
     HEIGHT_IN,
-    WIDTH_IN,
     arrival_formula,
     fmt,
+    new_figure,
     percent,
     quantity,
 )
@@ -42,11 +42,6 @@ def requirement_words(name: str) -> str:
     """A requirement's name for a legend: the symbol with its subscript (``$p_c$``), other
     code names with spaces for underscores."""
     return REQUIREMENT_WORDS.get(name, name.replace("_", " "))
-
-
-def _figure(height: float = HEIGHT_IN, width: float = WIDTH_IN) -> tuple[Figure, object]:
-    fig = Figure(figsize=(width, height), layout="constrained")
-    return fig, fig.add_subplot()
 
 
 def _plain_log_x(ax: object) -> None:
@@ -90,7 +85,7 @@ def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None
         The largest distance meeting the requirement under the margin policy.
     """
     with rc_context(FIG_RC):
-        fig, ax = _figure(HEIGHT_IN + 0.5)
+        fig, ax = new_figure(HEIGHT_IN + 0.5)
         retries = f", k = {curve.max_retries} retries" if curve.max_retries else ""
         ax.plot(curve.distance_m, curve.arrival, color=COLORS["lower"],
                 label=f"median link, {arrival_formula(curve.max_retries)} "
@@ -129,7 +124,7 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = (),
     curve's radio is a code name, not a title).
     """
     with rc_context(FIG_RC):
-        fig, ax = _figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
+        fig, ax = new_figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
         for i, length in enumerate(curve.psdu_bytes):
             y = curve.per[i]
             ax.plot(curve.sinr_db, y, color=LINE_COLORS[i % len(LINE_COLORS)],
@@ -153,7 +148,7 @@ def outage_distance_figure(curve: OutageCurve) -> Figure:
     Legends in words: ``P(arrival prob. < 0.36), p_c`` and ``allowed outage 10 %``.
     """
     with rc_context(FIG_RC):
-        fig, ax = _figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
+        fig, ax = new_figure(HALF_HEIGHT_IN + 0.35, HALF_WIDTH_IN)
         for i, (label, p) in enumerate(curve.requirements):
             ax.plot(curve.distance_m, curve.outage[i], color=LINE_COLORS[i % len(LINE_COLORS)],
                     label=f"P(arrival prob. < {fmt(p)}), {requirement_words(label)}")

@@ -25,10 +25,9 @@ from matplotlib.figure import Figure
 from kfcrit.views.figstyle import (
     COLORS,
     FIG_RC,
-    HEIGHT_IN,
-    WIDTH_IN,
     finite,
     fmt,
+    new_figure,
     readable_rc,
     section,
 )
@@ -138,8 +137,7 @@ def draw_network_region(record: dict[str, Any]) -> Figure | None:
     with matplotlib.rc_context(readable_rc()):
         # Full-width size: the print CSS caps the height, so a taller figure prints narrower
         # (and its text smaller); the legend right of the square axes uses the width.
-        fig = Figure(figsize=(WIDTH_IN, HEIGHT_IN), layout="constrained")
-        ax = fig.add_subplot()
+        fig, ax = new_figure()
         ax.set_box_aspect(1)
         if constraints:
             worst = np.max(np.stack([v for _, v in constraints]), axis=0)
@@ -235,8 +233,7 @@ def draw_network_map(record: dict[str, Any]) -> Figure | None:
     cmap = colormaps["RdYlGn"]
     sink = sink_of(record)
     with matplotlib.rc_context(FIG_RC):
-        fig = Figure(figsize=(WIDTH_IN, 3.3), layout="constrained")
-        ax = fig.add_subplot()
+        fig, ax = new_figure(3.3)
         ax.set_aspect("equal", adjustable="box")
         for s, (low, high) in zip(sensors, margins):
             x, y = pos[s["name"]]
