@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import gain, general, is_zero_matrix, mare, phi, require, symmetric
@@ -43,7 +43,7 @@ def exact() -> str:
 
 
 def numeric() -> str:
-    """kfcrit.theory.riccati.g against kfcrit.theory.riccati.phi at kfcrit.theory.riccati.optimal_gain."""
+    """kfcrit.theory.covariance.riccati.g against kfcrit.theory.covariance.riccati.phi at kfcrit.theory.covariance.riccati.optimal_gain."""
     rng = np.random.default_rng(5)
     worst = 0.0
     for n, m in ((1, 1), (3, 2), (5, 2)):
@@ -55,13 +55,13 @@ def numeric() -> str:
         d = riccati.g(A, C, Q, R, X, 0.6) - riccati.phi(A, C, Q, R, K, X, 0.6)
         worst = max(worst, float(np.max(np.abs(d))) / max(1.0, float(np.linalg.norm(X))))
     require(worst < 1e-12, f"relative difference {worst:.2e}")
-    return f"kfcrit.theory.riccati: max relative difference {worst:.1e}"
+    return f"kfcrit.theory.covariance.riccati: max relative difference {worst:.1e}"
 
 
 CHECKS = [
     Check(STEP, SOURCE, "sympy symbolic (n=2, m=1)", symbolic),
     Check(STEP, SOURCE, "sympy exact (n=3, m=2)", exact),
-    Check(STEP, SOURCE, "numeric (kfcrit.theory.riccati)", numeric),
+    Check(STEP, SOURCE, "numeric (kfcrit.theory.covariance.riccati)", numeric),
 ]
 
 

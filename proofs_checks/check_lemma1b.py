@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import gain, general, is_zero_matrix, phi, require, symmetric
@@ -38,7 +38,7 @@ def symbolic(n: int = 2, m: int = 1) -> str:
 
 
 def numeric() -> str:
-    """φ(K, X) − g_p(X) ⪰ 0 for many gains K (kfcrit.theory.riccati, the paper's general system)."""
+    """φ(K, X) − g_p(X) ⪰ 0 for many gains K (kfcrit.theory.covariance.riccati, the paper's general system)."""
     A = np.array([[1.25, 0.0], [1.0, 1.1]])
     C = np.array([[1.0, 1.0]])
     Q, R = 20 * np.eye(2), np.array([[2.5]])
@@ -53,7 +53,7 @@ def numeric() -> str:
 
 CHECKS = [
     Check(STEP, SOURCE, "sympy symbolic (n=2, m=1)", symbolic),
-    Check(STEP, SOURCE, "numeric (kfcrit.theory.riccati)", numeric),
+    Check(STEP, SOURCE, "numeric (kfcrit.theory.covariance.riccati)", numeric),
 ]
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import require
@@ -66,7 +66,7 @@ def exact() -> str:
 
 
 def moment_bounds(p: float, k: int, a: float = 2.0, q: int = 2) -> tuple[float, float]:
-    """Lower/upper bounds on E[P_k^q] from the τ-sandwich, maps from kfcrit.theory.riccati.
+    """Lower/upper bounds on E[P_k^q] from the τ-sandwich, maps from kfcrit.theory.covariance.riccati.
 
     τ_k = steps since the last arrival (≤ k); P ∈ [f_0^τ(Q), f_0^τ(a²R + Q)] with Q = R = 1 and
     P_0 ≤ a²R + Q. Probabilities: p(1−p)^t for t < k and (1−p)^k for t = k.
@@ -98,7 +98,7 @@ def numeric() -> str:
 CHECKS = [
     Check(STEP, SOURCE, "sympy symbolic", symbolic),
     Check(STEP, SOURCE, "sympy exact (a = 2, q = 2)", exact),
-    Check(STEP, SOURCE, "numeric (kfcrit.theory.riccati maps)", numeric),
+    Check(STEP, SOURCE, "numeric (kfcrit.theory.covariance.riccati maps)", numeric),
 ]
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import gain, mare, require
@@ -72,14 +72,14 @@ def exact() -> str:
 
 
 def numeric() -> str:
-    """kfcrit.theory.riccati.phi uses the corrected V: it matches g_p at K_X where R ≠ I."""
+    """kfcrit.theory.covariance.riccati.phi uses the corrected V: it matches g_p at K_X where R ≠ I."""
     A, C, Q, R = (np.array([[v]]) for v in (-1.25, 1.0, 1.0, 2.5))
     X = np.array([[1.0]])
     K = riccati.optimal_gain(A, C, R, X)
     g = riccati.g(A, C, Q, R, X, 0.5)
     ours = riccati.phi(A, C, Q, R, K, X, 0.5)
     printed = 0.5 * (A @ X @ A.T + Q) + 0.5 * ((A + K @ C) @ X @ (A + K @ C).T + Q + K @ K @ K.T)
-    require(abs(float(ours[0, 0] - g[0, 0])) < 1e-12, "kfcrit.theory.riccati.phi ≠ g_p at K_X")
+    require(abs(float(ours[0, 0] - g[0, 0])) < 1e-12, "kfcrit.theory.covariance.riccati.phi ≠ g_p at K_X")
     require(abs(float(printed[0, 0] - g[0, 0])) > 1e-3, "printed form not distinguishable")
     return (f"g_p = {g[0, 0]:.6f}, kfcrit φ(K_X) = {ours[0, 0]:.6f}, "
             f"printed φ(K_X) = {printed[0, 0]:.6f}")
@@ -88,7 +88,7 @@ def numeric() -> str:
 CHECKS = [
     Check(STEP, SOURCE, "sympy symbolic (scalar)", symbolic),
     Check(STEP, SOURCE, "sympy exact (paper examples)", exact),
-    Check(STEP, SOURCE, "numeric (kfcrit.theory.riccati)", numeric),
+    Check(STEP, SOURCE, "numeric (kfcrit.theory.covariance.riccati)", numeric),
 ]
 
 

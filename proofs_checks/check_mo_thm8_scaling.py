@@ -5,14 +5,14 @@ Source: Mo & Sinopoli, proof of Theorem 8 (the displayed difference before (47))
 formula writes A X C (C X C^H + R)^{-1} C X A^H, i.e. C for C^H in the first factor (a harmless
 misprint). Steps: the identity (symbolic, n = 2, m = 1); the bracket equals
 A (X − p X C' S^{-1} C X) A' ⪰ A (X − X C' S^{-1} C X) A' ⪰ 0 (the last because
-[[X, XC'], [CX, S]] ⪰ 0 — checked exactly on instances); numerically with kfcrit.theory.riccati.g.
+[[X, XC'], [CX, S]] ⪰ 0 — checked exactly on instances); numerically with kfcrit.theory.covariance.riccati.g.
 """
 from __future__ import annotations
 
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import general, is_zero_matrix, mare, require, symmetric
@@ -51,7 +51,7 @@ def exact() -> str:
 
 
 def numeric() -> str:
-    """kfcrit.theory.riccati.g(αA) − g(βA) matches (α² − β²)·bracket and is PSD for α > β > 0."""
+    """kfcrit.theory.covariance.riccati.g(αA) − g(βA) matches (α² − β²)·bracket and is PSD for α > β > 0."""
     rng = np.random.default_rng(8)
     worst = 0.0
     for _ in range(50):
@@ -73,7 +73,7 @@ def numeric() -> str:
 CHECKS = [
     Check(STEP, SOURCE, "sympy symbolic (n=2, m=1)", symbolic),
     Check(STEP, SOURCE, "sympy exact (n=3)", exact),
-    Check(STEP, SOURCE, "numeric (kfcrit.theory.riccati)", numeric),
+    Check(STEP, SOURCE, "numeric (kfcrit.theory.covariance.riccati)", numeric),
 ]
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import general, is_zero_matrix, phi, require, symmetric
@@ -98,7 +98,7 @@ def exact() -> str:
 
 
 def numeric() -> str:
-    """Float check with kfcrit.theory.riccati.phi (Q = R = 0) over a grid of p: Ψ ≻ 0 ⇔ X ≻ φ_0."""
+    """Float check with kfcrit.theory.covariance.riccati.phi (Q = R = 0) over a grid of p: Ψ ≻ 0 ⇔ X ≻ φ_0."""
     A = np.array([[1.25, 0.0], [1.0, 1.1]])
     C = np.array([[1.0, 1.0]])
     K = np.array([[-1.0], [-1.0]])
@@ -117,13 +117,13 @@ def numeric() -> str:
         agree += lmi == direct
         changes.add(direct)
     require(agree == 101 and len(changes) == 2, f"agreement {agree}/101, outcomes {changes}")
-    return "Ψ ≻ 0 ⇔ X ≻ φ_0(K, X) at 101 values of p (kfcrit.theory.riccati.phi, both outcomes)"
+    return "Ψ ≻ 0 ⇔ X ≻ φ_0(K, X) at 101 values of p (kfcrit.theory.covariance.riccati.phi, both outcomes)"
 
 
 CHECKS = [
     Check(STEP, SOURCE, "sympy symbolic (n=2, m=1)", symbolic),
     Check(STEP, SOURCE, "sympy exact (instances, homogeneity)", exact),
-    Check(STEP, SOURCE, "numeric (kfcrit.theory.riccati)", numeric),
+    Check(STEP, SOURCE, "numeric (kfcrit.theory.covariance.riccati)", numeric),
 ]
 
 

@@ -9,14 +9,14 @@ V ⪯ g_p(V)"); the printed SDP omits Q (MATH.md §3, see check_misprint_thm6b).
 2. The feasible set is {V ⪰ 0 : V ⪯ g_p(V)} and its trace maximiser is the fixed point V̄: in
    the paper's scalar example (p = 1/2) the feasible set is exactly [0, V̄] (exact).
 3. Numerically, the SDP (cvxpy + Clarabel) on the paper's general example matches the limit of
-   the MARE iteration V_{t+1} = g_p(V_t) computed with kfcrit.theory.riccati.g.
+   the MARE iteration V_{t+1} = g_p(V_t) computed with kfcrit.theory.covariance.riccati.g.
 """
 from __future__ import annotations
 
 import numpy as np
 import sympy as sp
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from . import Check
 from ._algebra import general, is_zero_matrix, mare, require, symmetric
@@ -71,7 +71,7 @@ def exact() -> str:
 
 
 def mare_limit(A, C, Q, R, p, steps: int = 2000) -> np.ndarray:
-    """V̄ as the limit of V_{t+1} = g_p(V_t), V_0 = 0 (kfcrit.theory.riccati.g)."""
+    """V̄ as the limit of V_{t+1} = g_p(V_t), V_0 = 0 (kfcrit.theory.covariance.riccati.g)."""
     V = np.zeros_like(Q)
     for _ in range(steps):
         V = riccati.g(A, C, Q, R, V, p)

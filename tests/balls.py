@@ -1,5 +1,5 @@
 """Rigorous ball arithmetic for the tests' own re-checks (python-flint ``arb``), written apart
-from :mod:`kfcrit.theory.certify` so that a certificate is re-checked by different code.
+from :mod:`kfcrit.theory.upper.certify` so that a certificate is re-checked by different code.
 
 :func:`ball` evaluates a sympy expression built from rationals, π, sums, products, integer and
 half-integer powers, sin and cos; :func:`certainly_positive_definite` applies Sylvester's

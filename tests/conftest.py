@@ -29,7 +29,7 @@ settings.register_profile("thorough", deadline=None, max_examples=1000,
                           suppress_health_check=[HealthCheck.too_slow])
 PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "dev")
 # Exact-path assertions must not depend on machine load: a generous budget for this process and
-# for the ``kfcrit`` subprocesses the tests start (read when kfcrit.theory.structure is imported).
+# for the ``kfcrit`` subprocesses the tests start (read when kfcrit.theory.structure.eigen is imported).
 os.environ.setdefault("KFCRIT_EXACT_TIME_BUDGET", "120")
 settings.load_profile(PROFILE)
 
@@ -93,6 +93,6 @@ def _fresh_upper_bound_memo():
     """p_up is memoised by matrix contents (a pure function of A and C); a test that injects a
     fault into its numerics must not leave a faulty memo to the next test."""
     yield
-    from kfcrit.theory import upper
+    from kfcrit.theory.upper import bracket as upper
 
     upper.clear_memo()

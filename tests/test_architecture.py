@@ -188,6 +188,6 @@ def test_nothing_outside_the_repository_is_read() -> None:
 def test_the_checker_sees_a_known_upward_import(tmp_path: Path) -> None:
     """The import reader itself: a function-level upward import is an import."""
     src = tmp_path / "m.py"
-    src.write_text("def f():\n    from kfcrit.views.text import summary\n    return summary\n")
+    src.write_text("def f():\n    from kfcrit.views.text.terminal import summary\n    return summary\n")
     found = imports_of("kfcrit.model.m", src)
-    assert ("kfcrit.views.text", ["summary"], 2) in found
+    assert ("kfcrit.views.text.terminal", ["summary"], 2) in found

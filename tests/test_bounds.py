@@ -1,4 +1,4 @@
-"""Covariance bounds S̄ ⪯ V̄, the phase transition and static gains (kfcrit.theory.bounds).
+"""Covariance bounds S̄ ⪯ V̄, the phase transition and static gains (kfcrit.theory.covariance.bounds).
 
 Expected values: hand derivations for scalar systems, residuals of the defining equations, and
 independent methods — the MARE iteration against Newton–Kleinman, and both against the SDP of
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
-from kfcrit.theory import bounds
-from kfcrit.theory.riccati import g
+from kfcrit.theory.covariance import bounds
+from kfcrit.theory.covariance.riccati import g
 
 
 def scalar(a: float, q: float = 1.0, r: float = 1.0) -> System:
@@ -194,7 +194,7 @@ def test_phase_transition_time_budget_is_a_warning_not_a_failure():
 def test_static_gain_section_is_skipped_with_a_reason_beyond_its_size_cap() -> None:
     """n = 31 > 30: no O(n⁶) eigenproblem; both gains say why, with the vech size 31·32/2."""
     from kfcrit.model.system import System
-    from kfcrit.theory import bounds
+    from kfcrit.theory.covariance import bounds
 
     n = bounds.STATIC_GAIN_MAX_STATES + 1
     A = np.diag([1.2] + [0.5] * (n - 1))
@@ -229,7 +229,7 @@ def test_best_static_gain_critical_value_within_p_up_bracket(case):
     # Theory (MATH.md §3, journal §V): every static gain K has critical value p_K ≥ p_up, and
     # the certificate's gain is mean-square stable at hi (X ≻ L_{K,hi}(X)), so p_K ≤ hi; the
     # critical value is computed independently by the generalised eigenvalues of the pencil.
-    from kfcrit.theory.upper import upper_bound
+    from kfcrit.theory.upper.bracket import upper_bound
 
     s = System(case.A, case.C, case.Q, case.R)
     ub = upper_bound(s, tol=1e-9)

@@ -1,4 +1,4 @@
-"""Rigorous certificate checks (kfcrit.theory.certify): hand-derived cases, re-verification, tampering.
+"""Rigorous certificate checks (kfcrit.theory.upper.certify): hand-derived cases, re-verification, tampering.
 
 Expected outcomes come from hand derivations: for the scalar system a = 2, c = 1 and K = −2
 (F = 0), L_{K,p}(x) = 4(1−p)x, so x = 1 certifies p exactly when p > 3/4; and the noise-free
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
-from kfcrit.theory import certify
-from kfcrit.theory.upper import upper_bound
+from kfcrit.theory.upper import certify
+from kfcrit.theory.upper.bracket import upper_bound
 
 
 def scalar(a="2", c="1") -> System:

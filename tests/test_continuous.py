@@ -21,7 +21,7 @@ from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
 from kfcrit.analysis.spec import load_spec
-from kfcrit.cli import main
+from kfcrit.cli.main import main
 from kfcrit.errors import InputError
 from kfcrit.io.fileschema import system_schema
 from kfcrit.io.systemfile import spec_from_mapping

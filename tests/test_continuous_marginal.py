@@ -14,9 +14,9 @@ import sympy as sp
 import yaml
 from click.testing import CliRunner
 
-from kfcrit.cli import main
+from kfcrit.cli.main import main
 from kfcrit.model.system import System
-from kfcrit.theory.upper import clear_memo, upper_bound
+from kfcrit.theory.upper.bracket import clear_memo, upper_bound
 
 R_ = sp.Rational
 

@@ -20,8 +20,8 @@ from kfcrit.io.systemfile import load_spec
 from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.exprparse import parse_expression
 from kfcrit.model.system import System
-from kfcrit.theory import critical
-from kfcrit.theory.structure import eigen_structure
+from kfcrit.theory.critical import section as critical
+from kfcrit.theory.structure.eigen import eigen_structure
 
 from .conftest import SHARED_CASES
 
@@ -395,7 +395,7 @@ def test_reason_texts_use_unicode_math():
 
 def test_long_exact_numbers_keep_an_exact_expression() -> None:
     """A rational with 70-digit parts is written exactly (never as a float) and reads back."""
-    from kfcrit.theory.critical import Num
+    from kfcrit.theory.critical.section import Num
 
     x = sp.Rational(10**70 + 7, 3 * 10**65 + 1)
     num = Num(float(x), x)
@@ -407,7 +407,7 @@ def test_long_exact_numbers_keep_an_exact_expression() -> None:
 @pytest.mark.parametrize("bad", [-1e-3, 0.2, float("nan"), "0.01"])
 def test_tolerance_message_names_its_range(bad) -> None:
     from kfcrit.errors import InputError
-    from kfcrit.theory.critical import critical_value
+    from kfcrit.theory.critical.section import critical_value
 
     with pytest.raises(InputError, match=r"\[0, 0\.1\]"):
         critical_value(System([[2]], [[1]], Q=1, R=1), tolerance=bad)
@@ -559,7 +559,7 @@ def test_marginal_tracker_is_exactly_zero():
 def test_marginal_tracker_mare_bounded_at_small_p():
     # Second method: g_p is concave, so E[P_t] ⪯ V_t with V_{t+1} = g_p(V_t) (Jensen); the
     # MARE iteration at p = 0.05 converges to a fixed point, so E[P_t] stays bounded there.
-    from kfcrit.theory import riccati
+    from kfcrit.theory.covariance import riccati
     s = _tracker()
     A, C, Q, R = (np.asarray(M, dtype=float) for M in (s.a, s.c, s.q, s.r))
     V = np.eye(4)
@@ -643,13 +643,13 @@ def test_subspace_near_a_defective_eigenvalue_is_still_sensitive():
     ("cos(pi/7)", "cos(pi/7) + 10**-60", -1),
 ])
 def test_compare_probability_exact(p, v, sign):
-    from kfcrit.theory.probability import compare_probability
+    from kfcrit.theory.critical.compare import compare_probability
     assert compare_probability(p, v) == sign
     assert compare_probability(v, p) == -sign
 
 
 def test_compare_probability_reads_critical_value_records():
-    from kfcrit.theory.probability import compare_probability
+    from kfcrit.theory.critical.compare import compare_probability
     spec = load_spec(REPORTS / "sinopoli-general.yaml")      # p_c = 9/25 exactly
     cv = critical.critical_value(spec.system)
     assert compare_probability(sp.Rational(9, 25) + sp.Rational(1, 10**40), cv.value) == 1

@@ -21,9 +21,9 @@ import sympy as sp
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import parse_expression, parse_with_float
 from kfcrit.model.system import MAX_EXPRESSION_TEXT, ParseBudget, System, matrix_and_float
-from kfcrit.theory.structure import structure_of
-from kfcrit.theory.structure_budget import field_degree_bound, run_bounded
-from kfcrit.theory.structure_records import Fallback
+from kfcrit.theory.structure.eigen import structure_of
+from kfcrit.theory.structure.budget import field_degree_bound, run_bounded
+from kfcrit.theory.structure.records import Fallback
 
 ROOT = Path(__file__).resolve().parents[1]
 CAP_BYTES = 2**30

@@ -22,11 +22,12 @@ import scipy.linalg as sla
 
 from kfcrit.analysis.record import AnalysisOptions, analyze
 from kfcrit.analysis.spec import load_spec, spec_from_mapping
-from kfcrit.theory.numtext import approx_text, complex_text, modulus_from_p_low, value_text
-from kfcrit.views import figures, report
-from kfcrit.views.jinja_filters import sig
-from kfcrit.views.view_theory import bounds_view, structure_view
-from kfcrit.views.view_verdict import verdict_view
+from kfcrit.theory.critical.numtext import approx_text, complex_text, modulus_from_p_low, value_text
+from kfcrit.views.figures import record as figures
+from kfcrit.views.report import render as report
+from kfcrit.views.formatting import sig
+from kfcrit.views.report.theory import bounds_view, structure_view
+from kfcrit.views.report.verdict import verdict_view
 from tests.test_report import REPORTS, visible_text
 
 ROT = {"name": "oscillator",

@@ -1,6 +1,6 @@
 """Tests of the tests: each key property check must fail on a deliberately broken implementation.
 
-Every fault is injected with ``monkeypatch`` into ``kfcrit.theory.riccati`` or ``kfcrit.theory.critical`` (the
+Every fault is injected with ``monkeypatch`` into ``kfcrit.theory.covariance.riccati`` or ``kfcrit.theory.critical.section`` (the
 check functions call the implementation through the module, so they see the fault). A fault test
 runs one property check over a small fixed corpus of inputs (the papers' systems and a few
 seeded ones) and asserts that at least one input raises :class:`PropertyViolation`. The control
@@ -17,9 +17,10 @@ import pytest
 import sympy as sp
 
 from kfcrit.model.system import System
-from kfcrit.theory import bounds as _bounds
-from kfcrit.theory import critical, riccati
-from kfcrit.theory import upper as _upper
+from kfcrit.theory.covariance import bounds as _bounds
+from kfcrit.theory.critical import section as critical
+from kfcrit.theory.covariance import riccati
+from kfcrit.theory.upper import bracket as _upper
 
 from . import test_lemmas as L
 from . import test_properties as P
@@ -148,7 +149,7 @@ def _upper_paper_checks() -> None:
 
 
 def _covariance_paper_checks() -> None:
-    from kfcrit.theory.bounds import covariance_bounds
+    from kfcrit.theory.covariance.bounds import covariance_bounds
 
     calls = []
     for name, p in (("sinopoli-scalar", 0.5), ("sinopoli-general", 0.8),

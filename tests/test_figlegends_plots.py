@@ -8,10 +8,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
-from kfcrit.views.burstplots import draw_critical_curve
-from kfcrit.views.figstyle import HEIGHT_IN, MIN_PRINT_PT, WIDTH_IN, print_scale
-from kfcrit.views.netplots import draw_network_region
-from kfcrit.views.sweepplots import margin_figure
+from kfcrit.views.figures.burst import draw_critical_curve
+from kfcrit.views.figures.style import HEIGHT_IN, MIN_PRINT_PT, WIDTH_IN, print_scale
+from kfcrit.views.figures.network import draw_network_region
+from kfcrit.views.figures.sweep import margin_figure
 
 
 def legend_texts(fig: Figure) -> list[str]:

@@ -1,6 +1,6 @@
 """Figure legends speak words in the tables' number style: no caret exponents, no code names
 (``max_outage``, ``p_link``), the typographic minus U+2212, dB with 2 decimals and metres with
-1 decimal as the report's tables print them (:func:`kfcrit.views.jinja_filters.unit`)."""
+1 decimal as the report's tables print them (:func:`kfcrit.views.formatting.unit`)."""
 from __future__ import annotations
 
 import re
@@ -10,10 +10,10 @@ import pytest
 from matplotlib.figure import Figure
 
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve
-from kfcrit.views import jinja_filters
-from kfcrit.views.designplots import draw_accuracy, radio_title
-from kfcrit.views.figstyle import arrival_formula, percent, quantity
-from kfcrit.views.linkplots import (
+from kfcrit.views import formatting as jinja_filters
+from kfcrit.views.figures.design import draw_accuracy, radio_title
+from kfcrit.views.figures.style import arrival_formula, percent, quantity
+from kfcrit.views.figures.link import (
     arrival_distance_figure,
     outage_distance_figure,
     per_sinr_figure,

@@ -533,7 +533,7 @@ def _sweep_case(folder: Path, field: str, value: object) -> Path:
 @given(field=st.sampled_from(sorted(SWEEP_FIELDS)), value=_yaml_values)
 def test_fuzz_sweep_fields_through_the_loader(field: str, value: object,
                                               tmp_path_factory) -> None:  # noqa: ANN001
-    from kfcrit.analysis.sweep import load_sweep
+    from kfcrit.analysis.sweep.points import load_sweep
 
     p = _sweep_case(tmp_path_factory.mktemp("sweep"), field, value)
     t0 = time.perf_counter()

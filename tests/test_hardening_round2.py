@@ -21,9 +21,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-import kfcrit.analysis.sweep as sweep_mod
-import kfcrit.analysis.sweeprun as run_mod
-from kfcrit.analysis.sweepjournal import Journal, journal_check, valid_result
+import kfcrit.analysis.sweep.points as sweep_mod
+import kfcrit.analysis.sweep.run as run_mod
+from kfcrit.analysis.sweep.journal import Journal, journal_check, valid_result
 from kfcrit.cli.main import main
 from kfcrit.errors import ExitCode, OutputError
 from kfcrit.io.atomic import check_writable, write_atomic

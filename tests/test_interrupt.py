@@ -188,7 +188,7 @@ def test_cli_uses_the_enum_not_bare_exit_literals() -> None:
 
     # import_module: ``kfcrit.cli.main`` as an attribute is the click group, not the module
     for name in ("kfcrit.cli.main", "kfcrit.cli.common", "kfcrit.cli.sweep",
-                 "kfcrit.analysis.sweeprun"):
+                 "kfcrit.analysis.sweep.run"):
         source = Path(importlib.import_module(name).__file__).read_text()
         assert not re.search(r"_exit\(\s*\d+\s*\)", source), name
         assert not re.search(r"fail\([^)]*,\s*\d+\s*\)", source, flags=re.S), name

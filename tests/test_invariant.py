@@ -14,7 +14,7 @@ from kfcrit.errors import InputError
 from kfcrit.io.systemfile import load_spec
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import ergodic, simulate
-from kfcrit.theory.invariant import ScalarMaps, gap_levels, invariant_section, support_points
+from kfcrit.theory.covariance.invariant import ScalarMaps, gap_levels, invariant_section, support_points
 
 from .conftest import REPORTS, SHARED_CASES
 
@@ -133,7 +133,7 @@ def test_invariant_section_scalar_only_and_overlapping_images():
 
 def test_tiny_scalar_a_is_decided_by_a_certified_comparison() -> None:
     # bool(lo < hi) on a sympy Relational it cannot decide must not raise (TypeError → exit 4)
-    from kfcrit.theory.invariant import gap_is_open
+    from kfcrit.theory.covariance.invariant import gap_is_open
 
     s = System([["1e-200"]], 1, 1, 1)
     sec = invariant_section(s)
@@ -161,7 +161,7 @@ def test_tiny_scalar_a_through_the_cli(tmp_path) -> None:  # noqa: ANN001
 
 
 def test_undecidable_first_hole_skips_the_holes_with_a_note(monkeypatch) -> None:  # noqa: ANN001
-    import kfcrit.theory.invariant as inv
+    import kfcrit.theory.covariance.invariant as inv
     from kfcrit.errors import ExpressionError
 
     def undecidable(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
@@ -184,7 +184,7 @@ def test_huge_values_warn_in_the_record_and_print_nothing(tmp_path) -> None:  # 
     import sys
     import warnings
 
-    from kfcrit.theory.invariant import OVERFLOW
+    from kfcrit.theory.covariance.invariant import OVERFLOW
 
     s = System([["2**64"]], 1, 1, "1e250")
     with warnings.catch_warnings():

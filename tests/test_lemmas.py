@@ -1,4 +1,4 @@
-"""Sinopoli et al. 2004, Lemma 1 (a)–(h) and Lemma 2, as properties of ``kfcrit.theory.riccati``.
+"""Sinopoli et al. 2004, Lemma 1 (a)–(h) and Lemma 2, as properties of ``kfcrit.theory.covariance.riccati``.
 
 Each property is a plain ``check_*`` function that raises :class:`PropertyViolation` when the
 implementation violates it; the Hypothesis tests below call them on generated systems, and
@@ -23,7 +23,7 @@ import sympy as sp
 from hypothesis import example, given, target
 from hypothesis import strategies as st
 
-from kfcrit.theory import riccati
+from kfcrit.theory.covariance import riccati
 
 from .strategies import (
     PAPER_FLOAT_CASES,
@@ -96,7 +96,7 @@ def assert_close(M1: np.ndarray, M2: np.ndarray, tol: float, what: str) -> None:
 
 
 def check_exact_symmetry(inp: RiccatiInput) -> None:
-    """Invariant of kfcrit.theory.riccati: g_p, φ, f_0, f_1 return exactly symmetric matrices."""
+    """Invariant of kfcrit.theory.covariance.riccati: g_p, φ, f_0, f_1 return exactly symmetric matrices."""
     c = inp.case
     outputs = {
         "g_p": riccati.g(c.A, c.C, c.Q, c.R, inp.X, inp.p),
@@ -254,7 +254,7 @@ def check_lemma2(case: SystemCase, X0: np.ndarray, Y0: np.ndarray, p: float,
 
 def exact_mare(A: sp.Matrix, C: sp.Matrix, Q: sp.Matrix, R: sp.Matrix, X: sp.Matrix,
                p: sp.Expr) -> sp.Matrix:
-    """g_p(X) in exact rational arithmetic (independent of kfcrit.theory.riccati)."""
+    """g_p(X) in exact rational arithmetic (independent of kfcrit.theory.covariance.riccati)."""
     S = C * X * C.T + R
     return A * X * A.T + Q - p * A * X * C.T * S.inv() * C * X * A.T
 

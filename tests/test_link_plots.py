@@ -6,7 +6,7 @@ from matplotlib.figure import Figure
 
 from kfcrit.link import curves
 from kfcrit.link.linkbudget import LinkBudget
-from kfcrit.views.linkplots import (
+from kfcrit.views.figures.link import (
     arrival_distance_figure,
     outage_distance_figure,
     per_sinr_figure,
@@ -64,7 +64,7 @@ def test_per_figure_of_a_calibrated_radio_spans_its_transition() -> None:
 
     from kfcrit.analysis.record import AnalysisOptions, analyze
     from kfcrit.analysis.spec import load_spec
-    from kfcrit.views.designplots import draw_per_sinr
+    from kfcrit.views.figures.design import draw_per_sinr
 
     path = Path(__file__).resolve().parents[1] / "reports" / "link-cc2420-retries.yaml"
     rec = analyze(load_spec(path), AnalysisOptions(quick=True, seed=0)).to_dict()

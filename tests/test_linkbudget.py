@@ -169,7 +169,7 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
 
 
 def test_sensor_link_design_outputs_in_the_terminal_view(sensor_record: dict) -> None:
-    from kfcrit.views.text import summary
+    from kfcrit.views.text.terminal import summary
 
     text = summary(sensor_record)
     lb = sensor_record["link_budget"]

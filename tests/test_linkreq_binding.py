@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 
 from kfcrit.analysis.links import design_check
-from kfcrit.analysis.sweep import RESULT_COLUMNS, row_of
-from kfcrit.analysis.sweepjournal import valid_result
+from kfcrit.analysis.sweep.points import RESULT_COLUMNS, row_of
+from kfcrit.analysis.sweep.journal import valid_result
 from kfcrit.analysis.verdict import CheckStatus, link_reasons
 from kfcrit.link.linkbudget import LinkBudget, design_section
 from kfcrit.model.system import System
-from kfcrit.theory.design import required_arrival
+from kfcrit.theory.covariance.design import required_arrival
 
 A, Q, R, L = 1.2, 1.0, 1.0, 10.0
 P_C = 1 - 1 / A**2

@@ -15,9 +15,15 @@ import re
 
 import pytest
 
-from kfcrit.views import figures, netmargin, report, text
-from kfcrit.views.view_theory import covariance_view, static_gain_view
-from kfcrit.views.viewmodel import view_model
+from kfcrit.views.figures import record as figures
+
+from kfcrit.views.text import netmargin
+
+from kfcrit.views.report import render as report
+
+from kfcrit.views.text import terminal as text
+from kfcrit.views.report.theory import covariance_view, static_gain_view
+from kfcrit.views.report.viewmodel import view_model
 from tests.test_report import visible_text
 from tests.test_report_sections import record
 

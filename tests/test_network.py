@@ -18,10 +18,10 @@ from kfcrit.analysis.spec import parse_channel as channel_from_mapping
 from kfcrit.errors import InputError
 from kfcrit.model.network import Network, Sensor, euclidean_distance, network_from_mapping
 from kfcrit.model.system import System
-from kfcrit.theory import network_kernels as nk
-from kfcrit.theory.critical import critical_value
-from kfcrit.theory.network import necessary_constraints, network_analysis
-from kfcrit.theory.upper import upper_bound
+from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.critical.section import critical_value
+from kfcrit.theory.links.network import necessary_constraints, network_analysis
+from kfcrit.theory.upper.bracket import upper_bound
 
 R = sp.Rational
 

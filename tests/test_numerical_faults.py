@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from kfcrit import System
 from kfcrit.cli.main import main
-from kfcrit.theory.upper import upper_bound
+from kfcrit.theory.upper.bracket import upper_bound
 
 from .util import assert_all_finite
 
@@ -99,8 +99,8 @@ def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
     # "undetermined" with the bracket obtained so far [p_low, 1] — never exit 4, never a guess
     import numpy as np
 
-    import kfcrit.theory.newton as newton
-    import kfcrit.theory.upper as upper
+    import kfcrit.theory.upper.newton as newton
+    import kfcrit.theory.upper.bracket as upper
 
     def newton_fails(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
         raise np.linalg.LinAlgError("injected solver failure")

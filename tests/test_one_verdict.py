@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import kfcrit
-from kfcrit.analysis import sweep as sweep_mod
+from kfcrit.analysis.sweep import points as sweep_mod
 from kfcrit.analysis.spec import spec_from_mapping
 
 from .conftest import PROFILE

@@ -24,7 +24,7 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from kfcrit.model.system import System
-from kfcrit.theory import critical
+from kfcrit.theory.critical import section as critical
 
 from .balls import Unsupported, certainly_positive_definite
 from .strategies import (
@@ -316,7 +316,7 @@ UPPER_TOL = 1e-9
 def check_upper_similarity(A: sp.Matrix, C: sp.Matrix, T: sp.Matrix) -> None:
     """p_up(T A T⁻¹, C T⁻¹) = p_up(A, C): both brackets contain the same p_up, so they
     overlap; when both are determined (width ≤ tol) their ends agree within 2·tol."""
-    from kfcrit.theory.upper import upper_bound
+    from kfcrit.theory.upper.bracket import upper_bound
     Ti = T.inv()
     a = upper_bound(exact_system(A, C), tol=UPPER_TOL)
     b = upper_bound(exact_system(T * A * Ti, C * Ti), tol=UPPER_TOL)
@@ -459,8 +459,8 @@ def lyapunov_lower(case: SystemCase, p: float) -> np.ndarray:
 
 
 def mare_upper(case: SystemCase, p: float, steps: int = 20000, rtol: float = 1e-13) -> np.ndarray:
-    """V̄ = lim g_p^t(0) (Sinopoli Thm 1), iterated with kfcrit.theory.riccati.g until it settles."""
-    from kfcrit.theory import riccati
+    """V̄ = lim g_p^t(0) (Sinopoli Thm 1), iterated with kfcrit.theory.covariance.riccati.g until it settles."""
+    from kfcrit.theory.covariance import riccati
 
     V = np.zeros_like(case.Q)
     for _ in range(steps):
@@ -516,11 +516,11 @@ def test_simulated_mean_between_bounds_paper_cases(name: str, p: float) -> None:
 # the upper bound p_up: certificate, MARE characterisation, single-output identity, ordering
 
 UPPER_TOL = 1e-9
-"""Bracket width requested from kfcrit.theory.upper.upper_bound."""
+"""Bracket width requested from kfcrit.theory.upper.bracket.upper_bound."""
 
 
 def upper_record(system: System, method: str = "newton") -> dict:
-    from kfcrit.theory import upper
+    from kfcrit.theory.upper import bracket as upper
 
     return upper.upper_bound(system, UPPER_TOL, method).to_dict()
 
@@ -531,7 +531,7 @@ def _rational_matrix(M) -> sp.Matrix:
 
 
 def check_upper_certificate_exact(system: System, rec: dict) -> None:
-    """Re-check a certified p_up in exact rational arithmetic, independently of kfcrit.theory.certify:
+    """Re-check a certified p_up in exact rational arithmetic, independently of kfcrit.theory.upper.certify:
     X ≻ 0 and X − (1−p) A X A' − p F X F' ≻ 0, F = A + K C, at p = the upper end (Sinopoli
     Thm 5(b) with Q, R scaled away; MATH §3)."""
     cert = rec.get("certificate")
@@ -568,7 +568,7 @@ def mare_bounded(case: SystemCase, p: float, steps: int = 6000) -> bool | None:
 
     Uses Q = I (≻ 0), as Sinopoli Thm 1's characterisation needs; p_up does not depend on Q, R.
     """
-    from kfcrit.theory import riccati
+    from kfcrit.theory.covariance import riccati
 
     n, m = case.n, case.m
     Q, R = np.eye(n), np.eye(m)
@@ -730,7 +730,7 @@ def test_upper_methods_agree_seeded_systems(n: int, m: int, seed: int) -> None:
 def mare_decides(system: System, p: float, steps: int = 200_000) -> bool:
     """MARE iteration V ← g_p(V) from 0 with Q = R = I (numpy only): True when it settles,
     False when it explodes; undecided after ``steps`` is a test failure, not a pass."""
-    from kfcrit.theory import riccati
+    from kfcrit.theory.covariance import riccati
 
     A, C = system.a, system.c
     Q, R = np.eye(system.n), np.eye(system.m)
@@ -779,10 +779,10 @@ def test_multi_output_upper_bound_three_methods(n: int, m: int, seed: int) -> No
 def check_covariance_bounds(case: SystemCase, p: float, bounds: dict, p_up: tuple[float, float],
                             margin: float = 1e-6) -> None:
     """S̄ solves S = (1−p)ASA' + Q and exists iff (1−p)ρ² < 1; V̄ solves V = g_p(V) and exists
-    iff p > p_up; S̄ ⪯ V̄. Residuals are checked here with numpy / kfcrit.theory.riccati.g, not with the
+    iff p > p_up; S̄ ⪯ V̄. Residuals are checked here with numpy / kfcrit.theory.covariance.riccati.g, not with the
     solver that produced the matrices. Existence is only judged ``margin`` away from a threshold.
     """
-    from kfcrit.theory import riccati
+    from kfcrit.theory.covariance import riccati
 
     rho = case.spectrum.radius
     lower, upper = bounds["lower"], bounds["upper"]
@@ -815,7 +815,7 @@ def check_covariance_bounds(case: SystemCase, p: float, bounds: dict, p_up: tupl
 def test_covariance_bounds(case: SystemCase, u: float, below: bool) -> None:
     from hypothesis import assume
 
-    from kfcrit.theory.bounds import covariance_bounds
+    from kfcrit.theory.covariance.bounds import covariance_bounds
 
     assume(pbh_detectable(case))
     system = System(case.A, case.C, case.Q, case.R)
@@ -829,7 +829,7 @@ def test_covariance_bounds(case: SystemCase, u: float, below: bool) -> None:
 def check_static_gains(system: System, p: float) -> int:
     """Journal §V: a static gain's mean-square critical value is never below p_up, and the best
     static gain attains p_up (a third characterisation of p_up, MATH §3)."""
-    from kfcrit.theory.bounds import static_gain
+    from kfcrit.theory.covariance.bounds import static_gain
 
     rec = static_gain(system, p)
     lo, hi = rec["p_up_interval"]
@@ -858,7 +858,7 @@ def test_static_gains_paper_cases(name: str) -> None:
 def test_covariance_bounds_paper_cases() -> None:
     # the scalar example in closed form: S̄ = 1/(1 − (1−p)·25/16) and V̄ = 11/2 + √8169/14 at
     # p = 1/2 (proofs_checks/check_thm6b_sdp.py derives V̄ exactly)
-    from kfcrit.theory.bounds import covariance_bounds
+    from kfcrit.theory.covariance.bounds import covariance_bounds
 
     c = PAPER_CASES["sinopoli-scalar"]
     rec = covariance_bounds(System(c["A"], c["C"], c["Q"], c["R"]), 0.5)

@@ -29,10 +29,13 @@ from kfcrit.analysis.spec import load_spec
 from kfcrit.cli import report as command
 from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
-from kfcrit.views import figures, mathsvg, report, summary
-from kfcrit.views import jinja_filters as filters
-from kfcrit.views.view_sim import appendix_view, seeds_text, simulation_view
-from kfcrit.views.view_theory import bounds_view
+from kfcrit.views.figures import record as figures
+from kfcrit.views.figures import mathsvg
+from kfcrit.views.report import render as report
+from kfcrit.views.report import summary
+from kfcrit.views import formatting as filters
+from kfcrit.views.report.sim import appendix_view, seeds_text, simulation_view
+from kfcrit.views.report.theory import bounds_view
 
 ROOT = Path(__file__).resolve().parents[1]
 REPORTS = ROOT / "reports"
@@ -208,7 +211,7 @@ def test_print_figures_are_png_data_uris(records):
 def test_phase_window_starts_where_the_bounds_exist() -> None:
     """Below p_low both bounds are infinite: the window starts just below the first finite point
     (a tenth of the remaining range), and widens to show an operating point further left."""
-    from kfcrit.views.figures import phase_window
+    from kfcrit.views.figures.record import phase_window
 
     p = [0.0, 0.25, 0.5, 0.75, 0.8, 0.9, 1.0]
     nan = float("nan")

@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from kfcrit.views import figures, report
+from kfcrit.views.figures import record as figures
+
+from kfcrit.views.report import render as report
 
 CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium"
                                         if Path("/usr/bin/chromium").exists() else None)

@@ -15,8 +15,10 @@ import pytest
 
 from kfcrit.analysis.record import AnalysisOptions, analyze
 from kfcrit.analysis.spec import load_spec, spec_from_mapping
-from kfcrit.views import figures, netplots, report
-from kfcrit.views.viewmodel import IID_CAVEAT, view_model
+from kfcrit.views.figures import record as figures
+from kfcrit.views.figures import network as netplots
+from kfcrit.views.report import render as report
+from kfcrit.views.report.viewmodel import IID_CAVEAT, view_model
 from tests.test_report import REPORTS, visible_text
 
 _CACHE: dict[str, dict] = {}
@@ -250,7 +252,7 @@ IRRATIONAL_PLANT = {"name": "three states, cubic eigenvalues",
 
 
 def test_short_closed_forms_only():
-    from kfcrit.views.viewparts import exact_text, numerical_text, short_closed_form
+    from kfcrit.views.report.parts import exact_text, numerical_text, short_closed_form
     assert short_closed_form("9/25") == "9/25"
     assert short_closed_form("1 - 2**(-3)") == "1 - 2**(-3)"
     assert short_closed_form("sqrt(3)/2") == "sqrt(3)/2"
@@ -291,7 +293,7 @@ def _bound(quantity, unit, sense, suf, nec, suf_status="value", nec_status="valu
 
 
 def test_radio_bounds_fail_on_the_side_their_sense_says():
-    from kfcrit.views.view_design import bound_text
+    from kfcrit.views.report.design import bound_text
     # a transmit power must be at least its bound: below the necessary end it fails
     power = bound_text(_bound("transmit power", "dBm", "at least", -2.05, -2.28))
     assert "fails below −2.28 dBm" in power and "guaranteed at −2.05 dBm or more" in power
@@ -316,7 +318,7 @@ def test_radio_bounds_fail_on_the_side_their_sense_says():
 def test_network_margin_rows_are_labelled_as_the_uniform_margin():
     """A network's operating_point.margin is the uniform margin δ (every link degraded by δ),
     not p − p_c: every place that shows it says so."""
-    from kfcrit.views.summary import markdown_summary
+    from kfcrit.views.report.summary import markdown_summary
     rec = record("network-redundant-gauges")
     assert isinstance(rec.get("network"), dict)
     rec["operating_point"]["bracket"] = [0.05, 0.15]
@@ -333,11 +335,11 @@ INTERNAL = re.compile(r"`|kfcrit\.[a-z]|LinAlgError|_bar\b|rho\(|>=|<=|\) a\^2")
 
 
 def test_record_prose_reads_without_program_names():
-    from kfcrit.views.jinja_filters import pretty_text
+    from kfcrit.views.formatting import pretty_text
     assert pretty_text("(1 - r) rho(A)^2 >= 1") == "(1 − r) ρ(A)² ≥ 1"
     assert pretty_text("(1 - r) a^2 < 1") == "(1 − r) a² < 1"
     assert pretty_text("tr S_bar > L, tr V_bar <= L") == "tr S̄ > L, tr V̄ ≤ L"
-    assert pretty_text("proof in kfcrit.theory.network (claim)") == "kfcrit's own proof (claim)"
+    assert pretty_text("proof in kfcrit.theory.links.network (claim)") == "kfcrit's own proof (claim)"
     assert pretty_text("failed (LinAlgError: Singular matrix)") == \
         "failed (a linear-algebra failure: Singular matrix)"
     assert pretty_text("the verdicts are in `network`") == "the verdicts are in the network section"
@@ -355,7 +357,7 @@ def test_reports_show_no_internal_names(stem):
 def test_network_simulation_summary_is_shown() -> None:
     """A network's per-sensor-arrival simulation is a row of the simulation table (not
     "not computed"): its paths and the simulated mean with its band, read from the record."""
-    from kfcrit.views.view_sim import simulation_view
+    from kfcrit.views.report.sim import simulation_view
 
     rec = {"operating_point": {"verdict": "mean-stable"}, "covariance_bounds": None,
            "simulation": {"seed": 3, "quick": True, "network": {

@@ -1,6 +1,6 @@
 """Monte Carlo of the random Riccati equation: exactness, reproducibility, statistics, CLI.
 
-Reference values come from independent computations: ``kfcrit.theory.riccati`` (the standard-form
+Reference values come from independent computations: ``kfcrit.theory.covariance.riccati`` (the standard-form
 Riccati maps, not the kernel's Joseph form), closed-form scalar recursions, scipy's
 ``solve_discrete_lyapunov`` for S̄ and a plain MARE iteration for V̄ (Sinopoli Thm 4/6), and the
 Gilbert–Elliott condition (1 − r) a² < 1 of MATH.md §7.
@@ -34,7 +34,7 @@ from kfcrit.model.system import System
 from kfcrit.sim.kernels import LANES, lambda_max_lanes, riccati_lanes
 from kfcrit.sim.montecarlo import ergodic, path_keys, simulate, simulation_section
 from kfcrit.sim.stats import accumulate_log, column_stats
-from kfcrit.theory.riccati import f_arrival, f_loss, g
+from kfcrit.theory.covariance.riccati import f_arrival, f_loss, g
 
 from .conftest import REPORTS
 
@@ -85,7 +85,7 @@ def trace_offset(seed, i, length):
 @given(small_systems(), st.lists(st.booleans(), min_size=1, max_size=25))
 def test_kernel_follows_the_standard_riccati_maps(sysmats, arrivals):
     """Paths of a trace channel read the trace from offset key_i mod L: compare with
-    kfcrit.theory.riccati on the rotated trace."""
+    kfcrit.theory.covariance.riccati on the rotated trace."""
     A, C, Q, R = sysmats
     system = System(A, C, Q, R)
     L = len(arrivals)
@@ -730,7 +730,7 @@ def test_bit_identical_for_any_number_of_threads():
 
 def test_lambda_max_is_exact_at_its_sample_times():
     """p = 1: every path follows the same deterministic Riccati recursion, so E[λ_max(P_t)] is
-    λ_max of that recursion (kfcrit.theory.riccati.f_arrival, numpy's eigvalsh) at the chosen
+    λ_max of that recursion (kfcrit.theory.covariance.riccati.f_arrival, numpy's eigvalsh) at the chosen
     times; n = 3 takes the Cholesky-bisection branch."""
     A = np.array([[1.2, 0.3, 0.0], [0.0, 0.9, 0.5], [0.1, 0.0, 1.1]])
     C = np.array([[1.0, 0.0, 1.0]])
@@ -875,7 +875,7 @@ def test_sensor_arrivals_follow_the_received_set_update():
     """Two sensors (rows 0 and 1 of C, R with a cross term) over two different traces. Each
     path reads sensor s's trace from offset key mod L, key = SeedSequence(seed, spawn_key=
     (stream_s, i)) with stream 0 for sensor 0 and 3 for sensor 1 (numpy's own SeedSequence).
-    Independent reference: kfcrit.theory.riccati.f_arrival with the stacked rows of C (and the
+    Independent reference: kfcrit.theory.covariance.riccati.f_arrival with the stacked rows of C (and the
     block of R) that arrived, f_loss when none did."""
     A = np.array([[1.1, 0.4], [0.0, 0.8]])
     C = np.array([[1.0, 0.0], [0.3, 1.0]])

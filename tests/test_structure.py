@@ -1,4 +1,4 @@
-"""Eigen-structure decisions (kfcrit.theory.structure): exact path, numeric path, fallbacks.
+"""Eigen-structure decisions (kfcrit.theory.structure.eigen): exact path, numeric path, fallbacks.
 
 Expected facts are hand derivations (stated next to each case) or a second method (brute force
 for the simplest rational; the numeric path against the exact path).
@@ -17,7 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from kfcrit.model.system import System
-from kfcrit.theory.structure import (
+from kfcrit.theory.structure.eigen import (
     MAX_DENOMINATOR,
     Fallback,
     certified_structure,
@@ -260,7 +260,7 @@ def _surd_float():
     ([[1, 0, 0, 0, 0, 1]], "degenerate"),                 # m = 1: two degenerate pairs
 ])
 def test_certified_stage_decides_surd_system(C, classification):
-    from kfcrit.theory import critical
+    from kfcrit.theory.critical import section as critical
     system = _surd_system(C)
     s = eigen_structure(system)
     assert s.path == "exact" and "certified enclosures" in s.path_reason
@@ -333,7 +333,7 @@ def test_certified_stage_refutes_a_near_rational_angle():
 
 
 def test_diag_two_minus_two_handover_keeps_exact_value():
-    from kfcrit.theory import critical
+    from kfcrit.theory.critical import section as critical
     system = _sys([[2, 0], [0, -2]], [[1, 1]])
     s = eigen_structure(system)
     assert s.path == "exact" and "certified" not in s.path_reason
@@ -368,7 +368,7 @@ def test_ill_conditioned_cluster_does_not_average_away_instability():
     # so
     # float64 cannot resolve the spectrum — but the unstable 6/5 must not vanish into a mean.
     # Hand value: C = [1 … 1], C·v_i = 1 + 60·(i − 1) ≠ 0, one |λ| > 1: 1 − (5/6)² = 11/36.
-    from kfcrit.theory import critical
+    from kfcrit.theory.critical import section as critical
     n = 7
     V = np.eye(n) + np.triu(np.full((n, n), 60.0), 1)
     A = V @ np.diag([6 / 5, 1 / 2, 1 / 3, 1 / 4, 1 / 5, 1 / 6, 1 / 7]) @ np.linalg.inv(V)

@@ -23,8 +23,8 @@ from click.testing import CliRunner
 from scipy import integrate, stats
 from scipy.special import erfc
 
-import kfcrit.analysis.sweep as sweep_mod
-import kfcrit.analysis.sweeprun as run_mod
+import kfcrit.analysis.sweep.points as sweep_mod
+import kfcrit.analysis.sweep.run as run_mod
 from kfcrit.cli.main import main
 
 KB = 1.380649e-23
@@ -559,7 +559,7 @@ def test_a_named_field_can_be_swept_and_bad_names_fail_their_points(tmp_path: Pa
 
 def test_upper_bound_column_is_filled_once_per_system(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    import kfcrit.theory.upper as upper_mod
+    import kfcrit.theory.upper.bracket as upper_mod
 
     calls: list[float] = []
     real = upper_mod.upper_bound

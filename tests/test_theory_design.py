@@ -1,4 +1,4 @@
-"""Design inversion (kfcrit.theory.design): [p_S, p_V] for lim E[tr P] ≤ L, against closed forms.
+"""Design inversion (kfcrit.theory.covariance.design): [p_S, p_V] for lim E[tr P] ≤ L, against closed forms.
 
 Scalar plant x' = a x + w, y = c x + v (Q = q, R = r):
 
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
-from kfcrit.theory import design
+from kfcrit.theory.covariance import design
 
 
 def scalar(a, c=1.0, q=1.0, r=1.0) -> System:

@@ -1,4 +1,4 @@
-"""Gilbert–Elliott links for vector systems (kfcrit.theory.markov), against hand results.
+"""Gilbert–Elliott links for vector systems (kfcrit.theory.links.markov), against hand results.
 
 Expected values are derived by hand (MATH.md §7, §10):
 
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
-from kfcrit.theory import markov
+from kfcrit.theory.links import markov
 
 
 def make(A, C, Q=None, R=None) -> System:
@@ -88,7 +88,7 @@ def test_bursty_vector_link_proven_stable():
     cert = v.certificate
     assert cert.certified and cert.check["ok"] and cert.spectral_radius < 1
     # the proof is re-checkable from the record: the same matrices pass the ball check again
-    from kfcrit.theory import certify
+    from kfcrit.theory.upper import certify
     m = cert.matrices
     again = certify.verify_markov_jump(BURSTY, markov.exact_rate(0.1), markov.exact_rate(0.5),
                                        np.array(m["X0"]), np.array(m["X1"]), np.array(m["K"]))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
-from kfcrit.theory.tails import tail_exponent
+from kfcrit.theory.covariance.tails import tail_exponent
 
 
 def test_scalar_exponent_by_hand():

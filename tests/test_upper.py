@@ -1,4 +1,4 @@
-"""The upper bound p_up (kfcrit.theory.upper, kfcrit.theory.lmi): closed forms, paper values, cross-checks.
+"""The upper bound p_up (kfcrit.theory.upper.bracket, kfcrit.theory.upper.lmi): closed forms, paper values, cross-checks.
 
 Expected values: MATH.md §3 and tests/data/cases/expected.json (paper values); the single-output
 closed form p_up = 1 − 1/Π|λ_u|² ([beyond] in MATH.md, tested here as a property); p_low
@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 from kfcrit.io.systemfile import load_spec
 from kfcrit.model.system import System
-from kfcrit.theory import bounds
-from kfcrit.theory.upper import UpperBound, upper_bound, upper_section
+from kfcrit.theory.covariance import bounds
+from kfcrit.theory.upper.bracket import UpperBound, upper_bound, upper_section
 
 from .conftest import SHARED_CASES
 from .data.bench_systems import random_system  # noqa: E402
@@ -162,7 +162,7 @@ def test_undetectable_is_undetermined_not_an_error():
 
 
 def test_upper_section_never_raises(monkeypatch):
-    from kfcrit.theory import upper
+    from kfcrit.theory.upper import bracket as upper
 
     def boom(*_a, **_k):
         raise np.linalg.LinAlgError("singular matrix")
@@ -219,7 +219,7 @@ def test_lmi_mare_static_gain_agree(n, m, seed):
 def test_lmi_never_reads_inaccurate_or_errors_as_a_decision(monkeypatch):
     import cvxpy as cp
 
-    from kfcrit.theory.lmi import PsiProblem
+    from kfcrit.theory.upper.lmi import PsiProblem
 
     s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
     prob = PsiProblem(s.a, s.c)
@@ -337,7 +337,7 @@ def test_p_low_bounds_enclose_independent_values():
     import mpmath
     import sympy as sp
 
-    from kfcrit.theory.upper import p_low_bounds
+    from kfcrit.theory.upper.bracket import p_low_bounds
     A = [[1, 2, 0], [0, 3, 1], [1, 0, -1]]
     mpmath.mp.dps = 50
     roots = mpmath.polyroots([float(c) for c in sp.Matrix(A).charpoly().all_coeffs()],
@@ -369,7 +369,7 @@ def test_lmi_random_20_6_lower_end_is_not_above_the_proven_p_up():
     # p_up <= 0.4082840242 is proven. Expected values, independently: p_low = 1 − 1/1.3² of the
     # float A (Thm 3, p_up ≥ p_low) and the fast method's certificate, re-checked here in ball
     # arithmetic (X ≻ 0, X − L_{K,hi}(X) ≻ 0) — so p_up ∈ [p_low, 0.4082840242].
-    from kfcrit.theory import certify
+    from kfcrit.theory.upper import certify
 
     A, C, _, _ = random_system(20, 6, 0)
     s = make(A, C)
@@ -399,7 +399,7 @@ def test_lmi_random_20_6_lower_end_is_not_above_the_proven_p_up():
 def test_lmi_infeasible_needs_an_independent_confirmation(monkeypatch):
     import cvxpy as cp
 
-    from kfcrit.theory.lmi import PsiProblem
+    from kfcrit.theory.upper.lmi import PsiProblem
 
     s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
     prob = PsiProblem(s.a, s.c)
@@ -445,8 +445,8 @@ def test_lmi_lower_end_is_confirmed_on_the_paper_example():
 def test_lower_end_proven_with_stable_modes():
     # random_system(5, 1, 0): 3 unstable and 2 stable modes, single output, so
     # p_up = 1 − 1/Π|λ_u|² ≈ 0.54115 > p_low (closed form, computed here from eigenvalues)
-    from kfcrit.theory import certify
-    from kfcrit.theory.upper import invariant_block_of, reduce_system
+    from kfcrit.theory.upper import certify
+    from kfcrit.theory.upper.bracket import invariant_block_of, reduce_system
 
     A, C, _, _ = random_system(5, 1, 0)
     s = make(A, C)
@@ -486,7 +486,7 @@ PREVIOUSLY_UNDETERMINED = [(12, 4, 0), (20, 1, 0), (20, 2, 3), (20, 6, 1)]
 
 @pytest.mark.parametrize("n, m, seed", PREVIOUSLY_UNDETERMINED)
 def test_previously_undetermined_systems_reach_width_1e9(n, m, seed):
-    from kfcrit.theory import certify
+    from kfcrit.theory.upper import certify
 
     A, C, Q, R = random_system(n, m, seed)
     s = System(A, C, Q, R)
@@ -534,7 +534,8 @@ def _raise(exc):
                                  ZeroDivisionError("division by zero (injected)"),
                                  ValueError("array must not contain infs or NaNs (injected)")])
 def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory.upper import newton
+    from kfcrit.theory.upper import bracket as upper
 
     upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton", _raise(exc))
@@ -552,7 +553,7 @@ def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
 
 
 def test_numpy_solve_failure_is_undetermined(monkeypatch):
-    from kfcrit.theory import upper
+    from kfcrit.theory.upper import bracket as upper
 
     upper.clear_memo()
     monkeypatch.setattr(np.linalg, "solve", _raise(np.linalg.LinAlgError("Singular matrix")))
@@ -564,7 +565,9 @@ def test_numpy_solve_failure_is_undetermined(monkeypatch):
 def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
     import cvxpy
 
-    from kfcrit.theory import lmi, upper
+    from kfcrit.theory.upper import lmi
+
+    from kfcrit.theory.upper import bracket as upper
 
     upper.clear_memo()
     monkeypatch.setattr(lmi, "lmi_upper_bound", _raise(cvxpy.error.SolverError("Clarabel")))
@@ -574,7 +577,8 @@ def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
 
 
 def test_programming_errors_are_not_swallowed(monkeypatch):
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory.upper import newton
+    from kfcrit.theory.upper import bracket as upper
 
     upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton", _raise(TypeError("a bug")))
@@ -595,7 +599,8 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
 
     import kfcrit
     from kfcrit.cli.main import main
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory.upper import newton
+    from kfcrit.theory.upper import bracket as upper
 
     path = tmp_path / "no-channel.yaml"
     path.write_text(NO_CHANNEL)
@@ -613,7 +618,8 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
 
 
 def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory.upper import newton
+    from kfcrit.theory.upper import bracket as upper
 
     upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton",
@@ -643,7 +649,8 @@ def _sqrt3_system(tmp_path, name):
 
 def test_upper_bound_does_not_depend_on_call_order(tmp_path):
     # one unstable mode sqrt(3) seen by C: p_up = p_c = p_low = 1 - 1/3 = 2/3 (single mode)
-    from kfcrit.theory import critical, upper
+    from kfcrit.theory.critical import section as critical
+    from kfcrit.theory.upper import bracket as upper
 
     first = _sqrt3_system(tmp_path, "a.yaml")
     upper.clear_memo()
@@ -678,7 +685,8 @@ def test_power_bisection_checks_once_in_balls_and_defers_beyond_the_size_limit(m
     # random_system(8, 2, 1) through the large-block path (NEWTON_MAX_REDUCED lowered): the
     # bracket must contain the Newton path's certified p_up; with the ball check deferred the
     # upper end is labelled numerical (not certified), never silently "proven"
-    from kfcrit.theory import newton, upper
+    from kfcrit.theory.upper import newton
+    from kfcrit.theory.upper import bracket as upper
 
     s = System(*random_system(8, 2, 1))
     upper.clear_memo()

@@ -16,7 +16,7 @@ import numpy as np
 from kfcrit.model.channels import Channel, GilbertElliott
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import simulate
-from kfcrit.theory.critical import critical_value
+from kfcrit.theory.critical.section import critical_value
 
 GE_CLAIMS: tuple[dict[str, str], ...] = (
     {"statement": "Kalman filtering with Markovian (Gilbert-Elliott) packet losses: conditions "

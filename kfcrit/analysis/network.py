@@ -18,7 +18,7 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str]
     every sensor's packet arriving together, as over one joint link; the network's own values
     are in ``network``.
     """
-    from kfcrit.theory.network import network_analysis
+    from kfcrit.theory.links.network import network_analysis
 
     net = network_analysis(spec.network, tol=opts.tolerance).to_dict()
     warnings.extend(net.get("warnings") or [])
@@ -68,7 +68,7 @@ def network_lower_bound(network: Any) -> dict[str, Any]:
     """
     import numpy as np
 
-    from kfcrit.theory import bounds
+    from kfcrit.theory.covariance import bounds
 
     lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
                           for s in network.sensors if s.channel is not None]))
@@ -148,12 +148,12 @@ def network_burst_condition(network: Any) -> dict[str, Any] | None:
     Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a lost link stays lost)
     and 1 − p_j for an i.i.d. one, while the modes unobservable through C_T grow like ρ_T^{2k}:
     E[P_t] is unbounded unless Π_{j∉T} c_j·ρ_T² < 1 for every T — the necessary surface of
-    :func:`kfcrit.theory.network.necessary_constraints` evaluated at p_j' = 1 − c_j. None when
+    :func:`kfcrit.theory.links.network.necessary_constraints` evaluated at p_j' = 1 − c_j. None when
     every link is memoryless.
     """
     import numpy as np
 
-    from kfcrit.theory.network import necessary_constraints, necessary_holds
+    from kfcrit.theory.links.network import necessary_constraints, necessary_holds
 
     chains = [bursty_channel(s.channel) for s in network.sensors]
     if all(c is None for c in chains):

@@ -1,8 +1,8 @@
 """The analysis: one typed record that every view renders.
 
 ``analyze(spec)`` asks each concern for its section — the critical value
-(:mod:`kfcrit.theory.critical`), the upper bound and covariance bounds
-(:mod:`kfcrit.theory.upper`, :mod:`kfcrit.theory.bounds`), the simulation
+(:mod:`kfcrit.theory.critical.section`), the upper bound and covariance bounds
+(:mod:`kfcrit.theory.upper.bracket`, :mod:`kfcrit.theory.covariance.bounds`), the simulation
 (:mod:`kfcrit.sim`) and the link (:mod:`kfcrit.link`) — then decides, in one place
 (:mod:`kfcrit.analysis.verdict`), the stability verdict at the operating point and the review
 decision, and returns the typed :class:`~kfcrit.analysis.sections.Analysis`. The terminal
@@ -79,7 +79,7 @@ class TheorySections:
     critical_exact: Any = None
     p_low_exact: Any = None
     structure: Any = None
-    """The eigen-structure (:func:`kfcrit.theory.structure.structure_of`) the sections used."""
+    """The eigen-structure (:func:`kfcrit.theory.structure.eigen.structure_of`) the sections used."""
 
 
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
@@ -246,8 +246,9 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
     enter Ψ_p, MATH §3), so a sweep over noise parameters computes it once.
     """
-    from kfcrit.theory import critical, upper
-    from kfcrit.theory.structure import structure_of
+    from kfcrit.theory.critical import section as critical
+    from kfcrit.theory.upper import bracket as upper
+    from kfcrit.theory.structure.eigen import structure_of
 
     opts = options or AnalysisOptions()
     structure = structure_of(system, opts.tolerance)
@@ -411,7 +412,7 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
     phase-transition curves tr S̄(p), tr V̄(p)."""
     import numpy as np
 
-    from kfcrit.theory import bounds
+    from kfcrit.theory.covariance import bounds
 
     s = spec.system
     markers = {"p_low": (sec.get("lower_bound") or {}).get("value"),
@@ -463,7 +464,7 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
 
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
                          warnings: list[str]) -> None:
-    from kfcrit.theory import invariant
+    from kfcrit.theory.covariance import invariant
 
     sec["invariant"] = invariant.invariant_section(spec.system)
     warnings.extend((sec["invariant"] or {}).get("warnings") or [])
@@ -491,10 +492,10 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
                         ge: Any) -> dict[str, Any]:
     """The Gilbert–Elliott section of a bursty chain: the conditions of MATH §7 (scalar) and
     §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
-    :func:`kfcrit.theory.markov.burst_verdict`) and, with ``details``, the critical curve in the
+    :func:`kfcrit.theory.links.markov.burst_verdict`) and, with ``details``, the critical curve in the
     (failure rate, recovery rate) plane."""
     from kfcrit.analysis.bursty import gilbert_elliott_section
-    from kfcrit.theory import markov
+    from kfcrit.theory.links import markov
 
     s = spec.system
     cls = theory.sections.get("classification")
@@ -555,7 +556,7 @@ def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, An
     level = getattr(spec.requirements, "max_mean_error_trace", None)
     if level is None or sec.get("classification") == "not-detectable":
         return
-    from kfcrit.theory.design import required_arrival
+    from kfcrit.theory.covariance.design import required_arrival
 
     req = required_arrival(spec.system, level, structure=theory.structure).to_dict()
     out: dict[str, Any] = {"requirement": f"lim E[tr P] ≤ {level:g}",
@@ -576,7 +577,7 @@ def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any])
     """The power-law tail exponent of tr P at the operating point (a labelled claim)."""
     if spec.channel is None or not spec.channel.iid or spec.channel.model == "trace":
         return
-    from kfcrit.theory.tails import tail_exponent
+    from kfcrit.theory.covariance.tails import tail_exponent
 
     sec["tail"] = {"exponent": tail_exponent(
         spec.system, spec.channel.arrival_probability,

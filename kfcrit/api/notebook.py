@@ -25,24 +25,24 @@ class Analysis(sections.Analysis):
     """
 
     def _repr_html_(self) -> str:
-        from kfcrit.views.summary import html_summary
+        from kfcrit.views.report.summary import html_summary
 
         return html_summary(self.to_dict())
 
     def _repr_markdown_(self) -> str:
-        from kfcrit.views.summary import markdown_summary
+        from kfcrit.views.report.summary import markdown_summary
 
         return markdown_summary(self.to_dict())
 
     def figure_names(self) -> list[str]:
         """The figures this record has data for (the report's figures, in report order)."""
-        from kfcrit.views.figures import figure_names
+        from kfcrit.views.figures.record import figure_names
 
         return figure_names(self.to_dict())
 
     def figure(self, name: str) -> Any:
         """One report figure as a :class:`matplotlib.figure.Figure` (see :meth:`figure_names`)."""
-        from kfcrit.views.figures import figure
+        from kfcrit.views.figures.record import figure
 
         return figure(self.to_dict(), name)
 
@@ -132,7 +132,7 @@ def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: 
     ``output`` is the results folder (default: beside the sweep file, as for ``kfcrit sweep``);
     with ``write`` the CSV, JSON and figures are written there too.
     """
-    from kfcrit.analysis.sweep import RESULT_COLUMNS, load_sweep, run_sweep
+    from kfcrit.analysis.sweep.points import RESULT_COLUMNS, load_sweep, run_sweep
     from kfcrit.cli.sweep import write_outputs
 
     spec = load_sweep(sweep_file, max_states=max_states)

@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from kfcrit.model.system import System
-from kfcrit.theory import critical
+from kfcrit.theory.critical import section as critical
 
 EXACT_TARGET = 2.0
 NUMERIC_TARGET = 5.0

@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-ball", action="store_true", help="float-checked certificates only")
     args = ap.parse_args(argv)
-    from kfcrit.theory.network import network_analysis
+    from kfcrit.theory.links.network import network_analysis
 
     print(f"{'N':>3} {'sets':>6} {'seconds':>8} {'ms/set':>7} {'newton':>6} {'certs':>5} "
           f"{'verdict':>13} {'margin interval'}")

@@ -100,7 +100,7 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
     """
     from distributed import LocalCluster
 
-    from kfcrit.analysis.sweep import load_sweep, run_sweep, table_csv
+    from kfcrit.analysis.sweep.points import load_sweep, run_sweep, table_csv
 
     out = out or sys.stdout
     workers = workers or os.cpu_count() or 1

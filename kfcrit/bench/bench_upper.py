@@ -3,7 +3,7 @@
     python -m kfcrit.bench.bench_upper [--quick] [--reference-seconds S]
 
 Times ``upper_bound`` of ``../shared/bench/reference_lmi.py`` (cvxpy + Clarabel, bisection to
-width 1e-6) and ``kfcrit.theory.upper.upper_bound`` (default method) on
+width 1e-6) and ``kfcrit.theory.upper.bracket.upper_bound`` (default method) on
 ``random_system(n, m, seed)`` from ``../shared/bench/systems.py``, and prints the brackets and
 the ratios. Targets (issue 9):
 (20, 6) ≥ 50× faster at width 1e-6; (50, 10) faster than the reference at (20, 6); width 1e-9
@@ -32,8 +32,8 @@ def _ours(n: int, m: int, seed: int, tol: float, repeat: int):
     from systems import random_system
 
     from kfcrit.model.system import System
-    from kfcrit.theory import upper
-    from kfcrit.theory.upper import upper_bound
+    from kfcrit.theory.upper import bracket as upper
+    from kfcrit.theory.upper.bracket import upper_bound
 
     A, C, Q, R = random_system(n, m, seed)
     system = System(A, C, Q, R)

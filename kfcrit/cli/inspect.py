@@ -20,7 +20,7 @@ def schema(what: str | None, markdown: bool, debug: bool) -> None:
     files; with --markdown, the file reference generated from them."""
     from kfcrit.analysis.sections import record_schema
     from kfcrit.io.fileschema import sweep_schema, system_schema
-    from kfcrit.views.schemadoc import reference_markdown
+    from kfcrit.views.text.schemadoc import reference_markdown
 
     if markdown:
         click.echo(reference_markdown(system_schema(), sweep_schema()), nl=False)
@@ -58,7 +58,7 @@ def check(file: str, max_states: int, debug: bool) -> None:
 
     doc, _ = read_yaml(file)
     if is_sweep_document(doc):
-        from kfcrit.analysis.sweepcheck import check_sweep_file
+        from kfcrit.analysis.sweep.check import check_sweep_file
 
         sweep = check_sweep_file(file, max_states=max_states)
         click.echo(f"{file}: valid sweep file: {len(sweep.points)} points over "

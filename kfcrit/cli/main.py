@@ -56,7 +56,7 @@ def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool
     from kfcrit.analysis.spec import load_spec
     from kfcrit.analysis.verdict import exit_code
     from kfcrit.io.jsonio import dumps
-    from kfcrit.views.text import summary
+    from kfcrit.views.text.terminal import summary
 
     spec = load_spec(system_file, max_states=max_states)
     record = run(spec, AnalysisOptions(tolerance=tolerance, simulate=not no_simulate,

@@ -165,7 +165,7 @@ def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None
         written.
     """
     from kfcrit.analysis.record import exit_code
-    from kfcrit.views.report import render_documents
+    from kfcrit.views.report.render import render_documents
 
     plan = plan_outputs(source, [outputs] if isinstance(outputs, (str, Path)) else outputs, fmt)
     if source_kind(source) == "record":

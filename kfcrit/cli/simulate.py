@@ -14,7 +14,7 @@ from kfcrit.errors import InputError
 from kfcrit.io.jsonio import dumps
 from kfcrit.sim.engine import check_sizes, ergodic, simulate
 from kfcrit.sim.results import QUANTILE_LEVELS, ErgodicResult, SimulationResult
-from kfcrit.views.simplots import write_plot
+from kfcrit.views.figures.sim import write_plot
 
 
 def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_json: bool,

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from kfcrit.analysis.sweep import (
+from kfcrit.analysis.sweep.points import (
     FORMAT_VERSION,
     JOURNAL_NAME,
     RESULT_COLUMNS,
@@ -24,7 +24,7 @@ from kfcrit.io.atomic import write_atomic
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.safeio import printable
 from kfcrit.version import __version__
-from kfcrit.views.sweepplots import margin_images
+from kfcrit.views.figures.sweep import margin_images
 
 
 def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[], None]]:

@@ -1,7 +1,7 @@
 """JSON Schemas (draft 2020-12) of the files kfcrit reads: system files and sweep files.
 
 The schemas describe the *shape* of a file — keys, nesting, which values are numbers or
-expressions; the readers (:mod:`kfcrit.io.systemfile`, :mod:`kfcrit.analysis.sweep`) enforce the
+expressions; the readers (:mod:`kfcrit.io.systemfile`, :mod:`kfcrit.analysis.sweep.points`) enforce the
 rest (matrix sizes, symmetry, ranges of exact values) with one-line errors. ``kfcrit schema
 system`` prints :func:`system_schema`; the key reference in ``docs/`` is generated from it.
 """

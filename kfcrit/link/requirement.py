@@ -2,7 +2,7 @@ r"""The binding arrival-probability requirement of a link design (MATH §3, §11
 
 A link must deliver at least the stability requirement p_stab (p_c, its robust value, or the
 upper end of the bracket when p_c is unknown). An accuracy requirement lim E[tr P] ≤ L adds the
-interval [p_S, p_V] of the accuracy design (:func:`kfcrit.theory.design.required_arrival`):
+interval [p_S, p_V] of the accuracy design (:func:`kfcrit.theory.covariance.design.required_arrival`):
 p ≥ p_V meets L, p ≤ p_S fails it, between them the bounds S̄ ⪯ lim E[P] ⪯ V̄ do not decide.
 The design value is the binding one,
 

@@ -98,7 +98,7 @@ def tail_regime(system: System, channel: Channel, steps: int, *,
         "variance_basis": VARIANCE_CLAIM if q is not None else None,
         "lyapunov_trace_at_horizon": None, "lyapunov_trace_limit": None, "settled": None}
     if channel.arrival_process().kind == "iid" and q * rho * rho < 1:
-        from kfcrit.theory.bounds import lower_covariance
+        from kfcrit.theory.covariance.bounds import lower_covariance
 
         S_T = lyapunov_traces(system, 1.0 - q, np.array([steps]))[0]
         with quiet_numerics():

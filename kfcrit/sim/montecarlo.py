@@ -14,7 +14,7 @@ The simulation is split by concern:
   point, and the self-checks of a simulation;
 * :mod:`kfcrit.sim.section` — :func:`simulation_section`, the record section of an analysis.
 
-Plots live in :mod:`kfcrit.views.simplots`, the ``simulate`` command in
+Plots live in :mod:`kfcrit.views.figures.sim`, the ``simulate`` command in
 :mod:`kfcrit.cli.simulate`.
 """
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""Parameter sweeps: the points, their checks, the resumable journal, and the local or Dask runner."""

@@ -1,0 +1,515 @@
+"""Covariance bounds S̄ ⪯ lim E[P_t] ⪯ V̄, their phase transition in p, and static gains.
+
+Sinopoli Thm 4 and 6 (MATH.md §3), for p above the relevant threshold:
+
+* S̄ = (1−p) A S̄ A' + Q — a Lyapunov equation for √(1−p) A; exists iff (1−p) ρ(A)² < 1.
+* V̄ = g_p(V̄) — the MARE fixed point, the limit of V_{t+1} = g_p(V_t) from V_0 = 0; exists
+  (the iteration is bounded) iff p > p_up. We compute it by the iteration *and* by
+  Newton–Kleinman, V_{k+1} = L_{K_k,p}(V_{k+1}) + Q + p K_k R K_k', K_{k+1} = K_{V_{k+1}}, which
+  converges quadratically from any gain K_0 with ρ(L_{K_0,p}) < 1. A gain is accepted as
+  stabilising when the solution of V = L_{K_0,p}(V) + Q + p K_0 R K_0' is positive definite: for
+  a positive operator with Q ≻ 0 that holds iff ρ(L_{K_0,p}) < 1.
+
+Static gains (Sinopoli journal §V): a fixed gain K gives the jump-linear error system
+e' = (A + γ K C) e + noise, mean-square stable iff ρ(L_{K,p}) < 1 with steady covariance
+Σ = L_{K,p}(Σ) + Q + p K R K'. Its critical value p_K = inf{p : ρ(L_{K,p}) < 1} is never below
+p_up, and the best static gain attains p_up (that is the definition of p_up in Thm 5).
+"""
+from __future__ import annotations
+
+import os
+import time
+import warnings as _warnings
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+
+from kfcrit.model.system import System
+from kfcrit.theory.critical import plow
+from kfcrit.theory.upper import bracket as upper_module
+from kfcrit.theory.covariance.riccati import g, optimal_gain, solve_generalized_stein, stein_matrix, symmetrize
+
+NEWTON_MAX_STATES = 60
+"""Newton–Kleinman (a dense solve in n(n+1)/2 unknowns) is used up to this state dimension."""
+PHASE_NEWTON_MAX_STATES = 24
+"""The phase-transition curve uses Newton per grid point up to this n (each solve costs
+O((n²/2)³)); above it, the MARE fixed-point iteration warm-started from the neighbouring grid
+point (V̄ is non-increasing in p, so V̄(p') ⪯ V̄(p) for p' > p and the iteration from V̄(p')
+increases monotonically to V̄(p))."""
+PHASE_TIME_BUDGET = float(os.environ.get("KFCRIT_PHASE_TIME_BUDGET", "20"))
+"""Seconds allowed for the V̄ curve of :func:`phase_transition` (environment variable
+``KFCRIT_PHASE_TIME_BUDGET``); points left when it runs out are ``None`` and the record's
+``warnings`` say where the curve stopped."""
+PHASE_ITERATION_CAP = 5000
+"""Fixed-point iterations per grid point above :data:`PHASE_NEWTON_MAX_STATES`."""
+
+
+def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
+    return None if M is None else [[float(v) for v in row] for row in M]
+
+
+def covariance_summary(M: np.ndarray | None) -> dict[str, Any]:
+    if M is None:
+        return {"exists": False, "trace": None, "max_eig": None, "matrix": None}
+    with np.errstate(all="ignore"):
+        tr = float(np.trace(M))
+        try:
+            top = float(np.linalg.eigvalsh(M).max())
+        except np.linalg.LinAlgError:
+            top = float("nan")
+    finite = bool(np.all(np.isfinite(M)))
+    out = {"exists": True, "trace": tr if np.isfinite(tr) else None,
+           "max_eig": top if np.isfinite(top) else None,
+           "matrix": _matrix(M) if finite else None}
+    if not (finite and np.isfinite(tr) and np.isfinite(top)):
+        out["beyond_float64"] = True
+    return out
+
+
+def _scaled_norm_ratio(D: np.ndarray, V: np.ndarray) -> float | None:
+    """‖D‖_F / ‖V‖_F without overflow (both scaled by max |entry| first); None if not finite.
+
+    ``np.linalg.norm`` squares the entries: for V ~ 1e250 (e.g. R = 1e250) that overflows to
+    inf and inf/inf gives NaN with a RuntimeWarning on stderr."""
+    with np.errstate(all="ignore"):
+        s = max(float(np.max(np.abs(V))) if V.size else 0.0,
+                float(np.max(np.abs(D))) if D.size else 0.0)
+        if not (np.isfinite(s) and s > 0):
+            return 0.0 if s == 0 else None
+        r = float(np.linalg.norm(D / s)) / max(float(np.linalg.norm(V / s)), 1e-300)
+    return r if np.isfinite(r) else None
+
+
+# ---------------------------------------------------------------------------------------------
+# S̄ and V̄
+# ---------------------------------------------------------------------------------------------
+
+
+def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | None:
+    """S̄ = (1−p) A S̄ A' + Q, or None when (1−p) ρ(A)² ≥ 1 (no bounded solution).
+
+    scipy's direct (Kronecker) solver is tried first; when it reports an ill-conditioned system
+    (``LinAlgWarning``, e.g. a strongly non-normal A near the boundary) the bilinear
+    (Bartels–Stewart) method is used instead. Nothing is printed.
+    """
+    rho = float(max(abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    if (1.0 - p) * rho**2 >= 1.0:
+        return None
+    M = np.sqrt(1.0 - p) * A
+    # the equation is linear in Q: solve for Q/s with s = max |Q_ij| and scale back, so that
+    # Q = 1e-250·I or 1e250·I reaches scipy at unit scale (no underflow inside its balancing)
+    s = float(np.max(np.abs(Q))) if Q.size else 0.0
+    if not (s > 0 and np.isfinite(s)):
+        s = 1.0
+    Qs = Q / s
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("error", sla.LinAlgWarning)
+        try:
+            return s * symmetrize(sla.solve_discrete_lyapunov(M, Qs))
+        except sla.LinAlgWarning:
+            pass
+    with _warnings.catch_warnings():
+        _warnings.simplefilter("ignore", sla.LinAlgWarning)
+        return s * symmetrize(sla.solve_discrete_lyapunov(M, Qs, method="bilinear"))
+
+
+def mare_residual(A, C, Q, R, V: np.ndarray, p: float) -> float | None:
+    """Relative residual ‖g_p(V) − V‖_F / ‖V‖_F of the MARE (computed with scaling, so huge V
+    do not overflow); None when it cannot be evaluated in float64 (non-finite g_p(V))."""
+    with np.errstate(all="ignore"):
+        try:
+            D = g(A, C, Q, R, V, p) - V
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+    return _scaled_norm_ratio(D, V)
+
+
+def mare_iteration(A, C, Q, R, p: float, V0: np.ndarray | None = None,
+                   max_iterations: int = 200_000, rtol: float = 1e-13,
+                   blowup: float = 1e14) -> tuple[np.ndarray | None, int]:
+    """V_{t+1} = g_p(V_t) from V_0 (0 by default) until ‖ΔV‖ ≤ rtol ‖V‖.
+
+    Returns (V, iterations), V None when the iterates exceed ``blowup``·(1 + ‖V_1‖) or the
+    iteration budget ends first (bounded ⇔ p > p_up; the iteration slows down near p_up).
+    """
+    V = np.zeros_like(Q, dtype=float) if V0 is None else np.array(V0, dtype=float)
+    # overflow and NaN are detected below (non-finite norm): no RuntimeWarning on stderr
+    with np.errstate(all="ignore"):
+        scale = 1.0 + float(np.linalg.norm(g(A, C, Q, R, V, p)))
+        for t in range(1, max_iterations + 1):
+            Vn = g(A, C, Q, R, V, p)
+            nv = float(np.linalg.norm(Vn))
+            if not np.isfinite(nv) or nv > blowup * scale:
+                return None, t
+            if float(np.linalg.norm(Vn - V)) <= rtol * nv:
+                return Vn, t
+            V = Vn
+    return None, max_iterations
+
+
+def stabilising_solution(A, C, Q, R, K: np.ndarray, p: float) -> np.ndarray | None:
+    """Σ = L_{K,p}(Σ) + Q + p K R K' if ρ(L_{K,p}) < 1 (Σ ≻ 0 is the test), else None."""
+    W = symmetrize(Q + p * K @ R @ K.T)
+    try:
+        S = solve_generalized_stein(A, C, K, p, W)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(S)) or float(np.linalg.eigvalsh(S).min()) <= 0:
+        return None
+    return symmetrize(S)
+
+
+def mare_newton(A, C, Q, R, p: float, K0: np.ndarray, max_iterations: int = 60,
+                rtol: float = 1e-14) -> tuple[np.ndarray | None, int]:
+    """Newton–Kleinman for V̄ = g_p(V̄) from a stabilising gain K0 (None if K0 is not)."""
+    V = stabilising_solution(A, C, Q, R, K0, p)
+    if V is None:
+        return None, 0
+    prev = np.inf
+    for k in range(1, max_iterations + 1):
+        K = optimal_gain(A, C, R, V)
+        Vn = stabilising_solution(A, C, Q, R, K, p)
+        if Vn is None:
+            return None, k
+        change = _scaled_norm_ratio(Vn - V, Vn)
+        if change is None:
+            return None, k
+        V = Vn
+        # converged, or stagnating at rounding level (quadratic convergence has stopped)
+        if change <= rtol or (change <= 1e-10 and change >= 0.5 * prev):
+            break
+        prev = change
+    return V, k
+
+
+def upper_covariance(system: System, p: float, gains: list[np.ndarray] | None = None,
+                     rtol: float = 1e-14) -> dict[str, Any]:
+    """V̄(p) by Newton–Kleinman (gains tried: ``gains``, then the gain of the MARE iterate),
+    falling back to the plain MARE iteration. Keys: V, method, iterations, residual."""
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    n = system.n
+    candidates = list(gains or [])
+    if C.shape[0] == n:
+        # C invertible: K = −A C⁻¹ gives F = A + K C = 0, stabilising for every p > p_low
+        # (no MARE iteration needed — whose blow-up test misfires when V̄ is huge, R = 1e250)
+        with np.errstate(all="ignore"):
+            try:
+                K_inv = -np.linalg.solve(C.T, A.T).T
+                if np.all(np.isfinite(K_inv)):
+                    candidates.append(K_inv)
+            except np.linalg.LinAlgError:
+                pass
+    if n <= NEWTON_MAX_STATES:
+        for K0 in candidates:
+            V, its = mare_newton(A, C, Q, R, p, K0, rtol=rtol)
+            if V is not None:
+                return {"V": V, "method": "newton-kleinman (warm gain)", "iterations": its,
+                        "residual": mare_residual(A, C, Q, R, V, p)}
+        Vi, its_i = mare_iteration(A, C, Q, R, p, rtol=1e-6, max_iterations=20_000)
+        if Vi is not None:
+            V, its = mare_newton(A, C, Q, R, p, optimal_gain(A, C, R, Vi), rtol=rtol)
+            if V is not None:
+                return {"V": V, "method": "newton-kleinman (gain from the MARE iteration)",
+                        "iterations": its_i + its, "residual": mare_residual(A, C, Q, R, V, p)}
+    V, its = mare_iteration(A, C, Q, R, p)
+    return {"V": V, "method": "mare-iteration", "iterations": its,
+            "residual": None if V is None else mare_residual(A, C, Q, R, V, p)}
+
+
+def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = None
+                      ) -> dict[str, Any]:
+    """S̄ and V̄ at arrival probability p (Sinopoli Thm 4, 6).
+
+    Parameters
+    ----------
+    system : System
+    p : float
+    upper : dict, optional
+        ``upper.upper_section(system)`` if already computed (its interval decides where V̄
+        cannot exist, and its certificate gain warm-starts Newton).
+
+    Returns
+    -------
+    dict
+        ``{"p", "lower": {exists, trace, max_eig, matrix}, "upper": {exists, trace, max_eig,
+        matrix, residual, method, iterations}, "ordered"}``; ``ordered`` is True/False when both
+        bounds exist (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9 ‖V̄‖), None otherwise. ``residual``
+        is the relative MARE residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
+    """
+    p = float(p)
+    S = lower_covariance(system.a, system.q, p)
+    if upper is None:
+        ub = upper_module.upper_bound(system)
+        lo_up, gains = ub.interval[0], ([ub.extras["K"]] if "K" in ub.extras else [])
+    else:
+        lo_up, gains = float(upper["interval"][0]), []
+    if p <= lo_up:
+        out_up = {**covariance_summary(None), "residual": None, "method": "none: p <= p_up (Thm 3)",
+                  "iterations": 0}
+        V = None
+    else:
+        res = upper_covariance(system, p, gains)
+        V = res["V"]
+        out_up = {**covariance_summary(V), "residual": res["residual"], "method": res["method"],
+                  "iterations": res["iterations"]}
+        if V is None:
+            out_up["not_reached"] = True
+    ordered = None
+    warnings: list[str] = []
+    if S is not None and V is not None:
+        with np.errstate(all="ignore"):
+            scale = float(np.max(np.abs(V)))
+            if np.isfinite(scale) and scale > 0:
+                ordered = bool(np.linalg.eigvalsh((V - S) / scale).min()
+                               >= -1e-9 * np.linalg.norm(V / scale))
+    low = covariance_summary(S)
+    for name, summ in (("S̄ (lower bound)", low), ("V̄ (upper bound)", out_up)):
+        if summ.get("beyond_float64"):
+            warnings.append(f"covariance bound {name} at p = {p:.6g}: its trace or largest "
+                            "eigenvalue (or an entry) is beyond the float64 range (about "
+                            "1.8e308) and is given as null")
+    if V is not None and out_up.get("residual") is None:
+        warnings.append(f"covariance bound V̄ at p = {p:.6g}: the MARE residual could not be "
+                        "evaluated in float64 (entries of V̄ or g_p(V̄) beyond its range); "
+                        "V̄ is unverified and its residual is given as null")
+    if out_up.get("not_reached"):
+        warnings.append(f"covariance bound V̄ at p = {p:.6g} not computed: p is above the "
+                        f"lower end {lo_up:.12g} of the p_up bracket, but {out_up['method']} "
+                        f"did not reach the MARE fixed point ({out_up['iterations']} "
+                        "iterations; overflow, a blow-up or the iteration budget); V̄ is "
+                        "given as null")
+    if S is None and V is None and not np.all(np.isfinite(system.a)):
+        warnings.append("covariance bounds not computed: the system matrices are not finite "
+                        "in float64")
+    return {"p": p, "lower": low, "upper": out_up, "ordered": ordered, "warnings": warnings}
+
+
+
+# ---------------------------------------------------------------------------------------------
+# phase transition
+# ---------------------------------------------------------------------------------------------
+
+
+def _warm_fixed_point(A, C, Q, R, p: float, V0: np.ndarray | None, deadline: float,
+                      rtol: float = 1e-9, blowup: float = 1e14) -> np.ndarray | None:
+    """V̄(p) by V_{t+1} = g_p(V_t) from V0 (0 if None), at most :data:`PHASE_ITERATION_CAP`
+    iterations and never past ``deadline`` (``time.perf_counter()``); None if not reached.
+
+    From V0 = V̄(p') with p' > p the iterates increase monotonically to V̄(p) (Lemma 1(c), (d)).
+    """
+    V = np.zeros_like(Q, dtype=float) if V0 is None else np.array(V0, dtype=float)
+    with np.errstate(all="ignore"):
+        scale = 1.0 + float(np.linalg.norm(g(A, C, Q, R, V, p)))
+        for t in range(PHASE_ITERATION_CAP):
+            Vn = g(A, C, Q, R, V, p)
+            nv = float(np.linalg.norm(Vn))
+            if not np.isfinite(nv) or nv > blowup * scale:
+                return None
+            if float(np.linalg.norm(Vn - V)) <= rtol * nv:
+                return Vn
+            V = Vn
+            if t % 25 == 24 and time.perf_counter() > deadline:
+                return None
+    return None
+
+
+def phase_points(n: int, points: int = 120) -> int:
+    """Grid size of the phase-transition curve for n states: ``points`` up to n = 20, then
+    shrinking like 20/n (at least 30): each point of V̄ costs O(n³) per iteration."""
+    return points if n <= 20 else max(30, int(points * 20 / n))
+
+
+def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarray:
+    """A grid on [0, 1] dense near the blow-ups: uniform, plus geometric offsets above
+    p_low and p_up (10^-6 … 10^-0.5 of the distance to 1)."""
+    third = max(points // 3, 4)
+    grids = [np.linspace(0.0, 1.0, third)]
+    for mark in (p_low, p_up):
+        if mark is not None and 0 <= mark < 1:
+            grids.append(mark + (1 - mark) * np.logspace(-6, -0.5, third))
+    grid = np.unique(np.clip(np.concatenate(grids), 0.0, 1.0))
+    return grid
+
+
+def phase_transition(system: System, markers: dict[str, float | None] | None = None,
+                     points: int = 120, time_budget: float | None = None) -> dict[str, Any]:
+    """tr S̄(p) and tr V̄(p) on a grid resolving the blow-ups at p_low and p_up.
+
+    ``markers`` (e.g. p_low, p_c, p_up, operating point) are echoed; p_low and p_up are computed
+    when absent. Entries are None where the bound does not exist (or V̄ was not reached).
+
+    Cost control (large n): the grid has :func:`phase_points` points; V̄ is computed from p = 1
+    downwards, by Newton warm-started with the previous gain for n ≤
+    :data:`PHASE_NEWTON_MAX_STATES`, else by the fixed-point iteration warm-started from the
+    previous V̄ (at most :data:`PHASE_ITERATION_CAP` iterations, relative tolerance 1e-9). Once
+    a point is not reached, the points closer to p_up (slower still) are skipped, and the whole
+    V̄ curve stops after ``time_budget`` seconds (:data:`PHASE_TIME_BUDGET`); both are stated
+    in ``warnings`` and ``limits``.
+    """
+    budget = PHASE_TIME_BUDGET if time_budget is None else float(time_budget)
+    markers = dict(markers or {})
+    p_low = markers.get("p_low")
+    p_low = plow.p_low_of(system.a) if p_low is None else float(p_low)
+    ub = upper_module.upper_bound(system)
+    p_up = markers.get("p_up")
+    p_up = (ub.value if p_up is None else float(p_up))
+    lo_up = ub.interval[0] if ub.value is not None else 1.0
+    n_points = phase_points(system.n, points)
+    grid = phase_grid(p_low, p_up, n_points)
+    trace_lower = []
+    for p in grid:
+        S = lower_covariance(system.a, system.q, float(p))
+        trace_lower.append(None if S is None else float(np.trace(S)))
+    trace_upper: list[float | None] = [None] * len(grid)
+    gains = [ub.extras["K"]] if "K" in ub.extras else []
+    warnings: list[str] = []
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    newton = system.n <= PHASE_NEWTON_MAX_STATES
+    t0 = time.perf_counter()
+    V_prev: np.ndarray | None = None
+    stopped = None
+    for i in range(len(grid) - 1, -1, -1):          # from p = 1 down, warm-starting
+        p = float(grid[i])
+        if p <= lo_up:
+            continue
+        if time.perf_counter() - t0 > budget:
+            stopped = (f"the V̄ curve stopped at p = {p:.6g} after the time budget of "
+                       f"{budget:g} s (KFCRIT_PHASE_TIME_BUDGET); "
+                       f"{sum(1 for v in grid[:i + 1] if v > lo_up)} points closer to p_up "
+                       "were not computed")
+            break
+        if newton:
+            res = upper_covariance(system, p, gains[-1:], rtol=1e-10)   # curves: 1e-10
+            V = res["V"]
+        else:
+            V = _warm_fixed_point(A, C, Q, R, p, V_prev, t0 + budget)
+            res = {"method": f"fixed-point iteration, cap {PHASE_ITERATION_CAP} iterations "
+                             "or the time budget"}
+        if V is None:
+            warnings.append(f"V at p = {p:.6g} not reached ({res['method']})")
+            if not newton:
+                stopped = (f"the V̄ curve stops at p = {p:.6g}: the warm-started fixed-point "
+                           "iteration slows down towards p_up; points closer to p_up were "
+                           "not computed")
+                break
+            continue
+        trace_upper[i] = float(np.trace(V))
+        V_prev = V
+        if newton:
+            gains.append(optimal_gain(A, C, R, V))
+    if stopped:
+        warnings.append(stopped)
+    return {"p": [float(v) for v in grid], "trace_lower": trace_lower,
+            "trace_upper": trace_upper, "markers": {**markers, "p_low": p_low, "p_up": p_up},
+            "warnings": warnings,
+            "limits": {"points": int(len(grid)), "requested_points": int(points),
+                       "method": "newton-kleinman" if newton else "warm-started fixed point",
+                       "time_budget_seconds": budget, "stopped": stopped}}
+
+
+# ---------------------------------------------------------------------------------------------
+# static gains
+# ---------------------------------------------------------------------------------------------
+
+
+def ms_stable(A, C, K, p: float) -> bool:
+    """ρ(L_{K,p}) < 1, tested by positive definiteness of the solution of X = L_{K,p}(X) + I."""
+    n = A.shape[0]
+    try:
+        X = solve_generalized_stein(A, C, K, p, np.eye(n))
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.all(np.isfinite(X)) and np.linalg.eigvalsh(X).min() > 0)
+
+
+def ms_critical_value(A: np.ndarray, C: np.ndarray, K: np.ndarray) -> dict[str, Any]:
+    """p_K = inf{p ∈ [0, 1] : ρ(L_{K,p}) < 1} for the fixed gain K.
+
+    ρ(L_{K,p}) = 1 only where 1 is an eigenvalue of L_{K,p} = 𝒜 + p(𝓕 − 𝒜), i.e. at the real
+    eigenvalues p of the pencil (I − 𝒜, 𝓕 − 𝒜) (on vech coordinates). They cut [0, 1] into
+    pieces on which mean-square stability is constant; each piece is tested at its midpoint.
+    Returns {critical_value (None: unstable for every p), stable_up_to_one, crossings}.
+    """
+    n = A.shape[0]
+    LA = stein_matrix(A, C, K, 0.0)
+    LF = stein_matrix(A, C, K, 1.0)
+    N = LA.shape[0]
+    ev = sla.eigvals(np.eye(N) - LA, LF - LA)
+    real = sorted({float(e.real) for e in ev
+                   if np.isfinite(e) and abs(e.imag) <= 1e-9 * max(1.0, abs(e))
+                   and -1e-12 <= e.real <= 1 + 1e-12})
+    cuts = [0.0] + [min(max(r, 0.0), 1.0) for r in real] + [1.0]
+    crit = None
+    stable_pieces = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        if b - a <= 1e-15:
+            continue
+        if ms_stable(A, C, K, 0.5 * (a + b)):
+            stable_pieces.append((a, b))
+            if crit is None:
+                crit = a
+    up_to_one = bool(stable_pieces) and stable_pieces[-1][1] >= 1.0 and all(
+        stable_pieces[i][1] == stable_pieces[i + 1][0] for i in range(len(stable_pieces) - 1))
+    del n
+    return {"critical_value": crit, "stable_up_to_one": up_to_one,
+            "crossings": [float(c) for c in real]}
+
+
+STATIC_GAIN_MAX_STATES = 30
+"""Largest n for the fixed-gain section (its vech eigenproblems cost O(n⁶); n = 60 took 46 s)."""
+
+
+def static_gain(system: System, p: float) -> dict[str, Any]:
+    """Steady Kalman gain and best static gain: mean-square critical values and covariances.
+
+    * steady Kalman gain K_∞ = −A P C'(C P C' + R)^{-1}, P the stabilising DARE solution (the
+      filter with no losses); its critical value p_{K_∞} ≥ p_up, covariance Σ_∞(p) if p > p_{K_∞}.
+    * best static gain: the gain K* of the p_up certificate (:mod:`kfcrit.theory.upper.bracket`); its
+      critical value equals p_up to within the certificate's width — shown by ``difference``.
+    """
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    p = float(p)
+    out: dict[str, Any] = {"p": p}
+    if system.n > STATIC_GAIN_MAX_STATES:
+        reason = (f"not computed for n = {system.n} > {STATIC_GAIN_MAX_STATES} states: the "
+                  f"mean-square critical value of a fixed gain needs an eigenproblem of size "
+                  f"n(n+1)/2 = {system.n * (system.n + 1) // 2} (O(n⁶) time, O(n⁴) memory)")
+        na = {"available": False, "reason": reason}
+        return {**out, "kalman": na, "best": dict(na), "p_up": None, "p_up_interval": None,
+                "skipped": reason}
+    try:
+        # scipy's balancing warns (and may fail) on extreme scales such as Q = 1e-250·I: the
+        # result is checked for finiteness instead of letting a RuntimeWarning reach stderr
+        with np.errstate(all="ignore"), _warnings.catch_warnings():
+            _warnings.simplefilter("ignore", RuntimeWarning)
+            P = symmetrize(sla.solve_discrete_are(A.T, C.T, Q, R))
+        K_kf = optimal_gain(A, C, R, P) if np.all(np.isfinite(P)) else None
+    except (np.linalg.LinAlgError, ValueError):
+        K_kf = None
+    ub = upper_module.upper_bound(system)
+    rows = [("kalman", K_kf)]
+    rows.append(("best", ub.extras.get("K")))
+    for name, K in rows:
+        if K is None:
+            out[name] = {"available": False}
+            continue
+        crit = ms_critical_value(A, C, K)
+        Sigma = stabilising_solution(A, C, Q, R, K, p)
+        entry = {"available": True, **crit, **{f"covariance_{k}": v for k, v in
+                                              covariance_summary(Sigma).items()}}
+        if system.n <= 6:
+            entry["gain"] = _matrix(K)
+        out[name] = entry
+    best = out["best"]
+    out["p_up"] = ub.value
+    out["p_up_interval"] = list(ub.interval)
+    if best.get("available") and best.get("critical_value") is not None and ub.value is not None:
+        best["difference"] = float(best["critical_value"] - ub.value)
+        best["equals_p_up"] = bool(ub.interval[0] - 1e-9 <= best["critical_value"]
+                                   <= ub.interval[1] + 1e-9)
+    return out
+
+
+_summary = covariance_summary
+"""Alias kept until :mod:`kfcrit.analysis.record` calls :func:`covariance_summary`."""

@@ -1,0 +1,93 @@
+"""The power-law tail exponent of the error covariance (a labelled claim from the literature).
+
+For non-degenerate systems with i.i.d. (Bernoulli) losses, Mo & Sinopoli (2012) show that the
+stationary error has a power-law tail, P(tr P_∞ > M) ≈ M^{−β}, with
+
+.. math::
+
+    \\beta = \\frac{\\log(1-p)}{-2\\log|\\lambda_1|}
+          = \\frac{\\log\\frac{1}{1-p}}{\\log|\\lambda_1|^2},
+
+so E[tr P] < ∞ iff β > 1 (p > 1 − 1/|λ_1|², the critical value again) and the variance is
+finite iff β > 2 ((1 − p)|λ_1|⁴ < 1). kfcrit reports β as a claim with its source (MATH.md
+§11), to be checked by the log–log slope of a simulation, never as a proof.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import sympy as sp
+
+from kfcrit.model.system import System
+from kfcrit.theory.links.markov import exact_rate, spectral_radius2
+
+SOURCE = ("Mo & Sinopoli, 'Kalman filtering with intermittent observations: tail distribution "
+          "and critical value', IEEE Transactions on Automatic Control 57(3), 2012")
+
+
+@dataclass(frozen=True)
+class TailExponent:
+    """β with its exact expression, or why it does not apply."""
+
+    value: float | None
+    expression: str | None
+    applicable: bool
+    finite_mean: bool | None
+    finite_variance: bool | None
+    statement: str
+    label: str = "claim (literature, not proven here)"
+    source: str = SOURCE
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"value": self.value, "expression": self.expression,
+                "applicable": self.applicable, "finite_mean": self.finite_mean,
+                "finite_variance": self.finite_variance, "statement": self.statement,
+                "label": self.label, "source": self.source,
+                "formula": "beta = log(1 - p) / (-2 log|lambda_1|)"}
+
+
+def tail_exponent(system: System, p: Any, classification: str | None = None,
+                  structure: Any | None = None) -> TailExponent:
+    """β = log(1 − p)/(−2 log|λ_1|) for a non-degenerate system at arrival probability p.
+
+    Parameters
+    ----------
+    system : System
+    p : number
+        Arrival probability (floats by their decimal form, as :func:`markov.exact_rate`).
+    classification : str, optional
+        From :mod:`kfcrit.theory.critical.section`; the formula is stated for "non-degenerate" systems
+        only, every other class gets ``applicable`` False with the reason.
+    structure : optional
+        The eigen-structure (exact |λ_1|² on its exact path).
+    """
+    pe = exact_rate(p, "arrival_probability")
+    if classification is not None and classification != "non-degenerate":
+        return TailExponent(None, None, False, None, None,
+                            f"the tail exponent formula is stated for non-degenerate systems; "
+                            f"this system is {classification}")
+    rho = spectral_radius2(system, structure)
+    at_most_one = (rho.hi <= 1 if rho.exact is None
+                   else sp.sympify(rho.exact - 1).is_nonpositive)
+    if at_most_one:
+        return TailExponent(None, "oo", True, True, True,
+                            "rho(A) <= 1: no power-law tail from unstable modes")
+    if rho.exact is None and rho.lo <= 1 or at_most_one is None:
+        return TailExponent(None, None, False, None, None,
+                            "rho(A) is not separated from 1 by its enclosure: the tail exponent "
+                            "log(1 - p) / (-2 log rho(A)) is not determined")
+    if pe == 1:
+        return TailExponent(None, "oo", True, True, True, "p = 1: no losses, no tail")
+    if rho.exact is not None:
+        expr = sp.log(1 / (1 - pe)) / sp.log(rho.exact)
+        value = float(sp.N(expr, 30))
+        text = sp.sstr(expr)
+    else:
+        mid = (rho.lo + rho.hi) / 2
+        value = float(sp.N(sp.log(1 / (1 - pe)) / sp.log(sp.Rational(mid.numerator,
+                                                                        mid.denominator)), 30))
+        text = None
+    return TailExponent(value, text, True, value > 1, value > 2,
+                        f"P(tr P > M) ~ M^(-{value:.6g}) for large M (non-degenerate system, "
+                        "i.i.d. losses); E[tr P] finite iff beta > 1, variance iff beta > 2")

@@ -1,0 +1,636 @@
+"""Bursty (Gilbert–Elliott) links for any system: a necessary condition, a checked sufficient
+certificate, a verdict, and the critical curve in the (failure rate, recovery rate) plane.
+
+The channel is a two-state Markov chain γ_t ∈ {0 (lost), 1 (received)} with failure rate
+f = P(γ_{t+1} = 0 | γ_t = 1) and recovery rate r = P(γ_{t+1} = 1 | γ_t = 0); its transition
+matrix is T = [[1 − r, r], [f, 1 − f]] (T_ij = P(next j | now i)), its stationary arrival
+probability r/(f + r) (MATH.md §7, §10).
+
+* Necessary (any system): a loss burst lasts j steps with probability (1 − r)^{j−1} r, during
+  which the dominant mode grows like ρ(A)^{2j}, so bounded E[P_t] needs
+
+  .. math::
+
+      (1 - r)\\,\\rho(A)^2 < 1 .
+
+* Sufficient (any system): the Kalman filter is no worse than any fixed gain K; with
+  F_0 = A, F_1 = A + K C and Y_j = E[e_t e_t' 1{γ_t = j}] of the fixed-gain error e_t,
+
+  .. math::
+
+      Y_j \\leftarrow \\sum_i T_{ij} F_i Y_i F_i' + \\text{const},
+
+  a positive linear recursion. If some K gives it spectral radius < 1 — equivalently X_0, X_1 ≻ 0
+  with X_i ≻ F_i' (Σ_j T_ij X_j) F_i (coupled Lyapunov inequalities of the adjoint) — E[P_t] is
+  bounded. The gain is found by the coupled Lyapunov LMI (cvxpy + Clarabel, the Schur form
+  below with Z = S_1 K), the matrices X_i by a linear (Stein) solve X = M*(X) + I, and the
+  inequalities are proven in ball arithmetic on the exact A, C, f, r
+  (:func:`kfcrit.theory.upper.certify.verify_markov_jump`).
+
+  .. math::
+
+      X_0 - A' S_0 A \\succ 0,\\quad
+      \\begin{bmatrix} X_1 & A' S_1 + C' Z' \\\\ S_1 A + Z C & S_1 \\end{bmatrix} \\succ 0,
+      \\quad S_0 = (1-r) X_0 + r X_1,\\ S_1 = f X_0 + (1-f) X_1 .
+
+* For non-degenerate systems the literature states that the necessary condition is also
+  sufficient (You, Fu & Xie, Automatica 2011; Mo & Sinopoli, TAC 57(3) 2012). It is reported
+  as a labelled claim only, never as the verdict.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+import sympy as sp
+
+from kfcrit.model.system import System
+from kfcrit.theory.upper import certify
+from kfcrit.theory.critical.plow import rational_rho2
+from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
+
+LMI_MAX_STATES = 30
+"""Largest n for the coupled Lyapunov LMI (cvxpy + Clarabel); above it only candidate gains."""
+CERTIFICATE_MAX_STATES = 40
+"""Largest n for the coupled certificate (its Stein solve has n(n+1) unknowns, O(n⁶) time)."""
+EXACT_DIGITS = 60
+"""Digits used to decide the sign of (1 − r)|λ_1|² − 1 for an exact |λ_1|² (then exact zero
+test)."""
+LMI_FEASIBLE_MARGIN = 1e-9
+"""An LMI optimum t* above this is read as feasible (numerically; the ball check decides)."""
+CLARABEL_SETTINGS = {"tol_gap_abs": 1e-9, "tol_gap_rel": 1e-9, "tol_feas": 1e-9,
+                     "max_iter": 400}
+
+LITERATURE = ("You, Fu & Xie, 'Mean square stability for Kalman filtering with Markovian "
+              "packet losses', Automatica 47(12) 2011; Mo & Sinopoli, 'Kalman filtering with "
+              "intermittent observations: tail distribution and critical value', IEEE TAC 57(3) "
+              "2012")
+
+
+def exact_rate(x: Any, name: str = "rate") -> sp.Expr:
+    """An exact probability: sympy numbers as they are, Fractions and ints exactly, Python
+    floats by their shortest decimal form (0.1 → 1/10, as the user wrote it)."""
+    if isinstance(x, bool):
+        raise TypeError(f"{name} must be a number, got {x!r}")
+    if isinstance(x, sp.Basic):
+        v = x
+    elif isinstance(x, Fraction | int):
+        v = sp.Rational(Fraction(x).numerator, Fraction(x).denominator)
+    elif isinstance(x, float):
+        if not np.isfinite(x):
+            raise ValueError(f"{name} must be finite, got {x!r}")
+        fr = Fraction(repr(x))
+        v = sp.Rational(fr.numerator, fr.denominator)
+    else:
+        raise TypeError(f"{name} must be a number, got {type(x).__name__}")
+    if isinstance(v, sp.Float):
+        fr = Fraction(str(v))
+        v = sp.Rational(fr.numerator, fr.denominator)
+    if not (sp.N(v, 30) >= 0 and sp.N(v, 30) <= 1):
+        raise ValueError(f"{name} must lie in [0, 1], got {v}")
+    return v
+
+
+# ---------------------------------------------------------------------------------------------
+# the necessary burst condition
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Rho2:
+    """ρ(A)² enclosed: lo ≤ ρ² ≤ hi, with the exact number when known."""
+
+    lo: Fraction
+    hi: Fraction
+    exact: sp.Expr | None
+    how: str
+    rigorous: bool
+
+
+def spectral_radius2(system: System, structure: Any | None = None) -> Rho2:
+    """Enclose ρ(A)² = |λ_1|² (exact when possible).
+
+    Sources, in order: the exact |λ_1|² of an exact-path ``structure``
+    (:mod:`kfcrit.theory.structure.eigen`); sympy eigenvalues for n ≤ 2; the exact characteristic
+    polynomial of a rational A (python-flint root isolation); ball eigenvalues of the exact A;
+    float64 eigenvalues widened by 1e-12 relative (not rigorous).
+    """
+    eigen = getattr(structure, "eigen", None)
+    if getattr(structure, "path", None) == "exact" and eigen and eigen[0].mod2_expr is not None:
+        return _rho2_of_expr(eigen[0].mod2_expr, "exact (structure analysis)")
+    n = system.n
+    if n <= 2:
+        try:
+            eigs = list(sp.Matrix(system.A).eigenvals())
+            mods = [sp.radsimp(sp.expand(sp.re(z) ** 2 + sp.im(z) ** 2)) for z in eigs]
+            return _rho2_of_expr(max(mods, key=lambda v: float(sp.N(v, 30))),
+                                 "exact (eigenvalues by sympy)")
+        except (ValueError, TypeError, ArithmeticError):
+            pass
+    bounds, how = None, ""
+    if n <= 60:
+        if all(e.is_Rational for e in system.A):
+            bounds, how = rational_rho2(system), "exact characteristic polynomial (python-flint)"
+        if bounds is None:
+            bounds, how = certify.spectral_radius2_bounds(system), "ball eigenvalues (python-flint)"
+    if bounds is not None:
+        return Rho2(bounds[0], bounds[1], None, how, True)
+    rho = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
+    v = Fraction(rho * rho)
+    pad = v * Fraction(1, 10 ** 12)
+    return Rho2(v - pad, v + pad, None, "float64 eigenvalues, widened by 1e-12 relative "
+                "(not rigorous)", False)
+
+
+def _rho2_of_expr(mod2: sp.Expr, how: str) -> Rho2:
+    v = sp.N(mod2, EXACT_DIGITS)
+    x = Fraction(str(v))
+    pad = abs(x) * Fraction(1, 10 ** (EXACT_DIGITS - 10)) + Fraction(1, 10 ** 300)
+    return Rho2(x - pad, x + pad, mod2, how, True)
+
+
+@dataclass(frozen=True)
+class BurstNecessary:
+    """The necessary burst condition (1 − r)·ρ(A)² < 1 at one recovery rate."""
+
+    holds: bool | None
+    value: float
+    enclosure: tuple[float, float]
+    rho2: float
+    rho2_expression: str | None
+    recovery_rate: float
+    rigorous: bool
+    how: str
+    statement: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"holds": self.holds, "value": self.value, "enclosure": list(self.enclosure),
+                "rho2": self.rho2, "rho2_expression": self.rho2_expression,
+                "recovery_rate": self.recovery_rate, "rigorous": self.rigorous,
+                "how": self.how, "statement": self.statement,
+                "condition": "(1 - r) * rho(A)^2 < 1"}
+
+
+def burst_necessary(system: System, recovery_rate: Any,
+                    structure: Any | None = None) -> BurstNecessary:
+    """Decide the necessary condition (1 − r)·ρ(A)² < 1 for bounded E[P_t] (MATH.md §10).
+
+    .. math::
+
+        E[P_t] \\succeq \\sum_{j \\ge 1} (1-r)^{j-1} r\\, \\rho^{2j} c \\to \\infty
+        \\quad\\text{when } (1-r)\\rho^2 \\ge 1 .
+
+    Exact comparisons when ρ² is exact (structure, n ≤ 2) and r is exact: the sign of
+    (1 − r)ρ² − 1 from 60 digits, equality by an exact zero test. With a ball enclosure of ρ²
+    the decision is rigorous unless the enclosure straddles the boundary (then ``holds`` is
+    None).
+    """
+    r = exact_rate(recovery_rate, "recovery_rate")
+    rho = spectral_radius2(system, structure)
+    one_minus = 1 - Fraction(str(sp.N(r, EXACT_DIGITS))) if not r.is_Rational else \
+        1 - Fraction(int(r.p), int(r.q))
+    lo, hi = one_minus * rho.lo, one_minus * rho.hi
+    holds: bool | None = None
+    how = rho.how
+    if rho.exact is not None:
+        d = sp.N((1 - r) * rho.exact - 1, EXACT_DIGITS)
+        if abs(d) > sp.Float(10) ** (-(EXACT_DIGITS - 10)):
+            holds = bool(d < 0)
+        elif sp.simplify((1 - r) * rho.exact - 1) == 0:
+            holds = False
+            how += "; equality (1 - r) rho^2 = 1 proven exactly"
+    elif r.is_Rational:
+        if hi < 1:
+            holds = True
+        elif lo >= 1:
+            holds = False
+    if holds is not None and not rho.rigorous:
+        how += " (decision not rigorous)"
+    value = float((lo + hi) / 2)
+    expr = None if rho.exact is None else sp.sstr(rho.exact)
+    rs = float(r)
+    if holds is None:
+        statement = (f"(1 - r) rho(A)^2 lies in [{float(lo):.12g}, {float(hi):.12g}] at "
+                     f"r = {rs:.12g}: too close to 1 to decide")
+    elif holds:
+        statement = (f"(1 - r) rho(A)^2 = {value:.12g} < 1 at r = {rs:.12g}: the necessary burst "
+                     "condition holds (not sufficient on its own)")
+    else:
+        statement = (f"(1 - r) rho(A)^2 = {value:.12g} >= 1 at r = {rs:.12g}: a loss burst of j "
+                     "steps has probability (1 - r)^(j-1) r and lets the dominant mode grow like "
+                     "rho^(2j), so E[P_t] diverges (MATH.md §7, §10)")
+    return BurstNecessary(holds, value, (float(lo), float(hi)), float((rho.lo + rho.hi) / 2),
+                          expr, rs, rho.rigorous and holds is not None, how, statement)
+
+
+def necessary_recovery_threshold(system: System, structure: Any | None = None
+                                 ) -> tuple[float, str | None]:
+    """The recovery rate where the necessary condition switches: r_nec = max(1 − 1/ρ², 0)
+    (independent of f); returns (float value, exact expression or None). Below or at r_nec the
+    link is mean-unstable; for ρ(A) ≤ 1 every r > 0 passes the condition."""
+    rho = spectral_radius2(system, structure)
+    if rho.exact is not None:
+        if sp.N(rho.exact - 1, EXACT_DIGITS) <= 0:
+            return 0.0, "0"
+        e = sp.radsimp(1 - 1 / rho.exact)
+        return float(sp.N(e, 30)), sp.sstr(e)
+    mid = (rho.lo + rho.hi) / 2
+    return (float(1 - 1 / mid) if mid > 1 else 0.0), None
+
+
+# ---------------------------------------------------------------------------------------------
+# the sufficient coupled certificate
+# ---------------------------------------------------------------------------------------------
+
+
+def transition_matrix(f: float, r: float) -> np.ndarray:
+    """T = [[1 − r, r], [f, 1 − f]], T_ij = P(γ_{t+1} = j | γ_t = i) (0 lost, 1 received)."""
+    return np.array([[1.0 - r, r], [f, 1.0 - f]])
+
+
+def coupled_operator(A: np.ndarray, C: np.ndarray, K: np.ndarray, f: float,
+                     r: float) -> np.ndarray:
+    """Matrix of the second-moment map (Y_0, Y_1) ↦ (Σ_i T_i0 F_i Y_i F_i', Σ_i T_i1 F_i Y_i F_i')
+    on (vech Y_0, vech Y_1); F_0 = A, F_1 = A + K C."""
+    T = transition_matrix(f, r)
+    L = [congruence_matrix(A), congruence_matrix(A + K @ C)]
+    return np.block([[T[0, 0] * L[0], T[1, 0] * L[1]], [T[0, 1] * L[0], T[1, 1] * L[1]]])
+
+
+def coupled_radius(A: np.ndarray, C: np.ndarray, K: np.ndarray, f: float, r: float) -> float:
+    """Spectral radius of :func:`coupled_operator` (< 1: the fixed-gain error system is
+    mean-square stable over the chain)."""
+    return float(max(abs(np.linalg.eigvals(coupled_operator(A, C, K, f, r)))))
+
+
+def adjoint_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, f: float, r: float
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Solve X_i = F_i' (Σ_j T_ij X_j) F_i + I (i = 0, 1): the coupled Lyapunov matrices with
+    margin I by construction (positive definite iff the spectral radius is < 1)."""
+    n = A.shape[0]
+    T = transition_matrix(f, r)
+    Lt = [congruence_matrix(A.T), congruence_matrix((A + K @ C).T)]
+    M = np.block([[T[0, 0] * Lt[0], T[0, 1] * Lt[0]], [T[1, 0] * Lt[1], T[1, 1] * Lt[1]]])
+    N = n * (n + 1) // 2
+    rhs = np.concatenate([vech(np.eye(n)), vech(np.eye(n))])
+    try:
+        with np.errstate(all="raise"):
+            x = sla.solve(np.eye(2 * N) - M, rhs)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        return None
+    X0, X1 = unvech(x[:N], n), unvech(x[N:], n)
+    if not (np.all(np.isfinite(X0)) and np.all(np.isfinite(X1))):
+        return None
+    if min(np.linalg.eigvalsh(X0).min(), np.linalg.eigvalsh(X1).min()) <= 0:
+        return None
+    s = float(np.trace(X0) + np.trace(X1))
+    return symmetrize(X0) / s, symmetrize(X1) / s
+
+
+class CoupledLmi:
+    r"""The coupled Lyapunov LMI of (A, C) with the transition rates (f, r) as parameters.
+
+    .. math::
+
+        \max t \ \text{s.t.}\ X_0 - A^\top S_0 A \succeq tI,\
+        \begin{bmatrix} X_1 & (S_1 A + Z C)^\top \\ S_1 A + Z C & S_1 \end{bmatrix}
+        \succeq tI,\ X_i \preceq I,
+
+    with :math:`S_0 = (1-r)X_0 + rX_1`, :math:`S_1 = fX_0 + (1-f)X_1` (affine in the parameters
+    times the variables, so the problem is DPP: cvxpy compiles it once and each
+    :meth:`solve` only re-fills the numbers — the critical curve solves it ~100 times).
+    """
+
+    def __init__(self, A: np.ndarray, C: np.ndarray) -> None:
+        import cvxpy as cp
+
+        n, m = A.shape[0], C.shape[0]
+        self.f = cp.Parameter(nonneg=True)
+        self.r = cp.Parameter(nonneg=True)
+        self.X0 = cp.Variable((n, n), symmetric=True)
+        self.X1 = cp.Variable((n, n), symmetric=True)
+        self.Z = cp.Variable((n, m))
+        self.t = cp.Variable()
+        S0 = (1 - self.r) * self.X0 + self.r * self.X1
+        S1 = self.f * self.X0 + (1 - self.f) * self.X1
+        off = S1 @ A + self.Z @ C
+        block = cp.bmat([[self.X1, off.T], [off, S1]])
+        eye = np.eye(n)
+        cons = [self.X0 - A.T @ S0 @ A - self.t * eye >> 0,
+                0.5 * (block + block.T) - self.t * np.eye(2 * n) >> 0,
+                eye - self.X0 >> 0, eye - self.X1 >> 0]
+        self.problem = cp.Problem(cp.Maximize(self.t), cons)
+
+    def solve(self, f: float, r: float) -> tuple[np.ndarray | None, float]:
+        """(K = S_1⁻¹ Z or None, t*) at (f, r); t* > 0 means feasible (numerically)."""
+        import cvxpy as cp
+
+        self.f.value, self.r.value = float(f), float(r)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                self.problem.solve(solver=cp.CLARABEL, **CLARABEL_SETTINGS)
+        except (cp.error.SolverError, ValueError, ArithmeticError):
+            return None, float("nan")
+        t = self.t.value
+        if self.problem.status not in ("optimal", "optimal_inaccurate") or t is None:
+            return None, float("nan")
+        S1v = f * self.X0.value + (1 - f) * self.X1.value
+        try:
+            K = np.linalg.solve(S1v, self.Z.value)
+        except np.linalg.LinAlgError:
+            return None, float(t)
+        return (K if np.all(np.isfinite(K)) else None), float(t)
+
+
+def lmi_gain(A: np.ndarray, C: np.ndarray, f: float, r: float) -> tuple[np.ndarray | None, float]:
+    """The gain of the coupled Lyapunov LMI (:class:`CoupledLmi`), maximising the margin t:
+    returns (K = S_1⁻¹ Z or None, t*). t* > 0 means feasible (numerically)."""
+    return CoupledLmi(A, C).solve(f, r)
+
+
+def candidate_gains(A: np.ndarray, C: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """Gains tried besides the LMI's: the output deadbeat −A C⁺ (F_1 = A (I − C⁺C)) and the
+    steady Kalman gain of (A, C, I, I)."""
+    out = [("deadbeat -A C^+", -A @ np.linalg.pinv(C))]
+    try:
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            P = sla.solve_discrete_are(A.T, C.T, np.eye(A.shape[0]), np.eye(C.shape[0]))
+        K = -A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + np.eye(C.shape[0]))
+        if np.all(np.isfinite(K)):
+            out.append(("steady Kalman gain (Q = I, R = I)", K))
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    return out
+
+
+@dataclass(frozen=True)
+class BurstCertificate:
+    """The coupled fixed-gain certificate at (f, r): proven, or why not."""
+
+    certified: bool
+    failure_rate: float
+    recovery_rate: float
+    spectral_radius: float | None
+    gain_origin: str | None
+    check: dict[str, Any] | None
+    reason: str
+    seconds: float
+    lmi_margin: float | None = None
+    matrices: dict[str, Any] | None = field(default=None, compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"certified": self.certified, "failure_rate": self.failure_rate,
+                "recovery_rate": self.recovery_rate,
+                "spectral_radius": _finite(self.spectral_radius),
+                "gain_origin": self.gain_origin, "check": self.check, "reason": self.reason,
+                "seconds": self.seconds, "lmi_margin": _finite(self.lmi_margin),
+                "matrices": self.matrices,
+                "kind": "coupled Lyapunov: X_i > 0, X_i - F_i' (sum_j T_ij X_j) F_i > 0, "
+                        "F_0 = A, F_1 = A + K C, T = [[1-r, r], [f, 1-f]]"}
+
+
+def _finite(x: float | None) -> float | None:
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def _mat(M: np.ndarray) -> list[list[float]]:
+    return [[float(v) for v in row] for row in np.atleast_2d(M)]
+
+
+def burst_certificate(system: System, failure_rate: Any, recovery_rate: Any,
+                      use_lmi: bool = True) -> BurstCertificate:
+    """Find and prove the coupled fixed-gain certificate at (f, r) (module docstring).
+
+    Gains tried: the coupled LMI's (n ≤ :data:`LMI_MAX_STATES`, cvxpy + Clarabel), then
+    :func:`candidate_gains`; for each, :func:`adjoint_stein` proposes X_0, X_1 and
+    :func:`kfcrit.theory.upper.certify.verify_markov_jump` decides on the exact matrices.
+    """
+    t0 = time.perf_counter()
+    fe, re_ = exact_rate(failure_rate, "failure_rate"), exact_rate(recovery_rate, "recovery_rate")
+    f, r = float(fe), float(re_)
+    A, C = system.a, system.c
+    n = system.n
+
+    def done(ok, rho, origin, check, reason, margin=None, mats=None):
+        return BurstCertificate(ok, f, r, rho, origin, check, reason,
+                                time.perf_counter() - t0, margin, mats)
+
+    if n > CERTIFICATE_MAX_STATES:
+        return done(False, None, None, None,
+                    f"not attempted for n = {n} > {CERTIFICATE_MAX_STATES} states (the coupled "
+                    f"Stein system has n(n+1) = {n * (n + 1)} unknowns)")
+    gains: list[tuple[str, np.ndarray]] = []
+    margin = None
+    if use_lmi and n <= LMI_MAX_STATES:
+        K, margin = lmi_gain(A, C, f, r)
+        if K is not None:
+            gains.append(("coupled Lyapunov LMI (cvxpy + Clarabel), K = S_1^-1 Z", K))
+    gains.extend(candidate_gains(A, C))
+    best_rho, last_reason = None, "no gain gave a positive definite coupled Stein solution"
+    for origin, K in gains:
+        try:
+            rho = coupled_radius(A, C, K, f, r)
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        best_rho = rho if best_rho is None else min(best_rho, rho)
+        if not rho < 1:
+            continue
+        sol = adjoint_stein(A, C, K, f, r)
+        if sol is None:
+            continue
+        check = certify.verify_markov_jump(system, fe, re_, sol[0], sol[1], K)
+        if check.ok:
+            mats = ({"K": _mat(K), "X0": _mat(sol[0]), "X1": _mat(sol[1])} if n <= 60 else None)
+            return done(True, rho, origin, check.to_dict(), "proven", margin, mats)
+        last_reason = f"ball check failed for the gain '{origin}': {check.reason}"
+    if best_rho is not None and best_rho >= 1:
+        last_reason = (f"no gain tried gives a mean-square stable fixed-gain error system "
+                       f"(least spectral radius {best_rho:.6g} >= 1)")
+    return done(False, best_rho, None, None, last_reason, margin)
+
+
+# ---------------------------------------------------------------------------------------------
+# verdict and critical curve
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BurstVerdict:
+    """Stability of E[P_t] over a Gilbert–Elliott link, with its basis."""
+
+    verdict: str
+    basis: str
+    failure_rate: float
+    recovery_rate: float
+    stationary_arrival: float
+    necessary: BurstNecessary
+    certificate: BurstCertificate | None
+    claim: dict[str, Any] | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "basis": self.basis, "failure_rate": self.failure_rate,
+                "recovery_rate": self.recovery_rate,
+                "stationary_arrival": self.stationary_arrival,
+                "necessary": self.necessary.to_dict(),
+                "certificate": None if self.certificate is None else self.certificate.to_dict(),
+                "claim": self.claim}
+
+
+VERDICTS = ("mean-stable", "mean-unstable", "undetermined")
+
+
+def burst_verdict(system: System, failure_rate: Any, recovery_rate: Any,
+                  structure: Any | None = None, classification: str | None = None,
+                  use_lmi: bool = True) -> BurstVerdict:
+    """Decide E[P_t] bounded / unbounded over the link (f, r), from proofs only.
+
+    * mean-unstable — the necessary condition fails, (1 − r)ρ(A)² ≥ 1;
+    * mean-stable — the coupled fixed-gain certificate is proven in balls;
+    * undetermined — neither decides (the two conditions bracket the critical curve).
+
+    ``classification`` (from :mod:`kfcrit.theory.critical.section`) adds, for "non-degenerate"
+    systems, the literature's exact condition as a labelled ``claim`` (never the verdict).
+    """
+    fe, re_ = exact_rate(failure_rate, "failure_rate"), exact_rate(recovery_rate, "recovery_rate")
+    f, r = float(fe), float(re_)
+    stationary = float(re_ / (fe + re_)) if (fe + re_) != 0 else 0.0
+    nec = burst_necessary(system, re_, structure)
+    cert = None
+    claim = None
+    if classification == "non-degenerate" and nec.holds is not None:
+        claim = {"label": "claim (literature, not proven here)", "source": LITERATURE,
+                 "statement": "for non-degenerate systems with one sensor, (1 - r) rho(A)^2 < 1 "
+                              "is necessary and sufficient for bounded E[P_t]",
+                 "verdict_if_true": "mean-stable" if nec.holds else "mean-unstable"}
+    if nec.holds is False:
+        return BurstVerdict("mean-unstable", "necessary burst condition fails: " + nec.statement,
+                            f, r, stationary, nec, None, claim)
+    cert = burst_certificate(system, fe, re_, use_lmi=use_lmi)
+    if cert.certified:
+        basis = ("coupled fixed-gain certificate proven in ball arithmetic (gain: "
+                 f"{cert.gain_origin}; spectral radius of the second-moment recursion "
+                 f"{cert.spectral_radius:.6g} < 1): the Kalman filter is no worse than this "
+                 "fixed gain, so E[P_t] is bounded (MATH.md §10)")
+        return BurstVerdict("mean-stable", basis, f, r, stationary, nec, cert, claim)
+    basis = ("neither condition decides: " + nec.statement + "; sufficient certificate not "
+             "proven (" + cert.reason + ")")
+    return BurstVerdict("undetermined", basis, f, r, stationary, nec, cert, claim)
+
+
+@dataclass(frozen=True)
+class CriticalCurve:
+    """Both bounding curves of the critical curve in the (failure rate, recovery rate) plane:
+    below ``necessary_recovery`` mean-unstable (proven), above ``sufficient_recovery``
+    mean-stable (numerical bisection of the certificate's feasibility; the operating point is
+    decided by :func:`burst_verdict`)."""
+
+    failure_rates: tuple[float, ...]
+    necessary_recovery: tuple[float, ...]
+    necessary_expression: str | None
+    sufficient_recovery: tuple[float | None, ...]
+    tolerance: float
+    method: str
+    operating_point: dict[str, float] | None
+    notes: tuple[str, ...]
+    seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"failure_rates": list(self.failure_rates),
+                "necessary_recovery": list(self.necessary_recovery),
+                "necessary_expression": self.necessary_expression,
+                "sufficient_recovery": list(self.sufficient_recovery),
+                "tolerance": self.tolerance, "method": self.method,
+                "operating_point": self.operating_point, "notes": list(self.notes),
+                "seconds": self.seconds,
+                "meaning": "r <= necessary_recovery(f): mean-unstable (proven); "
+                           "r >= sufficient_recovery(f): mean-stable by the coupled fixed-gain "
+                           "certificate (curve found numerically); between: undetermined"}
+
+
+CURVE_MAX_STATES = 12
+"""Largest n for the sufficient curve (one LMI per bisection step and grid point)."""
+
+
+def certificate_feasible(A: np.ndarray, C: np.ndarray, f: float, r: float,
+                         use_lmi: bool = True, lmi: CoupledLmi | None = None,
+                         candidates: list[tuple[str, np.ndarray]] | None = None) -> bool:
+    """Numerical test: some gain (LMI or candidates) gives spectral radius < 1 of the coupled
+    second-moment recursion (no ball check: used for the curve, not for verdicts).
+
+    ``lmi`` (the compiled LMI of (A, C)) and ``candidates`` (:func:`candidate_gains`) may be
+    passed in when the test is repeated for many (f, r)."""
+    gains = []
+    if use_lmi:
+        K, t = (lmi or CoupledLmi(A, C)).solve(f, r)
+        if K is not None and t > LMI_FEASIBLE_MARGIN:
+            gains.append(K)
+    gains.extend(K for _, K in (candidate_gains(A, C) if candidates is None else candidates))
+    for K in gains:
+        try:
+            if coupled_radius(A, C, K, f, r) < 1:
+                return True
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+    return False
+
+
+def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
+                   tol: float = 1e-3, operating: tuple[Any, Any] | None = None,
+                   structure: Any | None = None) -> CriticalCurve:
+    """The two bounding curves r_nec(f) ≤ r_crit(f) ≤ r_suf(f) on a grid of failure rates.
+
+    .. math::
+
+        r_{nec} = \\max(1 - 1/\\rho(A)^2, 0), \\qquad
+        r_{suf}(f) = \\min\\{r : \\exists K,\\ \\rho(\\mathcal{M}_{K,f,r}) < 1\\}
+
+    r_nec does not depend on f; r_suf(f) is found by bisection on r ∈ [r_nec, 1] to width
+    ``tol`` (stability is monotone in r, Wu–Shi–Anderson–Johansson TAC 2018). Grid: ``points``
+    values f = k/points (k = 1..points) unless ``failure_rates`` is given.
+    """
+    t0 = time.perf_counter()
+    fs = (tuple(float(v) for v in failure_rates) if failure_rates is not None else
+          tuple((k + 1) / points for k in range(points)))
+    r_nec, expr = necessary_recovery_threshold(system, structure)
+    notes: list[str] = []
+    A, C = system.a, system.c
+    suff: list[float | None] = []
+    if system.n > CURVE_MAX_STATES:
+        notes.append(f"sufficient curve not computed for n = {system.n} > {CURVE_MAX_STATES}")
+        suff = [None] * len(fs)
+    else:
+        lmi, candidates = CoupledLmi(A, C), candidate_gains(A, C)
+        for f in fs:
+            suff.append(_sufficient_threshold(A, C, f, r_nec, tol, lmi, candidates))
+        if any(v is None for v in suff):
+            notes.append("no certificate even at r = 1 for some f (None): the fixed-gain bound "
+                         "does not decide there")
+    op = None
+    if operating is not None:
+        op = {"failure_rate": float(exact_rate(operating[0], "failure_rate")),
+              "recovery_rate": float(exact_rate(operating[1], "recovery_rate"))}
+    return CriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
+                         "bisection on r of the coupled LMI / candidate-gain spectral radius "
+                         "(numerical)", op, tuple(notes), time.perf_counter() - t0)
+
+
+def _sufficient_threshold(A: np.ndarray, C: np.ndarray, f: float, r_nec: float,
+                          tol: float, lmi: CoupledLmi,
+                          candidates: list[tuple[str, np.ndarray]]) -> float | None:
+    lo, hi = r_nec, 1.0
+    if not certificate_feasible(A, C, f, hi, lmi=lmi, candidates=candidates):
+        return None
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if certificate_feasible(A, C, f, mid, lmi=lmi, candidates=candidates):
+            hi = mid
+        else:
+            lo = mid
+    return hi

@@ -1,0 +1,841 @@
+"""Stability region of a sensor network in (p_1, …, p_N) (MATH §9 [beyond]).
+
+N sensors, independent Bernoulli links with arrival probabilities p = (p_1..p_N). The region
+𝓢 = {p : E[P_t] bounded} is an up-set (MATH §9: g_p is non-increasing in each p_i). It is
+enclosed between two surfaces:
+
+* **necessary** (closed form): for every sensor set T, ρ_T = the largest |λ| among the
+  eigenvalues of A not observable through C_T (PBH); p ∈ 𝓢 requires
+  Π_{i∉T}(1 − p_i)·ρ_T² < 1. Only the *maximal* unobservable sets matter (a larger T has fewer
+  factors), and for an eigenvalue λ with eigenspace V they are the blind sensors (C_i V = 0)
+  together with a hyperplane of the sensors' row spaces C_i V — enumerated from at most g − 1
+  sensors (g = dim V), never from all 2^N subsets (:func:`necessary_constraints`).
+* **sufficient** (numerical, certified): gains K_S and X ≻ 0 with
+  X ≻ Σ_S π(S)(A + K_S C_S) X (A + K_S C_S)' (kernels in :mod:`kfcrit.theory.links.netkernels`),
+  found by Newton on the threshold of the noise-free expected map along a path and checked in
+  ball arithmetic.
+
+Where they meet the region is exact. One case is proven here (a claim beyond MATH §9 until
+reviewed; the proof is short): **modal one-step observability**. Let the modes with |λ| ≥ 1 be
+diagonalizable with eigenvectors w_1..w_k, and suppose that for every received set S the
+vectors {C_S w_j : C_S w_j ≠ 0} are linearly independent. Then for every S a real gain K_S
+with K_S C_S w_j = −λ_j w_j for the seen modes and K_S = 0 on a complement exists; the unstable
+subspace U is invariant under every F_S = A + K_S C_S, F_S acts on U as diag(λ_j·[C_S w_j = 0])
+in the w-basis, and K_S C_S maps everything into U, so on the quotient every F_S acts as A
+(stable). With X diagonal in the w-basis, Σ_S π(S) F_S X F_S' has diagonal entries
+|λ_j|² Π_{i∉B_j}(1 − p_i) x_j, B_j = {i : C_i w_j = 0}; the block-triangular jump system is
+mean-square stable iff every |λ_j|² Π_{i∉B_j}(1 − p_i) < 1, and each of these is implied by a
+necessary constraint (B_j is unobservable for λ_j). So 𝓢 is exactly the necessary region.
+Scalar plants seen by several sensors and decoupled modes are such cases.
+
+For one sensor the single-link theory (Sinopoli, Mo–Sinopoli: :mod:`kfcrit.theory.critical.section`,
+:mod:`kfcrit.theory.upper.bracket`) gives the critical value, exactly where it is known.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from kfcrit.errors import InputError, KfcritError
+from kfcrit.model.exprparse import compare, exact_text
+from kfcrit.model.network import Network
+from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.critical.section import critical_value, structure_of
+from kfcrit.theory.upper.bracket import upper_bound
+
+RANK_TOL = 1e-9
+"""Relative tolerance of the float rank decisions (σ ≤ RANK_TOL·max(‖C‖, 1) counts as 0)."""
+FLAT_BUDGET = 20000
+"""Most sensor combinations tried per eigenvalue when enumerating hyperplanes (g ≥ 2)."""
+CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
+"""Certificates are tried at the Newton root + step·tol for these steps."""
+VERDICTS = ("mean-stable", "mean-unstable", "undetermined")
+
+
+# ---------------------------------------------------------------------------------------------
+# the necessary surface
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Constraint:
+    """Necessary condition Π_{i∉T}(1 − p_i)·ρ_T² < 1 for a maximal unobservable set T."""
+
+    blind: frozenset[int]
+    mod2: float
+    mod2_expr: sp.Expr | None
+    eigenvalue: str
+    decided: str
+
+    def factor(self, p: np.ndarray) -> float:
+        """ρ_T² Π_{i∉T}(1 − p_i) in floats."""
+        out = self.mod2
+        for i in range(p.size):
+            if i not in self.blind:
+                out *= 1.0 - float(p[i])
+        return out
+
+    def factor_expr(self, p_exact: Sequence[sp.Expr | None]) -> sp.Expr | None:
+        """The same exactly (None when an ingredient is not exact)."""
+        if self.mod2_expr is None:
+            return None
+        out = self.mod2_expr
+        for i, pi in enumerate(p_exact):
+            if i not in self.blind:
+                if pi is None:
+                    return None
+                out = out * (1 - pi)
+        return out
+
+
+def _exact_eigvecs(A: sp.Matrix, lam: sp.Expr) -> list[sp.Matrix] | None:
+    """Exact eigenvectors for a rational eigenvalue (None otherwise or on failure)."""
+    if not (lam is not None and lam.is_Rational):
+        return None
+    try:
+        return (A - lam * sp.eye(A.shape[0])).nullspace()
+    except (ValueError, TypeError, ArithmeticError, NotImplementedError):
+        return None
+
+
+def _rank_fn(network: Network, e: Any, tol: float):
+    """Rank of the stacked C_i V over a set of sensors: exact for rational eigenvalues of exact
+    input, else float SVD with a relative tolerance. Returns (rank(sensors), g, how)."""
+    sl = network.row_slices()
+    A = sp.Matrix(network.A)
+    vecs = _exact_eigvecs(A, e.expr) if network.exact else None
+    if vecs:
+        V = sp.Matrix.hstack(*vecs)
+        C = sp.Matrix(network.stacked_system().C)
+        CV = C * V
+        blocks = [CV[s.start:s.stop, :] for s in sl]
+
+        def rank(idx: Sequence[int]) -> int:
+            if not idx:
+                return 0
+            return sp.Matrix.vstack(*[blocks[i] for i in idx]).rank()
+        return rank, V.shape[1], "exact (rational eigenvalue, sympy ranks)"
+    V = e.basis
+    c = network.stacked_system().c
+    scale = max(float(np.linalg.norm(c, 2)), 1.0)
+    CVf = c @ V
+    fblocks = [CVf[s] for s in sl]
+
+    def frank(idx: Sequence[int]) -> int:
+        if not idx:
+            return 0
+        M = np.vstack([fblocks[i] for i in idx])
+        sv = np.linalg.svd(M, compute_uv=False)
+        return int(np.sum(sv > tol * scale))
+    return frank, V.shape[1], f"float64 SVD, relative tolerance {tol:g}"
+
+
+def _eig_text(e: Any) -> str:
+    if e.expr is not None:
+        return sp.sstr(e.expr)
+    if e.text is not None:
+        return e.text
+    z = complex(e.value)
+    return repr(z.real) if z.imag == 0 else f"{z.real:.12g}{z.imag:+.12g}j"
+
+
+def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Constraint, ...]:
+    """The non-dominated necessary constraints (T, ρ_T²) (see the module docstring).
+
+    For each eigenvalue λ with |λ| ≥ 1 (eigenspace V, dimension g): the blind sensors
+    B = {i : C_i V = 0}; if all sensors together have rank < g on V, T = every sensor (the
+    network cannot detect λ: no p works); else every hyperplane flat — the closure of ≤ g − 1
+    sensors whose rows span rank g − 1 on V — united with B. A constraint (T, ρ²) is dropped
+    when another has T' ⊇ T and ρ'² ≥ ρ².
+    """
+    st = structure_of(network.stacked_system())
+    N = network.size
+    out: list[Constraint] = []
+    for idx, e in enumerate(st.eigen):
+        if not st.relevant(idx):
+            continue
+        rank, g, how = _rank_fn(network, e, tol)
+        blind = frozenset(i for i in range(N) if rank([i]) == 0)
+        seen = [i for i in range(N) if i not in blind]
+        flats: set[frozenset[int]] = set()
+        if rank(seen) < g:
+            flats.add(frozenset(range(N)))
+        else:
+            tried = 0
+            for size in range(0, g):
+                for U in itertools.combinations(seen, size):
+                    tried += 1
+                    if tried > FLAT_BUDGET:
+                        raise KfcritError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
+                                          f"eigenspace seen by {len(seen)} sensors: more than "
+                                          f"{FLAT_BUDGET} sensor combinations", field="sensors")
+                    if rank(list(U)) != g - 1:
+                        continue
+                    closure = frozenset(i for i in seen if rank(list(U) + [i]) == g - 1)
+                    flats.add(blind | closure)
+        for T in flats:
+            out.append(Constraint(T, float(e.mod2), e.mod2_expr, _eig_text(e), how))
+    keep = []
+    for c in out:
+        if any(d is not c and c.blind <= d.blind and c.mod2 <= d.mod2
+               and (c.blind != d.blind or c.mod2 < d.mod2 or id(d) < id(c)) for d in out):
+            continue
+        keep.append(c)
+    keep.sort(key=lambda c: (-c.mod2, sorted(c.blind)))
+    return tuple(keep)
+
+
+def _sign_minus_one(value: float, expr: sp.Expr | None) -> int | None:
+    """Sign of (value − 1): exact from ``expr`` when given, else float with a 1e-12 guard."""
+    if expr is not None:
+        try:
+            return compare(expr, 1, "network", "necessary factor - 1")
+        except KfcritError:
+            pass
+    if abs(value - 1.0) <= 1e-12:
+        return None
+    return 1 if value > 1 else -1
+
+
+def necessary_holds(constraints: Sequence[Constraint], p: np.ndarray,
+                    p_exact: Sequence[sp.Expr | None]) -> bool | None:
+    """Whether every necessary constraint holds at p (None: undecided at float precision)."""
+    undecided = False
+    for c in constraints:
+        s = _sign_minus_one(c.factor(p), c.factor_expr(p_exact))
+        if s is None:
+            undecided = True
+        elif s >= 0:
+            return False
+    return None if undecided else True
+
+
+def necessary_coordinate(constraints: Sequence[Constraint], i: int, p: np.ndarray,
+                         p_exact: Sequence[sp.Expr | None]
+                         ) -> tuple[bool, float, sp.Expr | None]:
+    """Least p_i allowed by the necessary surface, others at p: (possible, value, exact).
+
+    A constraint with i ∈ T caps nothing in p_i: if it fails, no p_i works (possible False).
+    Otherwise c = ρ_T² Π_{j∉T, j≠i}(1 − p_j) and p_i > 1 − 1/c is needed (nothing if c ≤ 1).
+    """
+    best, best_expr = 0.0, sp.Integer(0)
+    exact_ok = True
+    for c in constraints:
+        if i in c.blind:
+            s = _sign_minus_one(c.factor(p), c.factor_expr(p_exact))
+            if s is not None and s >= 0:
+                return False, math.nan, None
+            continue
+        q = p.copy()
+        q[i] = 0.0
+        val = c.factor(q)
+        qe = list(p_exact)
+        qe[i] = sp.Integer(0)
+        expr = c.factor_expr(qe)
+        if val <= 1.0 and (expr is None or _sign_minus_one(val, expr) in (-1, 0)):
+            continue
+        cand = 1.0 - 1.0 / val
+        cand_expr = sp.radsimp(1 - 1 / expr) if expr is not None else None
+        if cand_expr is None:
+            exact_ok = False
+        if cand > best + 1e-15 or (cand_expr is not None and best_expr is not None
+                                   and abs(cand - best) <= 1e-15
+                                   and float(sp.N(cand_expr - best_expr, 30)) > 0):
+            best, best_expr = cand, cand_expr
+        elif abs(cand - best) <= 1e-15 and cand_expr is None:
+            exact_ok = False
+    if best_expr is not None:
+        best = float(sp.N(best_expr, 30))
+    return True, best, best_expr if exact_ok else None
+
+
+def necessary_along(constraints: Sequence[Constraint], path: nk.Path, lo: float,
+                    hi: float) -> float | None:
+    """Least s in [lo, hi] where every necessary constraint holds (bisection on the monotone
+    float factors to 1e-15); ``lo`` if they hold there, None if not even at ``hi``."""
+    def ok(s: float) -> bool:
+        p, _ = path(s)
+        return all(c.factor(p) < 1.0 for c in constraints)
+    if ok(lo):
+        return lo
+    if not ok(hi):
+        return None
+    a, b = lo, hi
+    for _ in range(200):
+        mid = 0.5 * (a + b)
+        if mid in (a, b):
+            break
+        a, b = (a, mid) if ok(mid) else (mid, b)
+        if b - a < 1e-15:
+            break
+    return b
+
+
+# ---------------------------------------------------------------------------------------------
+# the exact case: modal one-step observability
+# ---------------------------------------------------------------------------------------------
+
+def modal_one_step(network: Network, tol: float = RANK_TOL) -> tuple[bool | None, str]:
+    """Whether the proof in the module docstring applies (True), fails (False) or was not
+    decided (None: more than ``EXACT_MAX_SENSORS`` sensors and several unstable modes)."""
+    st = structure_of(network.stacked_system())
+    rel = [e for i, e in enumerate(st.eigen) if st.relevant(i)]
+    if not rel:
+        return True, "ρ(A) < 1: every arrival probability works"
+    if any(e.geometric != e.multiplicity for e in rel):
+        return False, "a mode with |λ| ≥ 1 is not diagonalizable"
+    W = np.hstack([e.basis for e in rel])
+    k = W.shape[1]
+    sys = network.stacked_system()
+    CW = sys.c @ W
+    scale = max(float(np.linalg.norm(sys.c, 2)), 1.0)
+    if k == 1:
+        return True, "one unstable mode"
+    N = network.size
+    if N > nk.EXACT_MAX_SENSORS:
+        return None, f"not decided for more than {nk.EXACT_MAX_SENSORS} sensors"
+    owner = _owner(network)
+    col = nk.all_received_sets(N)
+    rows = col.masks[:, owner]
+    M = np.where(rows[:, :, None], CW[None], 0.0)
+    seen = np.linalg.norm(M, axis=1) > tol * scale
+    sv = np.linalg.svd(M, compute_uv=False)
+    ranks = (sv > tol * scale).sum(axis=1)
+    bad = np.nonzero(ranks != seen.sum(axis=1))[0]
+    if bad.size:
+        S = [network.names[i] for i in range(N) if col.masks[bad[0], i]]
+        return False, (f"received set {{{', '.join(S)}}} sees unstable modes through dependent "
+                       "outputs (not one-step observable)")
+    return True, ("every received set sees its observable unstable modes through linearly "
+                  f"independent outputs (float64 ranks, relative tolerance {tol:g})")
+
+
+def _owner(network: Network) -> np.ndarray:
+    return np.concatenate([np.full(s.m, i) for i, s in enumerate(network.sensors)])
+
+
+# ---------------------------------------------------------------------------------------------
+# boundaries along paths
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Boundary:
+    """Where a path p(s) crosses into 𝓢: s_c ∈ [s_nec, s_cert] (None: not found)."""
+
+    s_nec: float | None
+    s_cert: float | None
+    check: dict[str, Any] | None
+    note: str
+
+
+@dataclass
+class _Context:
+    network: Network
+    plant: nk.Plant
+    col: nk.Collection
+    tol: float
+    ball: bool
+    stats: dict[str, Any] = field(default_factory=lambda: {"newton": 0, "bisection": 0,
+                                                          "certificates": 0})
+
+    def certify(self, p: np.ndarray, X: np.ndarray, gains: np.ndarray | None = None):
+        self.stats["certificates"] += 1
+        st = self.network.stacked_system()
+        return nk.certify_at(self.plant, st.A, st.C, self.col, p, X, gains, ball=self.ball)
+
+    def try_at(self, p: np.ndarray, X0: np.ndarray | None = None):
+        # a short power iteration suffices: its X only seeds the gains, and the certificate
+        # (Stein solve, policy iteration, ball check) is decided independently
+        r, X = nk.cone_radius(self.plant, self.col, p, X0, iterations=60, eps=1e-10)
+        if not (np.isfinite(r) and r < 1.0):
+            return None, X
+        chk, Xc, _ = self.certify(p, X)
+        return (chk if chk is not None and chk.ok else None), X
+
+
+def _boundary(ctx: _Context, path: nk.Path, lo: float, hi: float,
+              s_nec: float | None) -> Boundary:
+    """Certified crossing of the sufficient surface along ``path`` on [lo, hi]."""
+    if s_nec is None:
+        return Boundary(None, None, None, "the necessary surface is not crossed on the path")
+    if s_nec <= lo:
+        chk, _ = ctx.try_at(path(lo)[0])
+        if chk is not None:
+            return Boundary(lo, lo, chk.to_dict(), "certified at the start of the path")
+    start = min(max(s_nec, lo), hi)
+    for frac in (0.0, 0.05, 0.25, 0.5):
+        # Newton from the necessary end first, then from points further into the path
+        s0 = start + frac * (hi - start)
+        _, X0 = nk.cone_radius(ctx.plant, ctx.col, path(s0)[0], iterations=80, eps=1e-10)
+        ctx.stats["newton"] += 1
+        th = nk.threshold_newton(ctx.plant, ctx.col, path, X0, s0)
+        if not (th.converged and th.s >= s_nec - 1e-7 and th.s <= hi
+                and np.linalg.eigvalsh(th.X).min() > 0):
+            continue
+        for step in CERT_STEPS:
+            s = max(th.s + step * ctx.tol, s_nec)
+            if s > hi:
+                break
+            chk, _, _ = ctx.certify(path(s)[0], th.X, th.gains)
+            if chk is not None and chk.ok:
+                return Boundary(s_nec, s, chk.to_dict(), "threshold Newton, certified")
+    return _bisection(ctx, path, max(s_nec, lo), hi)
+
+
+def _bisection(ctx: _Context, path: nk.Path, a: float, b: float) -> Boundary:
+    """Fallback: bisection with a certificate attempt at every point (slow, robust)."""
+    ctx.stats["bisection"] += 1
+    chk, X = ctx.try_at(path(b)[0])
+    if chk is None:
+        return Boundary(a, None, None, "no certificate at the end of the path")
+    best = (b, chk)
+    lo = a
+    while best[0] - lo > max(ctx.tol, 1e-7):
+        mid = 0.5 * (lo + best[0])
+        c, X = ctx.try_at(path(mid)[0], X)
+        if c is not None:
+            best = (mid, c)
+        else:
+            lo = mid
+    return Boundary(a, best[0], best[1].to_dict(), "bisection with certificates")
+
+
+def coordinate_path(p: np.ndarray, i: int) -> nk.Path:
+    """p(s) = p with p_i = s, s ∈ [0, 1]."""
+    d = np.zeros(p.size)
+    d[i] = 1.0
+
+    def path(s: float) -> tuple[np.ndarray, np.ndarray]:
+        q = p.copy()
+        q[i] = min(max(s, 0.0), 1.0)
+        return q, d
+    return path
+
+
+def uniform_path(p: np.ndarray) -> nk.Path:
+    """p(s) = clip(p + s·1, 0, 1), s ∈ [−1, 1] (s = −δ, δ the uniform degradation)."""
+    def path(s: float) -> tuple[np.ndarray, np.ndarray]:
+        raw = p + s
+        return np.clip(raw, 0.0, 1.0), ((raw > 0) & (raw < 1)).astype(float)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# the result
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SensorResult:
+    """One sensor's row of the network analysis."""
+
+    name: str
+    arrival_probability: float
+    arrival_expression: str | None
+    critical: dict[str, Any]
+    surfaces: dict[str, Any]
+    margin: dict[str, Any]
+    n_minus_1: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "arrival_probability": self.arrival_probability,
+                "arrival_probability_expression": self.arrival_expression,
+                "critical_value": dict(self.critical), "surfaces": dict(self.surfaces),
+                "margin": dict(self.margin), "n_minus_1": dict(self.n_minus_1)}
+
+
+@dataclass(frozen=True)
+class NetworkResult:
+    """The stability analysis of a sensor network at arrival probabilities p (a plain record).
+
+    ``to_dict()`` keys: verdict, reason, basis, sensors [SensorResult], uniform_margin
+    {value, interval, unbounded, basis}, n_minus_1 [{name, verdict, reason}], bottleneck
+    {name, margin, rule}, necessary_constraints [...], exact_region {holds, reason, basis},
+    certificate, method, claims [str], warnings [str], seconds.
+    """
+
+    verdict: str
+    reason: str
+    basis: str
+    sensors: tuple[SensorResult, ...]
+    uniform_margin: dict[str, Any]
+    bottleneck: dict[str, Any]
+    constraints: tuple[dict[str, Any], ...]
+    exact_region: dict[str, Any]
+    certificate: dict[str, Any] | None
+    method: dict[str, Any]
+    claims: tuple[str, ...]
+    warnings: tuple[str, ...] = ()
+    seconds: float = 0.0
+
+    def sensor(self, name: str) -> SensorResult:
+        """The row of the named sensor."""
+        for s in self.sensors:
+            if s.name == name:
+                return s
+        raise KeyError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "reason": self.reason, "basis": self.basis,
+                "sensors": [s.to_dict() for s in self.sensors],
+                "uniform_margin": dict(self.uniform_margin),
+                "n_minus_1": [{"name": s.name, **s.n_minus_1} for s in self.sensors],
+                "bottleneck": dict(self.bottleneck),
+                "necessary_constraints": [dict(c) for c in self.constraints],
+                "exact_region": dict(self.exact_region), "certificate": self.certificate,
+                "method": dict(self.method), "claims": list(self.claims),
+                "warnings": list(self.warnings), "seconds": round(self.seconds, 4)}
+
+
+def _probabilities(network: Network, p: Sequence[Any] | None
+                   ) -> tuple[np.ndarray, list[sp.Expr | None]]:
+    """Float and exact arrival probabilities (from the sensors' channels when ``p`` is None)."""
+    if p is None:
+        p = network.arrival_probabilities()
+        if any(v is None for v in p):
+            missing = [s.name for s, v in zip(network.sensors, p) if v is None]
+            raise InputError(f"sensor {missing[0]!r} has no channel: give its arrival "
+                             "probability", field="p")
+    p = list(p)
+    if len(p) != network.size:
+        raise InputError(f"must have {network.size} entries (one per sensor), got {len(p)}",
+                         field="p")
+    exact: list[sp.Expr | None] = []
+    flt = np.zeros(len(p))
+    for i, v in enumerate(p):
+        if isinstance(v, bool):
+            raise InputError("must be a number", field=f"p[{i}]")
+        if isinstance(v, sp.Basic):
+            e = v
+        elif isinstance(v, (int, np.integer)):
+            e = sp.Integer(int(v))
+        elif isinstance(v, Fraction):
+            e = sp.Rational(v.numerator, v.denominator)
+        elif isinstance(v, (float, np.floating)):
+            e = sp.Rational(float(v)) if math.isfinite(float(v)) else None
+        else:
+            raise InputError(f"must be a number, got {type(v).__name__}", field=f"p[{i}]")
+        if e is None or not e.is_number:
+            raise InputError("must be a finite number", field=f"p[{i}]")
+        f = float(sp.N(e, 20)) if not e.is_Rational else float(e)
+        if not 0.0 <= f <= 1.0:
+            raise InputError(f"must be in [0, 1], got {f:g}", field=f"p[{i}]")
+        exact.append(e)
+        flt[i] = f
+    return flt, exact
+
+
+def _expr_text(e: sp.Expr | None) -> str | None:
+    return exact_text(e) if e is not None else None
+
+
+def _verdict_from(nec: bool | None, stable_proven: bool) -> str:
+    if nec is False:
+        return "mean-unstable"
+    if stable_proven:
+        return "mean-stable"
+    return "undetermined"
+
+
+def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
+                     tol: float = 1e-9, certify: bool = True) -> NetworkResult:
+    """Stability of a sensor network at arrival probabilities ``p`` (MATH §9).
+
+    Parameters
+    ----------
+    network : Network
+    p : sequence, optional
+        Arrival probabilities in sensor order (exact sympy numbers, ints, fractions or floats);
+        default: the sensors' channels' arrival probabilities.
+    tol : float
+        Target width of the certified intervals.
+    certify : bool
+        Check certificates in ball arithmetic (True) or in float64 only (for benchmarks).
+
+    Returns
+    -------
+    NetworkResult
+        Verdict at p, per-sensor critical values (least p_i keeping mean stability with the
+        others at p), uniform margin, N−1 verdicts, bottleneck (see :class:`NetworkResult`).
+    """
+    if not (isinstance(tol, (int, float)) and 0 < tol <= 1e-3):
+        raise InputError(f"must be a number in (0, 1e-3], got {tol!r}", field="tol")
+    t0 = time.perf_counter()
+    pf, pe = _probabilities(network, p)
+    N = network.size
+    cons = necessary_constraints(network)
+    exact_region, why_exact = modal_one_step(network)
+    st = network.stacked_system()
+    plant = nk.Plant(st.a, st.c, _owner(network))
+    col = nk.collection_for(pf, N)
+    ctx = _Context(network, plant, col, tol, certify)
+    claims = ["MATH §9 [beyond]: the necessary and sufficient surfaces, and the up-set "
+              "property of the region, are stated in MATH §9 as claims to test"]
+    if exact_region:
+        claims.append("exact region by modal one-step observability: proof in "
+                      "kfcrit.theory.links.network (beyond MATH §9, a claim until reviewed)")
+    warnings: list[str] = []
+    if not col.complete:
+        warnings.append(f"{N} sensors: the sufficient surface uses the {col.size} most likely "
+                        "received sets, the rest counted as total loss (a valid, more "
+                        "conservative sufficient condition)")
+    bursty = [s.name for s in network.sensors if s.channel is not None and not s.channel.iid]
+    if bursty and p is None:
+        warnings.append(f"sensors {', '.join(bursty)} have bursty (Markov) links: the analysis "
+                        "uses their stationary arrival probabilities (i.i.d. theory)")
+    if not structure_of(st).controllable_Q:
+        warnings.append("(A, Q^1/2) is not controllable: the necessary surface assumes "
+                        "every unobserved unstable mode is excited by the noise")
+
+    # ---- per sensor: coordinate paths
+    rows = []
+    for i in range(len(network.sensors)):
+        rows.append(_sensor_row(ctx, cons, exact_region, i, pf, pe))
+
+    # ---- uniform margin
+    upath = uniform_path(pf)
+    s_nec_u = necessary_along(cons, upath, -1.0, 1.0)
+    if exact_region:
+        bu = Boundary(s_nec_u, s_nec_u, None, "exact region (modal one-step observability)")
+    else:
+        bu = _boundary(ctx, upath, -1.0, 1.0, s_nec_u)
+    margin = _uniform_margin(bu, pf, exact_region)
+
+    # ---- verdict at p
+    nec = necessary_holds(cons, pf, pe)
+    cert = bu.check
+    if exact_region and nec is True:
+        verdict, reason = "mean-stable", ("every necessary constraint holds and the region is "
+                                          "exactly the necessary region (modal one-step "
+                                          "observability)")
+        basis = "necessary surface (closed form) + exact-region proof (claim)"
+        if N <= nk.EXACT_MAX_SENSORS:
+            chk, _ = ctx.try_at(pf)
+            cert = chk.to_dict() if chk is not None else None
+            if chk is None:
+                warnings.append("no numerical certificate found at the operating point "
+                                "(the verdict rests on the exact-region proof)")
+    elif nec is False:
+        bad = next(c for c in cons if _sign_minus_one(c.factor(pf), c.factor_expr(pe)) != -1)
+        dead = [network.names[i] for i in range(N) if i not in bad.blind]
+        verdict = "mean-unstable"
+        reason = (f"necessary constraint fails: eigenvalue {bad.eigenvalue} (|λ|² = "
+                  f"{bad.mod2:.6g}) is unobservable without sensors {{{', '.join(dead)}}}, and "
+                  f"Π(1 − p_i)·|λ|² = {bad.factor(pf):.6g} ≥ 1")
+        basis = "necessary surface (MATH §9)"
+    elif bu.s_cert is not None and bu.s_cert <= 0.0:
+        verdict = "mean-stable"
+        reason = (f"certificate at clip(p − {-bu.s_cert:.3g}·1) ≤ p; the region is an up-set "
+                  "(MATH §9)")
+        basis = "sufficient surface (checked certificate)"
+    else:
+        chk, _ = ctx.try_at(pf) if nec is not False else (None, None)
+        if chk is not None:
+            verdict, reason, cert = "mean-stable", "certificate at p", chk.to_dict()
+            basis = "sufficient surface (checked certificate)"
+        else:
+            verdict = "undetermined"
+            reason = "between the necessary and the sufficient surface"
+            basis = "necessary holds, no sufficient certificate"
+    if nec is None and verdict != "mean-stable":
+        verdict, reason = "undetermined", "the necessary constraint is at equality to 1e-12"
+
+    bottleneck = _bottleneck(rows)
+    result = NetworkResult(
+        verdict=verdict, reason=reason, basis=basis, sensors=tuple(rows),
+        uniform_margin=margin, bottleneck=bottleneck,
+        constraints=tuple(_constraint_dict(network, c) for c in cons),
+        exact_region={"holds": exact_region, "reason": why_exact,
+                      "basis": "proof in kfcrit.theory.links.network (claim beyond MATH §9)"},
+        certificate=cert,
+        method={"received_sets": col.size, "all_received_sets": col.complete,
+                "tolerance": tol, "ball_checked": certify, **ctx.stats},
+        claims=tuple(claims), warnings=tuple(warnings), seconds=time.perf_counter() - t0)
+    if N == 1:
+        result = _single_link_overlay(network, result, pf, pe, tol)
+    return result
+
+
+def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i: int,
+                pf: np.ndarray, pe: list[sp.Expr | None]) -> SensorResult:
+    network = ctx.network
+    name = network.names[i]
+    possible, nval, nexpr = necessary_coordinate(cons, i, pf, pe)
+    path = coordinate_path(pf, i)
+    if not possible:
+        crit = {"value": None, "interval": None, "exact": True, "expression": None,
+                "basis": "necessary surface: a constraint without this sensor fails, so no "
+                         "p_i in [0, 1] gives mean stability"}
+        surfaces = {"necessary": None, "sufficient": None}
+        b = Boundary(None, None, None, "")
+    else:
+        if exact_region:
+            b = Boundary(nval, nval, None, "exact region")
+        else:
+            b = _boundary(ctx, path, 0.0, 1.0, nval)
+        surfaces = {"necessary": {"value": nval, "expression": _expr_text(nexpr)},
+                    "sufficient": ({"value": b.s_cert, "certificate": b.check, "note": b.note}
+                                   if b.s_cert is not None else None)}
+        if exact_region:
+            crit = {"value": nval, "interval": [nval, nval], "exact": nexpr is not None,
+                    "expression": _expr_text(nexpr),
+                    "basis": "necessary surface, exact region (modal one-step observability)"}
+        elif b.s_cert is not None:
+            width = b.s_cert - nval
+            crit = {"value": nval if width <= max(ctx.tol * 1e3, 1e-6) else None,
+                    "interval": [nval, b.s_cert], "exact": False,
+                    "expression": _expr_text(nexpr) if width <= 1e-6 else None,
+                    "basis": ("necessary and sufficient surfaces meet (certified interval)"
+                              if width <= 1e-6 else
+                              "between the necessary and the sufficient surface")}
+        else:
+            crit = {"value": None, "interval": [nval, None], "exact": False, "expression": None,
+                    "basis": "necessary surface only; no certificate up to p_i = 1"}
+    margin = {"value": (pf[i] - crit["value"]) if crit["value"] is not None else None,
+              "interval": ([pf[i] - crit["interval"][1] if crit["interval"][1] is not None
+                            else None, pf[i] - crit["interval"][0]]
+                           if crit["interval"] is not None else None)}
+    # N−1: this sensor's link dead, the others at p
+    q = pf.copy()
+    q[i] = 0.0
+    qe = list(pe)
+    qe[i] = sp.Integer(0)
+    nec0 = necessary_holds(cons, q, qe)
+    stable0 = bool((exact_region and nec0) or (b.s_cert is not None and b.s_cert <= 0.0))
+    v = _verdict_from(nec0, stable0)
+    why = {"mean-unstable": "a necessary constraint fails with this link dead",
+           "mean-stable": ("exact region: every necessary constraint holds" if exact_region
+                           else "certificate with this link dead"),
+           "undetermined": "between the surfaces with this link dead"}[v]
+    if nec0 is None and v != "mean-stable":
+        v, why = "undetermined", "a necessary constraint is at equality with this link dead"
+    return SensorResult(name, float(pf[i]), _expr_text(pe[i]), crit, surfaces, margin,
+                        {"verdict": v, "reason": why})
+
+
+def _uniform_margin(b: Boundary, pf: np.ndarray, exact_region: bool) -> dict[str, Any]:
+    """δ with clip(p − δ·1) on the boundary; s = −δ on :func:`uniform_path`."""
+    rule = ("signed δ such that clip(p − δ·(1, …, 1), 0, 1) lies on the boundary: positive "
+            "when stable, negative when every link must improve")
+    if b.s_nec is None:
+        return {"value": None, "interval": None, "unbounded": "negative", "rule": rule,
+                "reason": "a necessary constraint fails even with every link perfect (p = 1)"}
+    if b.s_nec <= -1.0 and b.s_cert is not None and b.s_cert <= -1.0:
+        return {"value": None, "interval": None, "unbounded": "positive", "rule": rule,
+                "reason": "mean-stable with every link dead (ρ(A) < 1 on what matters)"}
+    hi = -b.s_nec
+    lo = -b.s_cert if b.s_cert is not None else None
+    value = hi if exact_region or (lo is not None and hi - lo <= 1e-6) else None
+    return {"value": value, "interval": [lo, hi], "unbounded": None, "rule": rule,
+            "reason": ("exact region" if exact_region else
+                       "necessary end closed form, sufficient end certified" if lo is not None
+                       else "necessary end only")}
+
+
+def _bottleneck(rows: Sequence[SensorResult]) -> dict[str, Any]:
+    """Sensor with the smallest p_i − critical_i (the first to reach the boundary when it alone
+    degrades). Key: the certified margin p_i − (sufficient end), then p_i − (necessary end),
+    then file order. Sensors whose critical value does not exist are skipped."""
+    rule = ("smallest p_i − critical_i among sensors whose loss alone breaks mean stability "
+            "(N−1 verdict not mean-stable); an interval counts by its conservative end "
+            "(p_i − upper end), ties broken by p_i − lower end, then by sensor order")
+    best = None
+    for k, r in enumerate(rows):
+        iv = r.margin.get("interval")
+        if iv is None or r.n_minus_1.get("verdict") == "mean-stable":
+            continue
+        cons = iv[0] if iv[0] is not None else -math.inf
+        key = (cons, iv[1], k)
+        if best is None or key < best[0]:
+            best = (key, r)
+    if best is None:
+        return {"name": None, "margin": None, "rule": rule,
+                "reason": "no single link's degradation reaches the boundary"}
+    r = best[1]
+    return {"name": r.name, "margin": r.margin.get("value"),
+            "margin_interval": r.margin.get("interval"), "rule": rule}
+
+
+def _constraint_dict(network: Network, c: Constraint) -> dict[str, Any]:
+    return {"unobservable_without": [network.names[i] for i in range(network.size)
+                                     if i not in c.blind],
+            "blind_sensors": [network.names[i] for i in sorted(c.blind)],
+            "eigenvalue": c.eigenvalue, "modulus2": c.mod2,
+            "modulus2_expression": _expr_text(c.mod2_expr), "decided": c.decided,
+            "condition": "prod over sensors not blind of (1 - p_i) * modulus2 < 1"}
+
+
+# ---------------------------------------------------------------------------------------------
+# one sensor: the single-link theory
+# ---------------------------------------------------------------------------------------------
+
+def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
+                         pe: list[sp.Expr | None], tol: float) -> NetworkResult:
+    """For N = 1 the critical value, verdict and margins of the single-link theory (exact
+    Mo–Sinopoli values where a theorem applies; else the bracket [block lower bound, p_up])."""
+    system = network.stacked_system()
+    cv = critical_value(system).to_dict()
+    p = float(pf[0])
+    row = res.sensors[0]
+    klass = cv["classification"]
+    pc = cv["critical_value"]["value"]
+    if klass == "stable":
+        crit = {"value": 0.0, "interval": [0.0, 0.0], "exact": True, "expression": "0",
+                "basis": "single link: ρ(A) < 1"}
+    elif klass == "not-detectable":
+        crit = {"value": None, "interval": None, "exact": True, "expression": None,
+                "basis": "single link: (C, A) not detectable"}
+    elif pc is not None:
+        crit = {"value": pc, "interval": [pc, pc], "exact": bool(cv["critical_value"]["exact"]),
+                "expression": cv["critical_value"]["expression"],
+                "basis": f"single link: {cv['critical_value']['reason']}"}
+    else:
+        up = upper_bound(system, tol)
+        lo = (cv.get("block_lower_bound") or {}).get("value")
+        if lo is None:
+            lo = cv["lower_bound"]["value"]
+        hi = up.interval[1] if up.certified else None
+        crit = {"value": None, "interval": [lo, hi], "exact": False, "expression": None,
+                "basis": "single link: bracket [block lower bound, certified p_up]"}
+    if crit["interval"] is None:
+        verdict, reason = "mean-unstable", "(C, A) is not detectable"
+    elif crit["value"] is not None:
+        if klass == "stable" or p > crit["value"]:
+            verdict = "mean-stable"
+        else:
+            verdict = "mean-unstable"
+        reason = f"p = {p:.6g} against p_c = {crit['value']:.6g} (single-link theory)"
+    else:
+        lo, hi = crit["interval"]
+        verdict = ("mean-stable" if hi is not None and p > hi else
+                   "mean-unstable" if p <= lo else "undetermined")
+        reason = "p against the bracket [block lower bound, p_up] (single-link theory)"
+    iv = crit["interval"]
+    margin = {"value": p - crit["value"] if crit["value"] is not None else None,
+              "interval": ([p - iv[1] if iv[1] is not None else None, p - iv[0]]
+                           if iv is not None else None)}
+    n1 = ({"verdict": "mean-stable", "reason": "ρ(A) < 1"} if klass == "stable" else
+          {"verdict": "mean-unstable", "reason": "no measurement reaches the estimator and "
+                                                 "ρ(A) ≥ 1"})
+    new_row = SensorResult(row.name, row.arrival_probability, row.arrival_expression, crit,
+                           row.surfaces, margin, n1)
+    um = dict(res.uniform_margin)
+    if klass != "stable":
+        um.update(value=margin["value"], interval=margin["interval"], unbounded=None
+                  if iv is not None else "negative",
+                  reason="one sensor: δ = p − p_c (single-link theory)")
+    return NetworkResult(verdict=verdict, reason=reason,
+                         basis="single-link theory (MATH §3–§4)", sensors=(new_row,),
+                         uniform_margin=um, bottleneck={**res.bottleneck, "name": row.name,
+                                                        "margin": margin["value"],
+                                                        "margin_interval": margin["interval"]},
+                         constraints=res.constraints, exact_region=res.exact_region,
+                         certificate=res.certificate, method=res.method, claims=res.claims,
+                         warnings=res.warnings + tuple(cv.get("warnings") or ()),
+                         seconds=res.seconds)

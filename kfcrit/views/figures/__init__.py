@@ -1,0 +1,1 @@
+"""Figures of the record (matplotlib, SVG): each plot drawn once."""

@@ -1,0 +1,120 @@
+"""Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (MATH §10).
+
+Reads ``link_budget.critical_curve`` (:meth:`kfcrit.theory.links.markov.CriticalCurve.to_dict`):
+on a grid of failure rates f, the necessary recovery rate r_nec(f) (at or below it E[P_t]
+diverges, proven) and the sufficient one r_suf(f) (at or above it the coupled fixed-gain
+certificate proves E[P_t] bounded),
+
+.. math::
+
+    r_{nec}(f) \\le r_{crit}(f) \\le r_{suf}(f),
+
+and the operating point (f, r). Nothing is computed: the curves are drawn at the record's grid
+points only (no extrapolation beyond them).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+from matplotlib.figure import Figure
+
+from kfcrit.views.figures.style import (
+    COLORS,
+    finite,
+    floats,
+    fmt,
+    new_figure,
+    readable_rc,
+    section,
+)
+
+R_NEC = r"$r_{\mathrm{nec}}(f)$"
+R_SUF = r"$r_{\mathrm{suf}}(f)$"
+
+
+def critical_curve_of(record: dict[str, Any]) -> dict[str, Any] | None:
+    """The critical curve of a Gilbert–Elliott link (single link or the link budget's bursty
+    part), or ``None``."""
+    for where in (("link_budget", "critical_curve"),
+                  ("link_budget", "bursty", "critical_curve")):
+        curve = section(record, *where)
+        if isinstance(curve, dict):
+            return curve
+    return None
+
+
+def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
+    """Both bounding curves of the critical curve, the regions they decide, the operating
+    point and the line f + r = 1 (i.i.d. losses)."""
+    curve = critical_curve_of(record)
+    if curve is None:
+        return None
+    f = floats(curve.get("failure_rates"))
+    nec = floats(curve.get("necessary_recovery"))
+    suf = floats(curve.get("sufficient_recovery"))
+    if f is None or (nec is None and suf is None):
+        return None
+    nec = nec if nec is not None and len(nec) == len(f) else None
+    suf = suf if suf is not None and len(suf) == len(f) else None
+    if nec is None and suf is None:
+        return None
+    op = curve.get("operating_point") if isinstance(curve.get("operating_point"), dict) else {}
+    of, orr = finite(op.get("failure_rate")), finite(op.get("recovery_rate"))
+    gap = max_gap(nec, suf) if nec is not None and suf is not None else None
+    with matplotlib.rc_context(readable_rc()):
+        fig, ax = new_figure()
+        level = nec[0] if nec is not None and max(nec) - min(nec) < 1e-12 else None
+        if nec is not None:
+            ax.fill_between(f, 0, nec, color="#fde2e2", linewidth=0,
+                            label=rf"r ≤ {R_NEC}: mean-unstable (proven)")
+        if suf is not None:
+            ax.fill_between(f, suf, 1, color="#dcfce7", linewidth=0,
+                            label=rf"r ≥ {R_SUF}: mean-stable (certificate)")
+        # Coinciding curves stay distinguishable: r_nec wide and solid with dots at every grid
+        # point, r_suf narrower and dashed with open squares at every other point, the closed
+        # form thin and dotted on top of both.
+        if nec is not None:
+            ax.plot(f, nec, color=COLORS["p_c"], marker="o", markersize=4, linewidth=3.0,
+                    alpha=0.85, label=rf"necessary recovery rate {R_NEC}")
+        if suf is not None:
+            ax.plot(f, suf, color=COLORS["operating"], marker="s", markersize=4.5,
+                    markerfacecolor="none", markevery=(1, 2), linewidth=1.4,
+                    linestyle=(0, (5, 2.5)),
+                    label=rf"sufficient recovery rate {R_SUF}"
+                          + coincidence_note(gap))
+        if level is not None and curve.get("necessary_expression"):
+            ax.axhline(level, color=COLORS["sim"], linestyle=(0, (1, 1.5)), linewidth=0.9,
+                       label=f"r = {curve['necessary_expression']}: {R_NEC} in closed form "
+                             "(every f)")
+        ax.plot([0, 1], [1, 0], color=COLORS["p_low"], linestyle=":", linewidth=1,
+                label="f + r = 1 (i.i.d. losses, p = r)")
+        if of is not None and orr is not None:
+            ax.plot([of], [orr], marker="*", markersize=11, color=COLORS["sim"],
+                    linestyle="none", clip_on=False,
+                    label=f"operating point f = {fmt(of)}, r = {fmt(orr)}")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("failure rate f = P(lost | received before)")
+        ax.set_ylabel("recovery rate r")
+        fig.legend(loc="outside right center", frameon=False)
+        return fig
+
+
+VISIBLE_GAP = 0.01
+"""Gap between r_nec and r_suf (the axis spans 1) below which the two lines overlap in print."""
+
+
+def max_gap(a: list[float], b: list[float]) -> float | None:
+    """Largest |a − b| over the grid points where both are finite (``None``: no such point)."""
+    gaps = [abs(x - y) for x, y in zip(a, b) if x == x and y == y]
+    return max(gaps) if gaps else None
+
+
+def coincidence_note(gap: float | None) -> str:
+    """Legend note for r_suf when it lies on r_nec (gap below :data:`VISIBLE_GAP`)."""
+    if gap is None or gap >= VISIBLE_GAP:
+        return ""
+    if gap <= 1e-12:
+        return f" (coincides with {R_NEC}: the critical curve is exact)"
+    return f" (on {R_NEC}: within {gap:.2g})".replace("-", "−")

@@ -1,0 +1,124 @@
+"""The report's view model: one plain dict holding every value the templates read.
+
+:func:`view_model` assembles the section views (``view_verdict``, ``view_theory``, ``view_link``,
+``view_sim``). Missing sections become ``available: False`` with a "not computed" message, never
+a missing key: the template environment uses ``StrictUndefined``.
+"""
+from __future__ import annotations
+
+import datetime
+from typing import Any
+
+from kfcrit.version import __version__
+from kfcrit.views.report.design import design_view, link_figures
+from kfcrit.views.report.link import channel_view
+from kfcrit.views.report.network import network_view
+from kfcrit.views.report.sim import appendix_view, figures_view, simulation_view
+from kfcrit.views.report.theory import (
+    bounds_view,
+    classification_view,
+    covariance_view,
+    invariant_view,
+    statements_view,
+    structure_view,
+    system_view,
+)
+from kfcrit.views.report.verdict import requirement_view, verdict_view
+from kfcrit.views.report.parts import as_dict, as_list, figure_entry, prose
+
+IID_CAVEAT = ("The channel is bursty (Gilbert–Elliott): p_c, p_up, S̄ and V̄ assume i.i.d. "
+              "losses, so they do not decide stability at the operating point; the burst "
+              "analysis and the critical curve in section 1 do.")
+NETWORK_CAVEAT = ("Sensor network: p_c, p_up, S̄, V̄ and the bounds here treat all sensors as one "
+                  "link that delivers every measurement or none (the stacked system); the "
+                  "per-link critical values, margins and N−1 verdicts are in section 1.")
+IID_FIGURES = ("phase_transition", "traces", "operating")
+
+
+def report_date(record: dict[str, Any], today: datetime.date | None = None) -> str:
+    """The date printed in the footer: the record's ``provenance.created`` (its first ten
+    characters, an ISO date) when the record has one, else the rendering date."""
+    created = as_dict(record.get("provenance")).get("created")
+    if isinstance(created, str) and len(created) >= 10:
+        return created[:10]
+    return (today or datetime.date.today()).isoformat()
+
+
+def meta_view(rec: dict[str, Any], today: datetime.date | None = None) -> dict[str, Any]:
+    """Title, description, draft flag and the footer's system name, date and version."""
+    prov = as_dict(rec.get("provenance"))
+    name = rec.get("name") or "unnamed system"
+    return {"title": f"Design review: {name}", "name": name,
+            "description": rec.get("description") or "",
+            "quick": bool(as_dict(prov.get("options")).get("quick")),
+            "input_path": prov.get("input_path"), "version": __version__,
+            "date": report_date(rec, today),
+            "link_review": as_dict(rec.get("link_budget")).get("applicable") is True}
+
+
+def critical_curve_figure(rec: dict[str, Any], figures: dict[str, str | None],
+                          bursty: bool) -> dict[str, Any] | None:
+    """The critical-curve figure of a Gilbert–Elliott link (``None`` for i.i.d. channels)."""
+    if not bursty and as_dict(rec.get("link_budget")).get("critical_curve") is None:
+        return None
+    return figure_entry(
+        as_dict(figures).get("critical_curve"), "Critical curve of the bursty link",
+        "The (failure rate f, recovery rate r) plane of the Gilbert–Elliott channel (MATH §10): "
+        "at or below the necessary recovery rate r_nec(f) E[P_t] diverges (proven); at or above "
+        "the sufficient one r_suf(f) the coupled fixed-gain certificate proves it bounded "
+        "(found numerically, drawn at the record's grid of f only); between, undetermined. "
+        "The dotted diagonal f + r = 1 is the i.i.d. channel.",
+        "critical curve: not computed (the record has no critical curve: an analysis without "
+        "details, a stable plant, or more than 12 states)")
+
+
+def view_model(record: dict[str, Any], figures: dict[str, str | None],
+               today: datetime.date | None = None) -> dict[str, Any]:
+    """Every value the templates read, from the record and the figures (no computation left).
+
+    Parameters
+    ----------
+    record : dict
+        ``Analysis.to_dict()`` (any section may be ``None`` or absent).
+    figures : dict
+        Figure markup from :func:`kfcrit.views.figures.record.build_figures` (``None`` where missing).
+    today : datetime.date, optional
+        The rendering date for the footer when the record carries none (default: today).
+    """
+    rec = as_dict(record)
+    bursty = as_dict(rec.get("operating_point")).get("iid") is False
+    caveat = IID_CAVEAT if bursty else NETWORK_CAVEAT if \
+        len(as_list(as_dict(rec.get("network")).get("sensors"))) > 1 else ""
+    figs = figures_view(figures, rec)
+    if caveat:
+        # the caveat in full once (section 4); figures and tables point to it
+        short = ("i.i.d. losses assumed (see the caveat in section 4)." if bursty else
+                 "all sensors treated as one link (see the note in section 4).")
+        for key in IID_FIGURES:
+            figs[key]["caption"] = f"Caveat: {short} {figs[key]['caption']}"
+    channel = channel_view(rec)
+    channel["critical_curve"] = critical_curve_figure(rec, figures, bursty)
+    channel["link_figures"] = link_figures(rec, figures)
+    return {
+        "meta": meta_view(rec, today),
+        "verdict": verdict_view(rec),
+        "warnings": list(dict.fromkeys(prose(w) for w in as_list(rec.get("warnings")))),
+        "system": system_view(rec),
+        "structure": structure_view(rec),
+        "classification": classification_view(rec),
+        "bounds": bounds_view(rec),
+        "covariance": covariance_view(rec),
+        "figures": figs,
+        "iid_caveat": caveat,
+        "iid_caveat_short": ("These bounds assume i.i.d. losses: see the caveat in section 4."
+                             if bursty else "These bounds treat all sensors as one link: see "
+                             "section 4." if caveat else ""),
+        "simulation": simulation_view(rec),
+        "requirement": requirement_view(rec),
+        "statements": statements_view(rec),
+        "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
+        "channel": channel,
+        "network": network_view(rec, figures),
+        "design": design_view(rec, figures),
+        "appendix": appendix_view(rec),
+    }

@@ -1,0 +1,1 @@
+"""Plain-text views: the terminal summary and the file-key reference."""

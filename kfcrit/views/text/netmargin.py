@@ -1,0 +1,84 @@
+"""Text of a sensor network's margins and bracketed values (MATH §9), shared by the terminal
+view and the report so that both render the record's numbers the same way.
+
+Pure functions of record entries; no plotting imports (the terminal view uses them).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from kfcrit.views import formatting as filters
+
+NETWORK_P_MEANING = ("1 − Π(1 − p_i), the probability that at least one sensor's packet "
+                     "arrives (S̄ takes the filter as only predicting when every packet is lost)")
+"""The ``p`` of a network's covariance bounds (``covariance_bounds.reason``: S̄ solves
+S = Π(1 − p_i) A S A' + Q)."""
+
+SAME = 1e-12
+"""Ends of an interval closer than this are shown as one number."""
+
+
+def _finite(v: Any) -> float | None:
+    """A finite real number, else ``None`` (booleans are not numbers here)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    return float(v) if math.isfinite(v) else None
+
+
+def sensor_margin_bounds(sensor: dict[str, Any]) -> tuple[float | None, float | None]:
+    r"""(conservative, optimistic) ends of a sensor's margin
+
+    .. math:: p_i - p_{c,i} \in [p_i - p_{c,i}^{\mathrm{suf}},\; p_i - p_{c,i}^{\mathrm{nec}}]
+
+    ``margin.value`` (both ends) when the critical value is known, else ``margin.interval``.
+    """
+    m = sensor.get("margin") if isinstance(sensor, dict) else None
+    if not isinstance(m, dict):
+        return None, None
+    value = _finite(m.get("value"))
+    if value is not None:
+        return value, value
+    iv = m.get("interval")
+    if isinstance(iv, (list, tuple)) and len(iv) == 2:
+        return _finite(iv[0]), _finite(iv[1])
+    return None, None
+
+
+def margin_text(sensor: dict[str, Any]) -> str:
+    """The margin p_i − p_c,i with its sign: one number, or ``[+a, +b]`` when p_c,i is only
+    bracketed (— when the record has neither)."""
+    low, high = sensor_margin_bounds(sensor)
+    if low is None:
+        return "—"
+    if high is None or abs(high - low) < SAME:
+        return filters.signed(low, 4)
+    return f"[{filters.signed(low, 4)}, {filters.signed(high, 4)}]"
+
+
+def _real(v: Any) -> float | None:
+    """A real number, infinite ones included (shown as ∞), else ``None``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    return v
+
+
+def value_text(value: Any, interval: Any, digits: int = 6) -> str:
+    """A number, or an interval [a, b] when only bounds are known (— when neither)."""
+    v = _real(value)
+    if v is not None:
+        return filters.num(v, digits)
+    iv = interval if isinstance(interval, (list, tuple)) else []
+    if len(iv) == 2 and _real(iv[0]) is not None and _real(iv[1]) is not None:
+        if abs(iv[1] - iv[0]) < SAME:
+            return filters.num(iv[0], digits)
+        return filters.interval(list(iv), digits)
+    return "—"
+
+
+def bottleneck_margin_text(bottleneck: dict[str, Any]) -> str:
+    """The bottleneck's margin (``network.bottleneck.margin`` or ``margin_interval``), signed
+    like the sensor rows (:func:`margin_text`)."""
+    bn = bottleneck if isinstance(bottleneck, dict) else {}
+    return margin_text({"margin": {"value": bn.get("margin"),
+                                   "interval": bn.get("margin_interval")}})
