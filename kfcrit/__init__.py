@@ -18,11 +18,11 @@ _LAZY = {"Analysis": "api", "AnalysisOptions": "analysis.record",
          "analyze": "api", "sweep": "api", "SweepTable": "api", "System": "model.system",
          "SystemSpec": "io.systemfile",
          "load_spec": "analysis.spec", "load_system": "analysis.spec",
-         "critical_value": "theory.critical", "upper_bound": "theory.upper",
-         "simulate": "sim.montecarlo", "covariance_bounds": "theory.bounds",
+         "critical_value": "theory.critical.section", "upper_bound": "theory.upper.bracket",
+         "simulate": "sim.montecarlo", "covariance_bounds": "theory.covariance.bounds",
          "from_continuous_statespace": "model.continuous", "sample": "model.continuous",
          "from_statespace": "model.continuous",
-         "network_analysis": "theory.network"}
+         "network_analysis": "theory.links.network"}
 
 
 def __getattr__(name: str) -> Any:

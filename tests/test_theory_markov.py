@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
+from kfcrit.analysis.verdict import verdict_of
 from kfcrit.theory.links import markov
 
 
@@ -35,8 +36,8 @@ BURSTY = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]], 20 * np.eye(2), [[2.5]])
 @pytest.mark.parametrize(("r", "stable"), [(0.8, True), (Fraction(3, 4), False), (0.7, False)])
 def test_scalar_burst_condition_is_exact(r, stable):
     # a = 2: (1 − r)·4 = 0.8, 1, 1.2; C = 1 invertible, so stable exactly when < 1
-    v = markov.burst_verdict(make([[2.0]], [[1.0]]), 0.3, r)
-    assert v.verdict == ("mean-stable" if stable else "mean-unstable")
+    v = markov.burst_facts(make([[2.0]], [[1.0]]), 0.3, r)
+    assert verdict_of(v.facts)[0].value == ("mean-stable" if stable else "mean-unstable")
     if stable:
         assert v.certificate.certified and v.certificate.check["ok"]
     else:
@@ -59,8 +60,8 @@ def test_scalar_boundary_with_a_non_dyadic_modulus():
                                            (0.7, False)])
 def test_diagonal_fully_observed(r, stable):
     # A = diag(2, 3/2), C = I: ρ² = 4, stable iff (1 − r)·4 < 1 iff r > 3/4 (C invertible)
-    v = markov.burst_verdict(make(np.diag([2.0, 1.5]), np.eye(2)), 0.2, r)
-    assert v.verdict == ("mean-stable" if stable else "mean-unstable")
+    v = markov.burst_facts(make(np.diag([2.0, 1.5]), np.eye(2)), 0.2, r)
+    assert verdict_of(v.facts)[0].value == ("mean-stable" if stable else "mean-unstable")
 
 
 def test_diagonal_fully_observed_curve_closes():
@@ -76,15 +77,15 @@ def test_diagonal_fully_observed_curve_closes():
 
 def test_bursty_vector_link_unstable_by_bursts():
     # (1 − 0.2)·1.25² = 1.25 > 1, although r/(f + r) = 2/3 > p_up ≈ 0.471 (i.i.d. would be fine)
-    v = markov.burst_verdict(BURSTY, 0.1, 0.2)
-    assert v.verdict == "mean-unstable" and v.certificate is None
+    v = markov.burst_facts(BURSTY, 0.1, 0.2)
+    assert verdict_of(v.facts)[0].value == "mean-unstable" and v.certificate is None
     assert v.necessary.value == pytest.approx(1.25, abs=1e-12)
     assert v.stationary_arrival == pytest.approx(2 / 3)
 
 
 def test_bursty_vector_link_proven_stable():
-    v = markov.burst_verdict(BURSTY, 0.1, 0.5)
-    assert v.verdict == "mean-stable"
+    v = markov.burst_facts(BURSTY, 0.1, 0.5)
+    assert verdict_of(v.facts)[0].value == "mean-stable"
     cert = v.certificate
     assert cert.certified and cert.check["ok"] and cert.spectral_radius < 1
     # the proof is re-checkable from the record: the same matrices pass the ball check again
@@ -100,7 +101,7 @@ def test_bursty_vector_link_proven_stable():
 
 
 def test_literature_claim_is_labelled_not_the_verdict():
-    v = markov.burst_verdict(BURSTY, 0.1, 0.4, classification="non-degenerate")
+    v = markov.burst_facts(BURSTY, 0.1, 0.4, classification="non-degenerate")
     assert v.claim is not None and "claim" in v.claim["label"]
     assert "You, Fu & Xie" in v.claim["source"]
 
@@ -131,8 +132,8 @@ def test_stable_case_by_simulation_of_the_markov_jump_second_moment():
     # covariance Π_{t+1} = F_γ Π F_γ' + Q + γ K R K' averages to the recursion's steady value,
     # and the Kalman filter's P_t (Riccati with losses) stays below it on every path
     f, r = 0.1, 0.9
-    v = markov.burst_verdict(BURSTY, f, r)
-    assert v.verdict == "mean-stable"
+    v = markov.burst_facts(BURSTY, f, r)
+    assert verdict_of(v.facts)[0].value == "mean-stable"
     K = np.array(v.certificate.matrices["K"])
     A, C, Q, R = BURSTY.a, BURSTY.c, BURSTY.q, BURSTY.r
     expected = _fixed_gain_steady_trace(A, C, Q, R, K, f, r)
@@ -164,7 +165,7 @@ def test_bad_rates_are_refused():
     with pytest.raises(ValueError, match="recovery_rate"):
         markov.burst_necessary(BURSTY, 1.5)
     with pytest.raises(TypeError, match="failure_rate"):
-        markov.burst_verdict(BURSTY, "0.1", 0.5)
+        markov.burst_facts(BURSTY, "0.1", 0.5)
 
 
 def test_compiled_lmi_reused_across_rates_equals_a_fresh_one() -> None:

@@ -9,14 +9,19 @@ from kfcrit.analysis.links import bursty_channel, design_check
 from kfcrit.io.systemfile import SystemSpec
 
 
-def network_sections(spec: SystemSpec, opts: Any, warnings: list[str]
+def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
+                     single: tuple[vd.Verdict, str] | None = None
                      ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The ``network`` section (MATH §9: per-sensor critical values, uniform margin, N − 1
     verdicts, bottleneck) and the operating point of a ``sensors:`` file.
 
     The top-level critical value and p_up of such a record are those of the stacked system —
     every sensor's packet arriving together, as over one joint link; the network's own values
-    are in ``network``.
+    are in ``network``. ``single`` is the operating-point verdict of a one-sensor network,
+    decided by the single-link theory: the network section states that same verdict.
+
+    Every verdict of the section (the network's, each N − 1 case's) is read from the theory's
+    facts by :mod:`kfcrit.analysis.verdict`; with bursty links the burst condition joins in.
     """
     from kfcrit.theory.links.network import network_analysis
 
@@ -30,10 +35,19 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str]
     verdict, basis = vd.network_verdict(net)
     network_link_designs(spec.network, net, warnings)
     burst = network_burst_condition(spec.network)
+    iid = all(s.channel is None or s.channel.iid for s in spec.network.sensors)
     if burst is not None:
         net["burst_condition"] = burst
         verdict, basis = vd.network_burst_verdict(verdict, basis, burst["holds"],
                                                   burst["statement"])
+    if single is not None:
+        verdict, basis = single
+    net["verdict"], net["basis"] = verdict.value, basis
+    holds = burst["holds"] if burst is not None else None
+    for row in list(net.get("sensors") or []) + list(net.get("n_minus_1") or []):
+        dead = row["n_minus_1"] if "n_minus_1" in row else row
+        dead["verdict"] = vd.dead_link_verdict(dead.get("facts") or {}, iid=iid,
+                                               burst_holds=holds).value
     sensors = net.get("sensors") or []
     bottleneck = (net.get("bottleneck") or {}).get("name")
     row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
@@ -43,7 +57,7 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str]
     op = {"arrival_probability": row.get("arrival_probability"),
           "channel": {"model": "network", "sensors": [
               {"name": s.name, "channel": c} for s, c in zip(spec.network.sensors, channels)]},
-          "iid": all(s.channel is None or s.channel.iid for s in spec.network.sensors),
+          "iid": iid,
           "margin": margin.get("value"), "margin_robust": None,
           "bracket": margin.get("interval"),
           "arrival_probabilities": {s.get("name"): s.get("arrival_probability")

@@ -160,7 +160,8 @@ def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInput
         basis = (f"Gilbert–Elliott condition {cond.get('expression')} = {cond.get('value'):.6g} "
                  f"< 1 ({cond.get('status')})")
     cert = (link or {}).get("certificate")
-    if sufficient is None and isinstance(cert, dict) and cert.get("verdict") == "mean-stable":
+    if sufficient is None and isinstance(cert, dict) and (cert.get("facts") or {}).get(
+            "sufficient") is True:
         sufficient, basis = True, cert.get("basis") or "coupled fixed-gain certificate"
     elif sufficient is None and isinstance(cert, dict) and cert.get("basis"):
         basis = cert["basis"]
@@ -314,12 +315,15 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         # before the link: the link design reads the accuracy requirement's [p_S, p_V]
         _design_sections(spec, theory, sec, warnings)
     _link_sections(spec, opts, sec, warnings, theory)
-    if spec.network is not None:
-        sec["network"], op = network_sections(spec, opts, warnings)
-        if spec.network.size > 1:
-            sec["operating_point"] = op
+    if spec.network is not None and spec.network.size > 1:
+        sec["network"], sec["operating_point"] = network_sections(spec, opts, warnings)
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
+    vd.stamp_operating_verdict(sec)
+    if spec.network is not None and spec.network.size == 1:
+        op1 = sec["operating_point"]
+        sec["network"], _ = network_sections(
+            spec, opts, warnings, single=(vd.Verdict(op1["verdict"]), op1.get("basis") or ""))
     reqs = spec.requirements
     _tail_section(spec, theory, sec)
     if spec.network is not None and spec.network.size > 1:
@@ -492,7 +496,7 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
                         ge: Any) -> dict[str, Any]:
     """The Gilbert–Elliott section of a bursty chain: the conditions of MATH §7 (scalar) and
     §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
-    :func:`kfcrit.theory.links.markov.burst_verdict`) and, with ``details``, the critical curve in the
+    :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
     (failure rate, recovery rate) plane."""
     from kfcrit.analysis.bursty import gilbert_elliott_section
     from kfcrit.theory.links import markov
@@ -503,9 +507,9 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
                                   classification=cls)
     if cls == "not-detectable":
         return out
-    bv = markov.burst_verdict(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
-                              classification=cls)
-    out["certificate"] = bv.to_dict()
+    bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
+                            classification=cls)
+    out["certificate"] = vd.with_verdict(bv.to_dict())
     if opts.details and s.n <= 12 and cls != "stable":
         points = 5 if opts.quick else 9
         grid = sorted({round(k / points, 12) for k in range(1, points + 1)}

@@ -23,9 +23,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import sympy as sp
-
 from kfcrit.errors import ExitCode
+from kfcrit.theory.critical.compare import compare_probability
+from kfcrit.theory.facts import StabilityFacts
 
 
 class Verdict(str, enum.Enum):
@@ -82,38 +82,37 @@ LINK_OUTAGE_CHECK = "link policy: outage"
 # ----------------------------------------------------------------------------- comparisons
 
 def exceeds(p: Any, value: Any) -> bool | None:
-    """Whether the arrival probability ``p`` is strictly above ``value`` (exactly if both are
-    exact numbers).
+    r"""Whether the arrival probability ``p`` is strictly above ``value``, decided exactly.
 
-    Exact inputs (sympy numbers without floats) are compared exactly — ``9/25 + 10**-40`` is
-    above ``9/25`` although both round to the same double: rationals by rational arithmetic,
-    algebraic and transcendental numbers by 60 certain digits; a difference that shows no digit
-    there counts as zero (so ``p`` does not exceed ``value``: the conservative side). A float on
-    either side is compared as a float. ``None`` when either is unknown.
+    Parameters
+    ----------
+    p, value : sympy number, int, Fraction, float, str or None
+        A float is the binary rational it holds; exact numbers are compared exactly
+        (:func:`kfcrit.theory.critical.compare.compare_probability`, the package's one exact
+        comparison): ``9/25 + 10**-40`` is above ``9/25`` although both round to one double.
+
+    Returns
+    -------
+    bool or None
+        ``None`` when either side is unknown; ``False`` when the sign cannot be decided (the
+        conservative side: p does not exceed).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> exceeds(sp.Rational(9, 25) + sp.Rational(1, 10**40), sp.Rational(9, 25))
+    True
+    >>> exceeds(0.36, sp.Rational(9, 25))
+    False
+
+    .. math:: \operatorname{exceeds}(p, v) = [\,p - v > 0\,]
     """
     if value is None or p is None:
         return None
-    if _is_exact(p) and _is_exact(value):
-        diff = p - value
-        if diff.is_Rational:
-            return bool(diff > 0)
-        return _certain_sign(diff) > 0
-    return float(p) > float(value)
-
-
-def _is_exact(x: Any) -> bool:
-    return isinstance(x, sp.Basic) and x.is_number and not x.has(sp.Float)
-
-
-def _certain_sign(x: sp.Expr) -> int:
-    """Sign of an exact real number from 60 certain digits (0 when none shows)."""
     try:
-        v = sp.N(x, 60, strict=True)
-    except (TypeError, ValueError, ArithmeticError, sp.PrecisionExhausted):
-        return 0
-    if not v.is_real or v == 0:
-        return 0
-    return 1 if v > 0 else -1
+        return compare_probability(p, value) > 0
+    except ArithmeticError:
+        return False
 
 
 # ----------------------------------------------------------------------------- verdict
@@ -237,14 +236,89 @@ def _burst_verdict(crit: CriticalInputs, burst: BurstInputs) -> tuple[Verdict, s
             + (f" ({burst.basis})" if burst.basis else ""))
 
 
+def verdict_of(facts: StabilityFacts) -> tuple[Verdict, str]:
+    r"""The verdict that a set of stability facts supports (docs/theory.md §16).
+
+    .. math::
+
+        \text{mean-unstable} \iff \neg N, \qquad
+        \text{mean-stable} \iff S \lor (E \land N), \qquad
+        \text{else undetermined},
+
+    with N the necessary condition (``False`` only when it fails, decided), S a proven
+    sufficient condition and E the proof that the two surfaces meet.
+
+    Examples
+    --------
+    >>> verdict_of(StabilityFacts(necessary=True, sufficient=False))[0].value
+    'undetermined'
+    >>> verdict_of(StabilityFacts(necessary=True, sufficient=False, exact_region=True))[0].value
+    'mean-stable'
+    """
+    if facts.necessary is False:
+        return Verdict.MEAN_UNSTABLE, facts.necessary_basis or "a necessary condition fails"
+    if facts.sufficient:
+        return Verdict.MEAN_STABLE, facts.sufficient_basis or "a sufficient condition holds"
+    if facts.exact_region and facts.necessary is True:
+        return Verdict.MEAN_STABLE, (facts.sufficient_basis or facts.necessary_basis
+                                     or "exact region: the necessary condition holds")
+    if facts.necessary is None:
+        return Verdict.UNDETERMINED, "the necessary condition is at equality"
+    return Verdict.UNDETERMINED, "the necessary condition holds, no sufficient one is proven"
+
+
+def with_verdict(section: dict[str, Any]) -> dict[str, Any]:
+    """A theory section with ``facts`` (and a literature ``claim``) given its ``verdict`` key:
+    the verdict its facts support, and the claim's ``verdict_if_true``."""
+    out = dict(section)
+    out["verdict"] = verdict_of(facts_from_dict(out.get("facts") or {}))[0].value
+    claim = out.get("claim")
+    if isinstance(claim, dict) and "stable_if_true" in claim:
+        out["claim"] = {**claim, "verdict_if_true": (Verdict.MEAN_STABLE if claim["stable_if_true"]
+                                                     else Verdict.MEAN_UNSTABLE).value}
+    return out
+
+
+def stamp_operating_verdict(sections: dict[str, Any]) -> None:
+    """Give every section that states the stability of the operating point (a bursty link's
+    certificate, with or without a link budget) the operating point's one verdict, keeping
+    the section's own ``facts`` beside it."""
+    op = sections.get("operating_point") or {}
+    verdict = op.get("verdict")
+    link = sections.get("link_budget")
+    if verdict is None or not isinstance(link, dict):
+        return
+    for holder in (link, link.get("bursty")):
+        if isinstance(holder, dict) and isinstance(holder.get("certificate"), dict):
+            holder["certificate"] = {**holder["certificate"], "verdict": verdict}
+
+
 def network_verdict(result: Mapping[str, Any]) -> tuple[Verdict, str]:
-    """Mean stability of a sensor network at its operating point (MATH §9), from the network
-    analysis: mean-unstable when a necessary surface is crossed (some sensor subset's modes
-    grow faster than their losses allow), mean-stable when the sufficient surface is
-    certified, undetermined between them."""
-    verdict = Verdict(result.get("verdict") or Verdict.UNDETERMINED.value)
-    basis = result.get("basis") or result.get("reason") or ""
-    return verdict, str(basis)
+    """Mean stability of a sensor network at its operating point (theory §9), read from the
+    network analysis's facts by :func:`verdict_of`."""
+    return verdict_of(facts_from_dict(result.get("facts") or {}))
+
+
+def facts_from_dict(data: Mapping[str, Any]) -> StabilityFacts:
+    """:class:`StabilityFacts` from its JSON form."""
+    return StabilityFacts(necessary=data.get("necessary"),
+                          sufficient=bool(data.get("sufficient")),
+                          exact_region=bool(data.get("exact_region")),
+                          necessary_basis=str(data.get("necessary_basis") or ""),
+                          sufficient_basis=str(data.get("sufficient_basis") or ""))
+
+
+def dead_link_verdict(facts: Mapping[str, Any], *, iid: bool, burst_holds: bool | None
+                      ) -> Verdict:
+    """The N − 1 verdict of one dead link: the facts with that link dead; with bursty links
+    the sufficient surface (independent Bernoulli links) proves nothing, and a failing burst
+    condition makes every case mean-unstable."""
+    f = facts_from_dict(facts)
+    if burst_holds is False:
+        return Verdict.MEAN_UNSTABLE
+    if not iid:
+        f = StabilityFacts(f.necessary, False, False, f.necessary_basis, "")
+    return verdict_of(f)[0]
 
 
 def network_burst_verdict(verdict: Verdict, basis: str, holds: bool | None,
@@ -254,7 +328,7 @@ def network_burst_verdict(verdict: Verdict, basis: str, holds: bool | None,
     if holds is False:
         return Verdict.MEAN_UNSTABLE, statement
     if verdict is Verdict.MEAN_STABLE:
-        return (Verdict.UNDETERMINED, f"{statement}; the sufficient surface (MATH §9) assumes "
+        return (Verdict.UNDETERMINED, f"{statement}; the sufficient surface (theory §9) assumes "
                 "independent Bernoulli links, so with bursty links it proves nothing")
     return verdict, f"{basis}; {statement}"
 

@@ -1,5 +1,5 @@
 """Bursty (Gilbert–Elliott) links for any system: a necessary condition, a checked sufficient
-certificate, a verdict, and the critical curve in the (failure rate, recovery rate) plane.
+certificate (facts, not verdicts), and the critical curve in the (failure rate, recovery rate) plane.
 
 The channel is a two-state Markov chain γ_t ∈ {0 (lost), 1 (received)} with failure rate
 f = P(γ_{t+1} = 0 | γ_t = 1) and recovery rate r = P(γ_{t+1} = 1 | γ_t = 0); its transition
@@ -53,6 +53,7 @@ from kfcrit.model.system import System
 from kfcrit.theory.upper import certify
 from kfcrit.theory.critical.plow import rational_rho2
 from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
+from kfcrit.theory.facts import StabilityFacts
 
 LMI_MAX_STATES = 30
 """Largest n for the coupled Lyapunov LMI (cvxpy + Clarabel); above it only candidate gains."""
@@ -457,15 +458,17 @@ def burst_certificate(system: System, failure_rate: Any, recovery_rate: Any,
 
 
 # ---------------------------------------------------------------------------------------------
-# verdict and critical curve
+# facts and critical curve
 # ---------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
-class BurstVerdict:
-    """Stability of E[P_t] over a Gilbert–Elliott link, with its basis."""
+class BurstFacts:
+    """What is proven about E[P_t] over a Gilbert–Elliott link (f, r): the necessary burst
+    condition, the coupled fixed-gain certificate, and the literature's claim (never a fact).
+    The verdict is read from ``facts`` by :mod:`kfcrit.analysis.verdict`."""
 
-    verdict: str
+    facts: StabilityFacts
     basis: str
     failure_rate: float
     recovery_rate: float
@@ -475,7 +478,8 @@ class BurstVerdict:
     claim: dict[str, Any] | None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"verdict": self.verdict, "basis": self.basis, "failure_rate": self.failure_rate,
+        return {"facts": self.facts.to_dict(), "basis": self.basis,
+                "failure_rate": self.failure_rate,
                 "recovery_rate": self.recovery_rate,
                 "stationary_arrival": self.stationary_arrival,
                 "necessary": self.necessary.to_dict(),
@@ -483,45 +487,45 @@ class BurstVerdict:
                 "claim": self.claim}
 
 
-VERDICTS = ("mean-stable", "mean-unstable", "undetermined")
+def burst_facts(system: System, failure_rate: Any, recovery_rate: Any,
+                structure: Any | None = None, classification: str | None = None,
+                use_lmi: bool = True) -> BurstFacts:
+    """What is proven about E[P_t] over the link (f, r), from proofs only (theory §10).
 
-
-def burst_verdict(system: System, failure_rate: Any, recovery_rate: Any,
-                  structure: Any | None = None, classification: str | None = None,
-                  use_lmi: bool = True) -> BurstVerdict:
-    """Decide E[P_t] bounded / unbounded over the link (f, r), from proofs only.
-
-    * mean-unstable — the necessary condition fails, (1 − r)ρ(A)² ≥ 1;
-    * mean-stable — the coupled fixed-gain certificate is proven in balls;
-    * undetermined — neither decides (the two conditions bracket the critical curve).
-
-    ``classification`` (from :mod:`kfcrit.theory.critical.section`) adds, for "non-degenerate"
-    systems, the literature's exact condition as a labelled ``claim`` (never the verdict).
+    * the necessary condition (1 − r)ρ(A)² < 1 holds or fails (decided exactly where r and
+      ρ(A) are exact);
+    * the sufficient condition: the coupled fixed-gain certificate, proven in balls;
+    * for "non-degenerate" systems (``classification`` from
+      :mod:`kfcrit.theory.critical.section`), the literature's exact condition as a labelled
+      ``claim`` (never a fact).
     """
     fe, re_ = exact_rate(failure_rate, "failure_rate"), exact_rate(recovery_rate, "recovery_rate")
     f, r = float(fe), float(re_)
     stationary = float(re_ / (fe + re_)) if (fe + re_) != 0 else 0.0
     nec = burst_necessary(system, re_, structure)
-    cert = None
     claim = None
     if classification == "non-degenerate" and nec.holds is not None:
         claim = {"label": "claim (literature, not proven here)", "source": LITERATURE,
                  "statement": "for non-degenerate systems with one sensor, (1 - r) rho(A)^2 < 1 "
                               "is necessary and sufficient for bounded E[P_t]",
-                 "verdict_if_true": "mean-stable" if nec.holds else "mean-unstable"}
+                 "stable_if_true": bool(nec.holds)}
+    nec_basis = "necessary burst condition: " + nec.statement
     if nec.holds is False:
-        return BurstVerdict("mean-unstable", "necessary burst condition fails: " + nec.statement,
-                            f, r, stationary, nec, None, claim)
+        facts = StabilityFacts(False, False, False, "necessary burst condition fails: "
+                               + nec.statement, "")
+        return BurstFacts(facts, facts.necessary_basis, f, r, stationary, nec, None, claim)
     cert = burst_certificate(system, fe, re_, use_lmi=use_lmi)
     if cert.certified:
         basis = ("coupled fixed-gain certificate proven in ball arithmetic (gain: "
                  f"{cert.gain_origin}; spectral radius of the second-moment recursion "
                  f"{cert.spectral_radius:.6g} < 1): the Kalman filter is no worse than this "
-                 "fixed gain, so E[P_t] is bounded (MATH.md §10)")
-        return BurstVerdict("mean-stable", basis, f, r, stationary, nec, cert, claim)
+                 "fixed gain, so E[P_t] is bounded (theory §10)")
+        return BurstFacts(StabilityFacts(nec.holds, True, False, nec_basis, basis), basis,
+                          f, r, stationary, nec, cert, claim)
     basis = ("neither condition decides: " + nec.statement + "; sufficient certificate not "
              "proven (" + cert.reason + ")")
-    return BurstVerdict("undetermined", basis, f, r, stationary, nec, cert, claim)
+    return BurstFacts(StabilityFacts(nec.holds, False, False, nec_basis, ""), basis,
+                      f, r, stationary, nec, cert, claim)
 
 
 @dataclass(frozen=True)
@@ -529,7 +533,7 @@ class CriticalCurve:
     """Both bounding curves of the critical curve in the (failure rate, recovery rate) plane:
     below ``necessary_recovery`` mean-unstable (proven), above ``sufficient_recovery``
     mean-stable (numerical bisection of the certificate's feasibility; the operating point is
-    decided by :func:`burst_verdict`)."""
+    decided from :func:`burst_facts`)."""
 
     failure_rates: tuple[float, ...]
     necessary_recovery: tuple[float, ...]

@@ -48,7 +48,9 @@ from kfcrit.errors import InputError, KfcritError
 from kfcrit.model.exprparse import compare, exact_text
 from kfcrit.model.network import Network
 from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
+from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.upper.bracket import upper_bound
 
 RANK_TOL = 1e-9
@@ -57,7 +59,6 @@ FLAT_BUDGET = 20000
 """Most sensor combinations tried per eigenvalue when enumerating hyperplanes (g ≥ 2)."""
 CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the Newton root + step·tol for these steps."""
-VERDICTS = ("mean-stable", "mean-unstable", "undetermined")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -441,28 +442,30 @@ class SensorResult:
     critical: dict[str, Any]
     surfaces: dict[str, Any]
     margin: dict[str, Any]
-    n_minus_1: dict[str, Any]
+    n_minus_1: StabilityFacts
+    n_minus_1_reason: str
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "arrival_probability": self.arrival_probability,
                 "arrival_probability_expression": self.arrival_expression,
                 "critical_value": dict(self.critical), "surfaces": dict(self.surfaces),
-                "margin": dict(self.margin), "n_minus_1": dict(self.n_minus_1)}
+                "margin": dict(self.margin), "n_minus_1": {"facts": self.n_minus_1.to_dict(),
+                                                         "reason": self.n_minus_1_reason}}
 
 
 @dataclass(frozen=True)
 class NetworkResult:
     """The stability analysis of a sensor network at arrival probabilities p (a plain record).
 
-    ``to_dict()`` keys: verdict, reason, basis, sensors [SensorResult], uniform_margin
-    {value, interval, unbounded, basis}, n_minus_1 [{name, verdict, reason}], bottleneck
-    {name, margin, rule}, necessary_constraints [...], exact_region {holds, reason, basis},
-    certificate, method, claims [str], warnings [str], seconds.
+    ``to_dict()`` keys: facts {necessary, sufficient, exact_region, ...}, reason, sensors
+    [SensorResult], uniform_margin {value, interval, unbounded, basis}, n_minus_1 [{name,
+    facts, reason}], bottleneck {name, margin, rule}, necessary_constraints [...], exact_region
+    {holds, reason, basis}, certificate, method, claims [str], warnings [str], seconds. The
+    verdicts that read these facts are added by :mod:`kfcrit.analysis.verdict`.
     """
 
-    verdict: str
+    facts: StabilityFacts
     reason: str
-    basis: str
     sensors: tuple[SensorResult, ...]
     uniform_margin: dict[str, Any]
     bottleneck: dict[str, Any]
@@ -482,10 +485,11 @@ class NetworkResult:
         raise KeyError(name)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"verdict": self.verdict, "reason": self.reason, "basis": self.basis,
+        return {"facts": self.facts.to_dict(), "reason": self.reason,
                 "sensors": [s.to_dict() for s in self.sensors],
                 "uniform_margin": dict(self.uniform_margin),
-                "n_minus_1": [{"name": s.name, **s.n_minus_1} for s in self.sensors],
+                "n_minus_1": [{"name": s.name, "facts": s.n_minus_1.to_dict(),
+                               "reason": s.n_minus_1_reason} for s in self.sensors],
                 "bottleneck": dict(self.bottleneck),
                 "necessary_constraints": [dict(c) for c in self.constraints],
                 "exact_region": dict(self.exact_region), "certificate": self.certificate,
@@ -533,14 +537,6 @@ def _probabilities(network: Network, p: Sequence[Any] | None
 
 def _expr_text(e: sp.Expr | None) -> str | None:
     return exact_text(e) if e is not None else None
-
-
-def _verdict_from(nec: bool | None, stable_proven: bool) -> str:
-    if nec is False:
-        return "mean-unstable"
-    if stable_proven:
-        return "mean-stable"
-    return "undetermined"
 
 
 def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
@@ -607,48 +603,48 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         bu = _boundary(ctx, upath, -1.0, 1.0, s_nec_u)
     margin = _uniform_margin(bu, pf, exact_region)
 
-    # ---- verdict at p
+    # ---- facts at p (the verdict is read from them in kfcrit.analysis.verdict)
     nec = necessary_holds(cons, pf, pe)
     cert = bu.check
-    if exact_region and nec is True:
-        verdict, reason = "mean-stable", ("every necessary constraint holds and the region is "
-                                          "exactly the necessary region (modal one-step "
-                                          "observability)")
-        basis = "necessary surface (closed form) + exact-region proof (claim)"
+    sufficient, suff_basis = False, "no sufficient certificate at p"
+    if nec is False:
+        bad = next(c for c in cons if _sign_minus_one(c.factor(pf), c.factor_expr(pe)) != -1)
+        dead = [network.names[i] for i in range(N) if i not in bad.blind]
+        reason = (f"necessary constraint fails: eigenvalue {bad.eigenvalue} (|λ|² = "
+                  f"{bad.mod2:.6g}) is unobservable without sensors {{{', '.join(dead)}}}, and "
+                  f"Π(1 − p_i)·|λ|² = {bad.factor(pf):.6g} ≥ 1")
+    elif exact_region and nec is True:
+        reason = ("every necessary constraint holds and the region is exactly the necessary "
+                  "region (modal one-step observability)")
         if N <= nk.EXACT_MAX_SENSORS:
             chk, _ = ctx.try_at(pf)
             cert = chk.to_dict() if chk is not None else None
             if chk is None:
                 warnings.append("no numerical certificate found at the operating point "
                                 "(the verdict rests on the exact-region proof)")
-    elif nec is False:
-        bad = next(c for c in cons if _sign_minus_one(c.factor(pf), c.factor_expr(pe)) != -1)
-        dead = [network.names[i] for i in range(N) if i not in bad.blind]
-        verdict = "mean-unstable"
-        reason = (f"necessary constraint fails: eigenvalue {bad.eigenvalue} (|λ|² = "
-                  f"{bad.mod2:.6g}) is unobservable without sensors {{{', '.join(dead)}}}, and "
-                  f"Π(1 − p_i)·|λ|² = {bad.factor(pf):.6g} ≥ 1")
-        basis = "necessary surface (MATH §9)"
     elif bu.s_cert is not None and bu.s_cert <= 0.0:
-        verdict = "mean-stable"
+        sufficient = True
+        suff_basis = "sufficient surface (checked certificate)"
         reason = (f"certificate at clip(p − {-bu.s_cert:.3g}·1) ≤ p; the region is an up-set "
-                  "(MATH §9)")
-        basis = "sufficient surface (checked certificate)"
+                  "(theory §9)")
     else:
-        chk, _ = ctx.try_at(pf) if nec is not False else (None, None)
+        chk, _ = ctx.try_at(pf)
         if chk is not None:
-            verdict, reason, cert = "mean-stable", "certificate at p", chk.to_dict()
-            basis = "sufficient surface (checked certificate)"
+            sufficient, cert = True, chk.to_dict()
+            suff_basis, reason = "sufficient surface (checked certificate)", "certificate at p"
+        elif nec is None:
+            reason = "the necessary constraint is at equality to 1e-12"
         else:
-            verdict = "undetermined"
             reason = "between the necessary and the sufficient surface"
-            basis = "necessary holds, no sufficient certificate"
-    if nec is None and verdict != "mean-stable":
-        verdict, reason = "undetermined", "the necessary constraint is at equality to 1e-12"
+    facts = StabilityFacts(
+        necessary=nec, sufficient=sufficient, exact_region=exact_region,
+        necessary_basis="necessary surface (closed form, theory §9)",
+        sufficient_basis=(suff_basis if sufficient or not exact_region else
+                          "necessary surface (closed form) + exact-region proof (claim)"))
 
     bottleneck = _bottleneck(rows)
     result = NetworkResult(
-        verdict=verdict, reason=reason, basis=basis, sensors=tuple(rows),
+        facts=facts, reason=reason, sensors=tuple(rows),
         uniform_margin=margin, bottleneck=bottleneck,
         constraints=tuple(_constraint_dict(network, c) for c in cons),
         exact_region={"holds": exact_region, "reason": why_exact,
@@ -707,16 +703,17 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     qe = list(pe)
     qe[i] = sp.Integer(0)
     nec0 = necessary_holds(cons, q, qe)
-    stable0 = bool((exact_region and nec0) or (b.s_cert is not None and b.s_cert <= 0.0))
-    v = _verdict_from(nec0, stable0)
-    why = {"mean-unstable": "a necessary constraint fails with this link dead",
-           "mean-stable": ("exact region: every necessary constraint holds" if exact_region
-                           else "certificate with this link dead"),
-           "undetermined": "between the surfaces with this link dead"}[v]
-    if nec0 is None and v != "mean-stable":
-        v, why = "undetermined", "a necessary constraint is at equality with this link dead"
+    suff0 = bool(b.s_cert is not None and b.s_cert <= 0.0)
+    why = ("a necessary constraint fails with this link dead" if nec0 is False else
+           "a necessary constraint is at equality with this link dead" if nec0 is None else
+           "exact region: every necessary constraint holds" if exact_region else
+           "certificate with this link dead" if suff0 else
+           "between the surfaces with this link dead")
+    dead = StabilityFacts(necessary=nec0, sufficient=suff0, exact_region=exact_region,
+                          necessary_basis="necessary surface with this link dead",
+                          sufficient_basis="certificate with this link dead" if suff0 else "")
     return SensorResult(name, float(pf[i]), _expr_text(pe[i]), crit, surfaces, margin,
-                        {"verdict": v, "reason": why})
+                        dead, why)
 
 
 def _uniform_margin(b: Boundary, pf: np.ndarray, exact_region: bool) -> dict[str, Any]:
@@ -738,28 +735,47 @@ def _uniform_margin(b: Boundary, pf: np.ndarray, exact_region: bool) -> dict[str
                        else "necessary end only")}
 
 
+def _dead_is_stable(facts: StabilityFacts) -> bool:
+    """Whether the facts with a link dead prove mean stability (the rule of theory §16)."""
+    return facts.necessary is not False and (
+        facts.sufficient or (facts.exact_region and facts.necessary is True))
+
+
 def _bottleneck(rows: Sequence[SensorResult]) -> dict[str, Any]:
-    """Sensor with the smallest p_i − critical_i (the first to reach the boundary when it alone
-    degrades). Key: the certified margin p_i − (sufficient end), then p_i − (necessary end),
-    then file order. Sensors whose critical value does not exist are skipped."""
-    rule = ("smallest p_i − critical_i among sensors whose loss alone breaks mean stability "
-            "(N−1 verdict not mean-stable); an interval counts by its conservative end "
-            "(p_i − upper end), ties broken by p_i − lower end, then by sensor order")
-    best = None
+    """The sensor with the smallest margin p_i − critical_i, named only when the bounds rank it.
+
+    Candidates are the sensors whose loss alone can break mean stability (their N − 1 facts do
+    not prove stability). Each margin is an interval [lo, hi] (a point where the critical value
+    is exact). Sensor a is the bottleneck when hi_a < lo_b for every other candidate b, or when
+    all the margins involved are exact and a's is the least (ties: file order). Otherwise the
+    bounds cannot rank them: no name is given and ``candidates`` lists the sensors whose
+    intervals overlap the least one.
+    """
+    rule = ("smallest p_i − critical_i among sensors whose loss alone can break mean stability; "
+            "named only when its margin interval lies below every other candidate's (exact "
+            "margins compare by value)")
+    cands = []
     for k, r in enumerate(rows):
         iv = r.margin.get("interval")
-        if iv is None or r.n_minus_1.get("verdict") == "mean-stable":
+        if iv is None or _dead_is_stable(r.n_minus_1):
             continue
-        cons = iv[0] if iv[0] is not None else -math.inf
-        key = (cons, iv[1], k)
-        if best is None or key < best[0]:
-            best = (key, r)
-    if best is None:
+        lo = iv[0] if iv[0] is not None else -math.inf
+        hi = iv[1] if iv[1] is not None else math.inf
+        cands.append((lo, hi, k, r))
+    if not cands:
         return {"name": None, "margin": None, "rule": rule,
                 "reason": "no single link's degradation reaches the boundary"}
-    r = best[1]
-    return {"name": r.name, "margin": r.margin.get("value"),
-            "margin_interval": r.margin.get("interval"), "rule": rule}
+    cands.sort(key=lambda c: (c[1], c[0], c[2]))
+    lo, hi, _, best = cands[0]
+    exact = all(c[0] == c[1] for c in cands)
+    rivals = [c for c in cands[1:] if not (hi < c[0] or (exact and hi <= c[0]))]
+    if rivals:
+        names = [best.name] + [c[3].name for c in rivals]
+        return {"name": None, "margin": None, "rule": rule, "candidates": names,
+                "reason": "the margin bounds of " + ", ".join(names) + " overlap: the bounds "
+                          "cannot rank these links"}
+    return {"name": best.name, "margin": best.margin.get("value"),
+            "margin_interval": best.margin.get("interval"), "rule": rule}
 
 
 def _constraint_dict(network: Network, c: Constraint) -> dict[str, Any]:
@@ -780,7 +796,8 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
     """For N = 1 the critical value, verdict and margins of the single-link theory (exact
     Mo–Sinopoli values where a theorem applies; else the bracket [block lower bound, p_up])."""
     system = network.stacked_system()
-    cv = critical_value(system).to_dict()
+    cvo = critical_value(system)
+    cv = cvo.to_dict()
     p = float(pf[0])
     row = res.sensors[0]
     klass = cv["classification"]
@@ -803,35 +820,25 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
         hi = up.interval[1] if up.certified else None
         crit = {"value": None, "interval": [lo, hi], "exact": False, "expression": None,
                 "basis": "single link: bracket [block lower bound, certified p_up]"}
-    if crit["interval"] is None:
-        verdict, reason = "mean-unstable", "(C, A) is not detectable"
-    elif crit["value"] is not None:
-        if klass == "stable" or p > crit["value"]:
-            verdict = "mean-stable"
-        else:
-            verdict = "mean-unstable"
-        reason = f"p = {p:.6g} against p_c = {crit['value']:.6g} (single-link theory)"
-    else:
-        lo, hi = crit["interval"]
-        verdict = ("mean-stable" if hi is not None and p > hi else
-                   "mean-unstable" if p <= lo else "undetermined")
-        reason = "p against the bracket [block lower bound, p_up] (single-link theory)"
+    pc_exact = cvo.value.expr if cvo.value is not None and cvo.value.expr is not None else None
+    facts, reason = _single_link_facts(klass, crit, pe[0], pc_exact)
     iv = crit["interval"]
     margin = {"value": p - crit["value"] if crit["value"] is not None else None,
               "interval": ([p - iv[1] if iv[1] is not None else None, p - iv[0]]
                            if iv is not None else None)}
-    n1 = ({"verdict": "mean-stable", "reason": "ρ(A) < 1"} if klass == "stable" else
-          {"verdict": "mean-unstable", "reason": "no measurement reaches the estimator and "
-                                                 "ρ(A) ≥ 1"})
+    stable = klass == "stable"
+    n1 = StabilityFacts(necessary=stable, sufficient=stable, exact_region=True,
+                        necessary_basis="no measurement reaches the estimator",
+                        sufficient_basis="ρ(A) < 1" if stable else "")
+    n1_why = "ρ(A) < 1" if stable else "no measurement reaches the estimator and ρ(A) ≥ 1"
     new_row = SensorResult(row.name, row.arrival_probability, row.arrival_expression, crit,
-                           row.surfaces, margin, n1)
+                           row.surfaces, margin, n1, n1_why)
     um = dict(res.uniform_margin)
     if klass != "stable":
         um.update(value=margin["value"], interval=margin["interval"], unbounded=None
                   if iv is not None else "negative",
                   reason="one sensor: δ = p − p_c (single-link theory)")
-    return NetworkResult(verdict=verdict, reason=reason,
-                         basis="single-link theory (MATH §3–§4)", sensors=(new_row,),
+    return NetworkResult(facts=facts, reason=reason, sensors=(new_row,),
                          uniform_margin=um, bottleneck={**res.bottleneck, "name": row.name,
                                                         "margin": margin["value"],
                                                         "margin_interval": margin["interval"]},
@@ -839,3 +846,24 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                          certificate=res.certificate, method=res.method, claims=res.claims,
                          warnings=res.warnings + tuple(cv.get("warnings") or ()),
                          seconds=res.seconds)
+
+
+def _single_link_facts(klass: str, crit: dict[str, Any], p: sp.Expr | None,
+                       pc_exact: sp.Expr | None) -> tuple[StabilityFacts, str]:
+    """Facts of one sensor's link from the single-link theory, p compared exactly."""
+    basis = "single-link theory (theory §3–§4)"
+    if crit["interval"] is None:
+        return (StabilityFacts(False, False, True, "(C, A) is not detectable", ""),
+                "(C, A) is not detectable")
+    if klass == "stable":
+        return StabilityFacts(True, True, True, basis, "ρ(A) < 1"), "ρ(A) < 1"
+    lo, hi = crit["interval"]
+    exact_lo = pc_exact if pc_exact is not None else lo
+    above_lo = compare_probability(p, exact_lo) > 0
+    above_hi = hi is not None and compare_probability(p, exact_lo if crit["value"] is not None
+                                                      else hi) > 0
+    what = ("p_c" if crit["value"] is not None else
+            "the bracket [block lower bound, certified p_up]")
+    return (StabilityFacts(above_lo, above_hi, crit["value"] is not None, basis,
+                           basis if above_hi else ""),
+            f"p against {what} (single-link theory)")

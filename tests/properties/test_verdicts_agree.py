@@ -1,0 +1,128 @@
+"""One verdict per record: every verdict that describes the operating point agrees.
+
+A record states the stability of its operating point in several places (the operating point,
+the network section of a ``sensors:`` file, a bursty link's certificate, the review's
+stability reason, a sweep row). They must all say the same thing, including at exact
+thresholds where a float comparison would flip (p = p_c + 10⁻⁴⁰). Expected verdicts here are
+derived by hand from the closed forms (Sinopoli's general plant: p_c = 9/25; a scalar plant a
+seen by independent sensors: stable iff Π(1 − p_i)·a² < 1; a bursty link: unstable when
+(1 − r)ρ(A)² ≥ 1).
+"""
+from __future__ import annotations
+
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import kfcrit
+from kfcrit.analysis.spec import spec_from_mapping
+
+REPORTS = Path(__file__).resolve().parents[2] / "reports"
+GENERAL = {"A": [[1.25, 0], [1, 1.1]], "Q": [[20, 0], [0, 20]]}
+STATUS = {"mean-stable": "pass", "mean-unstable": "fail", "undetermined": "undetermined"}
+
+
+def operating_verdicts(record: dict) -> list[tuple[str, str]]:
+    """Every (path, verdict) of the record that describes the operating point."""
+    out = []
+    op = record.get("operating_point") or {}
+    if op.get("verdict"):
+        out.append(("operating_point", op["verdict"]))
+    net = record.get("network") or {}
+    if net.get("verdict"):
+        out.append(("network", net["verdict"]))
+    link = record.get("link_budget")
+    if isinstance(link, dict):
+        for name, holder in (("link_budget", link), ("link_budget.bursty", link.get("bursty"))):
+            cert = (holder or {}).get("certificate") if isinstance(holder, dict) else None
+            if isinstance(cert, dict) and cert.get("verdict"):
+                out.append((name + ".certificate", cert["verdict"]))
+    return out
+
+
+def assert_one_verdict(record: dict) -> str | None:
+    found = operating_verdicts(record)
+    verdicts = {v for _, v in found}
+    assert len(verdicts) <= 1, f"verdicts disagree: {found}"
+    if not found:
+        return None
+    verdict = verdicts.pop()
+    stability = next(r for r in record["review"]["reasons"]
+                     if r["check"] == "stability at the operating point")
+    assert stability["status"] == STATUS[verdict]
+    if verdict == "mean-unstable":
+        assert record["review"]["decision"] == "fail"
+    return verdict
+
+
+def analyze_doc(doc: dict) -> dict:
+    spec = spec_from_mapping(doc, base_dir=Path("."))
+    return kfcrit.analyze(spec, simulate=False, quick=True).to_dict()
+
+
+@pytest.mark.parametrize("path", sorted(p for p in REPORTS.glob("*.yaml")
+                                        if "sweep" not in p.name), ids=lambda p: p.stem)
+def test_every_shipped_example_has_one_verdict(path: Path) -> None:
+    record = kfcrit.analyze(kfcrit.load_spec(path), simulate=False, quick=True).to_dict()
+    assert_one_verdict(record)
+
+
+@pytest.mark.parametrize("p, expected", [
+    ("9/25 + 10^-40", "mean-stable"), ("9/25", "mean-unstable"),
+    ("9/25 - 10^-40", "mean-unstable"), ("1/2", "mean-stable")])
+def test_one_sensor_network_at_the_threshold(p: str, expected: str) -> None:
+    doc = {"name": "probe", **GENERAL, "sensors": [
+        {"name": "s1", "C": [[1, 1]], "R": 2.5,
+         "channel": {"model": "bernoulli", "arrival_probability": p}}]}
+    record = analyze_doc(doc)
+    assert assert_one_verdict(record) == expected
+    assert record["network"]["verdict"] == expected
+
+
+@pytest.mark.parametrize("r, expected", [
+    ("9/25 + 10^-40", None), ("9/25", "mean-unstable"), ("1/5", "mean-unstable")])
+def test_bursty_link_at_the_burst_threshold(r: str, expected: str | None) -> None:
+    """(1 − r)·ρ(A)² with ρ(A) = 5/4 equals 1 at r = 9/25: unstable there and below."""
+    doc = {"name": "probe", **GENERAL, "C": [[1, 1]], "R": [[2.5]],
+           "channel": {"model": "gilbert-elliott", "failure_rate": "1/10", "recovery_rate": r}}
+    record = analyze_doc(doc)
+    verdict = assert_one_verdict(record)
+    if expected is not None:
+        assert verdict == expected
+    else:
+        assert verdict != "mean-unstable"
+
+
+fractions = st.fractions(min_value=Fraction(1, 20), max_value=Fraction(19, 20),
+                         max_denominator=20)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(a=st.sampled_from([Fraction(5, 4), Fraction(3, 2), Fraction(2), Fraction(5, 2)]),
+       ps=st.lists(fractions, min_size=1, max_size=3))
+def test_scalar_plant_behind_independent_sensors(a: Fraction, ps: list[Fraction]) -> None:
+    """Scalar plant a seen by every sensor: mean-stable iff Π(1 − p_i)·a² < 1 (theory §9)."""
+    doc = {"name": "scalar", "A": [[str(a)]], "Q": [[1]], "sensors": [
+        {"name": f"s{i}", "C": [[1]], "R": 1,
+         "channel": {"model": "bernoulli", "arrival_probability": str(p)}}
+        for i, p in enumerate(ps)]}
+    record = analyze_doc(doc)
+    lost = Fraction(1)
+    for p in ps:
+        lost *= 1 - p
+    expected = "mean-stable" if lost * a * a < 1 else "mean-unstable"
+    assert assert_one_verdict(record) == expected
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(f=fractions, r=fractions)
+def test_generated_bursty_links_have_one_verdict(f: Fraction, r: Fraction) -> None:
+    doc = {"name": "bursty", **GENERAL, "C": [[1, 1]], "R": [[2.5]],
+           "channel": {"model": "gilbert-elliott", "failure_rate": str(f),
+                       "recovery_rate": str(r)}}
+    verdict = assert_one_verdict(analyze_doc(doc))
+    if (1 - r) * Fraction(25, 16) >= 1:
+        assert verdict == "mean-unstable"
