@@ -128,7 +128,8 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = (),
         for i, length in enumerate(curve.psdu_bytes):
             y = curve.per[i]
             ax.plot(curve.sinr_db, y, color=LINE_COLORS[i % len(LINE_COLORS)],
-                    label=f"PSDU {length} bytes")
+                    label=f"PSDU {length} bytes" + (
+                        f" + PHY header {curve.header_bytes}" if curve.header_bytes else ""))
         for j, (label, x) in enumerate(marks):
             ax.axvline(x, color=COLORS["sim"], ls=(":" if j % 2 == 0 else "--"), lw=1,
                        label=f"{label} = {quantity(x, 'dB')}")
