@@ -128,15 +128,15 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = (),
         for i, length in enumerate(curve.psdu_bytes):
             y = curve.per[i]
             ax.plot(curve.sinr_db, y, color=LINE_COLORS[i % len(LINE_COLORS)],
-                    label=f"PSDU {length} bytes" + (
-                        f" + PHY header {curve.header_bytes}" if curve.header_bytes else ""))
+                    label=f"PSDU {length} bytes")
         for j, (label, x) in enumerate(marks):
             ax.axvline(x, color=COLORS["sim"], ls=(":" if j % 2 == 0 else "--"), lw=1,
                        label=f"{label} = {quantity(x, 'dB')}")
         ax.set_yscale("log")
         ax.set_ylim(1e-8, 1.5)
         ax.set_xlabel("SINR (dB)")
-        ax.set_ylabel("packet error rate")
+        ax.set_ylabel("packet error rate" + (
+            f" (+ {curve.header_bytes}-byte PHY header)" if curve.header_bytes else ""))
         if title:
             ax.set_title(title)
         _legend_below(fig, ax)
