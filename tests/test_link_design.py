@@ -15,6 +15,8 @@ from kfcrit.link.design import RequirementInterval, link_design
 from kfcrit.link.linkbudget import LinkBudget
 
 MAC = 11
+PHY = 4 + 1 + 1
+"""PHY header (preamble, SFD, PHR): the PER covers the PPDU by default (per_over: ppdu)."""
 LINK = {"model": "link-budget", "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": "0",
         "distance_m": "100", "packet_bytes": "40", "margin_db": "2",
         "path_loss": {"model": "log-distance", "exponent": "3.0", "reference_distance_m": "1",
@@ -50,7 +52,7 @@ def design():
 def test_distance_and_power_solve_the_budget_by_hand(design) -> None:
     link, d = design
     for end, p in (("sufficient", 0.9), ("necessary", 0.6)):
-        s = required_sinr(p, 40 + MAC, 0)
+        s = required_sinr(p, PHY + 40 + MAC, 0)
         dist = getattr(d.max_distance, end)
         assert dist.status == "value"
         # 0 − (40.2 + 30 log10 d) − N − 2 = s
@@ -69,10 +71,11 @@ def test_payload_bound_is_the_last_byte_that_meets_the_requirement(design) -> No
         b = getattr(d.max_payload, end)
         assert b.status == ("value" if end == "sufficient" else "phy-limit")
         if b.status == "value":
-            assert arrival(s, b.value + MAC, 0) >= p > arrival(s, b.value + 1 + MAC, 0)
+            length = PHY + b.value + MAC
+            assert arrival(s, length, 0) >= p > arrival(s, length + 1, 0)
         else:
             assert b.status == "phy-limit" and b.value == 127 - MAC
-            assert arrival(s, 127, 0) >= p
+            assert arrival(s, PHY + 127, 0) >= p
 
 
 def test_retries_needed_is_the_least_k(design) -> None:
@@ -84,8 +87,8 @@ def test_retries_needed_is_the_least_k(design) -> None:
         b = getattr(d.retries_needed, end)
         assert b.status == "value"
         k = b.value
-        assert arrival(s, 40 + MAC, k) >= p
-        assert k == 0 or arrival(s, 40 + MAC, k - 1) < p
+        assert arrival(s, PHY + 40 + MAC, k) >= p
+        assert k == 0 or arrival(s, PHY + 40 + MAC, k - 1) < p
     assert d.retries_needed.sufficient.value >= d.retries_needed.necessary.value >= 1
 
 

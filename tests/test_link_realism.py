@@ -21,6 +21,9 @@ from kfcrit.link.shadowing import markov_from_threshold
 MAC = 2 + 1 + 2 + 2 + 2 + 2
 """802.15.4 data frame, short addresses, PAN-ID compression (frame control, sequence,
 destination PAN, destination, source, FCS)."""
+PHY = 4 + 1 + 1
+"""2.4 GHz O-QPSK PHY header: preamble 4, SFD 1, PHR 1. The PER covers it by default
+(per_over: ppdu), as ns-3's lr-wpan error model does."""
 
 LINK = {"model": "link-budget", "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": "0",
         "distance_m": "100", "packet_bytes": "40",
@@ -51,11 +54,11 @@ def test_three_retries_match_a_50_digit_per(distance: str) -> None:
                                    "channel")
     s = hand_sinr_db(0.0, float(distance))
     assert link.sinr_db == pytest.approx(s, abs=1e-10)
-    expected = mp_oqpsk_arrival(s, 40 + MAC, 3)
+    expected = mp_oqpsk_arrival(s, PHY + 40 + MAC, 3)
     assert link.arrival_value == pytest.approx(float(expected), rel=1e-11)
     # the retries help exactly as 1 − PER^4 against one attempt
     one = LinkBudget.from_mapping({**LINK, "distance_m": distance}, "channel")
-    assert one.arrival_value == pytest.approx(float(mp_oqpsk_arrival(s, 40 + MAC, 0)),
+    assert one.arrival_value == pytest.approx(float(mp_oqpsk_arrival(s, PHY + 40 + MAC, 0)),
                                               rel=1e-11)
     assert link.arrival_value > one.arrival_value
 
@@ -68,9 +71,10 @@ def test_retries_keep_tiny_loss_probabilities_accurate() -> None:
     link = LinkBudget.from_mapping({**LINK, "distance_m": "84", "max_retries": 7}, "channel")
     s = hand_sinr_db(0.0, 84.0)
     with mp.workdps(60):
-        loss = 1 - mp_oqpsk_arrival(s, 40 + MAC, 7)
+        loss = 1 - mp_oqpsk_arrival(s, PHY + 40 + MAC, 7)
     assert 1e-60 < float(loss) < 1e-20
-    got = math.exp(8 * float(log_per(link.radio.log_arrival(s, link.psdu_bytes))))
+    assert link.per_bytes == PHY + 40 + MAC
+    got = math.exp(8 * float(log_per(link.radio.log_arrival(s, link.per_bytes))))
     assert got == pytest.approx(float(loss), rel=1e-8)
 
 
@@ -78,7 +82,7 @@ def test_required_sinr_with_retries_inverts_the_arrival() -> None:
     link = LinkBudget.from_mapping({**LINK, "max_retries": 3}, "channel")
     for p in (0.36, 0.9, 0.999999):
         s = link.required_sinr_db(p)
-        assert float(mp_oqpsk_arrival(s, 40 + MAC, 3)) == pytest.approx(p, rel=1e-9)
+        assert float(mp_oqpsk_arrival(s, PHY + 40 + MAC, 3)) == pytest.approx(p, rel=1e-9)
 
 
 def test_per_packet_shadowing_retries_share_the_shadowing_value() -> None:
@@ -87,15 +91,53 @@ def test_per_packet_shadowing_retries_share_the_shadowing_value() -> None:
     s = hand_sinr_db(0.0, 100.0)
 
     def p(z: float) -> float:
-        return float(mp_oqpsk_arrival(s + 4 * z, 40 + MAC, 2))
+        return float(mp_oqpsk_arrival(s + 4 * z, PHY + 40 + MAC, 2))
 
     mean = integrate.quad(lambda z: p(z) * stats.norm.pdf(z), -12, 12, limit=200,
                           epsabs=1e-12)[0]
     assert link.arrival_value == pytest.approx(mean, abs=1e-7)
     # correlated attempts gain less than independent ones would: E[1 − PER^3] < 1 − E[PER]^3
-    e_per = integrate.quad(lambda z: (1 - float(mp_oqpsk_arrival(s + 4 * z, 40 + MAC, 0)))
-                           * stats.norm.pdf(z), -12, 12, limit=200)[0]
+    e_per = integrate.quad(lambda z: (1 - float(mp_oqpsk_arrival(s + 4 * z, PHY + 40 + MAC, 0)))
+                           * stats.norm.pdf(z), -12, 12, limit=200, epsabs=1e-12)[0]
     assert link.arrival_value < 1 - e_per ** 3
+    # redrawn per attempt (fading_per_attempt: independent): exactly 1 − E[PER]^3
+    indep = LinkBudget.from_mapping({**LINK, "path_loss": path, "max_retries": 2,
+                                     "fading_per_attempt": "independent"}, "channel")
+    assert indep.arrival_value == pytest.approx(1 - e_per ** 3, abs=1e-7)
+    assert indep.frame_dict()["fading_per_attempt"] == "independent"
+    # without retries the two conventions agree
+    one = [LinkBudget.from_mapping({**LINK, "path_loss": path, "fading_per_attempt": f},
+                                   "channel").arrival_value for f in ("shared", "independent")]
+    assert one[0] == pytest.approx(one[1], abs=1e-12)
+    assert one[0] == pytest.approx(1 - e_per, abs=1e-7)
+
+
+def test_independent_attempts_need_per_packet_shadowing() -> None:
+    for mode in ("per-link", "time-correlated"):
+        path = {**LINK["path_loss"], "shadowing_sigma_db": "4", "shadowing": mode}
+        extra = ({"shadowing_correlation": {"sample_period_s": "0.1", "coherence_time_s": "1"}}
+                 if mode == "time-correlated" else {})
+        with pytest.raises(InputError, match=r"^channel\.fading_per_attempt: independent"):
+            LinkBudget.from_mapping({**LINK, **extra, "path_loss": path,
+                                     "fading_per_attempt": "independent"}, "channel")
+    with pytest.raises(InputError, match=r"^channel\.fading_per_attempt: must be one of"):
+        LinkBudget.from_mapping({**LINK, "fading_per_attempt": "per-attempt"}, "channel")
+
+
+def test_per_over_psdu_leaves_the_phy_header_out() -> None:
+    """per_over: psdu is the PSDU-only convention: L = 40 + 11 bytes instead of 6 + 40 + 11."""
+    s = hand_sinr_db(0.0, 100.0)
+    psdu = LinkBudget.from_mapping({**LINK, "per_over": "psdu"}, "channel")
+    ppdu = LinkBudget.from_mapping(LINK, "channel")
+    assert (psdu.per_bytes, ppdu.per_bytes) == (40 + MAC, PHY + 40 + MAC)
+    assert psdu.arrival_value == pytest.approx(float(mp_oqpsk_arrival(s, 40 + MAC, 0)),
+                                               rel=1e-11)
+    assert ppdu.arrival_value == pytest.approx(float(mp_oqpsk_arrival(s, PHY + 40 + MAC, 0)),
+                                               rel=1e-11)
+    assert ppdu.frame_dict()["per_covers"].startswith("PPDU")
+    assert psdu.frame_dict()["per_covers"].startswith("PSDU")
+    with pytest.raises(InputError, match=r"^channel\.per_over: must be one of: ppdu, psdu"):
+        LinkBudget.from_mapping({**LINK, "per_over": "mpdu"}, "channel")
 
 
 def test_frame_over_the_phy_limit_is_refused_naming_the_field() -> None:
@@ -129,7 +171,8 @@ def test_frame_record_defines_payload_and_overheads() -> None:
                                               ("at86rf233", -101.0), ("nrf52840", -100.0)])
 def test_datasheet_radio_reproduces_its_sensitivity(name: str, sensitivity: float) -> None:
     """At the datasheet sensitivity, over the thermal noise of 2 MHz (no noise figure), a
-    20-byte PSDU (9-byte payload + 11) arrives with probability 0.99 (PER 1 %)."""
+    20-byte PSDU (9-byte payload + 11) arrives with probability 0.99 (PER 1 %), the PER
+    counted over the 26-byte PPDU as a default link counts it."""
     noise = 10 * math.log10(1.380649e-23 * 290 * 2e6 * 1e3)
     link = LinkBudget.from_mapping(
         {**LINK, "radio": name, "packet_bytes": 20 - MAC, "tx_power_dbm": "0",
@@ -138,11 +181,11 @@ def test_datasheet_radio_reproduces_its_sensitivity(name: str, sensitivity: floa
          "distance_m": "1", "noise": {"bandwidth_hz": "2e6"}}, "channel")
     assert link.rx_power_dbm == pytest.approx(sensitivity, abs=1e-12)
     assert link.arrival_value == pytest.approx(0.99, abs=1e-9)
-    # implementation loss = S − N − s_ideal(0.99, 20), s_ideal by 50-digit bisection
+    # implementation loss = S − N − s_ideal(0.99, 6 + 20), s_ideal by 50-digit bisection
     lo, hi = mp.mpf(-5), mp.mpf(5)
     for _ in range(80):
         mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if mp_oqpsk_arrival(float(mid), 20, 0) < 0.99 else (lo, mid)
+        lo, hi = (mid, hi) if mp_oqpsk_arrival(float(mid), PHY + 20, 0) < 0.99 else (lo, mid)
     loss = sensitivity - noise - float(lo)
     assert link.radio.implementation_loss_db == pytest.approx(loss, abs=1e-6)
     entry = {r.name: r for r in radio_catalogue()}[name]

@@ -58,6 +58,10 @@ MAC_OVERHEAD = 2 + 1 + 2 + 2 + 2 + 2
 """802.15.4 data frame, short addresses, PAN-ID compression: frame control 2, sequence 1,
 destination PAN 2, destination 2, source 2, FCS 2 (IEEE 802.15.4-2006 §7.2)."""
 PSDU40 = 40 + MAC_OVERHEAD
+PHY_HEADER = 4 + 1 + 1
+"""2.4 GHz O-QPSK PHY header: preamble 4, SFD 1, PHR 1 (IEEE 802.15.4-2006 §6.3)."""
+PPDU40 = PHY_HEADER + PSDU40
+"""The PER covers the whole PPDU by default (per_over: ppdu, as ns-3's lr-wpan model)."""
 SENSOR = Path(__file__).resolve().parents[1] / "reports" / "link-oqpsk-sensor.yaml"
 
 
@@ -138,12 +142,12 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
     assert link["path_loss_db"] == pytest.approx(pl, abs=1e-9)
     assert link["noise_floor_dbm"] == pytest.approx(noise, abs=1e-9)
     assert link["sinr_db"] == pytest.approx(sinr, abs=1e-9)
-    assert link["arrival_probability"] == pytest.approx(1 - per(sinr, PSDU40), rel=1e-9)
+    assert link["arrival_probability"] == pytest.approx(1 - per(sinr, PPDU40), rel=1e-9)
     req = lb["required_arrival_probability"]
     assert req["critical_value"] == pytest.approx(9 / 25, abs=1e-15)
     assert req["design_value"] == req["critical_value"] and "critical value" in req["basis"]
     assert "robust_value" in req and "bracket" in req
-    s_req = required_sinr(0.36, PSDU40)
+    s_req = required_sinr(0.36, PPDU40)
     assert lb["required_sinr_db"] == pytest.approx(s_req, abs=1e-8)
     assert lb["required_rx_power_dbm"] == pytest.approx(s_req + noise, abs=1e-8)
     assert lb["link_margin_db"] == pytest.approx(sinr - s_req, abs=1e-8)
@@ -155,7 +159,7 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
     assert lb["mean_stable_at_distance"] is True
     # shadowing: average of p over X ~ N(0, 16) dB, and the outage P(p(X) < p_c), P(p < p_up)
     sh = lb["shadowing"]
-    mean = integrate.quad(lambda z: (1 - per(sinr + 4 * z, PSDU40)) * stats.norm.pdf(z), -12, 12,
+    mean = integrate.quad(lambda z: (1 - per(sinr + 4 * z, PPDU40)) * stats.norm.pdf(z), -12, 12,
                           points=[(s_req - sinr) / 4], limit=200, epsabs=1e-12)[0]
     assert sh["mean_arrival_probability"] == pytest.approx(mean, abs=1e-7)
     assert sh["outage_below_critical"] == pytest.approx(
@@ -163,7 +167,7 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
     p_up = sensor_record["upper_bound"]["value"]
     assert 0.36 < p_up < 1
     assert sh["outage_below_upper"] == pytest.approx(
-        stats.norm.cdf((required_sinr(p_up, PSDU40) - sinr) / 4), abs=1e-9)
+        stats.norm.cdf((required_sinr(p_up, PPDU40) - sinr) / 4), abs=1e-9)
     labels = [row["label"] for row in lb["thresholds"]]
     assert labels == ["critical_value", "upper_bound"]
 
@@ -186,7 +190,7 @@ def test_design_requirement_uses_robust_value_or_bracket() -> None:
                             upper_bound=0.45)
     assert robust["required_arrival_probability"]["design_value"] == 0.4
     assert robust["required_arrival_probability"]["basis"] == "robust critical value"
-    assert robust["required_sinr_db"] == pytest.approx(required_sinr(0.4, PSDU40), abs=1e-8)
+    assert robust["required_sinr_db"] == pytest.approx(required_sinr(0.4, PPDU40), abs=1e-8)
     # no p_c: the upper end of the bracket is sufficient, and both ends get their own rows
     br = design_section(ch, critical_value=None, robust_value=None, bracket=(0.3, 0.5),
                         upper_bound=0.5)
@@ -194,10 +198,10 @@ def test_design_requirement_uses_robust_value_or_bracket() -> None:
     assert "bracket" in br["required_arrival_probability"]["basis"]
     rows = {row["label"]: row for row in br["thresholds"]}
     assert set(rows) == {"bracket_low", "bracket_high", "upper_bound"}
-    assert rows["bracket_low"]["required_sinr_db"] == pytest.approx(required_sinr(0.3, PSDU40),
+    assert rows["bracket_low"]["required_sinr_db"] == pytest.approx(required_sinr(0.3, PPDU40),
                                                                     abs=1e-8)
     noise = 10 * math.log10(KB * 290 * 2e6 / 1e-3) + 10
-    d = 10 ** ((0 - noise - required_sinr(0.5, PSDU40) - 3 - 40.2) / 30)
+    d = 10 ** ((0 - noise - required_sinr(0.5, PPDU40) - 3 - 40.2) / 30)
     assert br["max_distance_m"] == pytest.approx(d, rel=1e-8)
     assert design_section(Bernoulli(sp.Rational(1, 2)), critical_value=0.36, robust_value=None,
                           bracket=(None, None), upper_bound=None)["applicable"] is False

@@ -31,6 +31,8 @@ P_C = 1 - 1 / A**2
 P_S = 1 - (1 - Q / L) / A**2                        # 0.375
 P_V = (A**2 * L + Q - L) * (L + R) / (A**2 * L**2)  # 0.4125
 PSDU = 40 + 11
+PPDU = 4 + 1 + 1 + PSDU
+"""The PER covers the PHY header (preamble 4, SFD 1, PHR 1) too: per_over: ppdu (default)."""
 MARGIN = 2.0
 NOISE = 10 * math.log10(1.380649e-23 * 290 * 2e6 * 1e3) + 10
 LINK = {"model": "link-budget", "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": "0",
@@ -47,7 +49,7 @@ def arrival(sinr_db: float) -> float:
         ber = mp.mpf(8) / 15 / 16 * mp.fsum((-1) ** k * mp.binomial(16, k)
                                            * mp.e ** (20 * s * (mp.mpf(1) / k - 1))
                                            for k in range(2, 17))
-        return float((1 - ber) ** (8 * PSDU))
+        return float((1 - ber) ** (8 * PPDU))
 
 
 def sinr(distance: float) -> float:

@@ -169,8 +169,9 @@ def test_link_grid_distance_by_packet_size(tmp_path: Path) -> None:
     margin = max(2.0, 4.0 * stats.norm.ppf(1 - 0.1))  # margin policy: 5.126 dB
     for r in rows:
         # packet_bytes is the payload: the PER covers it plus 11 bytes of 802.15.4 MAC header
-        # and FCS (the 127-byte PSDU limit allows payloads up to 116 bytes)
-        L, d = int(float(r["channel.packet_bytes"])) + 11, float(r["channel.distance_m"])
+        # and FCS (the 127-byte PSDU limit allows payloads up to 116 bytes) and the 6-byte PHY
+        # header (preamble 4, SFD 1, PHR 1; per_over: ppdu, the default)
+        L, d = 6 + int(float(r["channel.packet_bytes"])) + 11, float(r["channel.distance_m"])
         s = sinr_db(0.0, d)
         p = arrival(oqpsk_ber(10 ** (s / 10)), L)
         s_req = required_sinr(0.36, L)

@@ -83,7 +83,8 @@ def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str
            "per_vs_sinr": curves.per_vs_sinr(
                channel.radio, sizes, include_db=[v for v in (
                    channel.sinr_db, (sec.get("link_budget") or {}).get("required_sinr_db"))
-                   if v is not None]).to_dict(),
+                   if v is not None],
+               header_bytes=channel.per_bytes - channel.psdu_bytes).to_dict(),
            "marks": marks}
     usable = {k: v for k, v in marks.items() if 0 < v < 1}
     if usable:

@@ -101,6 +101,15 @@ def channel_defs() -> dict[str, Any]:
                     "mac_overhead_bytes": {**integer, "description": "MAC header + FCS bytes added "
                                            "to the payload (default: the radio's frame, 11 for "
                                            "802.15.4)"},
+                    "per_over": {"enum": ["ppdu", "psdu"],
+                                 "description": "bits the packet error rate covers: ppdu "
+                                 "(default; PHY header + PSDU, as ns-3's lr-wpan model) or "
+                                 "psdu (MAC header + payload + FCS only)"},
+                    "fading_per_attempt": {"enum": ["shared", "independent"],
+                                           "description": "shared (default): the retries of "
+                                           "one period see the period's shadowing value; "
+                                           "independent: redrawn per attempt (per-packet "
+                                           "shadowing only), arrival 1 − E[PER]^(k+1)"},
                     "shadowing_correlation": _object({
                         "sample_period_s": {**num, "description": "sampling period of the filter"},
                         "coherence_time_s": {**num, "description": "shadowing coherence time"},

@@ -36,17 +36,23 @@ class ArrivalCurve:
 
 @dataclass(frozen=True)
 class PerCurve:
-    """PER(SINR) of one attempt for several PSDU lengths: 1 − (1 − BER(SINR))^{8L}."""
+    """PER(SINR) of one attempt for several PSDU lengths: 1 − (1 − BER(SINR))^{8(H + L)}.
+
+    H = ``header_bytes`` is the PHY header the PER also covers (``per_over: ppdu``), 0 for a
+    PSDU-only PER.
+    """
 
     radio: str
     sinr_db: np.ndarray = field(repr=False)
     psdu_bytes: tuple[int, ...]
     per: np.ndarray = field(repr=False)
     """Shape (len(psdu_bytes), len(sinr_db))."""
+    header_bytes: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return {"radio": self.radio, "sinr_db": self.sinr_db.tolist(),
-                "psdu_bytes": list(self.psdu_bytes), "per": self.per.tolist()}
+                "psdu_bytes": list(self.psdu_bytes), "header_bytes": self.header_bytes,
+                "per": self.per.tolist()}
 
 
 @dataclass(frozen=True)
@@ -87,7 +93,8 @@ def arrival_vs_distance(link: LinkBudget, distance_m: Any = None) -> ArrivalCurv
 
 
 def sinr_transition_db(radio: Radio, psdu_bytes: tuple[int, ...],
-                       per_high: float = 0.999, per_low: float = 1e-4) -> tuple[float, float]:
+                       per_high: float = 0.999, per_low: float = 1e-4,
+                       header_bytes: int = 0) -> tuple[float, float]:
     r"""SINR range (dB) where the radio's PER falls from ``per_high`` to ``per_low``.
 
     The lower end is where the longest frame still has PER = ``per_high``, the upper end where
@@ -97,19 +104,19 @@ def sinr_transition_db(radio: Radio, psdu_bytes: tuple[int, ...],
     .. math:: s_{lo} = s : \mathrm{PER}(s, L_{max}) = \mathrm{per}_{high},\quad
               s_{hi} = s : \mathrm{PER}(s, L_{min}) = \mathrm{per}_{low}.
     """
-    lo = radio.required_sinr_db(1.0 - per_high, int(max(psdu_bytes)))
-    hi = radio.required_sinr_db(1.0 - per_low, int(min(psdu_bytes)))
+    lo = radio.required_sinr_db(1.0 - per_high, int(max(psdu_bytes)) + header_bytes)
+    hi = radio.required_sinr_db(1.0 - per_low, int(min(psdu_bytes)) + header_bytes)
     lo = float(SINR_SEARCH_DB[0]) if lo is None else float(lo)
     hi = lo + 1.0 if hi is None else float(hi)
     return lo, max(hi, lo + 1.0)
 
 
 def sinr_grid(radio: Radio, psdu_bytes: tuple[int, ...], include_db: Sequence[float] = (),
-              pad_db: float = 2.0, step_db: float = 0.05) -> np.ndarray:
+              pad_db: float = 2.0, step_db: float = 0.05, header_bytes: int = 0) -> np.ndarray:
     """Evenly spaced SINR values (dB) over the radio's transition region
     (:func:`sinr_transition_db`) widened by ``pad_db`` and to every finite value of
     ``include_db`` (the configured and required SINR the figure marks)."""
-    lo, hi = sinr_transition_db(radio, psdu_bytes)
+    lo, hi = sinr_transition_db(radio, psdu_bytes, header_bytes=header_bytes)
     extra = [float(v) for v in include_db if v is not None and np.isfinite(v)]
     lo, hi = min([lo, *extra]) - pad_db, max([hi, *extra]) + pad_db
     points = int(min(2001, max(121, round((hi - lo) / step_db) + 1)))
@@ -117,20 +124,21 @@ def sinr_grid(radio: Radio, psdu_bytes: tuple[int, ...], include_db: Sequence[fl
 
 
 def per_vs_sinr(radio: Radio, psdu_bytes: tuple[int, ...] = (20, 60, 127),
-                sinr_db: Any = None, include_db: Sequence[float] = ()) -> PerCurve:
+                sinr_db: Any = None, include_db: Sequence[float] = (),
+                header_bytes: int = 0) -> PerCurve:
     r"""PER of one attempt against SINR (dB) for each PSDU length, with the radio's own PER
-    (implementation loss included):
+    (implementation loss included) over the PHY header H (``header_bytes``) and the PSDU:
 
-    .. math:: \mathrm{PER}(s, L) = 1 - (1 - \mathrm{BER}(s))^{8L}.
+    .. math:: \mathrm{PER}(s, L) = 1 - (1 - \mathrm{BER}(s))^{8(H + L)}.
 
     Without ``sinr_db`` the grid is :func:`sinr_grid` (the transition region of these frame
     sizes, widened to the SINR values in ``include_db``).
     """
-    s = (sinr_grid(radio, psdu_bytes, include_db) if sinr_db is None
+    s = (sinr_grid(radio, psdu_bytes, include_db, header_bytes=header_bytes) if sinr_db is None
          else np.asarray(sinr_db, dtype=float))
-    per = np.vstack([radio.per(s, int(L)) for L in psdu_bytes])
+    per = np.vstack([radio.per(s, int(L) + header_bytes) for L in psdu_bytes])
     return PerCurve(radio.to_dict().get("model", "radio"), s, tuple(int(L) for L in psdu_bytes),
-                    per)
+                    per, int(header_bytes))
 
 
 def outage_vs_distance(link: LinkBudget, requirements: dict[str, float],

@@ -8,9 +8,20 @@ Frame of IEEE 802.15.4 (2.4 GHz O-QPSK PHY), in bytes::
 ``packet_bytes`` in a system file is the *application payload*. The MAC overhead of a data frame
 with short addresses and PAN-ID compression is 11 bytes (frame control 2, sequence number 1,
 destination PAN 2, destination address 2, source address 2; FCS 2); with 64-bit addresses it is
-23 (give ``mac_overhead_bytes`` for other frame formats). The packet error rate is taken over
-the PSDU: the bits the FCS protects are those a loss is about, and the datasheets' sensitivity
-is specified for a PSDU length too. The PHY header (SHR, PHR) counts in the airtime only.
+23 (give ``mac_overhead_bytes`` for other frame formats).
+
+Bits the packet error rate covers (``per_over``, :data:`PER_OVER`):
+
+* ``ppdu`` (default): the whole PPDU, PHY header (SHR + PHR, 6 bytes for 802.15.4) + PSDU,
+  L_PER = phy_header + PSDU. A receiver that loses the preamble, the SFD or the length byte
+  loses the frame as surely as one that fails the FCS; ns-3's lr-wpan model applies its O-QPSK
+  error model to every bit received between the start and the end of the PPDU
+  (``LrWpanPhy::CheckInterference``: chunk = duration × bit rate), so this convention
+  reproduces ns-3's analytic packet success rate;
+* ``psdu``: the PSDU only (MAC header + payload + FCS), L_PER = PSDU — the bits the FCS
+  protects; the convention of many textbook link budgets.
+
+Both give PER(s) = 1 − (1 − BER(s))^{8 L_PER}; the PHY header always counts in the airtime.
 
 Retransmissions: with ``k`` retries an update is lost only when all k + 1 attempts fail, so
 
@@ -22,7 +33,10 @@ assumes that every attempt fits in the sample period and that the attempts of on
 under per-link shadowing the formula holds conditionally on the link's shadowing value; under
 per-packet shadowing the average is E_X[1 − PER(s + X)^{k+1}] (correlated attempts gain less
 than 1 − E[PER]^{k+1}); under time-correlated shadowing a period in a deep fade loses all its
-attempts. A lost acknowledgement causes a needless retry, not a lost update, so acknowledgement
+attempts. A link with ``fading_per_attempt: independent`` (per-packet shadowing only) redraws the
+shadowing value for every attempt instead, so the attempts fail independently with the
+shadowing-averaged PER and p = 1 − (E_X[PER(s + X)])^{k+1} (Jensen: never below the shared
+value). A lost acknowledgement causes a needless retry, not a lost update, so acknowledgement
 errors do not enter p.
 """
 from __future__ import annotations
@@ -34,6 +48,9 @@ from typing import Any
 import numpy as np
 
 from kfcrit.errors import InputError
+
+PER_OVER = ("ppdu", "psdu")
+"""Conventions for the bits the packet error rate covers (default first)."""
 
 
 @dataclass(frozen=True)
@@ -47,7 +64,7 @@ class FrameFormat:
     mac_overhead_bytes : int
         MAC header + FCS of a data frame (default when the link gives none).
     phy_header_bytes : int
-        SHR + PHR, sent before the PSDU (airtime only).
+        SHR + PHR, sent before the PSDU (airtime; and the PER with ``per_over: ppdu``).
     max_psdu_bytes : int or None
         The PHY's largest PSDU (None: no limit).
     bit_rate_bps : float or None
@@ -70,6 +87,18 @@ class FrameFormat:
         """PSDU length: MAC overhead + payload (the bytes the packet error rate covers)."""
         overhead = self.mac_overhead_bytes if mac_overhead_bytes is None else mac_overhead_bytes
         return int(payload_bytes) + int(overhead)
+
+    def per_bytes(self, payload_bytes: int, mac_overhead_bytes: int | None = None,
+                  per_over: str = "ppdu") -> int:
+        r"""Bytes the packet error rate covers: PHY header + PSDU (``ppdu``) or PSDU (``psdu``).
+
+        .. math:: L_{PER} = H_{PHY} + L_{PSDU}\ \text{(ppdu)},\qquad
+                  L_{PER} = L_{PSDU}\ \text{(psdu)}
+        """
+        if per_over not in PER_OVER:
+            raise ValueError(f"per_over must be one of {PER_OVER}, got {per_over!r}")
+        psdu = self.psdu_bytes(payload_bytes, mac_overhead_bytes)
+        return psdu + (self.phy_header_bytes if per_over == "ppdu" else 0)
 
     def max_payload_bytes(self, mac_overhead_bytes: int | None = None) -> int | None:
         """Largest application payload that fits the PHY (None: no limit)."""

@@ -5,13 +5,21 @@ The chain, in dB and dBm (every step is a stated formula, tested against indepen
     path loss     PL(d) = PL0 + 10·n·log10(d/d0) + X          (kfcrit.link.propagation)
     received      Pr = Pt + G − PL(d)                          (G: total antenna gain, dB)
     SINR          SINR_dB = Pr − (N ⊕ I)                       (noise floor and interference)
-    frame         L = payload + MAC overhead (PSDU bytes)       (kfcrit.link.frames)
+    frame         L = PHY header + payload + MAC overhead       (kfcrit.link.frames; per_over)
     one attempt   1 − PER(SINR, L) = (1 − BER(SINR))^{8L}      (radio model: kfcrit.link.radios)
     arrival       p = 1 − PER^{k+1}                            (k = max_retries MAC retries)
 
 ``packet_bytes`` is the application payload; the PSDU adds the radio's MAC header and FCS
 (``mac_overhead_bytes``, 11 bytes for an 802.15.4 data frame with short addresses) and must fit
-the PHY (127 bytes for 802.15.4); the PHY header (preamble, SFD, PHR) counts in the airtime.
+the PHY (127 bytes for 802.15.4). The PER covers the whole PPDU by default (``per_over: ppdu``:
+the PHY header — preamble, SFD, PHR, 6 bytes for 802.15.4 — is received with the same bit error
+rate, as in ns-3's lr-wpan model), or the PSDU only (``per_over: psdu``); the PHY header always
+counts in the airtime.
+
+Retries and shadowing (``fading_per_attempt``): ``shared`` (default) — the k + 1 attempts of a
+period see the period's shadowing value, p̄ = E_X[1 − PER(s + X)^{k+1}]; ``independent`` (only
+with per-packet shadowing) — each attempt draws its own value, so the attempts fail
+independently with the averaged PER, p̄ = 1 − (E_X[PER(s + X)])^{k+1}.
 
 Shadowing X (``path_loss.shadowing``):
 
@@ -44,8 +52,8 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.link.fields import exact_number, integer_field, real_field
-from kfcrit.link.frames import arrival_with_retries, attempt_probability
+from kfcrit.link.fields import choice_field, exact_number, integer_field, real_field
+from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
 from kfcrit.link.radios import CalibratedOqpsk, Radio, db_to_linear, radio_from_mapping
 from kfcrit.link.requirement import binding_requirement, stability_requirement
@@ -69,9 +77,11 @@ Z_RANGE = 9.0
 
 LINK_KEYS = {"model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
              "noise", "antenna_gain_db", "margin_db", "max_outage", "max_retries",
-             "mac_overhead_bytes", "shadowing_correlation"}
+             "mac_overhead_bytes", "shadowing_correlation", "per_over", "fading_per_attempt"}
 LINK_REQUIRED = {"radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise"}
 MAX_PAYLOAD_BYTES = 65535
+FADING_PER_ATTEMPT = ("shared", "independent")
+"""How the retries of one period see the shadowing: one value per period, or one per attempt."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,7 +93,10 @@ class LinkBudget(Channel):
     of links fall below the requirement).
 
     ``packet_bytes`` is the application payload; ``mac_overhead_bytes`` (None: the radio's
-    default) is added to it to form the PSDU over which the PER is computed.
+    default) is added to it to form the PSDU; the PER covers the PHY header + PSDU
+    (``per_over = "ppdu"``, default) or the PSDU (``"psdu"``). ``fading_per_attempt`` is
+    ``"shared"`` (the attempts of a period share its shadowing value) or ``"independent"``
+    (redrawn per attempt; per-packet shadowing only).
     """
 
     radio: Radio
@@ -98,6 +111,8 @@ class LinkBudget(Channel):
     max_retries: int = 0
     mac_overhead_bytes: int | None = None
     shadowing_correlation: ShadowingCorrelation | None = None
+    per_over: str = "ppdu"
+    fading_per_attempt: str = "shared"
     model: ClassVar[str] = "link-budget"
 
     def __post_init__(self) -> None:
@@ -111,6 +126,16 @@ class LinkBudget(Channel):
         if self.shadowing_correlation is not None and not correlated:
             raise InputError("only with path_loss.shadowing: time-correlated",
                              field="shadowing_correlation")
+        if self.per_over not in PER_OVER:
+            raise InputError(f"must be one of: {', '.join(PER_OVER)}", field="per_over")
+        if self.fading_per_attempt not in FADING_PER_ATTEMPT:
+            raise InputError(f"must be one of: {', '.join(FADING_PER_ATTEMPT)}",
+                             field="fading_per_attempt")
+        if self.fading_per_attempt == "independent" and self.path_loss.shadowing != "per-packet":
+            raise InputError("independent needs a shadowing value that can be redrawn per "
+                             "attempt (path_loss.shadowing: per-packet); per-link and "
+                             "time-correlated shadowing are shared by the attempts of a period",
+                             field="fading_per_attempt")
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> LinkBudget:
@@ -144,6 +169,11 @@ class LinkBudget(Channel):
         if "shadowing_correlation" in data:
             kw["shadowing_correlation"] = ShadowingCorrelation.from_mapping(
                 data["shadowing_correlation"], f"{prefix}.shadowing_correlation")
+        if "per_over" in data:
+            kw["per_over"] = choice_field(data, "per_over", prefix, PER_OVER)
+        if "fading_per_attempt" in data:
+            kw["fading_per_attempt"] = choice_field(data, "fading_per_attempt", prefix,
+                                                    FADING_PER_ATTEMPT)
         try:
             return cls(**kw)
         except InputError as exc:  # name the field with the caller's prefix
@@ -182,28 +212,39 @@ class LinkBudget(Channel):
 
     @property
     def psdu_bytes(self) -> int:
-        """Bytes the packet error rate covers: payload + MAC header + FCS."""
+        """PSDU length: payload + MAC header + FCS."""
         return self.radio.frame.psdu_bytes(self.packet_bytes, self.mac_overhead_bytes)
+
+    @property
+    def per_bytes(self) -> int:
+        """Bytes the packet error rate covers: PHY header + PSDU (ppdu) or the PSDU (psdu)."""
+        return self.radio.frame.per_bytes(self.packet_bytes, self.mac_overhead_bytes,
+                                          self.per_over)
+
+    @property
+    def independent_attempts(self) -> bool:
+        """The attempts of a period draw their own shadowing value (``independent``)."""
+        return self.fading_per_attempt == "independent" and self.sigma_db > 0
 
     def with_changes(self, **changes: Any) -> LinkBudget:
         """A copy with some parameters changed (validated like the original)."""
         fields = {k: getattr(self, k) for k in (
             "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise",
             "antenna_gain_db", "margin_db", "max_outage", "max_retries", "mac_overhead_bytes",
-            "shadowing_correlation")}
+            "shadowing_correlation", "per_over", "fading_per_attempt")}
         fields.update(changes)
         return LinkBudget(**fields)
 
     def attempt_per(self, sinr_db: Any) -> np.ndarray:
-        """PER of one attempt, 1 − (1 − BER)^{8L}, L = PSDU bytes."""
-        return self.radio.per(sinr_db, self.psdu_bytes)
+        """PER of one attempt, 1 − (1 − BER)^{8L}, L = :attr:`per_bytes`."""
+        return self.radio.per(sinr_db, self.per_bytes)
 
     def link_arrival(self, sinr_db: Any) -> np.ndarray:
         r"""Arrival probability within a sample period at SINR ``sinr_db`` (no shadowing draw).
 
         .. math:: p(s) = 1 - \mathrm{PER}(s, L)^{k+1}
         """
-        return arrival_with_retries(self.radio.log_arrival(sinr_db, self.psdu_bytes),
+        return arrival_with_retries(self.radio.log_arrival(sinr_db, self.per_bytes),
                                     self.max_retries)
 
     def nominal_arrival(self, sinr_db: float) -> float:
@@ -213,7 +254,16 @@ class LinkBudget(Channel):
     def mean_arrival(self, sinr_db: float) -> float:
         r"""Shadowing average (trapezoid rule on z ∈ [−9, 9]).
 
-        .. math:: \bar p(s) = \int p(s + \sigma z)\,\varphi(z)\,dz
+        Shared shadowing (the attempts of a period see one value):
+
+        .. math:: \bar p(s) = \int p(s + \sigma z)\,\varphi(z)\,dz,\qquad
+                  p(s) = 1 - \mathrm{PER}(s)^{k+1}
+
+        independent per attempt (``fading_per_attempt: independent``), with the averaged
+        one-attempt success :math:`\bar a = \int (1 - \mathrm{PER}(s + \sigma z))\,
+        \varphi(z)\,dz`:
+
+        .. math:: \bar p(s) = 1 - (1 - \bar a)^{k+1}
 
         The integrand is smooth and decays like φ(z), so the trapezoid rule converges
         geometrically; the step keeps σ·h ≤ 0.02 dB, far finer than the width of any PER curve.
@@ -225,6 +275,12 @@ class LinkBudget(Channel):
         count = 2 * math.ceil(Z_RANGE / h) + 1
         z = np.linspace(-Z_RANGE, Z_RANGE, count)
         weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+        if self.independent_attempts:
+            one = np.exp(self.radio.log_arrival(sinr_db + sigma * z, self.per_bytes))
+            a = float(min(1.0, np.trapezoid(one * weights, z)))
+            if a >= 1.0:
+                return 1.0
+            return float(-math.expm1((self.max_retries + 1) * math.log1p(-a)))
         values = self.link_arrival(sinr_db + sigma * z)
         return float(min(1.0, np.trapezoid(values * weights, z)))
 
@@ -292,7 +348,7 @@ class LinkBudget(Channel):
         Solved on one attempt: PER(s)^{k+1} ≤ 1 − p ⇔ 1 − PER(s) ≥ 1 − (1 − p)^{1/(k+1)}.
         """
         return self.radio.required_sinr_db(attempt_probability(p, self.max_retries),
-                                           self.psdu_bytes)
+                                           self.per_bytes)
 
     def required_sinr_db(self, p: float) -> float | None:
         """Least median SINR (dB) whose arrival probability is ≥ p; None if none is needed."""
@@ -334,18 +390,25 @@ class LinkBudget(Channel):
                 "ppdu_bytes": psdu + frame.phy_header_bytes,
                 "max_psdu_bytes": frame.max_psdu_bytes,
                 "max_payload_bytes": frame.max_payload_bytes(self.mac_overhead_bytes),
-                "standard": frame.standard, "per_covers": "PSDU (MAC header + payload + FCS)",
+                "standard": frame.standard, "per_over": self.per_over,
+                "per_bytes": self.per_bytes,
+                "per_covers": ("PPDU (PHY header + MAC header + payload + FCS)"
+                               if self.per_over == "ppdu" and frame.phy_header_bytes
+                               else "PSDU (MAC header + payload + FCS)"),
                 "definition": "packet_bytes is the application payload; PSDU = MAC header + "
                               "payload + FCS; PPDU = PHY header (preamble, SFD, PHR) + PSDU",
                 "airtime_s": frame.airtime_s(psdu),
                 "max_retries": self.max_retries, "max_retries_allowed": frame.max_retries,
                 "attempts_duration_s": frame.attempts_duration_s(psdu, self.max_retries),
                 "retry_formula": "p = 1 - PER^(k+1)",
-                "retry_assumption": "the k + 1 attempts fit in the sample period and fail "
-                                    "independently given the shadowing value of the period, "
-                                    "which they share; acknowledgement losses cause needless "
-                                    "retries, not lost updates; CSMA-CA backoffs are not "
-                                    "included in attempts_duration_s"}
+                "fading_per_attempt": self.fading_per_attempt,
+                "retry_assumption": (
+                    "the k + 1 attempts fit in the sample period and fail independently, "
+                    + ("each with its own shadowing value (p = 1 - E[PER]^(k+1))"
+                       if self.fading_per_attempt == "independent" else
+                       "given the shadowing value of the period, which they share")
+                    + "; acknowledgement losses cause needless retries, not lost updates; "
+                    "CSMA-CA backoffs are not included in attempts_duration_s")}
 
     def link_dict(self) -> dict[str, Any]:
         """The configured link, step by step."""
@@ -353,13 +416,14 @@ class LinkBudget(Channel):
         ber = float(self.radio.ber(db_to_linear(sinr)))
         return {"tx_power_dbm": self.tx_power_dbm, "antenna_gain_db": self.antenna_gain_db,
                 "distance_m": self.distance_m, "packet_bytes": self.packet_bytes,
-                "psdu_bytes": self.psdu_bytes, "max_retries": self.max_retries,
+                "psdu_bytes": self.psdu_bytes, "per_bytes": self.per_bytes,
+                "max_retries": self.max_retries,
                 "path_loss_db": self.path_loss_db, "rx_power_dbm": self.rx_power_dbm,
                 **self.noise.to_dict(), "sinr_db": sinr,
                 "sinr_linear": float(db_to_linear(sinr)), "bit_error_rate": ber,
                 "packet_error_rate": float(self.attempt_per(sinr)),
                 "attempt_arrival_probability": float(
-                    self.radio.arrival(sinr, self.psdu_bytes)),
+                    self.radio.arrival(sinr, self.per_bytes)),
                 "arrival_probability_nominal": self.nominal_arrival(sinr),
                 "arrival_probability_mean": self.mean_arrival(sinr),
                 "arrival_probability": self.arrival_value}
@@ -371,7 +435,8 @@ class LinkBudget(Channel):
                 "packet_bytes": self.packet_bytes, "antenna_gain_db": self.antenna_gain_db,
                 "path_loss": self.path_loss.to_dict(), "noise": self.noise.to_dict(),
                 "margin_db": self.margin_db, "max_outage": self.max_outage,
-                "max_retries": self.max_retries, "frame": self.frame_dict(),
+                "max_retries": self.max_retries, "per_over": self.per_over,
+                "fading_per_attempt": self.fading_per_attempt, "frame": self.frame_dict(),
                 "shadowing_correlation": (self.shadowing_correlation.to_dict()
                                           if self.shadowing_correlation else None),
                 "gilbert_elliott": chain.to_dict() if chain else None,
@@ -417,14 +482,25 @@ def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
 def _frame_notes(channel: LinkBudget) -> list[str]:
     """What the frame and radio model assume, in words for the record."""
     frame = channel.frame_dict()
+    head = frame["phy_header_bytes"]
+    if channel.per_over == "ppdu" and head:
+        covers = (f"the PPDU of {frame['per_bytes']} bytes (PHY header {head} bytes + PSDU "
+                  f"{frame['psdu_bytes']} bytes, MAC header and FCS "
+                  f"{frame['mac_overhead_bytes']} bytes added; per_over: ppdu)")
+    else:
+        covers = (f"the PSDU of {frame['psdu_bytes']} bytes (MAC header and FCS "
+                  f"{frame['mac_overhead_bytes']} bytes added)"
+                  + (f"; the PHY header ({head} bytes) counts in the airtime only"
+                     if head else ""))
     notes = [f"packet_bytes = {frame['payload_bytes']} is the application payload; the packet "
-             f"error rate covers the PSDU of {frame['psdu_bytes']} bytes (MAC header and FCS "
-             f"{frame['mac_overhead_bytes']} bytes added); the PHY header "
-             f"({frame['phy_header_bytes']} bytes) counts in the airtime only"]
+             f"error rate covers {covers}"]
     if channel.max_retries:
         notes.append(f"{channel.max_retries} MAC retries: p = 1 - PER^{channel.max_retries + 1}"
-                     " within the sample period (attempts independent given the period's "
-                     "shadowing value, which they share)")
+                     " within the sample period " + (
+                         "(each attempt draws its own shadowing value: p = 1 - E[PER]^"
+                         f"{channel.max_retries + 1})" if channel.independent_attempts else
+                         "(attempts independent given the period's shadowing value, which "
+                         "they share)"))
     if isinstance(channel.radio, CalibratedOqpsk) and (channel.noise.noise_figure_db or 0) > 0:
         notes.append("the radio's implementation loss is calibrated from its datasheet "
                      "sensitivity and already contains the receiver noise figure; the noise "

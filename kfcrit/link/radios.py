@@ -5,7 +5,8 @@ bit error rate; every radio shares the uncoded packet error rate
 
     PER(SINR, L) = 1 − (1 − BER(SINR))^{8 L}        (L bytes, independent bit errors)
 
-and the arrival probability 1 − PER, with L the PSDU length (see :mod:`kfcrit.link.frames`). Adding
+and the arrival probability 1 − PER, with L the bytes the PER covers (the PPDU by default, or the
+PSDU: ``per_over``, see :mod:`kfcrit.link.frames`). Adding
 a radio never touches the others: write a frozen dataclass with ``ber``, ``from_mapping`` and
 ``to_dict`` and add one line to ``_RADIOS``.
 
@@ -18,6 +19,10 @@ PER and PSDU length) is reproduced against the thermal noise of the 2 MHz channe
 
 and BER(SINR) = BER_ideal(SINR / 10^{ΔL/10}). ΔL contains the receiver's noise figure and its
 demodulator loss; a link using a profile should give its noise floor without a noise figure.
+s_ideal is solved over the reference PPDU, L_ref + 6 bytes (PHY header + the datasheet's PSDU):
+the bits a link's PER covers by default (``per_over: ppdu``, :mod:`kfcrit.link.frames`), so a
+default link at the sensitivity has exactly the datasheet PER; a ``per_over: psdu`` link there
+has a slightly lower PER (its PER covers 6 bytes fewer).
 
 Numerics: ``PER`` and ``arrival`` are computed as ``−expm1(8L·log1p(−BER))`` and
 ``exp(8L·log1p(−BER))`` so that tiny error rates (PER ~ 1e-12) keep full relative accuracy.
@@ -186,7 +191,7 @@ class CalibratedOqpsk(Radio):
     implementation_loss_db: float
     datasheet: str
     formula: ClassVar[str] = ("BER = BER_oqpsk(SINR / 10^(dL/10)), dL = S - N_ref - "
-                              "s_ideal(1 - PER_ref, L_ref)")
+                              "s_ideal(1 - PER_ref, L_ref + 6) (PER over the reference PPDU)")
     source: ClassVar[str] = "datasheet sensitivity; IEEE 802.15.4-2006 Annex E formula"
     frame: ClassVar[FrameFormat] = IEEE802154_2450
 
@@ -236,9 +241,13 @@ def calibrate_oqpsk(name: str, sensitivity_dbm: float, reference_per: float,
                     reference_psdu_bytes: int, datasheet: str) -> CalibratedOqpsk:
     r"""The transceiver whose sensitivity is ``sensitivity_dbm`` at the given PER and PSDU.
 
-    .. math:: \Delta L = S - N_{ref} - s_{ideal}(1 - \mathrm{PER}_{ref}, L_{ref})
+    .. math:: \Delta L = S - N_{ref} - s_{ideal}(1 - \mathrm{PER}_{ref}, L_{ref} + H_{PHY})
+
+    with H_PHY = 6 bytes (SHR + PHR): the PER of the sensitivity test is that of whole frames,
+    counted over the PPDU as a default link counts it.
     """
-    ideal = Ieee802154Oqpsk().required_sinr_db(1.0 - reference_per, reference_psdu_bytes)
+    ideal = Ieee802154Oqpsk().required_sinr_db(
+        1.0 - reference_per, reference_psdu_bytes + IEEE802154_2450.phy_header_bytes)
     loss = float(sensitivity_dbm) - oqpsk_reference_noise_dbm() - float(ideal)
     return CalibratedOqpsk(name, float(sensitivity_dbm), float(reference_per),
                            int(reference_psdu_bytes), loss, datasheet)

@@ -183,7 +183,8 @@ def draw_per_sinr(record: dict[str, Any]) -> Figure | None:
     if s is None or per is None or not isinstance(lengths, list) \
             or per.shape != (len(lengths), len(s)):
         return None
-    curve = PerCurve(str(c.get("radio") or "radio"), s, tuple(int(v) for v in lengths), per)
+    curve = PerCurve(str(c.get("radio") or "radio"), s, tuple(int(v) for v in lengths), per,
+                     int(c.get("header_bytes") or 0))
     marks = [(label, v) for label, v in (
         ("configured SINR", finite(section(record, "link_budget", "link", "sinr_db"))),
         ("required SINR", finite(section(record, "link_budget", "required_sinr_db"))))

@@ -135,7 +135,8 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = (),
         ax.set_yscale("log")
         ax.set_ylim(1e-8, 1.5)
         ax.set_xlabel("SINR (dB)")
-        ax.set_ylabel("packet error rate")
+        ax.set_ylabel("packet error rate" + (
+            f" (+ {curve.header_bytes}-byte PHY header)" if curve.header_bytes else ""))
         if title:
             ax.set_title(title)
         _legend_below(fig, ax)
