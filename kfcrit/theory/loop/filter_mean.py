@@ -14,7 +14,7 @@ which has no closed form. Bounds (concavity and monotonicity of the update, Jens
     (1-\\bar\\gamma)\\,\\bar S \\preceq \\lim E[P_{t|t}] \\preceq
     \\bar V - \\bar\\gamma\\, \\bar V C'(C\\bar V C' + R)^{-1} C \\bar V ,
 
-with S̄ = (1−γ̄) A S̄ A' + Q and V̄ = g_γ̄(V̄) (:mod:`kfcrit.theory.bounds`). The value itself:
+with S̄ = (1−γ̄) A S̄ A' + Q and V̄ = g_γ̄(V̄) (:mod:`kfcrit.theory.covariance.bounds`). The value itself:
 
 * n = 1: the law of P_t is propagated exactly from P_0 = 0 as a finite set of atoms (each step
   maps an atom x to a²x + q with weight 1−γ̄ and to a²x/(1 + s x) + q with weight γ̄,
@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kfcrit.model.system import System
-from kfcrit.theory.bounds import lower_covariance, upper_covariance
-from kfcrit.theory.riccati import symmetrize
+from kfcrit.theory.covariance.bounds import lower_covariance, upper_covariance
+from kfcrit.theory.covariance.riccati import symmetrize
 
 __all__ = ["FilterMoments", "filter_moments", "filtered", "rre_mean_monte_carlo",
            "scalar_rre_mean"]

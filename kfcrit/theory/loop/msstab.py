@@ -38,7 +38,7 @@ from fractions import Fraction
 import flint
 import numpy as np
 
-from kfcrit.theory import certify
+from kfcrit.theory.upper import certify
 
 __all__ = ["EXACT_MAX_DIMENSION", "StabilityFact", "decide", "operator_matrix",
            "vech_operator"]

@@ -1,7 +1,7 @@
 """The two thresholds of a TCP-like closed loop: ν_c (actuation link) and γ_c (sensing link).
 
 MATH.md §12: with acknowledgements, separation holds. The estimator sees the RRE of §1, so its
-threshold is the estimation critical value γ_c of (A, C) (:mod:`kfcrit.theory.critical`). The
+threshold is the estimation critical value γ_c of (A, C) (:mod:`kfcrit.theory.critical.section`). The
 controller's value function follows the *control MARE*
 
 .. math::
@@ -19,7 +19,7 @@ threshold is therefore the p_up of §3 of the dual pair:
 Closed forms: scalar ν_c = max(1 − 1/a², 0); B square invertible ν_c = max(1 − 1/ρ(A)², 0)
 (the dual of "C invertible", a theorem); one input column ν_c = 1 − 1/Π|λ_u|² (the dual of
 the single-output identity, a **claim** of MATH §3 [beyond], reported next to the certified
-interval). Otherwise the certified interval of :func:`kfcrit.theory.upper.upper_bound`.
+interval). Otherwise the certified interval of :func:`kfcrit.theory.upper.bracket.upper_bound`.
 """
 from __future__ import annotations
 
@@ -29,11 +29,11 @@ from typing import Any
 import sympy as sp
 
 from kfcrit.model.system import System, to_matrix
-from kfcrit.theory import certify
-from kfcrit.theory.critical import critical_value
-from kfcrit.theory.plow import c_invertible, p_low_bounds
-from kfcrit.theory.structure import structure_of
-from kfcrit.theory.upper import upper_bound
+from kfcrit.theory.upper import certify
+from kfcrit.theory.critical.section import critical_value
+from kfcrit.theory.critical.plow import c_invertible, p_low_bounds
+from kfcrit.theory.structure.eigen import structure_of
+from kfcrit.theory.upper.bracket import upper_bound
 
 __all__ = ["Threshold", "actuation_threshold", "dual_system", "sensing_threshold"]
 
@@ -212,7 +212,7 @@ def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
 
 def sensing_threshold(A: Any, C: Any, Q: Any = None, R: Any = None,
                       tol: float = 1e-9) -> Threshold:
-    """γ_c: the estimation critical value of (A, C) (:func:`kfcrit.theory.critical.critical_value`).
+    """γ_c: the estimation critical value of (A, C) (:func:`kfcrit.theory.critical.section.critical_value`).
 
     .. math::
 

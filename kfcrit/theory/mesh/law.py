@@ -63,7 +63,7 @@ MAX_SHARED = 20
 class JointLaw:
     """A law over received sets: ``probabilities[k]`` is π(S) for S = the sensors whose bit is
     set in k (bit i = ``sensors[i]``, the order of
-    :func:`kfcrit.theory.network_kernels.all_received_sets`).
+    :func:`kfcrit.theory.links.netkernels.all_received_sets`).
 
     ``exact``: the entries are sympy Rationals (else floats). ``method`` says how the law
     was computed.

@@ -42,7 +42,7 @@ from kfcrit.model.exprparse import compare
 from kfcrit.model.mesh import Hop, Mesh
 from kfcrit.model.network import Network
 from kfcrit.model.system import System
-from kfcrit.theory.critical import structure_of
+from kfcrit.theory.critical.section import structure_of
 
 FLOW_RTOL = 1e-12
 """Residual capacities below this times the largest finite capacity count as saturated."""
@@ -166,14 +166,14 @@ class Spectral:
 
 
 def spectral_radius2(system: System) -> Spectral:
-    """ρ(A)² of a system (from :func:`kfcrit.theory.critical.structure_of`)."""
+    """ρ(A)² of a system (from :func:`kfcrit.theory.critical.section.structure_of`)."""
     st = structure_of(system)
     top = max(st.eigen, key=lambda e: e.mod2)
     return Spectral(float(top.mod2), top.mod2_expr)
 
 
 @dataclass(frozen=True)
-class RelayingVerdict:
+class RelayingCondition:
     """One sensor under estimate relaying: p_cut·ρ(A)² against 1 (``stable`` None when
     undecided at float precision); ``detectable``: (A, C_s) is detectable."""
 
@@ -190,7 +190,7 @@ class RelayingVerdict:
 class RelayingResult:
     """Per-sensor verdicts and the network statement (sufficient only when N > 1)."""
 
-    sensors: tuple[RelayingVerdict, ...]
+    sensors: tuple[RelayingCondition, ...]
     rho2: Spectral
     network_stable: bool | None
     basis: str
@@ -207,8 +207,8 @@ def _below_one(value: float, expr: sp.Expr | None) -> bool | None:
     return value < 1.0
 
 
-def relaying_verdict(network: Network, mesh: Mesh, sensor: str,
-                     rho: Spectral | None = None) -> RelayingVerdict:
+def relaying_condition(network: Network, mesh: Mesh, sensor: str,
+                     rho: Spectral | None = None) -> RelayingCondition:
     """Gupta et al.'s condition for one sensor: (A, C_s) detectable and p_cut·ρ(A)² < 1."""
     rho = rho or spectral_radius2(network.stacked_system())
     cut = sensor_cut(mesh, sensor)
@@ -218,12 +218,12 @@ def relaying_verdict(network: Network, mesh: Mesh, sensor: str,
     detectable = structure_of(network.received_system([sensor])).detectable
     below = _below_one(value, expr)
     if not detectable:
-        return RelayingVerdict(sensor, cut, value, expr, False, False,
+        return RelayingCondition(sensor, cut, value, expr, False, False,
                                "(A, C_s) is not detectable: this sensor alone cannot")
     if below is None:
-        return RelayingVerdict(sensor, cut, value, expr, True, None,
+        return RelayingCondition(sensor, cut, value, expr, True, None,
                                "p_cut·ρ(A)² is 1 to float precision")
-    return RelayingVerdict(sensor, cut, value, expr, True, below,
+    return RelayingCondition(sensor, cut, value, expr, True, below,
                            f"p_cut·ρ(A)² = {value:.6g} {'<' if below else '≥'} 1 "
                            "(Gupta et al. 2009)")
 
@@ -235,7 +235,7 @@ def estimate_relaying(network: Network, mesh: Mesh) -> RelayingResult:
     detecting sensor's verdict is stable (sufficient only; module docstring).
     """
     rho = spectral_radius2(network.stacked_system())
-    rows = tuple(relaying_verdict(network, mesh, s, rho) for s in mesh.sensors)
+    rows = tuple(relaying_condition(network, mesh, s, rho) for s in mesh.sensors)
     if len(rows) == 1:
         return RelayingResult(rows, rho, rows[0].stable,
                               "one sensor: p_cut·ρ(A)² < 1 iff stable (Gupta et al. 2009)")

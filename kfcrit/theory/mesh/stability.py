@@ -11,18 +11,18 @@ monotone and concave for any law (Sinopoli's Lemma 1 term by term), so:
 
   (if every sensor outside T is lost for k steps, probability P(S ⊆ T)^k, those modes grow
   like ρ_T^{2k}). P(S ⊆ T) grows with T, so the maximal unobservable sets of
-  :func:`kfcrit.theory.network.necessary_constraints` suffice; the binding T is the one with
+  :func:`kfcrit.theory.links.network.necessary_constraints` suffice; the binding T is the one with
   the largest value. Exact (sympy) when the law and ρ_T² are.
 * **sufficient**: gains K_S and X ≻ 0 with
 
   .. math:: X ≻ \\sum_S π(S) (A + K_S C_S) X (A + K_S C_S)'
 
   found by power iteration on the noise-free expected map with weights π (the batched kernels
-  of :mod:`kfcrit.theory.network_kernels`), policy iteration and a Stein solve, and checked in
+  of :mod:`kfcrit.theory.links.netkernels`), policy iteration and a Stein solve, and checked in
   ball arithmetic with the weights formed exactly from an exact law.
-* **exact region**: the proof in :mod:`kfcrit.theory.network` (modal one-step observability)
+* **exact region**: the proof in :mod:`kfcrit.theory.links.network` (modal one-step observability)
   uses π only through P(S ⊆ B_j); it holds verbatim for any law, so where
-  :func:`kfcrit.theory.network.modal_one_step` applies the region is exactly the necessary
+  :func:`kfcrit.theory.links.network.modal_one_step` applies the region is exactly the necessary
   one (a claim beyond MATH §13 until reviewed).
 
 **Bottleneck hop** (:func:`hop_headrooms`): for hop h let σ ↦ π_σ be the law with the hop's
@@ -48,8 +48,8 @@ from kfcrit.errors import InputError, KfcritError
 from kfcrit.model.exprparse import compare
 from kfcrit.model.mesh import Mesh
 from kfcrit.model.network import Network
-from kfcrit.theory import network_kernels as nk
-from kfcrit.theory.certify import (
+from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.upper.certify import (
     PRECISION_BITS,
     arb_exact_number,
     arb_from_float,
@@ -57,8 +57,9 @@ from kfcrit.theory.certify import (
     definite_margin,
 )
 from kfcrit.theory.mesh.law import JointLaw, mesh_law
-from kfcrit.theory.network import Constraint, modal_one_step, necessary_constraints
-from kfcrit.theory.riccati import symmetrize, unvech, vech
+from kfcrit.theory.facts import StabilityFacts
+from kfcrit.theory.links.network import Constraint, modal_one_step, necessary_constraints
+from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 
 EQUALITY_GUARD = 1e-12
 """Float factors within this of 1 leave the necessary condition undecided (no exact value)."""
@@ -105,14 +106,15 @@ class SufficientFact:
 
 
 @dataclass(frozen=True)
-class StabilityFacts:
-    """Verdict (``mean-stable``, ``mean-unstable`` or ``undetermined``) and its facts.
+class LawStability:
+    """The stability facts under one joint law, with the evidence behind each.
 
-    ``exact``: the verdict is proven (the necessary condition fails, or a certificate is
-    checked, or the exact-region proof applies with the necessary condition holding).
+    ``facts`` is what :mod:`kfcrit.analysis.verdict` reads (the necessary condition holds,
+    fails or is undecided; a certificate is checked; the exact-region proof applies);
+    ``exact`` says whether the facts decide (one of the three holds).
     """
 
-    verdict: str
+    facts: StabilityFacts
     exact: bool
     reason: str
     necessary: NecessaryFact
@@ -298,12 +300,12 @@ def sufficient_fact(network: Network, law: JointLaw, certify: bool = True) -> Su
 
 
 # ---------------------------------------------------------------------------------------------
-# the verdict for any law
+# the facts for any law
 # ---------------------------------------------------------------------------------------------
 
 def law_stability(network: Network, law: JointLaw, *, certify: bool = True,
                   constraints: Sequence[Constraint] | None = None,
-                  exact_region: tuple[bool | None, str] | None = None) -> StabilityFacts:
+                  exact_region: tuple[bool | None, str] | None = None) -> LawStability:
     """Necessary and sufficient facts of mean stability under the joint law ``law``.
 
     Parameters
@@ -324,20 +326,30 @@ def law_stability(network: Network, law: JointLaw, *, certify: bool = True,
         b = nec.binding
         suf = SufficientFact(False, "exact" if law.exact else "float", None, None, None,
                              "not searched: the necessary condition fails")
-        return StabilityFacts("mean-unstable", True,
-                              f"P(S ⊆ {{{', '.join(b.unobservable)}}})·|λ|² = {b.value:.6g} ≥ 1 "
-                              f"for eigenvalue {b.eigenvalue}", nec, suf, region, why)
+        why_nec = (f"P(S ⊆ {{{', '.join(b.unobservable)}}})·|λ|² = {b.value:.6g} ≥ 1 "
+                   f"for eigenvalue {b.eigenvalue}")
+        return LawStability(_facts(nec, suf, region, why_nec), True, why_nec, nec, suf,
+                            region, why)
     suf = sufficient_fact(network, law, certify)
     if suf.certified:
-        return StabilityFacts("mean-stable", True, "certificate checked; the necessary "
-                              "condition holds", nec, suf, region, why)
+        return LawStability(_facts(nec, suf, region, ""), True, "certificate checked; the "
+                            "necessary condition holds", nec, suf, region, why)
     if nec.holds and region:
-        return StabilityFacts("mean-stable", True, "the necessary condition holds and the "
-                              "region is exactly the necessary one (modal one-step "
-                              "observability; a claim until reviewed)", nec, suf, region, why)
+        return LawStability(_facts(nec, suf, region, ""), True, "the necessary condition holds "
+                            "and the region is exactly the necessary one (modal one-step "
+                            "observability; a claim until reviewed)", nec, suf, region, why)
     reason = ("the necessary condition is at equality to 1e-12" if nec.holds is None
               else "between the necessary and the sufficient surface")
-    return StabilityFacts("undetermined", False, reason, nec, suf, region, why)
+    return LawStability(_facts(nec, suf, region, ""), False, reason, nec, suf, region, why)
+
+
+def _facts(nec: NecessaryFact, suf: SufficientFact, region: bool | None,
+           why_nec: str) -> StabilityFacts:
+    return StabilityFacts(
+        necessary=nec.holds, sufficient=suf.certified, exact_region=bool(region),
+        necessary_basis=why_nec or "P(S ⊆ T)·ρ_T² < 1 for every sensor set T (theory §13)",
+        sufficient_basis=("certificate X ≻ Σ π(S) F_S X F_S' checked in ball arithmetic"
+                          if suf.certified else ""))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -374,7 +386,7 @@ class FailureCase:
     kind: str
     element: str
     lost_sensors: tuple[str, ...]
-    facts: StabilityFacts
+    facts: LawStability
 
 
 @dataclass(frozen=True)
@@ -382,7 +394,7 @@ class MeshAnalysis:
     """Everything :func:`mesh_analysis` finds about a mesh at its hops' q."""
 
     law: JointLaw
-    facts: StabilityFacts
+    facts: LawStability
     marginals: tuple[Marginal, ...]
     all_lost: float
     all_lost_exact: sp.Expr | None
