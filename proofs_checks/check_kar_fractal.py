@@ -12,7 +12,7 @@ f_0(X) = 2X + 1, f_1(X) = 3 − 2/(X + 1), P* = 1 + √2; the intervals
 3. Holes, all n (symbolic in n): f_0^n(x) = 2^n x + 2^n − 1 maps the first hole onto the n-th;
    a point of the n-th hole (n ≥ 1) is not in f_1's range (< 3), so it would be f_0 of a point
    of the (n−1)-th hole; by induction no hole meets the support. Length 2^{n+1}√2.
-4. Numeric: 20 000 steps of the random Riccati iteration from P* with kfcrit.theory.covariance.riccati's f_0, f_1
+4. Numeric: 20 000 steps of the random Riccati iteration from P* with the maps f_0, f_1 (riccati module)
    (p = 0.7): every iterate is ≥ P*, every image of f_1 is ≤ 3, none is in the first four holes.
 """
 from __future__ import annotations

@@ -43,7 +43,7 @@ def exact() -> str:
 
 
 def numeric() -> str:
-    """kfcrit.theory.covariance.riccati.g against kfcrit.theory.covariance.riccati.phi at kfcrit.theory.covariance.riccati.optimal_gain."""
+    """kfcrit.theory.covariance.riccati.g against riccati.phi at riccati.optimal_gain."""
     rng = np.random.default_rng(5)
     worst = 0.0
     for n, m in ((1, 1), (3, 2), (5, 2)):

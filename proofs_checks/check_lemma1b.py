@@ -38,7 +38,7 @@ def symbolic(n: int = 2, m: int = 1) -> str:
 
 
 def numeric() -> str:
-    """φ(K, X) − g_p(X) ⪰ 0 for many gains K (kfcrit.theory.covariance.riccati, the paper's general system)."""
+    """φ(K, X) − g_p(X) ⪰ 0 for many gains K (riccati module, the paper's general system)."""
     A = np.array([[1.25, 0.0], [1.0, 1.1]])
     C = np.array([[1.0, 1.0]])
     Q, R = 20 * np.eye(2), np.array([[2.5]])

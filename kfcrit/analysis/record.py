@@ -248,8 +248,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     enter Ψ_p, MATH §3), so a sweep over noise parameters computes it once.
     """
     from kfcrit.theory.critical import section as critical
-    from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.structure.eigen import structure_of
+    from kfcrit.theory.upper import bracket as upper
 
     opts = options or AnalysisOptions()
     structure = structure_of(system, opts.tolerance)

@@ -14,9 +14,11 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from kfcrit.analysis.verdict import verdict_of
 from kfcrit.model.mesh import build_mesh
 from kfcrit.model.network import Network, Sensor
 from kfcrit.model.system import System
+from kfcrit.theory.links.network import network_analysis
 from kfcrit.theory.mesh.law import mesh_law, product_law, route_arrival, slot_arrival
 from kfcrit.theory.mesh.relaying import (
     estimate_relaying,
@@ -25,11 +27,9 @@ from kfcrit.theory.mesh.relaying import (
     smart_sensor_critical_value,
 )
 from kfcrit.theory.mesh.stability import hop_headrooms, law_stability, mesh_analysis
-from kfcrit.theory.links.network import network_analysis
 
 R = sp.Rational
 SMALL = settings(max_examples=12, deadline=None)
-from kfcrit.analysis.verdict import verdict_of
 
 
 def V(stability) -> str:  # noqa: ANN001, N802 - the verdict the analysis layer reads

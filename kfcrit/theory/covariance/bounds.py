@@ -20,15 +20,22 @@ from __future__ import annotations
 import os
 import time
 import warnings as _warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.theory.covariance.riccati import (
+    g,
+    optimal_gain,
+    solve_generalized_stein,
+    stein_matrix,
+    symmetrize,
+)
 from kfcrit.theory.critical import plow
 from kfcrit.theory.upper import bracket as upper_module
-from kfcrit.theory.covariance.riccati import g, optimal_gain, solve_generalized_stein, stein_matrix, symmetrize
 
 NEWTON_MAX_STATES = 60
 """Newton–Kleinman (a dense solve in n(n+1)/2 unknowns) is used up to this state dimension."""
@@ -292,9 +299,10 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
 
 
 def _warm_fixed_point(A, C, Q, R, p: float, V0: np.ndarray | None, deadline: float,
-                      rtol: float = 1e-9, blowup: float = 1e14) -> np.ndarray | None:
+                      rtol: float = 1e-9, blowup: float = 1e14,
+                      clock: Callable[[], float] = time.perf_counter) -> np.ndarray | None:
     """V̄(p) by V_{t+1} = g_p(V_t) from V0 (0 if None), at most :data:`PHASE_ITERATION_CAP`
-    iterations and never past ``deadline`` (``time.perf_counter()``); None if not reached.
+    iterations and never past ``deadline`` on ``clock``; None if not reached.
 
     From V0 = V̄(p') with p' > p the iterates increase monotonically to V̄(p) (Lemma 1(c), (d)).
     """
@@ -309,7 +317,7 @@ def _warm_fixed_point(A, C, Q, R, p: float, V0: np.ndarray | None, deadline: flo
             if float(np.linalg.norm(Vn - V)) <= rtol * nv:
                 return Vn
             V = Vn
-            if t % 25 == 24 and time.perf_counter() > deadline:
+            if t % 25 == 24 and clock() > deadline:
                 return None
     return None
 
@@ -333,8 +341,12 @@ def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarra
 
 
 def phase_transition(system: System, markers: dict[str, float | None] | None = None,
-                     points: int = 120, time_budget: float | None = None) -> dict[str, Any]:
+                     points: int = 120, time_budget: float | None = None,
+                     clock: Callable[[], float] = time.perf_counter) -> dict[str, Any]:
     """tr S̄(p) and tr V̄(p) on a grid resolving the blow-ups at p_low and p_up.
+
+    ``clock`` measures the time budget (injectable, so that tests count work instead of
+    reading the wall clock).
 
     ``markers`` (e.g. p_low, p_c, p_up, operating point) are echoed; p_low and p_up are computed
     when absent. Entries are None where the bound does not exist (or V̄ was not reached).
@@ -366,14 +378,14 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     warnings: list[str] = []
     A, C, Q, R = system.a, system.c, system.q, system.r
     newton = system.n <= PHASE_NEWTON_MAX_STATES
-    t0 = time.perf_counter()
+    t0 = clock()
     V_prev: np.ndarray | None = None
     stopped = None
     for i in range(len(grid) - 1, -1, -1):          # from p = 1 down, warm-starting
         p = float(grid[i])
         if p <= lo_up:
             continue
-        if time.perf_counter() - t0 > budget:
+        if clock() - t0 > budget:
             stopped = (f"the V̄ curve stopped at p = {p:.6g} after the time budget of "
                        f"{budget:g} s (KFCRIT_PHASE_TIME_BUDGET); "
                        f"{sum(1 for v in grid[:i + 1] if v > lo_up)} points closer to p_up "
@@ -383,7 +395,7 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
             res = upper_covariance(system, p, gains[-1:], rtol=1e-10)   # curves: 1e-10
             V = res["V"]
         else:
-            V = _warm_fixed_point(A, C, Q, R, p, V_prev, t0 + budget)
+            V = _warm_fixed_point(A, C, Q, R, p, V_prev, t0 + budget, clock=clock)
             res = {"method": f"fixed-point iteration, cap {PHASE_ITERATION_CAP} iterations "
                              "or the time budget"}
         if V is None:

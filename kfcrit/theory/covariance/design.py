@@ -28,10 +28,10 @@ import sympy as sp
 
 from kfcrit.model.system import System
 from kfcrit.theory.covariance import bounds
-from kfcrit.theory.upper import certify
+from kfcrit.theory.covariance.riccati import optimal_gain, solve_generalized_stein, symmetrize
 from kfcrit.theory.critical import plow
 from kfcrit.theory.upper import bracket as upper_module
-from kfcrit.theory.covariance.riccati import optimal_gain, solve_generalized_stein, symmetrize
+from kfcrit.theory.upper import certify
 
 BISECTION_WIDTH = 1e-9
 """Width of the bisection brackets for p_S and p_V (before the outward certified rounding)."""

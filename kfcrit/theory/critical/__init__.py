@@ -1,1 +1,3 @@
-"""The critical arrival probability p_c: which theorem applies, its exact value, its lower bound p_low, and its robustness (docs/theory.md §3–§4)."""
+"""The critical arrival probability p_c: which theorem applies, its exact value, its lower bound
+p_low, and its robustness (docs/theory.md §3–§4).
+"""

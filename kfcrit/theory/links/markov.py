@@ -50,10 +50,10 @@ import scipy.linalg as sla
 import sympy as sp
 
 from kfcrit.model.system import System
-from kfcrit.theory.upper import certify
-from kfcrit.theory.critical.plow import rational_rho2
 from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
+from kfcrit.theory.critical.plow import rational_rho2
 from kfcrit.theory.facts import StabilityFacts
+from kfcrit.theory.upper import certify
 
 LMI_MAX_STATES = 30
 """Largest n for the coupled Lyapunov LMI (cvxpy + Clarabel); above it only candidate gains."""

@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import flint
 import numpy as np
 
-from kfcrit.theory.upper.certify import PRECISION_BITS, arb_from_float, arb_from_sympy, definite_margin
 from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
+from kfcrit.theory.upper.certify import PRECISION_BITS, arb_from_float, arb_from_sympy, definite_margin
 
 EXACT_MAX_SENSORS = 12
 """Up to this many sensors every received set is enumerated (2^N, vectorised)."""

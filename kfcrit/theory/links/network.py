@@ -47,10 +47,10 @@ import sympy as sp
 from kfcrit.errors import InputError, KfcritError
 from kfcrit.model.exprparse import compare, exact_text
 from kfcrit.model.network import Network
-from kfcrit.theory.links import netkernels as nk
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
 from kfcrit.theory.facts import StabilityFacts
+from kfcrit.theory.links import netkernels as nk
 from kfcrit.theory.upper.bracket import upper_bound
 
 RANK_TOL = 1e-9

@@ -35,11 +35,11 @@ from typing import Any
 
 import numpy as np
 
+from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 from kfcrit.theory.loop.links import LossLink, joint_chain
 from kfcrit.theory.loop.msstab import StabilityFact, decide, operator_matrix
 from kfcrit.theory.loop.stack import FixedDesign, ModeMatrices, mode_matrices
 from kfcrit.theory.loop.tcp import LoopCost
-from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 
 __all__ = ["FixedLoop", "as_link", "fixed_loop", "mean_square_stability", "second_moment"]
 

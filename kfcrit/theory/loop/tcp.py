@@ -34,6 +34,7 @@ import sympy as sp
 
 from kfcrit.model.system import System, to_matrix
 from kfcrit.theory.covariance.bounds import upper_covariance
+from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.loop.filter_mean import FilterMoments, filter_moments
 from kfcrit.theory.loop.thresholds import (
     Threshold,
@@ -41,7 +42,6 @@ from kfcrit.theory.loop.thresholds import (
     dual_system,
     sensing_threshold,
 )
-from kfcrit.theory.covariance.riccati import symmetrize
 
 __all__ = ["LoopCost", "TCPLoop", "control_gain", "control_mare", "scalar_control_riccati", "tcp_cost",
            "tcp_loop"]

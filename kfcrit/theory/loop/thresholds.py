@@ -29,10 +29,10 @@ from typing import Any
 import sympy as sp
 
 from kfcrit.model.system import System, to_matrix
-from kfcrit.theory.upper import certify
-from kfcrit.theory.critical.section import critical_value
 from kfcrit.theory.critical.plow import c_invertible, p_low_bounds
+from kfcrit.theory.critical.section import critical_value
 from kfcrit.theory.structure.eigen import structure_of
+from kfcrit.theory.upper import certify
 from kfcrit.theory.upper.bracket import upper_bound
 
 __all__ = ["Threshold", "actuation_threshold", "dual_system", "sensing_threshold"]

@@ -48,7 +48,11 @@ from kfcrit.errors import InputError, KfcritError
 from kfcrit.model.exprparse import compare
 from kfcrit.model.mesh import Mesh
 from kfcrit.model.network import Network
+from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
+from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.links.network import Constraint, modal_one_step, necessary_constraints
+from kfcrit.theory.mesh.law import JointLaw, mesh_law
 from kfcrit.theory.upper.certify import (
     PRECISION_BITS,
     arb_exact_number,
@@ -56,10 +60,6 @@ from kfcrit.theory.upper.certify import (
     arb_from_sympy,
     definite_margin,
 )
-from kfcrit.theory.mesh.law import JointLaw, mesh_law
-from kfcrit.theory.facts import StabilityFacts
-from kfcrit.theory.links.network import Constraint, modal_one_step, necessary_constraints
-from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 
 EQUALITY_GUARD = 1e-12
 """Float factors within this of 1 leave the necessary condition undecided (no exact value)."""

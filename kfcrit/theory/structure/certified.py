@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.theory.structure.budget import field_degree_bound
 from kfcrit.theory.structure.cyclotomic import MAX_FIELD_DEGREE as CYCLO_MAX_DEGREE
 from kfcrit.theory.structure.cyclotomic import (
     CycloField,
@@ -33,7 +34,6 @@ from kfcrit.theory.structure.cyclotomic import charpoly as cyclo_charpoly
 from kfcrit.theory.structure.cyclotomic import element as cyclo_element
 from kfcrit.theory.structure.cyclotomic import monic as cyclo_monic
 from kfcrit.theory.structure.cyclotomic import real_expression as cyclo_real
-from kfcrit.theory.structure.budget import field_degree_bound
 from kfcrit.theory.structure.exact import controllability
 from kfcrit.theory.structure.records import (
     EXACT_MAX_STATES,

@@ -72,9 +72,9 @@ import time
 import sympy as sp
 
 from kfcrit.model.system import System
-from kfcrit.theory.structure.cyclotomic import cyclotomic_order, trig_form
 from kfcrit.theory.structure.budget import exact_refusal, run_bounded
 from kfcrit.theory.structure.certified import certified_structure
+from kfcrit.theory.structure.cyclotomic import cyclotomic_order, trig_form
 from kfcrit.theory.structure.exact import cmp_exact, exact_structure
 from kfcrit.theory.structure.numeric import numeric_structure
 from kfcrit.theory.structure.records import (

@@ -51,12 +51,12 @@ import scipy.linalg as sla
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.theory.covariance.riccati import symmetrize
+from kfcrit.theory.critical.plow import PLow, c_invertible, p_low_bounds, p_low_from_structure, p_low_of
 from kfcrit.theory.upper import lmi
+from kfcrit.theory.upper.certs import invariant_block_of, lower_end, stein_certificate
 from kfcrit.theory.upper.cone import NEWTON_MAX_REDUCED, full_gain, reduce_system
 from kfcrit.theory.upper.newton import newton_method
-from kfcrit.theory.critical.plow import PLow, c_invertible, p_low_bounds, p_low_from_structure, p_low_of
-from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.upper.certs import invariant_block_of, lower_end, stein_certificate
 from kfcrit.theory.upper.record import UpperBound, certificate_summary, evidence_p_low
 
 __all__ = ["METHODS", "PLow", "UpperBound", "c_invertible", "invariant_block_of",

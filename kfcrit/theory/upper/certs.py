@@ -19,6 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.theory.covariance.riccati import stein_matrix, symmetrize, unvech, vech
 from kfcrit.theory.upper import certify
 from kfcrit.theory.upper.cone import (
     MARGINAL_TOL,
@@ -32,7 +33,6 @@ from kfcrit.theory.upper.cone import (
     perron_newton,
     threshold_newton,
 )
-from kfcrit.theory.covariance.riccati import stein_matrix, symmetrize, unvech, vech
 from kfcrit.theory.upper.record import RECORD_MATRIX_MAX, evidence_p_low, matrix_list
 
 

@@ -20,8 +20,8 @@ import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
-from kfcrit.theory.upper import certify
 from kfcrit.theory.covariance.riccati import noise_free_g, stein_matrix, symmetrize, unvech, vech
+from kfcrit.theory.upper import certify
 
 UNSTABLE_TOL = 1e-9
 """Modes with |λ| ≥ 1 − UNSTABLE_TOL are kept in the reduced system."""

@@ -49,11 +49,11 @@ import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.theory.critical.plow import p_low_of
 from kfcrit.theory.upper import certify
+from kfcrit.theory.upper.certs import cone_lower_check
 from kfcrit.theory.upper.cone import lift_certificate, reduce_system
 from kfcrit.theory.upper.newton import newton_method
-from kfcrit.theory.critical.plow import p_low_of
-from kfcrit.theory.upper.certs import cone_lower_check
 from kfcrit.theory.upper.record import (
     RECORD_MATRIX_MAX,
     UpperBound,

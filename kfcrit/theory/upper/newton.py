@@ -14,7 +14,15 @@ from typing import Any
 import numpy as np
 
 from kfcrit.model.system import System
+from kfcrit.theory.covariance.riccati import symmetrize
+from kfcrit.theory.critical.plow import p_low_of
 from kfcrit.theory.upper import certify
+from kfcrit.theory.upper.certs import (
+    fixed_p_certificate,
+    lower_end,
+    lower_evidence,
+    regularised_certificate,
+)
 from kfcrit.theory.upper.cone import (
     FLOAT_SCREEN_MARGIN,
     NEWTON_MAX_REDUCED,
@@ -30,14 +38,6 @@ from kfcrit.theory.upper.cone import (
     stable_gramian,
     threshold_newton,
     undetected_modes,
-)
-from kfcrit.theory.critical.plow import p_low_of
-from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.upper.certs import (
-    fixed_p_certificate,
-    lower_end,
-    lower_evidence,
-    regularised_certificate,
 )
 from kfcrit.theory.upper.record import (
     UpperBound,

@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve
+from kfcrit.views.figures.link import arrival_distance_figure, outage_distance_figure, per_sinr_figure
 from kfcrit.views.figures.style import (
     COLORS,
     FIG_RC,
@@ -31,7 +32,6 @@ from kfcrit.views.figures.style import (
     positive,
     section,
 )
-from kfcrit.views.figures.link import arrival_distance_figure, outage_distance_figure, per_sinr_figure
 
 
 def required_interval(record: dict[str, Any]) -> tuple[float, float] | None:

@@ -46,6 +46,8 @@ from kfcrit.views.figures.design import (  # noqa: E402
     draw_outage_distance,
     draw_per_sinr,
 )
+from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
+from kfcrit.views.figures.network import draw_network_map, draw_network_region  # noqa: E402
 from kfcrit.views.figures.style import (  # noqa: E402,F401
     COLORS,
     FIG_RC,
@@ -63,8 +65,6 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     positive,
     section,
 )
-from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
-from kfcrit.views.figures.network import draw_network_map, draw_network_region  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",

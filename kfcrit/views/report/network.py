@@ -10,9 +10,9 @@ from __future__ import annotations
 from typing import Any
 
 from kfcrit.views import formatting as filters
-from kfcrit.views.text.netmargin import bottleneck_margin_text, margin_text, value_text
 from kfcrit.views.figures.network import margin_bounds, positions_of, sink_of, weakest_pair
 from kfcrit.views.report.parts import as_dict, as_list, exact_text, figure_entry, number, prose
+from kfcrit.views.text.netmargin import bottleneck_margin_text, margin_text, value_text
 
 VERDICT_CSS = {"mean-stable": "ok", "mean-unstable": "no", "undetermined": "none"}
 

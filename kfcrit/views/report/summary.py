@@ -10,10 +10,10 @@ from __future__ import annotations
 from typing import Any
 
 from kfcrit.views import formatting as filters
+from kfcrit.views.report.parts import as_dict
 from kfcrit.views.report.render import environment
 from kfcrit.views.report.theory import bounds_view
 from kfcrit.views.report.verdict import verdict_view
-from kfcrit.views.report.parts import as_dict
 
 FRAGMENT = "_summary.html.j2"
 

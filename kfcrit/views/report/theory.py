@@ -13,7 +13,6 @@ from kfcrit.theory.critical.numtext import modulus_from_p_low
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures import mathsvg
 from kfcrit.views.figures.record import invariant_gaps
-from kfcrit.views.text.netmargin import NETWORK_P_MEANING
 from kfcrit.views.report.network import is_network
 from kfcrit.views.report.parts import (
     INPUT_DIGITS,
@@ -37,6 +36,7 @@ from kfcrit.views.report.parts import (
     safe_svg,
     sentence,
 )
+from kfcrit.views.text.netmargin import NETWORK_P_MEANING
 
 THEOREMS: tuple[tuple[str, str, str, str], ...] = (
     ("non-degenerate", "Mo–Sinopoli, Theorem 4",

@@ -261,8 +261,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-contention", action="store_true")
     args = ap.parse_args(argv)
     t0 = time.time()
-    from ns import ns  # noqa: F401  (loads every ns-3 library and its headers)
     import cppyy
+    from ns import ns  # noqa: F401  (loads every ns-3 library and its headers)
 
     cppyy.cppdef(DRIVER)
     cppyy.gbl.ns3.RngSeedManager.SetSeed(SEED)
