@@ -1,7 +1,7 @@
-"""Stability region of a sensor network in (p_1, …, p_N) (MATH §9 [beyond]).
+"""Stability region of a sensor network in (p_1, …, p_N) (theory §9 [beyond]).
 
 N sensors, independent Bernoulli links with arrival probabilities p = (p_1..p_N). The region
-𝓢 = {p : E[P_t] bounded} is an up-set (MATH §9: g_p is non-increasing in each p_i). It is
+𝓢 = {p : E[P_t] bounded} is an up-set (theory §9: g_p is non-increasing in each p_i). It is
 enclosed between two surfaces:
 
 * **necessary** (closed form): for every sensor set T, ρ_T = the largest |λ| among the
@@ -15,7 +15,7 @@ enclosed between two surfaces:
   found by Newton on the threshold of the noise-free expected map along a path and checked in
   ball arithmetic.
 
-Where they meet the region is exact. One case is proven here (a claim beyond MATH §9 until
+Where they meet the region is exact. One case is proven here (a claim beyond theory §9 until
 reviewed; the proof is short): **modal one-step observability**. Let the modes with |λ| ≥ 1 be
 diagonalizable with eigenvectors w_1..w_k, and suppose that for every received set S the
 vectors {C_S w_j : C_S w_j ≠ 0} are linearly independent. Then for every S a real gain K_S
@@ -545,7 +545,7 @@ def _verdict_from(nec: bool | None, stable_proven: bool) -> str:
 
 def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                      tol: float = 1e-9, certify: bool = True) -> NetworkResult:
-    """Stability of a sensor network at arrival probabilities ``p`` (MATH §9).
+    """Stability of a sensor network at arrival probabilities ``p`` (theory §9).
 
     Parameters
     ----------
@@ -575,11 +575,11 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     plant = nk.Plant(st.a, st.c, _owner(network))
     col = nk.collection_for(pf, N)
     ctx = _Context(network, plant, col, tol, certify)
-    claims = ["MATH §9 [beyond]: the necessary and sufficient surfaces, and the up-set "
-              "property of the region, are stated in MATH §9 as claims to test"]
+    claims = ["docs/theory.md §9 [beyond]: the necessary and sufficient surfaces, and the up-set "
+              "property of the region, are stated in docs/theory.md §9 as claims to test"]
     if exact_region:
         claims.append("exact region by modal one-step observability: proof in "
-                      "kfcrit.theory.network (beyond MATH §9, a claim until reviewed)")
+                      "kfcrit.theory.network (beyond docs/theory.md §9, a claim until reviewed)")
     warnings: list[str] = []
     if not col.complete:
         warnings.append(f"{N} sensors: the sufficient surface uses the {col.size} most likely "
@@ -628,11 +628,11 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         reason = (f"necessary constraint fails: eigenvalue {bad.eigenvalue} (|λ|² = "
                   f"{bad.mod2:.6g}) is unobservable without sensors {{{', '.join(dead)}}}, and "
                   f"Π(1 − p_i)·|λ|² = {bad.factor(pf):.6g} ≥ 1")
-        basis = "necessary surface (MATH §9)"
+        basis = "necessary surface (docs/theory.md §9)"
     elif bu.s_cert is not None and bu.s_cert <= 0.0:
         verdict = "mean-stable"
         reason = (f"certificate at clip(p − {-bu.s_cert:.3g}·1) ≤ p; the region is an up-set "
-                  "(MATH §9)")
+                  "(docs/theory.md §9)")
         basis = "sufficient surface (checked certificate)"
     else:
         chk, _ = ctx.try_at(pf) if nec is not False else (None, None)
@@ -652,7 +652,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         uniform_margin=margin, bottleneck=bottleneck,
         constraints=tuple(_constraint_dict(network, c) for c in cons),
         exact_region={"holds": exact_region, "reason": why_exact,
-                      "basis": "proof in kfcrit.theory.network (claim beyond MATH §9)"},
+                      "basis": "proof in kfcrit.theory.network (claim beyond docs/theory.md §9)"},
         certificate=cert,
         method={"received_sets": col.size, "all_received_sets": col.complete,
                 "tolerance": tol, "ball_checked": certify, **ctx.stats},
@@ -831,7 +831,7 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                   if iv is not None else "negative",
                   reason="one sensor: δ = p − p_c (single-link theory)")
     return NetworkResult(verdict=verdict, reason=reason,
-                         basis="single-link theory (MATH §3–§4)", sensors=(new_row,),
+                         basis="single-link theory (docs/theory.md §3–§4)", sensors=(new_row,),
                          uniform_margin=um, bottleneck={**res.bottleneck, "name": row.name,
                                                         "margin": margin["value"],
                                                         "margin_interval": margin["interval"]},
