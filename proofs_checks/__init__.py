@@ -1,4 +1,4 @@
-"""Mechanical checks of the proof steps kfcrit relies on (MATH.md §8).
+"""Mechanical checks of the proof steps kfcrit relies on (docs/theory.md §8).
 
 One module per checked step, ``check_<step>.py``. Each module states its source (paper, equation)
 and exposes ``CHECKS``, a list of :class:`Check` records, each a function that returns a one-line

@@ -1,8 +1,8 @@
-"""Closed loops (MATH §12): the control MARE is the estimation MARE of the dual pair, and the
+"""Closed loops (theory §12): the control MARE is the estimation MARE of the dual pair, and the
 TCP-like cost formula J = tr(SQ) + ν̄ tr(L'(B'SB+U)L · lim E[P_{t|t}]).
 
 Source: Schenato, Sinopoli, Franceschetti, Poolla, Sastry, Proc. IEEE 95(1) 2007 (TCP-like
-LQG); MATH.md §12 [beyond]. The duality is the transpose identity: the estimation MARE
+LQG); theory §12 [beyond]. The duality is the transpose identity: the estimation MARE
 g_p(X) = A X A' + Q − p A X C'(C X C' + R)^{-1} C X A' with (A, C, Q, R) := (A', B', W, U) is
 A' X A + W − p A' X B (B' X B + U)^{-1} B' X A, the control MARE with ν̄ = p; the dual
 estimation gain K_X = −A' X B (B' X B + U)^{-1} is the transpose of the control gain L. The
@@ -23,7 +23,7 @@ from ._algebra import gain, general, is_zero_matrix, mare, require, symmetric
 
 STEP = "Loop duality: control MARE(A, B, W, U, ν̄) = estimation MARE(A', B', W, U, p = ν̄)"
 STEP_COST = "TCP-like cost J = tr(SQ) + ν̄ tr(L'(B'SB+U)L E[P_{t|t}])"
-SOURCE = "Schenato et al. 2007 (Proc. IEEE 95(1)), MATH §12"
+SOURCE = "Schenato et al. 2007 (Proc. IEEE 95(1)), theory §12"
 
 
 def control_mare(A, B, W, U, S, nu) -> sp.Matrix:

@@ -1,6 +1,6 @@
 """Marginal modes: ρ(A) ≤ 1 and (C, A) detectable ⇒ p_c = 0, diagonalizable or not.
 
-Source: MATH §11 ("Marginal modes"). The argument has three steps, each checked here:
+Source: theory §11 ("Marginal modes"). The argument has three steps, each checked here:
 
 1. ‖Aᵗ‖ grows at most polynomially when ρ(A) ≤ 1: for a Jordan block J = λI + N of size k,
    Jᵗ has entries binomial(t, j)·λ^{t−j} (j < k), polynomials of degree ≤ k − 1 in t when |λ| = 1
@@ -21,8 +21,8 @@ import sympy as sp
 from . import Check
 from ._algebra import require
 
-STEP = "MATH §11 marginal modes: ρ(A) ≤ 1, detectable ⇒ p_c = 0"
-SOURCE = "MATH §11 (marginal modes); Sinopoli 2004 eq. (15)"
+STEP = "theory §11 marginal modes: ρ(A) ≤ 1, detectable ⇒ p_c = 0"
+SOURCE = "theory §11 (marginal modes); Sinopoli 2004 eq. (15)"
 
 
 def jordan_powers(k: int = 4) -> str:

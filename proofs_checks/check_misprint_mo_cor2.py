@@ -2,7 +2,7 @@
 
 Source: Mo & Sinopoli, Corollary 2, printed as
     "sup_k E P_k^q ≤ ∞ ⇔ p_c > 1 − |λ_1|^{−2q}".
-Read (MATH.md §4): sup_k E[P_k^q] < ∞ ⇔ p > 1 − |λ_1|^{−2q}. The printed form is wrong twice:
+Read (docs/theory.md §4): sup_k E[P_k^q] < ∞ ⇔ p > 1 − |λ_1|^{−2q}. The printed form is wrong twice:
 its left side "≤ ∞" is always true, and its right side does not involve p and is false for every
 unstable non-degenerate system (p_c = 1 − |λ_1|^{−2} ≤ 1 − |λ_1|^{−2q} for q ≥ 1), so it reads
 "true ⇔ false". The corrected form is checked in the scalar case (n = 1, C = 1), where the

@@ -1,7 +1,7 @@
 """Misprint: Sinopoli Theorem 1 prints V = Q + K K K'; Lemma 1 (eq. 23) has V = Q + K R K'.
 
 Source: Sinopoli et al. 2004 (conference version), Theorem 1 and the proof of Theorem 5 print
-``V = Q + KKK'``; Appendix A, eq. (23) defines V = Q + K R K'. MATH.md §2 flags it.
+``V = Q + KKK'``; Appendix A, eq. (23) defines V = Q + K R K'. docs/theory.md §2 flags it.
 The printed form is (i) ill-formed unless m = n (K is n×m, so K K needs m = n), and (ii) where it
 is defined it breaks Lemma 1(a) g_p(X) = φ(K_X, X), on which Theorems 1 and 5 rest. The
 corrected form satisfies Lemma 1(a) (see check_lemma1a).

@@ -1,6 +1,6 @@
 """Mo–Sinopoli (58)–(61): the root test, the critical value 1 − λ^{−2q/(q−1)}, and the D_M form.
 
-Source: Mo & Sinopoli, proof of Theorem 9, eqs. (58)–(61), and Theorem 5 / MATH.md §4:
+Source: Mo & Sinopoli, proof of Theorem 9, eqs. (58)–(61), and Theorem 5 / docs/theory.md §4:
 p_c = max(1 − |λ_1|^{−2/(1 − D_M(φ/2π))}, 0), D_M(r/q) = 1/q, D_M(irrational) = 0. Steps:
 
 1. Grouping (exact, symbolic p and λ): for i = kq + ρ (ρ = 1..q−1), |S_{q,i}| = k(q−1) + ρ − 1,

@@ -2,7 +2,7 @@
 [√p CVA', CVC' + R]] ⪰ 0, V ⪰ 0.
 
 Source: Sinopoli et al. 2004, Theorem 6(b) and its proof ("Schur complement decomposition on
-V ⪯ g_p(V)"); the printed SDP omits Q (MATH.md §3, see check_misprint_thm6b). Steps checked:
+V ⪯ g_p(V)"); the printed SDP omits Q (docs/theory.md §3, see check_misprint_thm6b). Steps checked:
 
 1. The Schur complement of the block matrix w.r.t. C V C' + R ≻ 0 is g_p(V) − V (symbolic), so
    the constraint is exactly V ⪯ g_p(V).

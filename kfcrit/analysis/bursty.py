@@ -1,6 +1,6 @@
 """The bursty-link section of the analysis record: mean stability under Gilbert–Elliott losses.
 
-MATH §7: a loss burst lasts j steps with probability (1 − r)^{j−1} r; for a scalar system P
+theory §7: a loss burst lasts j steps with probability (1 − r)^{j−1} r; for a scalar system P
 grows like a^{2j} during a burst, so E[P] is bounded iff (1 − r)·a² < 1. For n > 1 the same test
 with a = ρ(A) is labelled as what it is (a claim for non-degenerate systems, a necessary
 condition otherwise). The scalar theorem is checked with the project's one random-Riccati
@@ -33,7 +33,7 @@ GE_CLAIMS: tuple[dict[str, str], ...] = (
                "Markovian packet losses, Automatica 47(12), 2011",
      "status": "claim from the literature (not verified by kfcrit)"},
 )
-"""Literature results beyond the scalar case, labelled as claims (MATH §7)."""
+"""Literature results beyond the scalar case, labelled as claims (theory §7)."""
 
 GE_SIM_PATHS = 4000
 GE_SIM_MIN_LOST = 100
@@ -118,12 +118,12 @@ def ge_condition_status(system: Any, classification: str, c_nonzero: bool) -> tu
         return ("not applicable: (C, A) is not detectable, E[P_t] diverges for every loss "
                 "process", False)
     if system.n == 1 and c_nonzero:
-        return ("theorem (scalar case, MATH §7: a loss burst lasts j steps with probability "
+        return ("theorem (scalar case, docs/theory.md §7: a loss burst lasts j steps with probability "
                 "(1 - r)^(j-1) r and multiplies P by about a^(2j))", True)
     if classification == "non-degenerate":
         return ("claim: necessary and sufficient for non-degenerate systems (You-Fu-Xie 2011, "
                 "see claims); not verified by kfcrit", False)
-    return (f"necessary condition only (claim, loss-burst argument of MATH §7 applied to "
+    return (f"necessary condition only (claim, loss-burst argument of docs/theory.md §7 applied to "
             f"lambda_1); no sufficient condition is implemented for a {classification} system "
             "(You-Fu-Xie 2011 give structure-dependent conditions for second-order systems)",
             False)
@@ -132,7 +132,7 @@ def ge_condition_status(system: Any, classification: str, c_nonzero: bool) -> tu
 def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
                             simulate: bool = True,
                             classification: str | None = None) -> dict[str, Any]:
-    """Mean stability under Gilbert–Elliott losses (MATH §7).
+    """Mean stability under Gilbert–Elliott losses (theory §7).
 
     Scalar case (theorem): losses arrive in bursts of length j with probability
     (1 − r)^{j−1} r, and P grows like a^{2j} during a burst (while after an arrival it is at most

@@ -1,4 +1,4 @@
-"""Sensor networks in the analysis (MATH §9): the network section, its operating point, each
+"""Sensor networks in the analysis (theory §9): the network section, its operating point, each
 link's policy, the network's Lyapunov bound, its simulation and the burst condition."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from kfcrit.io.systemfile import SystemSpec
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
                      single: tuple[vd.Verdict, str] | None = None
                      ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The ``network`` section (MATH §9: per-sensor critical values, uniform margin, N − 1
+    """The ``network`` section (theory §9: per-sensor critical values, uniform margin, N − 1
     verdicts, bottleneck) and the operating point of a ``sensors:`` file.
 
     The top-level critical value and p_up of such a record are those of the stacked system —
@@ -70,7 +70,7 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
 
 
 def network_lower_bound(network: Any) -> dict[str, Any]:
-    r"""The Lyapunov lower bound of a network's error covariance (MATH §9).
+    r"""The Lyapunov lower bound of a network's error covariance (theory §9).
 
     .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
               \pi(\emptyset) = \prod_i (1 - p_i)
@@ -126,7 +126,7 @@ def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str])
 def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
                        ) -> dict[str, Any]:
     """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
-    of C that arrived update the filter, MATH §9): E[tr P_t] at the horizon, or — when the
+    of C that arrived update the filter, theory §9): E[tr P_t] at the horizon, or — when the
     network is mean-unstable — the sample statistics labelled as not estimating a mean."""
     from kfcrit.sim.montecarlo import Budget, simulate
 
@@ -156,7 +156,7 @@ def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
 
 
 def network_burst_condition(network: Any) -> dict[str, Any] | None:
-    """The necessary burst condition of a network with bursty links (MATH §9 and §10).
+    """The necessary burst condition of a network with bursty links (theory §9 and §10).
 
     A run of k steps in which every sensor outside T loses its packets has probability of order
     Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a lost link stays lost)

@@ -143,7 +143,7 @@ def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
 
 def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
     """The Gilbert–Elliott chain for the verdict, with the sufficient condition the link
-    section proved (the exact scalar condition of MATH §7 or a coupled certificate, §10).
+    section proved (the exact scalar condition of theory §7 or a coupled certificate, §10).
 
     For a link budget with time-correlated shadowing the chain and its section are those of
     the shadowing's two-state approximation (``link_budget.bursty``)."""
@@ -245,7 +245,7 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     These depend on the system and the tolerances only; compute them once per system and pass
     them to :func:`analyze` (``theory=``) when only the channel changes. ``upper_bound`` is the
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
-    enter Ψ_p, MATH §3), so a sweep over noise parameters computes it once.
+    enter Ψ_p, theory §3), so a sweep over noise parameters computes it once.
     """
     from kfcrit.theory.critical import section as critical
     from kfcrit.theory.structure.eigen import structure_of
@@ -494,7 +494,7 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
 
 def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
                         ge: Any) -> dict[str, Any]:
-    """The Gilbert–Elliott section of a bursty chain: the conditions of MATH §7 (scalar) and
+    """The Gilbert–Elliott section of a bursty chain: the conditions of theory §7 (scalar) and
     §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
     :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
     (failure rate, recovery rate) plane."""
@@ -555,7 +555,7 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
 
 def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any],
                      warnings: list[str]) -> None:
-    """The accuracy requirement turned into a required arrival probability [p_S, p_V] (MATH
+    """The accuracy requirement turned into a required arrival probability [p_S, p_V] (theory
     §11) and, for a link budget, into the radio: distance, transmit power, payload, retries."""
     level = getattr(spec.requirements, "max_mean_error_trace", None)
     if level is None or sec.get("classification") == "not-detectable":

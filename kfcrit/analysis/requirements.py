@@ -99,7 +99,7 @@ def tail_assessment(limit: float | None, allowed: float | None,
 def mean_assessment(limit: float, bounds: dict[str, Any] | None,
                     op: dict[str, Any] | None,
                     design: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (MATH §11).
+    """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (theory §11).
 
     ``not met`` when the filter is mean-unstable (E[tr P_t] diverges) or tr S̄ > L (S̄ is a lower
     bound for every p); ``met`` when tr V̄ ≤ L (V̄ an upper bound above p_up); otherwise ``not

@@ -23,7 +23,7 @@ SCHEMA_VERSION = "2.0"
 
 
 class Classification(str, enum.Enum):
-    """Structure class of (A, C) that decides which theorem gives p_c (MATH §3–4, §11)."""
+    """Structure class of (A, C) that decides which theorem gives p_c (theory §3–§4, §11)."""
 
     STABLE = "stable"
     NON_DEGENERATE = "non-degenerate"

@@ -6,7 +6,7 @@ view renders what they return.
 
 * :func:`operating_verdict` — mean stability at the operating point of the channel
   (``operating_point.verdict``): the arrival probability against p_c, its robust value or the
-  bracket [lower, upper]; bursty and measured channels by their own rules (MATH §7, §10).
+  bracket [lower, upper]; bursty and measured channels by their own rules (docs/theory.md §7, §10).
 * :func:`review` — the review decision, combining in this order: stability at the operating
   point (mean-unstable → fail), each requirement (not met → fail, not demonstrated →
   undetermined), the link policy (margin or outage not met → fail).
@@ -139,7 +139,7 @@ class CriticalInputs:
 
 @dataclass(frozen=True)
 class BurstInputs:
-    """A Gilbert–Elliott channel as the verdict sees it (MATH §7, §10).
+    """A Gilbert–Elliott channel as the verdict sees it (docs/theory.md §7, §10).
 
     ``recovery`` is r; ``sufficient`` is True when a coupled fixed-gain certificate (or, for a
     scalar plant, the exact condition (1 − r)a² < 1) proves mean stability, None when nothing
@@ -153,7 +153,7 @@ class BurstInputs:
 
 
 def burst_factor(recovery: float, spectral_radius: float) -> float:
-    r"""The burst growth factor of MATH §10.
+    r"""The burst growth factor of docs/theory.md §10.
 
     .. math:: \beta = (1 - r)\,\rho(A)^2
 
@@ -172,7 +172,7 @@ def operating_verdict(p: Any, crit: CriticalInputs, *, iid: bool = True,
 
     1. not detectable → mean-unstable for every p (no p makes E[P_t] bounded);
     2. a measured trace → undetermined (the theorems are about arrival *models*);
-    3. a Gilbert–Elliott channel → mean-unstable when (1 − r)ρ(A)² ≥ 1 (any system, MATH §10),
+    3. a Gilbert–Elliott channel → mean-unstable when (1 − r)ρ(A)² ≥ 1 (any system, docs/theory.md §10),
        mean-stable when a sufficient condition is proven, else undetermined;
     4. i.i.d. losses, ρ(A) < 1 → mean-stable unless a system within the tolerance has a
        critical value ≥ p (undetermined);
@@ -228,7 +228,7 @@ def _burst_verdict(crit: CriticalInputs, burst: BurstInputs) -> tuple[Verdict, s
         beta = (1.0 - float(burst.recovery)) / (1.0 - crit.p_low)
         return (Verdict.MEAN_UNSTABLE, f"burst condition (1 − r)·ρ(A)² = {beta:.6g} ≥ 1 "
                 f"(r = {float(burst.recovery):.6g} ≤ 1 − 1/ρ(A)² = {crit.p_low:.6g}; necessary "
-                "for bounded E[P_t] for any system, MATH §10): loss bursts make E[P_t] diverge")
+                "for bounded E[P_t] for any system, docs/theory.md §10): loss bursts make E[P_t] diverge")
     if burst.sufficient is True:
         return Verdict.MEAN_STABLE, burst.basis or "a sufficient condition holds"
     return (Verdict.UNDETERMINED, "bursty losses: the necessary burst condition (1 − r)·ρ(A)² < 1 "

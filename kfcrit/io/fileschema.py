@@ -191,7 +191,7 @@ def system_schema() -> dict[str, Any]:
              "requirements": {"$ref": "#/$defs/requirements"},
              "sensors": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/sensor"},
                          "description": "several sensors, each over its own link (instead of "
-                                        "C, R, channel; MATH §9)"},
+                                        "C, R, channel; docs/theory.md §9)"},
              "links": links_schema(),
              "sink_position_m": {"type": "array", "items": num,
                                  "description": "position of the estimator (with the sensors' "

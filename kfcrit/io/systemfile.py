@@ -220,7 +220,7 @@ class Requirements:
     """Limit M of the tail requirement P(tr P > M) ≤ max_tail_probability."""
     max_tail_probability: float | None = None
     max_mean_error_trace: float | None = None
-    """Limit L of the accuracy requirement lim E[tr P_t] ≤ L (MATH §11)."""
+    """Limit L of the accuracy requirement lim E[tr P_t] ≤ L (theory §11)."""
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"max_error_trace": self.max_error_trace,
@@ -539,7 +539,7 @@ def _name_and_description(doc: dict) -> tuple[str, str]:
 
 def _network_spec(doc: dict, base_dir: Path | None, max_states: int,
                   channels: Mapping[str, ChannelParser]) -> SystemSpec:
-    """The spec of a ``sensors:`` file (MATH §9): the network and its stacked system."""
+    """The spec of a ``sensors:`` file (theory §9): the network and its stacked system."""
     name, description = _name_and_description(doc)
     for key in ("continuous", "sampling_time"):
         if key in doc:

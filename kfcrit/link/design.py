@@ -1,4 +1,4 @@
-r"""Design inversion: an arrival-probability requirement in radio terms (MATH §11).
+r"""Design inversion: an arrival-probability requirement in radio terms (theory §11).
 
 An accuracy requirement lim E[tr P] ≤ L gives an interval [p_S, p_V] of arrival probabilities:
 p ≥ p_V is sufficient (tr V̄(p_V) = L), p < p_S fails (tr S̄(p_S) = L). The link's arrival

@@ -618,7 +618,7 @@ def design_section(channel: Channel, *, critical_value: float | None,
             f"{channel.shadowing_markov().failure_rate:.4g}, r = "
             f"{channel.shadowing_markov().recovery_rate:.4g}): comparing the stationary arrival "
             "probability with the i.i.d. p_c does not decide mean stability; the burst "
-            "condition (1 - r) rho(A)^2 < 1 is necessary (MATH §10)"]),
+            "condition (1 - r) rho(A)^2 < 1 is necessary (docs/theory.md §10)"]),
     }
 
 
@@ -632,7 +632,7 @@ def gilbert_elliott_fit(arrivals: Any, system: Any = None) -> dict[str, Any]:
     f̂ = #(1 → 0) / #(1 → ·) and r̂ = #(0 → 1) / #(0 → ·) over consecutive pairs (the transition
     counts of the chain). For information only: a fit to a finite recording is an estimate, not
     the channel, so no theorem is applied to it. With ``system`` the value (1 − r̂)·ρ(A)² of the
-    MATH §7 condition is added (again for information). ``available`` is False when the trace
+    theory §7 condition is added (again for information). ``available`` is False when the trace
     has no received or no lost packet before its last value (a rate is then undefined).
     """
     g = np.asarray(arrivals, dtype=bool)

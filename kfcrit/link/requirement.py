@@ -1,4 +1,4 @@
-r"""The binding arrival-probability requirement of a link design (MATH §3, §11).
+r"""The binding arrival-probability requirement of a link design (theory §3, §11).
 
 A link must deliver at least the stability requirement p_stab (p_c, its robust value, or the
 upper end of the bracket when p_c is unknown). An accuracy requirement lim E[tr P] ≤ L adds the

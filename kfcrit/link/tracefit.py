@@ -1,4 +1,4 @@
-r"""Statistics of a measured packet trace (MATH §7, §10, §14): fits, tests and decision facts.
+r"""Statistics of a measured packet trace (theory §7, §10, §14): fits, tests and decision facts.
 
 A trace is a 0/1 sequence γ_0 … γ_{n−1}, one value per sampling period (1 = received, 0 = lost).
 This module fits the two channel models of :mod:`kfcrit.model.channels` to it, with exact
@@ -333,7 +333,7 @@ def decide_on_region(fit: ChannelFit, predicate: Callable[..., object], *,
     lower end of ``p_interval`` and the best its upper end. Gilbert–Elliott:
     ``predicate(f, r)``; the stable set is assumed to be an up-set in r and a down-set in f
     (Wu, Shi, Anderson & Johansson, TAC 63(4) 2018: the critical curve splits the (f, r) plane
-    monotonically; the necessary condition (1 − r) ρ² < 1 of MATH §10 involves r alone), so
+    monotonically; the necessary condition (1 − r) ρ² < 1 of theory §10 involves r alone), so
 
     .. math:: \text{worst} = (f_{\mathrm{hi}}, r_{\mathrm{lo}}), \qquad
               \text{best} = (f_{\mathrm{lo}}, r_{\mathrm{hi}}).
@@ -466,7 +466,7 @@ def with_length_to_decide(fit: ChannelFit, threshold: float, *,
 
 @dataclass(frozen=True)
 class JointLaw:
-    r"""Empirical joint law π̂(S) of the received set S_t of N sensors (MATH §13).
+    r"""Empirical joint law π̂(S) of the received set S_t of N sensors (theory §13).
 
     Attributes
     ----------

@@ -1,5 +1,5 @@
 """Multi-hop meshes: sensors, relays and one gateway (the estimator) joined by lossy hops
-(MATH §13 [beyond]).
+(theory §13 [beyond]).
 
 A :class:`Mesh` is plain validated data; the joint law of the received sensor set, the
 stability facts and estimate relaying live in :mod:`kfcrit.theory.mesh`.

@@ -1,7 +1,7 @@
 """Sensor networks: one plant (A, Q, Σ0) observed by N sensors, each over its own link.
 
 Sensor i measures y^i_t = C_i x_t + v^i_t with noise covariance R_i (m_i × m_i); its packets
-travel over its own channel. Stacking the sensors' rows gives one linear system (MATH §9): the
+travel over its own channel. Stacking the sensors' rows gives one linear system (theory §9): the
 rows of a received set S ⊆ {1..N} are C_S, their noise R_S. Sensor noises are independent
 (block-diagonal stacked R) unless ``R_cross`` gives the full stacked covariance.
 
@@ -263,7 +263,7 @@ class Network:
     def received_system(self, S: Iterable[int | str]) -> System:
         """The :class:`System` of the rows of the received set ``S`` (names or indices).
 
-        R_S is the submatrix of the stacked R on those rows (MATH §9).
+        R_S is the submatrix of the stacked R on those rows (theory §9).
         """
         idx = sorted({self.index(s) for s in S})
         if not idx:

@@ -21,7 +21,7 @@ VARIANCE_CLAIM = (
     "(1 - p_c)^2, i.e. p > p_2 with 1 - p_2 = (1 - p_c)^2 - the q-th moment condition of "
     "Mo-Sinopoli Cor. 2 with exponent 2 (1 - p_2 = rho^-4 for non-degenerate systems, "
     "1 - p_c = rho^-2) and, by the same loss-burst argument with the growth rate of Thm 9, "
-    "1 - p_2 = rho^(-4q/(q-1)) for the degenerate second-order case (MATH section 4)")
+    "1 - p_2 = rho^(-4q/(q-1)) for the degenerate second-order case (docs/theory.md §4)")
 
 
 def critical_upper(critical_value: float | None = None,
@@ -115,9 +115,9 @@ def mean_regime(system: System, channel: Channel, *, critical_value: float | Non
                 upper_bound: float | None = None) -> dict[str, Any]:
     """Whether E[tr P_t] stays bounded at this operating point: ``exists`` True/False/None.
 
-    i.i.d. losses (MATH §3–4): bounded iff p > p_c, so False when p ≤ p_c (or ≤ the lower end
+    i.i.d. losses (theory §3–§4): bounded iff p > p_c, so False when p ≤ p_c (or ≤ the lower end
     of its bracket), True when p > p_c (or > the upper end, or > p_up), None in between.
-    Gilbert–Elliott (MATH §7, §10): (1 − r) ρ(A)² ≥ 1 is necessary for divergence-freedom to
+    Gilbert–Elliott (theory §7, §10): (1 − r) ρ(A)² ≥ 1 is necessary for divergence-freedom to
     fail for any system — False; otherwise, as a claim (the burst argument with the i.i.d.
     growth rate 1/(1 − p_c), You–Fu–Xie for non-degenerate systems), False when r ≤ p_c and
     True when r > p_c (bracket ends as above), None in between. A measured trace: None.
@@ -126,18 +126,18 @@ def mean_regime(system: System, channel: Channel, *, critical_value: float | Non
     lo, hi, source = critical_upper(critical_value, critical_bracket, upper_bound)
     rho = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
     if proc.kind == "iid":
-        x, name, basis = float(proc.p), "p", "theorem: E[P_t] bounded iff p > p_c (MATH 3-4)"
+        x, name, basis = float(proc.p), "p", "theorem: E[P_t] bounded iff p > p_c (docs/theory.md §3–§4)"
     elif proc.kind == "markov":
         r = float(proc.recovery_rate)
         with quiet_numerics():
             burst = float((1.0 - r) * np.float64(rho) ** 2)
         if not burst < 1:
             return {"exists": False, "basis": "theorem: (1 - r) rho(A)^2 >= 1 makes E[P_t] "
-                    "unbounded for any system (MATH 10, necessary burst condition)",
+                    "unbounded for any system (docs/theory.md §10, necessary burst condition)",
                     "value": finite_or_none(burst), "critical_source": source}
         x, name = r, "r"
         basis = ("claim: E[P_t] bounded iff r > p_c (loss bursts with the i.i.d. growth rate "
-                 "1/(1 - p_c); You-Fu-Xie 2011 for non-degenerate systems, MATH 7, 10)")
+                 "1/(1 - p_c); You-Fu-Xie 2011 for non-degenerate systems, docs/theory.md §7, §10)")
     else:
         return {"exists": None, "basis": "a measured trace: no model", "critical_source": source}
     exists = None

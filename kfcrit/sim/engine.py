@@ -1,6 +1,6 @@
 """simulate() and ergodic(): Monte Carlo of the random Riccati equation and of the filter.
 
-The prediction covariance follows P_{t+1} = f_{γ_t}(P_t) (MATH §1), with f_0(X) = A X A' + Q
+The prediction covariance follows P_{t+1} = f_{γ_t}(P_t) (theory §1), with f_0(X) = A X A' + Q
 (loss) and f_1 the Riccati map (arrival). Many paths are advanced by the compiled kernels of
 :mod:`kfcrit.sim.kernels` in blocks of ``LANES`` paths, and memory never depends on ``steps``:
 only the values at ≤ ``horizon_samples`` sample times are kept (plus the full traces of the

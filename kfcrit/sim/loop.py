@@ -1,4 +1,4 @@
-"""Closed-loop Monte Carlo over lossy sensing and actuation links (MATH.md §12).
+"""Closed-loop Monte Carlo over lossy sensing and actuation links (theory §12).
 
 Seeded and vectorised: all paths advance together (numpy arrays of shape (paths, …)). Two
 loops:

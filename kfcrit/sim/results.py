@@ -367,7 +367,7 @@ class ErgodicResult:
             "last_block_max": float(bmax[valid][-1]) if valid.any() else None,
             "note": ("block k covers t in [2^k, 2^(k+1)) of replica 0; growing block maxima "
                      "indicate limsup tr P = ∞ (upper a.s. unstable), bounded block minima "
-                     "indicate liminf tr P < inf (lower a.s. stable), MATH.md section 6"),
+                     "indicate liminf tr P < inf (lower a.s. stable), docs/theory.md §6"),
         }
         return {
             "steps": self.steps, "burn_in": self.burn_in, "replicas": self.replicas,

@@ -534,7 +534,7 @@ def test_critical_jordan_block_is_labelled():
     d = critical.critical_section(_sys([[1, 1], [0, 1]], [[1, 0]]))
     assert d["classification"] == "non-diagonalizable"
     cv = d["critical_value"]
-    assert "MATH §11" in cv["reason"] and "O(t)" in cv["reason"]   # J₂: ‖Aᵗ‖ = O(t)
+    assert "docs/theory.md §11" in cv["reason"] and "O(t)" in cv["reason"]   # J₂: ‖Aᵗ‖ = O(t)
     assert cv["value"] == 0 and cv["exact"] is True and "basis" not in cv
 
 
@@ -552,7 +552,7 @@ def test_marginal_tracker_is_exactly_zero():
     cv = d["critical_value"]
     assert d["classification"] == "non-diagonalizable"
     assert cv["value"] == 0.0 and cv["exact"] is True and cv["expression"] == "0"
-    assert "MATH §11" in cv["reason"] and "Iₒ = 2" in cv["reason"]
+    assert "docs/theory.md §11" in cv["reason"] and "Iₒ = 2" in cv["reason"]
     assert "O(t²)" in cv["reason"]      # algebraic 4 − geometric 2 + 1 = 3: ‖Aᵗ‖ = O(t²)
 
 
@@ -579,7 +579,7 @@ def test_marginal_modes_other_structures(A, C, cls):
     d = critical.critical_section(_sys(A, C))
     assert d["classification"] == cls
     assert d["critical_value"]["expression"] == "0" and d["critical_value"]["exact"] is True
-    assert "MATH §11" in d["critical_value"]["reason"]
+    assert "docs/theory.md §11" in d["critical_value"]["reason"]
 
 
 def test_marginal_undetectable_jordan_is_not_detectable():
@@ -594,7 +594,7 @@ def test_marginal_tracker_numeric_path():
     C = np.kron(np.eye(3), np.array([[1.0, 0.0]]))
     d = critical.critical_section(System(A, C, np.eye(6), np.eye(3)))
     assert d["structure"]["path"] == "numeric"
-    assert d["critical_value"]["value"] == 0.0 and "MATH §11" in d["critical_value"]["reason"]
+    assert d["critical_value"]["value"] == 0.0 and "docs/theory.md §11" in d["critical_value"]["reason"]
 
 
 def test_defective_stable_eigenvalue_does_not_fake_a_robust_value():

@@ -1,6 +1,6 @@
 """Covariance bounds S̄ ⪯ lim E[P_t] ⪯ V̄, their phase transition in p, and static gains.
 
-Sinopoli Thm 4 and 6 (MATH.md §3), for p above the relevant threshold:
+Sinopoli Thm 4 and 6 (docs/theory.md §3), for p above the relevant threshold:
 
 * S̄ = (1−p) A S̄ A' + Q — a Lyapunov equation for √(1−p) A; exists iff (1−p) ρ(A)² < 1.
 * V̄ = g_p(V̄) — the MARE fixed point, the limit of V_{t+1} = g_p(V_t) from V_0 = 0; exists

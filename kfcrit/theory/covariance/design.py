@@ -1,7 +1,7 @@
 """Design inversion: the arrival probability an accuracy requirement lim E[tr P_t] ≤ L needs.
 
 S̄(p) (Lyapunov) and V̄(p) (MARE fixed point) bound the steady error covariance, and both are
-non-increasing in p (Sinopoli Lemma 1(d); MATH.md §11):
+non-increasing in p (Sinopoli Lemma 1(d); docs/theory.md §11):
 
 .. math::
 

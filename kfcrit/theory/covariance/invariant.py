@@ -1,6 +1,6 @@
 """Support of the invariant distribution of the random Riccati equation (scalar systems).
 
-Kar–Sinopoli–Moura (MATH.md §5): for 0 < p < 1 the RRE P_{t+1} = f_{γ_t}(P_t) converges weakly to
+Kar–Sinopoli–Moura (docs/theory.md §5): for 0 < p < 1 the RRE P_{t+1} = f_{γ_t}(P_t) converges weakly to
 a unique invariant law μ_p whose support is K = closure{ f_{i_1}∘…∘f_{i_s}(P*) } (P* the fixed
 point of the arrival map f_1), independent of p. For a scalar system (a, c, q, r), c ≠ 0,
 

@@ -1,6 +1,6 @@
 """Riccati maps of intermittent Kalman filtering (Sinopoli et al. 2004).
 
-Notation (MATH.md §1–§3): arrival probability p, prediction covariance X.
+Notation (docs/theory.md §1–§3): arrival probability p, prediction covariance X.
 
 * loss map        f_0(X) = A X A' + Q
 * arrival map     f_1(X) = A X A' + Q − A X C' (C X C' + R)^{-1} C X A'

@@ -9,7 +9,7 @@ stationary error has a power-law tail, P(tr P_∞ > M) ≈ M^{−β}, with
           = \\frac{\\log\\frac{1}{1-p}}{\\log|\\lambda_1|^2},
 
 so E[tr P] < ∞ iff β > 1 (p > 1 − 1/|λ_1|², the critical value again) and the variance is
-finite iff β > 2 ((1 − p)|λ_1|⁴ < 1). kfcrit reports β as a claim with its source (MATH.md
+finite iff β > 2 ((1 − p)|λ_1|⁴ < 1). kfcrit reports β as a claim with its source (docs/theory.md
 §11), to be checked by the log–log slope of a simulation, never as a proof.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Critical arrival probability p_c: which theorem applies, its exact value, and how robust it is.
 
-The decision tree (MATH.md §3–§4, Mo–Sinopoli; the eigen-structure comes from
+The decision tree (docs/theory.md §3–§4, Mo–Sinopoli; the eigen-structure comes from
 :mod:`kfcrit.theory.structure.eigen`):
 
 1. some eigenvector with |λ| ≥ 1 is invisible to C  → ``not-detectable`` (no p_c: E[P_t]
@@ -325,7 +325,7 @@ def _jordan_size(st: Structure) -> int:
 
 
 def _marginal_reason(system: System, st: Structure) -> str:
-    """MATH §11, marginal modes: ρ(A) ≤ 1 and (C, A) detectable ⇒ p_c = 0 (any Jordan form)."""
+    """docs/theory.md §11, marginal modes: ρ(A) ≤ 1 and (C, A) detectable ⇒ p_c = 0 (any Jordan form)."""
     k = _jordan_size(st)
     io = st.observability_index
     run = (f"Iₒ = {io}" if io is not None else
@@ -334,7 +334,7 @@ def _marginal_reason(system: System, st: Structure) -> str:
     growth = ("A is diagonalizable on the unit circle, so ‖Aᵗ‖ is bounded" if k == 1 else
               f"the largest Jordan block on the unit circle has size ≤ {k}, so ‖Aᵗ‖ = "
               f"O(t{superscript(k - 1) if k > 2 else ''})")
-    return (f"marginal modes (MATH §11): ρ(A) {_is_mod(st, 0)} (eigenvalues on the unit "
+    return (f"marginal modes (docs/theory.md §11): ρ(A) {_is_mod(st, 0)} (eigenvalues on the unit "
             "circle, none outside) and (C, A) detectable, so p_c = 0 whatever the Jordan "
             "structure. Argument: "
             f"(1) Pₜ₊₁ ⪯ A Pₜ A' + Q and {growth}, so Pₜ grows at most polynomially in the time "
@@ -757,9 +757,9 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
 
 
 def _almost_sure(st: Structure, channel: Any) -> list[str]:
-    """Plain sentences from MATH §6 (Wu–Shi–Anderson–Johansson) for the configured channel."""
+    """Plain sentences from docs/theory.md §6 (Wu–Shi–Anderson–Johansson) for the configured channel."""
     label = ("Consequence (Borel–Cantelli argument on Wu–Shi–Anderson–Johansson Lemma 4, "
-             "MATH §6), not a theorem of the papers: ")
+             "docs/theory.md §6), not a theorem of the papers: ")
     if not st.detectable:
         return ["(C, A) is not detectable: tr Pₖ diverges almost surely on every channel."]
     if st.stable:
@@ -776,7 +776,7 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
         m_text = "a liminf bound (Lemma 4 needs (C, A) observable, which fails here)"
     if critical:
         general = (label + "A is critically stable (ρ(A) = 1, no |λ| > 1), not unstable: the "
-                   "upper a.s. instability consequence of MATH §6 is stated for unstable A and is "
+                   "upper a.s. instability consequence of docs/theory.md §6 is stated for unstable A and is "
                    "not claimed here. For an arrival process in which every run of Iₒ arrivals "
                    f"recurs infinitely often, {m_text} (absolutely lower a.s. stable). Mean "
                    "stability is a different, stronger notion.")
@@ -798,7 +798,7 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
                     "tr Pₖ → ∞ surely."]
         if p == 0:
             return ["No packet arrives (p = 0): open-loop prediction of a critically stable "
-                    "system (ρ(A) = 1); no almost-sure statement of MATH §6 applies."]
+                    "system (ρ(A) = 1); no almost-sure statement of docs/theory.md §6 applies."]
         return [f"i.i.d. losses with 0 < p = {sp.sstr(p)} < 1 satisfy the recurrence condition. "
                 + general]
     if model == "gilbert-elliott":
@@ -808,12 +808,12 @@ def _almost_sure(st: Structure, channel: Any) -> list[str]:
                     f"recovery {sp.sstr(r)}) are a *-mixing Markov chain satisfying the "
                     "recurrence condition. " + general]
         return ["Gilbert–Elliott losses with a rate equal to 1: some loss bursts or arrival runs "
-                "never occur, so the recurrence condition of MATH §6 does not hold; no "
+                "never occur, so the recurrence condition of docs/theory.md §6 does not hold; no "
                 "statement."]
     if model == "trace":
         return ["A recorded trace is finite: the almost-sure statements concern infinite "
                 "arrival sequences and are not evaluated for it."]
-    return [f"Channel model {model!r}: the recurrence condition of MATH §6 is not checked "
+    return [f"Channel model {model!r}: the recurrence condition of docs/theory.md §6 is not checked "
             "for it. " + general]
 
 
@@ -841,7 +841,7 @@ def _exact_p_up(system: System, st: Structure, low: Num) -> list[tuple[Num, str,
 
     * C invertible: p_up = p_low (Sinopoli et al. 2004 §IV, a theorem);
     * a single output (m = 1, exact path, every |λ|² of the unstable eigenvalues an explicit
-      algebraic number): p_up = 1 − 1/Π_{|λ_i| > 1} |λ_i|² (with multiplicity) — MATH §3
+      algebraic number): p_up = 1 − 1/Π_{|λ_i| > 1} |λ_i|² (with multiplicity) — docs/theory.md §3
       **[beyond]**: the dual of Elia's rank-one result, checked numerically on the paper
       examples and random single-output systems, *not* a theorem of the papers.
     """
@@ -856,7 +856,7 @@ def _exact_p_up(system: System, st: Structure, low: Num) -> list[tuple[Num, str,
                 prod = prod * e.mod2_expr ** e.multiplicity
             up = _num(sp.expand(1 - 1 / prod)) if unstable else Num(0.0, sp.Integer(0))
             out.append((up, (f"single output: p_up = 1 − 1/Π|λ_u|² = {up.expression} over the "
-                             "eigenvalues with |λ| > 1 — a claim (MATH §3 [beyond]: the dual of "
+                             "eigenvalues with |λ| > 1 — a claim (docs/theory.md §3 [beyond]: the dual of "
                              "Elia's rank-one result, checked numerically, not a theorem of the "
                              "papers)"), False))
     return out
@@ -974,7 +974,7 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
             basis = "theorem" if theorem else "claim"
             if not theorem:
                 warnings.append("p_c rests on the single-output identity p_up = 1 − 1/Π|λ_u|², "
-                                "a claim checked numerically (MATH §3 [beyond]), not a theorem")
+                                "a claim checked numerically (docs/theory.md §3 [beyond]), not a theorem")
     robust_value = None
     if classification != "not-detectable" and robust:
         robust_value = _robust(system, st, st_tol, tolerance, value, blow, classification,

@@ -4,7 +4,7 @@ certificate (facts, not verdicts), and the critical curve in the (failure rate, 
 The channel is a two-state Markov chain γ_t ∈ {0 (lost), 1 (received)} with failure rate
 f = P(γ_{t+1} = 0 | γ_t = 1) and recovery rate r = P(γ_{t+1} = 1 | γ_t = 0); its transition
 matrix is T = [[1 − r, r], [f, 1 − f]] (T_ij = P(next j | now i)), its stationary arrival
-probability r/(f + r) (MATH.md §7, §10).
+probability r/(f + r) (docs/theory.md §7, §10).
 
 * Necessary (any system): a loss burst lasts j steps with probability (1 − r)^{j−1} r, during
   which the dominant mode grows like ρ(A)^{2j}, so bounded E[P_t] needs
@@ -179,7 +179,7 @@ class BurstNecessary:
 
 def burst_necessary(system: System, recovery_rate: Any,
                     structure: Any | None = None) -> BurstNecessary:
-    """Decide the necessary condition (1 − r)·ρ(A)² < 1 for bounded E[P_t] (MATH.md §10).
+    """Decide the necessary condition (1 − r)·ρ(A)² < 1 for bounded E[P_t] (docs/theory.md §10).
 
     .. math::
 
@@ -224,7 +224,7 @@ def burst_necessary(system: System, recovery_rate: Any,
     else:
         statement = (f"(1 - r) rho(A)^2 = {value:.12g} >= 1 at r = {rs:.12g}: a loss burst of j "
                      "steps has probability (1 - r)^(j-1) r and lets the dominant mode grow like "
-                     "rho^(2j), so E[P_t] diverges (MATH.md §7, §10)")
+                     "rho^(2j), so E[P_t] diverges (docs/theory.md §7, §10)")
     return BurstNecessary(holds, value, (float(lo), float(hi)), float((rho.lo + rho.hi) / 2),
                           expr, rs, rho.rigorous and holds is not None, how, statement)
 

@@ -1,4 +1,4 @@
-"""Numerical kernels of the sensor-network analysis (MATH §9): received sets, the noise-free
+"""Numerical kernels of the sensor-network analysis (theory §9): received sets, the noise-free
 expected map, its threshold along a path in (p_1..p_N), and checked certificates.
 
 Received sets S ⊆ {1..N} are rows of a boolean matrix ``masks`` (K × N). With independent
@@ -6,7 +6,7 @@ Bernoulli links π(S) = Π_{i∈S} p_i Π_{i∉S} (1 − p_i). A *collection* is
 (K = 2^N, exact) or a sub-collection 𝒞 containing ∅; then the probability of every set outside
 𝒞 is added to ∅ ("treated as total loss"). That is the jump-linear system in which the sets
 outside 𝒞 use the gain K_S = 0, so a certificate for it is a certificate for the network (a
-valid sufficient condition; MATH §3's argument with one mode per received set).
+valid sufficient condition; theory §3's argument with one mode per received set).
 
 The noise-free expected map (Q = R = 0, homogeneous regulariser ε·tr X) is
 
@@ -245,7 +245,7 @@ class Threshold:
 def threshold_newton(plant: Plant, col: Collection, path: Path, X0: np.ndarray, s0: float,
                      eps: float = NEWTON_EPS, max_iterations: int = 40,
                      atol: float = 1e-13) -> Threshold:
-    """Newton on G^ε_{p(s)}(X) = X, tr X = 1 in (X, s) (MATH §3's threshold Newton, with one
+    """Newton on G^ε_{p(s)}(X) = X, tr X = 1 in (X, s) (theory §3's threshold Newton, with one
     term per received set). Jacobian: [Σ w F⊗F − I + ε·vech(I + Σ w K K')·diag', ∂G/∂s;
     diag', 0] with ∂G/∂s = −A X C' (Σ dw_S B_S) C X A'."""
     n = plant.a.shape[0]

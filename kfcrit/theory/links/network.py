@@ -1,7 +1,7 @@
-"""Stability region of a sensor network in (p_1, …, p_N) (MATH §9 [beyond]).
+"""Stability region of a sensor network in (p_1, …, p_N) (docs/theory.md §9 [beyond]).
 
 N sensors, independent Bernoulli links with arrival probabilities p = (p_1..p_N). The region
-𝓢 = {p : E[P_t] bounded} is an up-set (MATH §9: g_p is non-increasing in each p_i). It is
+𝓢 = {p : E[P_t] bounded} is an up-set (docs/theory.md §9: g_p is non-increasing in each p_i). It is
 enclosed between two surfaces:
 
 * **necessary** (closed form): for every sensor set T, ρ_T = the largest |λ| among the
@@ -15,7 +15,7 @@ enclosed between two surfaces:
   found by Newton on the threshold of the noise-free expected map along a path and checked in
   ball arithmetic.
 
-Where they meet the region is exact. One case is proven here (a claim beyond MATH §9 until
+Where they meet the region is exact. One case is proven here (a claim beyond docs/theory.md §9 until
 reviewed; the proof is short): **modal one-step observability**. Let the modes with |λ| ≥ 1 be
 diagonalizable with eigenvectors w_1..w_k, and suppose that for every received set S the
 vectors {C_S w_j : C_S w_j ≠ 0} are linearly independent. Then for every S a real gain K_S
@@ -541,7 +541,7 @@ def _expr_text(e: sp.Expr | None) -> str | None:
 
 def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                      tol: float = 1e-9, certify: bool = True) -> NetworkResult:
-    """Stability of a sensor network at arrival probabilities ``p`` (MATH §9).
+    """Stability of a sensor network at arrival probabilities ``p`` (docs/theory.md §9).
 
     Parameters
     ----------
@@ -571,11 +571,11 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     plant = nk.Plant(st.a, st.c, _owner(network))
     col = nk.collection_for(pf, N)
     ctx = _Context(network, plant, col, tol, certify)
-    claims = ["MATH §9 [beyond]: the necessary and sufficient surfaces, and the up-set "
-              "property of the region, are stated in MATH §9 as claims to test"]
+    claims = ["docs/theory.md §9 [beyond]: the necessary and sufficient surfaces, and the up-set "
+              "property of the region, are stated in docs/theory.md §9 as claims to test"]
     if exact_region:
         claims.append("exact region by modal one-step observability: proof in "
-                      "kfcrit.theory.links.network (beyond MATH §9, a claim until reviewed)")
+                      "kfcrit.theory.links.network (beyond docs/theory.md §9, a claim until reviewed)")
     warnings: list[str] = []
     if not col.complete:
         warnings.append(f"{N} sensors: the sufficient surface uses the {col.size} most likely "
@@ -648,7 +648,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         uniform_margin=margin, bottleneck=bottleneck,
         constraints=tuple(_constraint_dict(network, c) for c in cons),
         exact_region={"holds": exact_region, "reason": why_exact,
-                      "basis": "proof in kfcrit.theory.links.network (claim beyond MATH §9)"},
+                      "basis": "proof in kfcrit.theory.links.network (claim beyond docs/theory.md §9)"},
         certificate=cert,
         method={"received_sets": col.size, "all_received_sets": col.complete,
                 "tolerance": tol, "ball_checked": certify, **ctx.stats},

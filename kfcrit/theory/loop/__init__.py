@@ -1,4 +1,4 @@
-"""Closed loops over lossy sensing and actuation links (MATH.md §12) — theory core.
+"""Closed loops over lossy sensing and actuation links (theory §12) — theory core.
 
 Everything here returns *facts* (values, intervals, exactness, certified decisions), never
 verdicts; nothing is wired into the record, CLI or views yet. Public entry points:

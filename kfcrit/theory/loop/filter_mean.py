@@ -1,4 +1,4 @@
-"""The stationary mean of the filtered covariance, lim E[P_{t|t}], and its bounds (MATH §3, §12).
+"""The stationary mean of the filtered covariance, lim E[P_{t|t}], and its bounds (theory §3, §12).
 
 The TCP-like cost needs lim E[P_{t|t}] of the random Riccati equation
 

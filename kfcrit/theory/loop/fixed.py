@@ -1,6 +1,6 @@
 """Fixed linear designs over lossy sensing and actuation links: stability, second moment, cost.
 
-MATH.md §12 (UDP-like loops, and any deployed design): with the jump-linear form
+theory §12 (UDP-like loops, and any deployed design): with the jump-linear form
 z_{t+1} = Φ_m z_t + G_m n_t of :mod:`kfcrit.theory.loop.stack`, modes m = (γ, ν), the loop is
 mean-square stable iff
 

@@ -1,6 +1,6 @@
 """Loss links of a closed loop: i.i.d. Bernoulli or Gilbert–Elliott (two-state Markov) links.
 
-A link is received (state 1) or lost (state 0). Gilbert–Elliott (MATH §7): failure rate
+A link is received (state 1) or lost (state 0). Gilbert–Elliott (theory §7): failure rate
 f = P(lost next | received now), recovery rate r = P(received next | lost now), transition
 matrix over (lost, received)
 

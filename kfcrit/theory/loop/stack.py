@@ -17,7 +17,7 @@ propagates with the applied input it knows or expects:
 The stacked state is z = (x, x̂[, a][, â]) — a for hold, â for hold without acknowledgements —
 and the noise n = (w, v) ~ N(0, blkdiag(Q, R)). The applied input is a_t = H_m z_t + J_m v_t;
 the stage cost x'Wx + a'Ua charges the applied input (= ν_t u_t'Uu_t for "zero", as in
-MATH §12).
+theory §12).
 
 Every matrix is built either in float64 or exactly (``exact=True``: numpy object arrays of
 :class:`fractions.Fraction`, each float input taken as the binary rational it is), so that the

@@ -1,6 +1,6 @@
 """TCP-like closed loops (acknowledged actuation): thresholds, control MARE and the optimal cost.
 
-MATH.md §12 (Schenato, Sinopoli, Franceschetti, Poolla, Sastry, Proc. IEEE 95(1), 2007):
+theory §12 (Schenato, Sinopoli, Franceschetti, Poolla, Sastry, Proc. IEEE 95(1), 2007):
 
 .. math::
 
@@ -18,7 +18,7 @@ filter with the known applied input, and u_t = L x̂_{t|t} with
     J = \\operatorname{tr}(S Q) + \\bar\\nu \\operatorname{tr}\\bigl(L'(B'SB+U)L
         \\cdot \\lim E[P_{t|t}]\\bigr).
 
-The cost is finite iff γ̄ > γ_c and ν̄ > ν_c (MATH §12, under the standing controllability and
+The cost is finite iff γ̄ > γ_c and ν̄ > ν_c (theory §12, under the standing controllability and
 observability assumptions of the sources); its bounds come from those of lim E[P_{t|t}]
 (:mod:`kfcrit.theory.loop.filter_mean`). Everything here is a *fact* (values, intervals,
 exactness), never a verdict.
@@ -139,7 +139,7 @@ def _finite(gamma_c: Threshold, nu_c: Threshold, g: float, nu: float) -> tuple[b
         return False, "no threshold: an unstable mode is undetectable or unstabilisable"
     if below[0] is False or below[1] is False:
         which = "γ̄ ≤ γ_c" if below[0] is False else "ν̄ ≤ ν_c"
-        return False, f"{which}: the cost is infinite (MATH §12)"
+        return False, f"{which}: the cost is infinite (theory §12)"
     if below == (True, True):
         return True, "γ̄ > γ_c and ν̄ > ν_c (proven by the thresholds' intervals)"
     return None, "γ̄ or ν̄ lies inside its threshold's interval: finiteness undecided"
@@ -213,7 +213,7 @@ def tcp_loop(A: Any, B: Any, C: Any, W: Any, U: Any, Q: Any, R: Any, gamma_bar: 
     finite, why = _finite(gamma_c, nu_c, float(gamma_bar), float(nu_bar))
     notes: list[str] = []
     if nu_c.basis == "claim":
-        notes.append("ν_c rests on the single-input identity (MATH §3 [beyond]): " + nu_c.reason)
+        notes.append("ν_c rests on the single-input identity (theory §3 [beyond]): " + nu_c.reason)
     S = None if finite is False and nu_c.below(nu_bar) is False else control_mare(
         A, B, W, U, nu_bar)
     if S is None:

@@ -1,6 +1,6 @@
 """The two thresholds of a TCP-like closed loop: ν_c (actuation link) and γ_c (sensing link).
 
-MATH.md §12: with acknowledgements, separation holds. The estimator sees the RRE of §1, so its
+theory §12: with acknowledgements, separation holds. The estimator sees the RRE of §1, so its
 threshold is the estimation critical value γ_c of (A, C) (:mod:`kfcrit.theory.critical.section`). The
 controller's value function follows the *control MARE*
 
@@ -18,7 +18,7 @@ threshold is therefore the p_up of §3 of the dual pair:
 
 Closed forms: scalar ν_c = max(1 − 1/a², 0); B square invertible ν_c = max(1 − 1/ρ(A)², 0)
 (the dual of "C invertible", a theorem); one input column ν_c = 1 − 1/Π|λ_u|² (the dual of
-the single-output identity, a **claim** of MATH §3 [beyond], reported next to the certified
+the single-output identity, a **claim** of theory §3 [beyond], reported next to the certified
 interval). Otherwise the certified interval of :func:`kfcrit.theory.upper.bracket.upper_bound`.
 """
 from __future__ import annotations
@@ -201,7 +201,7 @@ def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
             inside = interval[0] - 2 * tol <= value <= interval[1] + 2 * tol
             return Threshold("nu_c", value, interval, True, sp.sstr(expr), "claim", certified,
                              "one input column: ν_c = 1 − 1/Π|λ_u|² over |λ| > 1, the dual of "
-                             "the single-output identity (MATH §3 [beyond], a claim); "
+                             "the single-output identity (theory §3 [beyond], a claim); "
                              + ("it lies in" if inside else "it DISAGREES with")
                              + f" the certified bracket [{interval[0]:.12g}, "
                                f"{interval[1]:.12g}] ({why})")

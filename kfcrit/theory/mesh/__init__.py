@@ -1,4 +1,4 @@
-"""Multi-hop meshes: shared relays, correlated losses, estimate relaying (MATH §13 [beyond]).
+"""Multi-hop meshes: shared relays, correlated losses, estimate relaying (theory §13 [beyond]).
 
 The model is :class:`kfcrit.model.mesh.Mesh` (built with :func:`kfcrit.model.mesh.build_mesh`).
 Entry points:

@@ -1,4 +1,4 @@
-"""The exact joint law π(S) of the received sensor set of a mesh, per period (MATH §13).
+"""The exact joint law π(S) of the received sensor set of a mesh, per period (theory §13).
 
 Hop outcomes
 ------------
@@ -23,7 +23,7 @@ private, so routes are independent and sensors are independent:
     a_i(z) = 1 − \\prod_{r ∈ R_i} \\bigl(1 − [z \\text{ passes } r]\\, π_r\\bigr),
 
 where π_r is the product of the route's private successes. Cost 2^{V_sh}·2^N; with no shared
-variable this is the product law of MATH §9.
+variable this is the product law of theory §9.
 
 Slot budget
 -----------
@@ -137,7 +137,7 @@ def _to_output(values: Sequence[Number], exact: bool) -> tuple[Any, ...]:
 
 
 def product_law(sensors: Sequence[str], p: Sequence[Any]) -> JointLaw:
-    """Independent links: π(S) = Π_{i∈S} p_i Π_{i∉S}(1 − p_i) (MATH §9); exact when every
+    """Independent links: π(S) = Π_{i∈S} p_i Π_{i∉S}(1 − p_i) (theory §9); exact when every
     p_i is a sympy Rational, Fraction or int."""
     exact = all(isinstance(v, (sp.Rational, Fraction, int)) and not isinstance(v, bool)
                 for v in p)

@@ -1,4 +1,4 @@
-"""Estimate relaying and smart sensors (MATH §13 [beyond]).
+"""Estimate relaying and smart sensors (theory §13 [beyond]).
 
 Estimate relaying (Gupta, Dana, Hespanha, Murray, Hassibi, "Data transmission over networks
 for estimation and control", IEEE TAC 54(8), 2009): every node forwards, on every outgoing
@@ -17,7 +17,7 @@ exp(−min-cut) with capacities −log d_h: a max-flow (Edmonds–Karp, written 
 an infinite capacity and, if every cut has such a hop, p_cut = 0). With retries the
 per-period drop is d_h = (1 − q_h)^{k_h+1}; slot budgets are not modelled for relaying.
 
-Reading of MATH §13 implemented here: the theorem is per sensor, with (A, C_s) detectable
+Reading of theory §13 implemented here: the theorem is per sensor, with (A, C_s) detectable
 (the sensor runs its own filter). For a network of several sensors :func:`estimate_relaying`
 reports each sensor's verdict and, as a **sufficient** condition only, the network is stable
 if some sensor s with (A, C_s) detectable has p_cut(s)·ρ(A)² < 1 (the estimator may ignore the
@@ -266,4 +266,4 @@ def smart_sensor_critical_value(system: System) -> SmartSensor:
     expr = sp.radsimp(1 - 1 / rho.rho2_exact) if rho.rho2_exact is not None else None
     return SmartSensor(1.0 - 1.0 / rho.rho2, expr,
                        "smart sensor: the estimate carries all past measurements, so only "
-                       "ρ(A) matters (MATH §13)")
+                       "ρ(A) matters (theory §13)")

@@ -1,5 +1,5 @@
 """Mean stability of the Kalman filter for ANY joint law π(S) of the received sensor set,
-i.i.d. in time (MATH §13, generalising §9), and the mesh facts built on it.
+i.i.d. in time (theory §13, generalising §9), and the mesh facts built on it.
 
 The expected map g(X) = A X A' + Q − Σ_S π(S) A X C_S'(C_S X C_S' + R_S)^{-1} C_S X A' is
 monotone and concave for any law (Sinopoli's Lemma 1 term by term), so:
@@ -23,7 +23,7 @@ monotone and concave for any law (Sinopoli's Lemma 1 term by term), so:
 * **exact region**: the proof in :mod:`kfcrit.theory.links.network` (modal one-step observability)
   uses π only through P(S ⊆ B_j); it holds verbatim for any law, so where
   :func:`kfcrit.theory.links.network.modal_one_step` applies the region is exactly the necessary
-  one (a claim beyond MATH §13 until reviewed).
+  one (a claim beyond theory §13 until reviewed).
 
 **Bottleneck hop** (:func:`hop_headrooms`): for hop h let σ ↦ π_σ be the law with the hop's
 per-attempt success q_h replaced by σ ∈ [0, 1]; P_σ(S ⊆ T) is non-increasing in σ (every

@@ -4,7 +4,7 @@ p_up = inf { p : ∃ K, X ≻ 0 with X ≻ L_{K,p}(X) },  L_{K,p}(X) = (1−p) A
 F = A + K C (Sinopoli Thm 5 with Q, R scaled away). Minimising over K for fixed X gives the
 noise-free MARE map G_p(X) = A X A' − p A X C'(C X C')^{-1} C X A' = min_K L_{K,p}(X), which is
 monotone, concave and positively homogeneous; p_up is where its cone spectral radius r(p)
-crosses 1 (MATH.md §3).
+crosses 1 (docs/theory.md §3).
 
 The default method ("newton") works in four steps:
 

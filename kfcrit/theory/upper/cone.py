@@ -9,7 +9,7 @@ The noise-free MARE map is
     \\qquad L_{K,p}(X) = (1-p) A X A' + p (A+KC) X (A+KC)',
 
 monotone, concave and positively homogeneous on the PSD cone; p_up is where its cone spectral
-radius r(p) crosses 1 (MATH.md §3). Nothing here proves anything: the proofs are the ball
+radius r(p) crosses 1 (docs/theory.md §3). Nothing here proves anything: the proofs are the ball
 checks of :mod:`kfcrit.theory.upper.certify`, driven by :mod:`kfcrit.theory.upper.certs`.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Sinopoli's LMI for the upper bound p_up, solved so that it stays honest near the threshold.
 
     Ψ_p(Y, Z) = [ Y               √p (Y A + Z C)   √(1−p) Y A ]
-                [ √p (A'Y + C'Z')  Y               0          ]  ≻ 0        (MATH.md §3)
+                [ √p (A'Y + C'Z')  Y               0          ]  ≻ 0        (docs/theory.md §3)
                 [ √(1−p) A'Y       0               Y          ]
 
 is feasible iff p > p_up (Y = X^{-1}, Z = Y K). Ψ is homogeneous in (Y, Z), so we solve the

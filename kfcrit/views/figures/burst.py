@@ -1,4 +1,4 @@
-"""Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (MATH §10).
+"""Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (theory §10).
 
 Reads ``link_budget.critical_curve`` (:meth:`kfcrit.theory.links.markov.CriticalCurve.to_dict`):
 on a grid of failure rates f, the necessary recovery rate r_nec(f) (at or below it E[P_t]

@@ -2,7 +2,7 @@
 
 * ``accuracy``: tr S̄(p) and tr V̄(p) (``phase_transition``) with the requirement
   lim E[tr P] ≤ L and the required interval [p_S, p_V] of ``design.required_arrival_probability``
-  shaded (MATH §11: p ≤ p_S fails since tr S̄(p) > L; p ≥ p_V meets it since tr V̄(p) ≤ L);
+  shaded (theory §11: p ≤ p_S fails since tr S̄(p) > L; p ≥ p_V meets it since tr V̄(p) ≤ L);
 * ``arrival_distance``, ``per_sinr``, ``outage_distance``: the link layer's curves from
   ``link_budget.curves`` (the ``to_dict`` forms of :mod:`kfcrit.link.curves`), drawn by
   :mod:`kfcrit.views.figures.link` with p_c, the requirement and the design distance marked.

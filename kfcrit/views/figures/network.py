@@ -2,7 +2,7 @@
 
 Both read the record's ``network`` section (:meth:`kfcrit.theory.links.network.NetworkResult.to_dict`)
 and ``system.sensors``; nothing is computed beyond drawing record values. The region figure
-evaluates the record's closed-form necessary constraints (MATH §9)
+evaluates the record's closed-form necessary constraints (theory §9)
 
 .. math::
 

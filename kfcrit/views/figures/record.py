@@ -15,7 +15,7 @@ Figures (names for :func:`figure`, keys of :func:`build_figures`):
 * ``traces``: simulated mean tr P_t just below and just above the critical value;
 * ``operating``: simulated mean tr P_t at the operating point with its band, against tr S̄, tr V̄;
 * ``cdf``: empirical CDF of tr P at the operating point, with the requirement's limit;
-* ``almost_sure``: block maxima and minima of tr P_t along one long path (MATH §6);
+* ``almost_sure``: block maxima and minima of tr P_t along one long path (theory §6);
 * ``invariant``: support of the invariant distribution of a scalar system (Kar et al. Thm 10);
 * ``network_region``, ``network_map``: a sensor network's stability region in the plane of its
   two weakest links, and the map of its nodes (:mod:`kfcrit.views.figures.network`);
@@ -371,7 +371,7 @@ def draw_invariant(record: dict[str, Any]) -> Figure | None:
 
 
 def draw_almost_sure(record: dict[str, Any]) -> Figure | None:
-    """Block maxima and minima of tr P_t over dyadic time blocks of one long path (MATH §6)."""
+    """Block maxima and minima of tr P_t over dyadic time blocks of one long path (theory §6)."""
     blk = section(record, "simulation", "operating_point", "almost_sure")
     if not isinstance(blk, dict):
         return None

@@ -1,4 +1,4 @@
-"""View model of the accuracy-requirement design (MATH §11) and of the link curves.
+"""View model of the accuracy-requirement design (theory §11) and of the link curves.
 
 Reads ``design`` ({requirement, required_arrival_probability, radio}), the requirement's
 assessment in ``requirements.assessments``, ``tail.exponent`` and the figures drawn from

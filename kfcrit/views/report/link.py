@@ -1,5 +1,5 @@
 """View model of the channel section: the configured channel, the link budget and its design
-outputs, and the Gilbert–Elliott burst condition (MATH §7)."""
+outputs, and the Gilbert–Elliott burst condition (theory §7)."""
 from __future__ import annotations
 
 from typing import Any
@@ -231,7 +231,7 @@ def radio_formula_svg(radio: dict[str, Any]) -> Markup | None:
 
 
 def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
-    """A Gilbert–Elliott section: the burst condition (MATH §7), its status and the claims."""
+    """A Gilbert–Elliott section: the burst condition (theory §7), its status and the claims."""
     cond = as_dict(lb.get("condition"))
     sim = as_dict(lb.get("simulation"))
     rows = [
@@ -276,12 +276,12 @@ def bursty_view(lb: dict[str, Any]) -> dict[str, Any]:
 
 
 def certificate_rows(cert: dict[str, Any]) -> list[dict[str, Any]]:
-    """The burst verdict for any system (MATH §10): the necessary burst condition, the coupled
+    """The burst verdict for any system (theory §10): the necessary burst condition, the coupled
     fixed-gain certificate and the literature's claim, as the record states them."""
     if not cert:
         return []
     verdict = cert.get("verdict")
-    rows = [row("burst verdict (MATH §10)", str(verdict).replace("-", " ") if verdict else None,
+    rows = [row("burst verdict (docs/theory.md §10)", str(verdict).replace("-", " ") if verdict else None,
                 note=prose(cert.get("basis")),
                 status={"mean-stable": True, "mean-unstable": False}.get(str(verdict)))]
     nec = as_dict(cert.get("necessary"))

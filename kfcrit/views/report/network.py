@@ -1,4 +1,4 @@
-"""View model of the sensor-network section (MATH §9): the table of nodes, the uniform margin,
+"""View model of the sensor-network section (theory §9): the table of nodes, the uniform margin,
 the bottleneck, the necessary constraints and the two network figures.
 
 Reads ``network`` (:meth:`kfcrit.theory.links.network.NetworkResult.to_dict`) and ``system.sensors``;
@@ -18,7 +18,7 @@ VERDICT_CSS = {"mean-stable": "ok", "mean-unstable": "no", "undetermined": "none
 
 
 def is_network(rec: dict[str, Any]) -> bool:
-    """Whether the record is a sensor network of two or more sensors (MATH §9)."""
+    """Whether the record is a sensor network of two or more sensors (theory §9)."""
     return len(as_list(as_dict(as_dict(rec).get("network")).get("sensors"))) > 1
 
 
@@ -86,7 +86,7 @@ def region_caption(rec: dict[str, Any]) -> str:
             "weakest links: the bottleneck first, then the smallest certain margin)"
             + (f", with {', '.join(others)} at {'its' if len(others) == 1 else 'their'} "
                "operating value" + ("" if len(others) == 1 else "s") if others else "")
-            + ". Shaded red: a necessary constraint |λ|²·Π(1 − p_k) < 1 (MATH §9) fails, so "
+            + ". Shaded red: a necessary constraint |λ|²·Π(1 − p_k) < 1 (docs/theory.md §9) fails, so "
             "the filter is mean-unstable there (proven); the lines are those constraints' "
             "boundaries, drawn from their closed forms in the record. ")
     if exact:

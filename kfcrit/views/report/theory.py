@@ -434,7 +434,7 @@ def _is_series(value: Any) -> bool:
 
 
 def statements_view(rec: dict[str, Any]) -> dict[str, Any]:
-    """Almost-sure and distributional statements (MATH §5–6) in plain words."""
+    """Almost-sure and distributional statements (theory §5–§6) in plain words."""
     th = rec.get("theory")
     d = as_dict(th)
     sb = d.get("stochastic_boundedness")

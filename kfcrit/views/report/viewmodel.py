@@ -63,7 +63,7 @@ def critical_curve_figure(rec: dict[str, Any], figures: dict[str, str | None],
         return None
     return figure_entry(
         as_dict(figures).get("critical_curve"), "Critical curve of the bursty link",
-        "The (failure rate f, recovery rate r) plane of the Gilbert–Elliott channel (MATH §10): "
+        "The (failure rate f, recovery rate r) plane of the Gilbert–Elliott channel (docs/theory.md §10): "
         "at or below the necessary recovery rate r_nec(f) E[P_t] diverges (proven); at or above "
         "the sufficient one r_suf(f) the coupled fixed-gain certificate proves it bounded "
         "(found numerically, drawn at the record's grid of f only); between, undetermined. "

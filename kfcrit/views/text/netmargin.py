@@ -1,4 +1,4 @@
-"""Text of a sensor network's margins and bracketed values (MATH §9), shared by the terminal
+"""Text of a sensor network's margins and bracketed values (theory §9), shared by the terminal
 view and the report so that both render the record's numbers the same way.
 
 Pure functions of record entries; no plotting imports (the terminal view uses them).

@@ -72,7 +72,7 @@ def _value_text(d: dict[str, Any] | None) -> str:
 
 def design_lines(design: dict[str, Any] | None) -> list[str]:
     """The accuracy requirement as a required arrival probability, and what it asks of the
-    radio (MATH §11)."""
+    radio (theory §11)."""
     if not design:
         return []
     req = design.get("required_arrival_probability") or {}
