@@ -133,7 +133,7 @@ def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: 
     with ``write`` the CSV, JSON and figures are written there too.
     """
     from kfcrit.analysis.sweep.points import RESULT_COLUMNS, load_sweep, run_sweep
-    from kfcrit.cli.sweep import write_outputs
+    from kfcrit.api.sweepfiles import write_outputs
 
     spec = load_sweep(sweep_file, max_states=max_states)
     out = Path(output) if output is not None else \

@@ -1,30 +1,21 @@
 """``kfcrit sweep``: run a sweep file, write its table and figures, report in one line."""
 from __future__ import annotations
 
-import json
 import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from kfcrit.analysis.sweep.points import (
-    FORMAT_VERSION,
     JOURNAL_NAME,
-    RESULT_COLUMNS,
     Journal,
-    SweepSpec,
     load_sweep,
     run_sweep,
-    table_csv,
 )
+from kfcrit.api.sweepfiles import write_outputs
 from kfcrit.cli.common import flush_std_streams
 from kfcrit.errors import ExitCode
-from kfcrit.io.atomic import write_atomic
-from kfcrit.io.jsonio import jsonable
 from kfcrit.io.safeio import printable
-from kfcrit.version import __version__
-from kfcrit.views.figures.sweep import margin_images
 
 
 def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[], None]]:
@@ -45,32 +36,6 @@ def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[]
     task = prog.add_task("sweep", total=total, completed=done)
     prog.start()
     return (lambda n: prog.advance(task, n)), prog.stop
-
-
-def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
-                  runner: str, workers: int, computed: int, reused: int) -> dict[str, str]:
-    """Write sweep.csv, sweep.json and the margin plots atomically; return their paths."""
-    meta = {"name": spec.name, "description": spec.description, "sweep_file": spec.path,
-            "sweep_sha256": spec.sha256, "base_system": spec.base_path,
-            "parameters": list(spec.parameters), "tolerance": spec.tolerance,
-            "points": len(rows), "plot_x": spec.plot_x, "kfcrit": __version__,
-            "format": FORMAT_VERSION, "columns": ["index", "key", *spec.parameters,
-                                                 *RESULT_COLUMNS]}
-    record = {"sweep": meta, "rows": rows}
-    run = {"runner": runner, "workers": workers,
-           "computed": computed, "reused": reused}
-    files = {"csv": out / "sweep.csv", "json": out / "sweep.json",
-             "svg": out / "margin.svg", "png": out / "margin.png",
-             "run": out / "run.json"}
-    # kfcrit names these files itself: a symbolic link planted in the folder is replaced,
-    # never written through
-    write_atomic(files["csv"], table_csv(spec, rows).encode(), follow_symlinks=False)
-    write_atomic(files["json"], json.dumps(jsonable(record), indent=1, allow_nan=False,
-                                           ensure_ascii=False).encode(), follow_symlinks=False)
-    write_atomic(files["run"], json.dumps(run, indent=1).encode(), follow_symlinks=False)
-    for fmt, data in margin_images(rows, spec.parameters, spec.plot_x).items():
-        write_atomic(files[fmt], data, follow_symlinks=False)
-    return {k: str(v) for k, v in files.items()}
 
 
 def _interrupted(journal: Journal) -> None:

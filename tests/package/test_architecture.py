@@ -191,3 +191,25 @@ def test_the_checker_sees_a_known_upward_import(tmp_path: Path) -> None:
     src.write_text("def f():\n    from kfcrit.views.text.terminal import summary\n    return summary\n")
     found = imports_of("kfcrit.model.m", src)
     assert ("kfcrit.views.text.terminal", ["summary"], 2) in found
+
+
+MAX_MODULES_PER_FOLDER = 12
+"""A package folder with more modules than this is split into subpackages by concern."""
+
+
+def test_no_folder_holds_more_than_twelve_modules() -> None:
+    crowded = {}
+    for folder in [PACKAGE, *sorted(p for p in PACKAGE.rglob("*") if p.is_dir())]:
+        if folder.name == "__pycache__":
+            continue
+        count = len([p for p in folder.glob("*.py") if p.name != "__init__.py"])
+        if count > MAX_MODULES_PER_FOLDER:
+            crowded[str(folder.relative_to(ROOT))] = count
+    assert not crowded, f"folders over {MAX_MODULES_PER_FOLDER} modules: {crowded}"
+
+
+def test_the_python_api_never_imports_the_command_line() -> None:
+    bad = [(src, dst) for src, dsts in graph().items() if src.startswith("kfcrit.api")
+           for dst in dsts if dst.startswith("kfcrit.cli")]
+    assert not bad, f"the API imports the CLI: {bad}"
+

@@ -758,7 +758,7 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
     """Run (or resume) a sweep, journalling each finished point in the folder ``output``.
 
     Returns the table (rows sorted by point index); the files are written by
-    :func:`kfcrit.cli.sweep.write_outputs` (or by the caller). ``progress(total, done)`` may
+    :func:`kfcrit.api.sweepfiles.write_outputs` (or by the caller). ``progress(total, done)`` may
     return an ``(advance, stop)`` pair of callbacks.
     """
     out = Path(output)
