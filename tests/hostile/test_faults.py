@@ -19,7 +19,10 @@ import sympy as sp
 from kfcrit.model.system import System
 from kfcrit.theory.covariance import bounds as _bounds
 from kfcrit.theory.covariance import riccati
+from kfcrit.theory.critical import classify as critical_classify
+from kfcrit.theory.critical import robust as critical_robust
 from kfcrit.theory.critical import section as critical
+from kfcrit.theory.critical import values as critical_values
 from kfcrit.theory.upper import bracket as _upper
 
 from ..properties import test_lemmas as L
@@ -250,8 +253,8 @@ def _arrival_is_loss(A, C, Q, R, X):
 _REAL_UPPER = _upper.upper_bound
 _REAL_LOWER_COV = _bounds.lower_covariance
 _REAL_UPPER_COV = _bounds.upper_covariance
-_REAL_PAIR_VALUE = critical.pair_value
-_REAL_NONDEGENERATE = critical.nondegenerate_value
+_REAL_PAIR_VALUE = critical_values.pair_value
+_REAL_NONDEGENERATE = critical_values.nondegenerate_value
 _REAL_CRITICAL_VALUE = critical.critical_value
 
 
@@ -267,14 +270,14 @@ def _lower_one_over_rho(mod2, *args, **kwargs):
     real = _REAL_NONDEGENERATE(mod2, *args, **kwargs)
     if real.value == 0.0:
         return real
-    return critical.Num(max(1.0 - 1.0 / float(mod2) ** 0.5, 0.0))
+    return critical_values.Num(max(1.0 - 1.0 / float(mod2) ** 0.5, 0.0))
 
 
 def _lower_decreasing(mod2, *args, **kwargs):
     real = _REAL_NONDEGENERATE(mod2, *args, **kwargs)
     if real.value == 0.0:
         return real
-    return critical.Num(min(1.0 / float(mod2), 1.0))
+    return critical_values.Num(min(1.0 / float(mod2), 1.0))
 
 
 def _critical_depends_on_q(system, tolerance=1e-9, channel=None):
@@ -282,13 +285,13 @@ def _critical_depends_on_q(system, tolerance=1e-9, channel=None):
     if rec.value is None:
         return rec
     shift = 1e-6 * float(np.trace(system.q))
-    return dataclasses.replace(rec, value=critical.Num(min(1.0, rec.value.value + shift)))
+    return dataclasses.replace(rec, value=critical_values.Num(min(1.0, rec.value.value + shift)))
 
 
 def _critical_uses_diagonal(system, tolerance=1e-9, channel=None):
     rec = _REAL_CRITICAL_VALUE(system, tolerance, channel)
     rho = float(np.max(np.abs(np.diag(system.a))))
-    return dataclasses.replace(rec, lower=critical.Num(max(0.0, 1 - 1 / rho ** 2)))
+    return dataclasses.replace(rec, lower=critical_values.Num(max(0.0, 1 - 1 / rho ** 2)))
 
 
 def _upper_shifted_down(system, tol=1e-9, method="auto"):
@@ -390,7 +393,10 @@ def test_riccati_fault_is_caught(monkeypatch: pytest.MonkeyPatch, fault: str, at
     ids=[f"{f} -> {c}" for f, _a, _r, checks in CRITICAL_FAULTS for c in checks])
 def test_critical_fault_is_caught(monkeypatch: pytest.MonkeyPatch, fault: str, attr: str,
                                   replacement: Callable, check: str) -> None:
-    monkeypatch.setattr(critical, attr, replacement)
+    # the function is patched wherever the critical-value modules call it from
+    for module in (critical, critical_values, critical_classify, critical_robust):
+        if hasattr(module, attr):
+            monkeypatch.setattr(module, attr, replacement)
     _upper.clear_memo()  # p_up is memoised by matrix contents: recompute with the fault
     with pytest.raises(L.PropertyViolation):
         CRITICAL_CHECKS[check]()

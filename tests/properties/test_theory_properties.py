@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 
 from kfcrit.model.system import System
 from kfcrit.theory.critical import section as critical
+from kfcrit.theory.critical import values as critical_values
 
 from ..balls import Unsupported, certainly_positive_definite
 from ..strategies import (
@@ -86,14 +87,14 @@ def _same(a: float | None, b: float | None, tol: float = EXACT_TOL) -> bool:
 
 
 def check_pair_value_formula(mod2: sp.Expr, q: int | None) -> None:
-    """D_M: critical.pair_value equals Thm 9 (1 − |λ|^{−2q/(q−1)}) or Thm 10 (1 − |λ|^{−2})."""
+    """D_M: critical_values.pair_value equals Thm 9 (1 − |λ|^{−2q/(q−1)}) or Thm 10 (1 − |λ|^{−2})."""
     expected = (sp.Max(1 - mod2 ** -1, 0) if q is None
                 else sp.Max(1 - mod2 ** sp.Rational(-q, q - 1), 0))
-    got = critical.pair_value(float(mod2), q, mod2)
+    got = critical_values.pair_value(float(mod2), q, mod2)
     if not abs(got.value - float(expected)) <= EXACT_TOL:
         raise PropertyViolation(f"pair_value(|λ|² = {mod2}, q = {q}) = {got.value}, "
                                 f"Thm 9/10 give {expected} = {float(expected)}")
-    got_float = critical.pair_value(float(mod2), q)
+    got_float = critical_values.pair_value(float(mod2), q)
     if not abs(got_float.value - float(expected)) <= 1e-12:
         raise PropertyViolation(f"float pair_value(|λ|² = {mod2}, q = {q}) = {got_float.value}")
 
@@ -265,7 +266,7 @@ def test_pair_value_paper_values() -> None:
     # MATH §4 examples: diag(2, −2) → q = 2, 15/16; rotation by π/3, modulus 2 → q = 3, 7/8;
     # irrational angle, modulus 2 → 3/4
     for mod2, q, expected in _DM_CASES:
-        assert critical.pair_value(float(mod2), q, mod2).value == float(expected)
+        assert critical_values.pair_value(float(mod2), q, mod2).value == float(expected)
         check_pair_value_formula(mod2, q)
 
 

@@ -20,7 +20,10 @@ from kfcrit.io.systemfile import load_spec
 from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.exprparse import parse_expression
 from kfcrit.model.system import System
+from kfcrit.theory.critical import classify as critical_classify
+from kfcrit.theory.critical import robust as critical_robust
 from kfcrit.theory.critical import section as critical
+from kfcrit.theory.critical import values as critical_values
 from kfcrit.theory.structure.eigen import eigen_structure
 
 from ..conftest import SHARED_CASES
@@ -69,7 +72,7 @@ def test_expected_cases(name):
 
 def test_lower_bound_interface():
     spec = load_spec(REPORTS / "sinopoli-general.yaml")
-    lb = critical.lower_bound(spec.system)
+    lb = critical_classify.lower_bound(spec.system)
     assert set(lb) == {"value", "expression"} and _same(lb["expression"], "9/25")
 
 
@@ -395,7 +398,7 @@ def test_reason_texts_use_unicode_math():
 
 def test_long_exact_numbers_keep_an_exact_expression() -> None:
     """A rational with 70-digit parts is written exactly (never as a float) and reads back."""
-    from kfcrit.theory.critical.section import Num
+    from kfcrit.theory.critical.values import Num
 
     x = sp.Rational(10**70 + 7, 3 * 10**65 + 1)
     num = Num(float(x), x)
@@ -512,10 +515,10 @@ def test_float_path_issue_case_nearby_is_never_the_headline():
 
 def test_pair_value_text_has_no_unit_denominator():
     m = sp.Rational(10**20 + 1, 10**19)
-    v2 = critical.pair_value(float(m), 2, m)
+    v2 = critical_values.pair_value(float(m), 2, m)
     assert "/1)" not in v2.expression and "**(-2)" in v2.expression
     assert sp.simplify(sp.sympify(v2.expression) - (1 - m ** -2)) == 0
-    v3 = critical.pair_value(float(m), 3, m)
+    v3 = critical_values.pair_value(float(m), 3, m)
     assert sp.simplify(sp.sympify(v3.expression) - (1 - m ** sp.Rational(-3, 2))) == 0
 
 
@@ -613,7 +616,7 @@ def test_defective_stable_eigenvalue_does_not_fake_a_robust_value():
     a = np.array([[1.5, 0, 0], [0, 0.5, 1], [0, 0, 0.5]])
     eps = 1e-9 * np.linalg.norm(a, 2)
     i = next(k for k, e in enumerate(st.eigen) if abs(e.value - 1.5) < 1e-12)
-    turn = critical.subspace_turn(a, st, [i], eps)
+    turn = critical_robust.subspace_turn(a, st, [i], eps)
     assert abs(turn - 2 * eps / ((5 ** 0.5 - 1) / 2 - 2 * eps)) <= 1e-6 * turn
 
 
@@ -623,7 +626,7 @@ def test_subspace_near_a_defective_eigenvalue_is_still_sensitive():
     st = eigen_structure(_sys([["1 + 10**-12", 0, 0], [0, 1, 1], [0, 0, 1]], [[1, 1, 1]]))
     a = np.array([[1 + 1e-12, 0, 0], [0, 1, 1], [0, 0, 1]])
     i = next(k for k, e in enumerate(st.eigen) if e.multiplicity == 1)
-    assert critical.subspace_turn(a, st, [i], 1e-9 * np.linalg.norm(a, 2)) == 1.0
+    assert critical_robust.subspace_turn(a, st, [i], 1e-9 * np.linalg.norm(a, 2)) == 1.0
 
 
 # --------------------------------------------------------------------------- exact comparison
