@@ -486,7 +486,8 @@ def _frame_notes(channel: LinkBudget) -> list[str]:
     if channel.per_over == "ppdu" and head:
         covers = (f"the PPDU of {frame['per_bytes']} bytes (PHY header {head} bytes + PSDU "
                   f"{frame['psdu_bytes']} bytes, MAC header and FCS "
-                  f"{frame['mac_overhead_bytes']} bytes added), as ns-3 counts it; set per_over = psdu to exclude the header")
+                  f"{frame['mac_overhead_bytes']} bytes added), as ns-3 counts it; per_over = psdu "
+                  f"excludes the header")
     else:
         covers = (f"the PSDU of {frame['psdu_bytes']} bytes (MAC header and FCS "
                   f"{frame['mac_overhead_bytes']} bytes added)"
