@@ -1,0 +1,156 @@
+"""The channel as the record states it: a Bernoulli, Gilbert–Elliott, trace or link-budget
+channel (``ChannelRecord``, one class whose keys depend on ``model``) and the network
+operating point's per-sensor channels (``NetworkChannel``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from kfcrit.io.typed import opt_key
+
+
+@dataclass(frozen=True, kw_only=True)
+class RadioFrameRecord:
+    """`@RadioFrame`"""
+
+    standard: str
+    mac_overhead_bytes: int
+    phy_header_bytes: int
+    max_psdu_bytes: int
+    bit_rate_bps: float | None
+    max_retries: int
+    ack_wait_s: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class RadioRecord:
+    """`@Radio`"""
+
+    model: str
+    formula: str
+    source: str
+    implementation_loss_db: float | None
+    frame: RadioFrameRecord
+    sensitivity_dbm: float | None = opt_key()
+    reference_per: float | None = opt_key()
+    reference_psdu_bytes: int = opt_key()
+    reference_noise_dbm: float | None = opt_key()
+    datasheet: str = opt_key()
+
+
+@dataclass(frozen=True, kw_only=True)
+class PathLossRecord:
+    """`@Channel.path_loss`"""
+
+    model: str
+    exponent: float | None
+    reference_distance_m: float | None
+    reference_loss_db: float | None
+    formula: str
+    shadowing_sigma_db: float | None
+    shadowing: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class NoiseRecord:
+    """`@Channel.noise`"""
+
+    noise_floor_dbm: float | None
+    bandwidth_hz: float | None
+    noise_figure_db: float | None
+    temperature_k: float | None
+    interference_dbm: float | None
+    noise_plus_interference_dbm: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameRecord:
+    """`@Frame`"""
+
+    payload_bytes: int
+    mac_overhead_bytes: int
+    psdu_bytes: int
+    phy_header_bytes: int
+    ppdu_bytes: int
+    max_psdu_bytes: int
+    max_payload_bytes: int
+    standard: str
+    per_covers: str
+    definition: str
+    airtime_s: float | None
+    max_retries: int
+    max_retries_allowed: int
+    attempts_duration_s: float | None
+    retry_formula: str
+    retry_assumption: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShadowingCorrelation:
+    """`@Channel.shadowing_correlation`"""
+
+    sample_period_s: float | None
+    coherence_time_s: float | None
+    correlation_distance_m: float | None
+    speed_mps: float | None
+    correlation: float | None
+    formula: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShadowingMarkov:
+    """`@Channel.gilbert_elliott`"""
+
+    correlation: float | None
+    threshold_z: float | None
+    failure_rate: float | None
+    recovery_rate: float | None
+    stationary_arrival_probability: float | None
+    mean_burst_length: float | None
+    formula: str
+    assumption: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class ChannelRecord:
+    """`@Channel`"""
+
+    model: str
+    radio: RadioRecord = opt_key()
+    tx_power_dbm: float | None = opt_key()
+    distance_m: float | None = opt_key()
+    packet_bytes: int = opt_key()
+    antenna_gain_db: float | None = opt_key()
+    path_loss: PathLossRecord = opt_key()
+    noise: NoiseRecord = opt_key()
+    margin_db: float | None = opt_key()
+    max_outage: float | None = opt_key()
+    max_retries: int = opt_key()
+    frame: FrameRecord = opt_key()
+    shadowing_correlation: ShadowingCorrelation | None = opt_key()
+    gilbert_elliott: ShadowingMarkov | None = opt_key()
+    sinr_db: float | None = opt_key()
+    arrival_probability: float | None
+    arrival_probability_expression: str
+    arrival_probability_basis: str = opt_key()
+    failure_rate: float | None = opt_key()
+    recovery_rate: float | None = opt_key()
+    mean_burst_length: float | None = opt_key()
+    path: str = opt_key()
+    length: int = opt_key()
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkChannelSensor:
+    """`@NetworkChannel.sensors[]`"""
+
+    name: str
+    channel: ChannelRecord | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkChannel:
+    """`@NetworkChannel`"""
+
+    model: str
+    sensors: list[NetworkChannelSensor]
