@@ -190,13 +190,25 @@ def from_json(tp: Any, value: Any, path: str = "record") -> Any:
         _, item = typing.get_args(tp)
         return {k: from_json(item, v, f"{path}.{k}") for k, v in value.items()}
     if origin in (Union, types.UnionType):
+        misfits = []
         for arg in typing.get_args(tp):
             try:
                 return from_json(arg, value, path)
-            except RecordError:
-                continue
-        raise RecordError(f"{path}: fits none of {tp}")
+            except RecordError as exc:
+                misfits.append(str(exc))
+        raise RecordError(f"{path}: fits none of {_type_name(tp)} ("
+                          + "; ".join(misfits) + ")")
     raise RecordError(f"{path}: unsupported field type {tp!r}")
+
+
+def _type_name(tp: Any) -> str:
+    """``A | B | None`` with bare class names (for error messages)."""
+    args = typing.get_args(tp)
+    if typing.get_origin(tp) in (Union, types.UnionType):
+        return " | ".join(_type_name(a) for a in args)
+    if args:
+        return f"{getattr(tp, '__name__', tp)}[{', '.join(_type_name(a) for a in args)}]"
+    return "None" if tp is type(None) else getattr(tp, "__name__", str(tp))
 
 
 def _check_json(value: Any, path: str) -> Any:

@@ -80,3 +80,6 @@ class UpperSolver:
     output_compression: str = opt_key()
     special_case: str = opt_key()
     p_low: str = opt_key()
+    failure: str = opt_key()
+    failure_message: str = opt_key()
+    failure_stage: str = opt_key()

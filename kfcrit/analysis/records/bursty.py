@@ -66,7 +66,7 @@ class NecessaryBurstCondition:
     value: float | None
     enclosure: list[float | None]
     rho2: float | None
-    rho2_expression: str
+    rho2_expression: str | None
     recovery_rate: float | None
     rigorous: bool
     how: str
@@ -91,11 +91,11 @@ class CoupledCertificate:
     failure_rate: float | None
     recovery_rate: float | None
     spectral_radius: float | None
-    gain_origin: str
-    check: CertificateCheck
+    gain_origin: str | None
+    check: CertificateCheck | None
     reason: str
     lmi_margin: float | None
-    matrices: CoupledCertificateMatrices
+    matrices: CoupledCertificateMatrices | None
     kind: str
 
 
@@ -120,7 +120,7 @@ class BurstCertificate:
     stationary_arrival: float | None
     necessary: NecessaryBurstCondition
     certificate: CoupledCertificate | None
-    claim: BurstClaim
+    claim: BurstClaim | None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -137,7 +137,7 @@ class CriticalCurve:
 
     failure_rates: list[float | None]
     necessary_recovery: list[float | None]
-    necessary_expression: str
+    necessary_expression: str | None
     sufficient_recovery: list[float | None]
     tolerance: float | None
     method: str
@@ -160,10 +160,10 @@ class GilbertElliottSection:
     condition: BurstCondition
     required_recovery_rate: float | None
     max_mean_burst_length: float | None
-    simulation: BurstSimulationCheck
+    simulation: BurstSimulationCheck | None
     simulation_consistent: bool | None
-    simulation_note: str
+    simulation_note: str | None
     claims: list[LiteratureClaim]
     certificate: BurstCertificate
-    critical_curve: CriticalCurve
+    critical_curve: CriticalCurve = opt_key()
     facts: StabilityFacts = opt_key()

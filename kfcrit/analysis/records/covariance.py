@@ -182,12 +182,13 @@ class Invariant:
     fixed_point: ValueExpression
     maps: InvariantMaps
     arrival_limit: ValueExpression
-    first_gap: InvariantGap
+    first_gap: InvariantGap | None
     gap_levels: list[InvariantGapLevel]
     self_similarity: SelfSimilarity
     support_points: SupportPoints
     holes: list[list[float | None]]
     note: str
+    warnings: list[str] = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -211,7 +212,7 @@ class RequiredArrivalEnd:
     value: float | None
     certified: bool
     how: str
-    check: RequiredArrivalCheck
+    check: RequiredArrivalCheck | None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -220,7 +221,7 @@ class RequiredArrivalProbability:
 
     status: str
     level: float | None
-    interval: list[float | None]
+    interval: list[float | None] | None
     p_S: RequiredArrivalEnd
     p_V: RequiredArrivalEnd
     floor_trace: float | None
@@ -261,10 +262,11 @@ class TailSimulationCheck:
     paths: int
     horizon: int
     points: int
-    slope: float | None
-    exponent_estimate: float | None
-    relative_difference: float | None
-    trace_range: list[float | None]
+    slope: float | None = opt_key()
+    exponent_estimate: float | None = opt_key()
+    relative_difference: float | None = opt_key()
+    trace_range: list[float | None] = opt_key()
+    note: str = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
