@@ -28,9 +28,10 @@ class UpperCertificate:
     X_basis: list[list[float | None]] = opt_key()
     K_basis: list[list[float | None]] = opt_key()
     reverify: str = opt_key()
-    output_map: list[list[float | None]] = opt_key()
     statement: str = opt_key()
     condition_number_C: float | None = opt_key()
+    output_map: list[list[float | None]] = opt_key()
+    lmi_margin: float | None = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -77,9 +78,14 @@ class UpperSolver:
     solves: int
     observer_rate: float | None = opt_key()
     regularisation: float | None = opt_key()
-    output_compression: str = opt_key()
     special_case: str = opt_key()
     p_low: str = opt_key()
+    output_compression: str = opt_key()
     failure: str = opt_key()
     failure_message: str = opt_key()
     failure_stage: str = opt_key()
+    solver_seconds: float | None = opt_key()
+    solver: str = opt_key()
+    balancing: str = opt_key()
+    ends: str = opt_key()
+    cone_checks: dict[str, float | None] = opt_key()

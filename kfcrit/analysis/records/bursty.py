@@ -164,6 +164,6 @@ class GilbertElliottSection:
     simulation_consistent: bool | None
     simulation_note: str | None
     claims: list[LiteratureClaim]
-    certificate: BurstCertificate
+    certificate: BurstCertificate = opt_key()
     critical_curve: CriticalCurve = opt_key()
     facts: StabilityFacts = opt_key()

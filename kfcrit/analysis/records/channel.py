@@ -116,6 +116,8 @@ class ChannelRecord:
     """`@Channel`"""
 
     model: str
+    arrival_probability: float | None
+    arrival_probability_expression: str
     radio: RadioRecord = opt_key()
     tx_power_dbm: float | None = opt_key()
     distance_m: float | None = opt_key()
@@ -130,14 +132,12 @@ class ChannelRecord:
     shadowing_correlation: ShadowingCorrelation | None = opt_key()
     gilbert_elliott: ShadowingMarkov | None = opt_key()
     sinr_db: float | None = opt_key()
-    arrival_probability: float | None
-    arrival_probability_expression: str
     arrival_probability_basis: str = opt_key()
+    path: str = opt_key()
+    length: int = opt_key()
     failure_rate: float | None = opt_key()
     recovery_rate: float | None = opt_key()
     mean_burst_length: float | None = opt_key()
-    path: str = opt_key()
-    length: int = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
