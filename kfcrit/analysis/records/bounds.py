@@ -9,6 +9,15 @@ from kfcrit.io.typed import opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
+class ProvenLowerEnd:
+    """A point below the numerical lower end at which p_up >= p is proven in ball arithmetic."""
+
+    value: float | None
+    check: CertificateCheck
+    statement: str
+
+
+@dataclass(frozen=True, kw_only=True)
 class UpperCertificate:
     """`upper_bound.certificate`"""
 
@@ -64,6 +73,7 @@ class UpperLowerEvidence:
     X_u: list[list[float | None]] = opt_key()
     basis: list[list[float | None]] = opt_key()
     reduced_states: int = opt_key()
+    proven_lower: ProvenLowerEnd = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)

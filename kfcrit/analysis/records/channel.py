@@ -36,6 +36,7 @@ class RadioRecord:
     reference_psdu_bytes: int = opt_key()
     reference_noise_dbm: float | None = opt_key()
     datasheet: str = opt_key()
+    processing_gain_db: float | None = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -43,12 +44,13 @@ class PathLossRecord:
     """`@Channel.path_loss`"""
 
     model: str
-    exponent: float | None
-    reference_distance_m: float | None
-    reference_loss_db: float | None
+    exponent: float | None = opt_key()
+    reference_distance_m: float | None = opt_key()
+    reference_loss_db: float | None = opt_key()
     formula: str
     shadowing_sigma_db: float | None
     shadowing: str
+    frequency_hz: float | None = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)

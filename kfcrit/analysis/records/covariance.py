@@ -23,6 +23,7 @@ class CovarianceSummary:
     iterations: int = opt_key()
     computed: bool = opt_key()
     not_reached: bool = opt_key()
+    beyond_float64: bool = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
