@@ -37,9 +37,9 @@ class UpperCertificate:
     X_basis: list[list[float | None]] = opt_key()
     K_basis: list[list[float | None]] = opt_key()
     reverify: str = opt_key()
+    output_map: list[list[float | None]] = opt_key()
     statement: str = opt_key()
     condition_number_C: float | None = opt_key()
-    output_map: list[list[float | None]] = opt_key()
     lmi_margin: float | None = opt_key()
 
 
@@ -67,7 +67,7 @@ class UpperLowerEvidence:
     statement: str
     p_low_enclosure: list[float | None] = opt_key()
     p_low_how: str = opt_key()
-    expression: str = opt_key()
+    expression: str | None = opt_key()
     p_low_theorem: float | None = opt_key()
     check: CertificateCheck = opt_key()
     X_u: list[list[float | None]] = opt_key()
@@ -88,9 +88,9 @@ class UpperSolver:
     solves: int
     observer_rate: float | None = opt_key()
     regularisation: float | None = opt_key()
+    output_compression: str = opt_key()
     special_case: str = opt_key()
     p_low: str = opt_key()
-    output_compression: str = opt_key()
     failure: str = opt_key()
     failure_message: str = opt_key()
     failure_stage: str = opt_key()

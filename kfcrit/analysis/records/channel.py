@@ -29,7 +29,7 @@ class RadioRecord:
     model: str
     formula: str
     source: str
-    implementation_loss_db: float | None
+    implementation_loss_db: float | None = opt_key()
     frame: RadioFrameRecord
     sensitivity_dbm: float | None = opt_key()
     reference_per: float | None = opt_key()

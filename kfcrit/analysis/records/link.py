@@ -246,7 +246,7 @@ class LinkBudget:
     design_check: DesignCheck
     warnings: list[str]
     frame: FrameRecord
-    curves: LinkCurves
+    curves: LinkCurves = opt_key()
     required_sinr_db: float | None = opt_key()
     required_rx_power_dbm: float | None = opt_key()
     link_margin_db: float | None = opt_key()

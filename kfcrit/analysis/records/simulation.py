@@ -377,5 +377,5 @@ class Simulation:
     warnings: list[str] = opt_key()
     phase_demo: PhaseDemo | None = opt_key()
     reason: str = opt_key()
-    network: NetworkSimulation = opt_key()
     skipped: bool = opt_key()
+    network: NetworkSimulation = opt_key()

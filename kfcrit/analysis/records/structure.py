@@ -15,14 +15,14 @@ class StructureTolerances:
     exact: bool = opt_key()
     time_budget_seconds: float | None = opt_key()
     max_states: int = opt_key()
-    certified_enclosures: bool = opt_key()
-    precision_bits: int = opt_key()
     modulus_relative: float | None = opt_key()
     rank_relative: float | None = opt_key()
     turn_absolute: float | None = opt_key()
     eigenvalue_cluster_relative: float | None = opt_key()
     geometric_multiplicity_relative: float | None = opt_key()
     max_denominator: int = opt_key()
+    certified_enclosures: bool = opt_key()
+    precision_bits: int = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -6,7 +6,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from kfcrit.analysis.records.channel import ChannelRecord
-from kfcrit.io.typed import opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
