@@ -14,11 +14,11 @@ class RadioFrameRecord:
     """`@RadioFrame`"""
 
     standard: str
-    mac_overhead_bytes: int
-    phy_header_bytes: int
-    max_psdu_bytes: int
+    mac_overhead_bytes: int | None
+    phy_header_bytes: int | None
+    max_psdu_bytes: int | None
     bit_rate_bps: float | None
-    max_retries: int
+    max_retries: int | None
     ack_wait_s: float | None
 
 
@@ -72,16 +72,16 @@ class FrameRecord:
     payload_bytes: int
     mac_overhead_bytes: int
     psdu_bytes: int
-    phy_header_bytes: int
-    ppdu_bytes: int
-    max_psdu_bytes: int
-    max_payload_bytes: int
+    phy_header_bytes: int | None
+    ppdu_bytes: int | None
+    max_psdu_bytes: int | None
+    max_payload_bytes: int | None
     standard: str
     per_covers: str
     definition: str
     airtime_s: float | None
     max_retries: int
-    max_retries_allowed: int
+    max_retries_allowed: int | None
     attempts_duration_s: float | None
     retry_formula: str
     retry_assumption: str
