@@ -14,8 +14,9 @@ round trip and every view that reads it, instead of hiding behind ``dict.get``.
 
 Supported field types: ``bool``, ``int``, ``float``, ``str``, ``None``, an :class:`enum.Enum`
 of strings, a nested dataclass, ``list[T]``, ``tuple[T, ...]``, ``dict[str, T]``, unions with
-``None`` (``T | None``) and :data:`JSON` (any JSON value, for payloads whose shape belongs to a
-lower layer, e.g. a matrix of numbers).
+``None`` (``T | None``), unions of these (read as the first that fits) and :data:`JSON` (any
+JSON value; the analysis record does not use it). A ``float`` field accepts an integer and keeps
+it (``1`` stays ``1``, not ``1.0``), so a record's JSON form survives the round trip exactly.
 """
 from __future__ import annotations
 
@@ -48,8 +49,47 @@ def internal(default_factory: Any) -> Any:
                              compare=False, repr=False)
 
 
+class _Absent:
+    """The value of an :func:`opt_key` field whose key is absent from the JSON form."""
+
+    _instance: _Absent | None = None
+
+    def __new__(cls) -> _Absent:
+        if cls._instance is None:
+            cls._instance = super().__new__(cls)
+        return cls._instance
+
+    def __bool__(self) -> bool:
+        return False
+
+    def __repr__(self) -> str:
+        return "ABSENT"
+
+    def __reduce__(self) -> str:
+        return "ABSENT"
+
+
+ABSENT: Any = _Absent()
+"""Marks an :func:`opt_key` field whose key is absent (falsy; distinct from a ``null`` value)."""
+
+
+def opt_key() -> Any:
+    """A key that some records carry and others do not, whatever its value.
+
+    Unlike :func:`opt`, a ``null`` value is kept (written as ``null``); only an absent key is
+    left out of the JSON form. The attribute of an absent key is :data:`ABSENT` (falsy).
+    """
+    return dataclasses.field(default=ABSENT, metadata={"omit_absent": True})
+
+
 def _omittable(f: dataclasses.Field) -> bool:
-    return bool(f.metadata.get("omit_none"))
+    return bool(f.metadata.get("omit_none") or f.metadata.get("omit_absent"))
+
+
+def _omitted(f: dataclasses.Field, value: Any) -> bool:
+    if f.metadata.get("omit_absent"):
+        return value is ABSENT
+    return bool(f.metadata.get("omit_none")) and value is None
 
 
 def _public_fields(cls_or_obj: Any) -> list[dataclasses.Field]:
@@ -91,7 +131,7 @@ def to_json(obj: Any) -> Any:
         return obj if math.isfinite(obj) else None
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {f.name: to_json(getattr(obj, f.name)) for f in _public_fields(obj)
-                if not (_omittable(f) and getattr(obj, f.name) is None)}
+                if not _omitted(f, getattr(obj, f.name))}
     if isinstance(obj, dict):
         return {str(k): to_json(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -107,7 +147,9 @@ def from_json(tp: Any, value: Any, path: str = "record") -> Any:
         return _check_json(value, path)
     optional, inner = _is_optional(tp)
     if value is None:
-        if optional or tp is type(None):
+        if optional or tp is type(None) or (
+                typing.get_origin(tp) in (Union, types.UnionType)
+                and type(None) in typing.get_args(tp)):
             return None
         raise RecordError(f"{path}: must not be null")
     tp = inner
@@ -131,7 +173,7 @@ def from_json(tp: Any, value: Any, path: str = "record") -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise RecordError(f"{path}: must be a number")
-        return float(value)
+        return value  # an int stays an int (a float field accepts one; its JSON form is kept)
     if tp is str:
         if not isinstance(value, str):
             raise RecordError(f"{path}: must be a string")
@@ -148,13 +190,25 @@ def from_json(tp: Any, value: Any, path: str = "record") -> Any:
         _, item = typing.get_args(tp)
         return {k: from_json(item, v, f"{path}.{k}") for k, v in value.items()}
     if origin in (Union, types.UnionType):
+        misfits = []
         for arg in typing.get_args(tp):
             try:
                 return from_json(arg, value, path)
-            except RecordError:
-                continue
-        raise RecordError(f"{path}: fits none of {tp}")
+            except RecordError as exc:
+                misfits.append(str(exc))
+        raise RecordError(f"{path}: fits none of {_type_name(tp)} ("
+                          + "; ".join(misfits) + ")")
     raise RecordError(f"{path}: unsupported field type {tp!r}")
+
+
+def _type_name(tp: Any) -> str:
+    """``A | B | None`` with bare class names (for error messages)."""
+    args = typing.get_args(tp)
+    if typing.get_origin(tp) in (Union, types.UnionType):
+        return " | ".join(_type_name(a) for a in args)
+    if args:
+        return f"{getattr(tp, '__name__', tp)}[{', '.join(_type_name(a) for a in args)}]"
+    return "None" if tp is type(None) else getattr(tp, "__name__", str(tp))
 
 
 def _check_json(value: Any, path: str) -> Any:

@@ -284,8 +284,9 @@ def check_parameter(path: Any, base_doc: dict, where: str) -> str:
     if _CHANNEL_PATH.match(path) or _SENSOR_PATH.match(path) or _LINKS_PATH.match(path):
         node, keys, what = _mapping_root(copy.deepcopy(base_doc), path)
         if not isinstance(node, dict):
-            raise InputError(f"the base system has no {what.replace('the base ', '')} mapping",
-                             field=where)
+            # the fault is in the base system, not in the grid that refers to it
+            raise InputError(f"the base system has no {what.replace('the base ', '')} mapping "
+                             f"(needed by {where})", field="system." + path.split(".")[0])
         for key in keys[:-1]:
             node = node.get(key)
             if not isinstance(node, dict):

@@ -1,0 +1,198 @@
+"""The ``network`` section of a sensor network (theory §9): per-sensor critical values and
+surfaces, uniform margin, N − 1 verdicts, bottleneck, necessary constraints, certificate and
+the burst condition.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from kfcrit.analysis.records.bursty import StabilityFacts
+from kfcrit.analysis.records.covariance import ValueExpression
+from kfcrit.analysis.records.link import DesignCheck, LinkState, MarginPolicy, Shadowing
+from kfcrit.io.typed import opt_key
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorCriticalValue:
+    """`network.sensors[].critical_value`"""
+
+    value: float | None
+    interval: list[float | None]
+    exact: bool
+    expression: str | None
+    basis: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkCertificate:
+    """`@NetworkCertificate`"""
+
+    ok: bool
+    p: list[float | None]
+    received_sets: int
+    all_received_sets: bool
+    min_eig_x_lower: float | None
+    margin_lower: float | None
+    reason: str
+    kind: str
+    verified_by: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class SufficientSurface:
+    """`network.sensors[].surfaces.sufficient`"""
+
+    value: float | None
+    certificate: NetworkCertificate | None
+    note: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorSurfaces:
+    """`network.sensors[].surfaces`"""
+
+    necessary: ValueExpression
+    sufficient: SufficientSurface
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorMargin:
+    """`network.sensors[].margin`"""
+
+    value: float | None
+    interval: list[float | None]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorNMinus1:
+    """`network.sensors[].n_minus_1`"""
+
+    verdict: str
+    reason: str
+    facts: StabilityFacts = opt_key()
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorLink:
+    """`network.sensors[].link`"""
+
+    link: LinkState
+    link_margin_db: float | None
+    required_sinr_db: float | None
+    max_distance_m: float | None
+    margin_policy: MarginPolicy
+    design_check: DesignCheck
+    shadowing: Shadowing
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkSensor:
+    """`network.sensors[]`"""
+
+    name: str
+    arrival_probability: float | None
+    arrival_probability_expression: str
+    critical_value: SensorCriticalValue
+    surfaces: SensorSurfaces
+    margin: SensorMargin
+    n_minus_1: SensorNMinus1
+    link: SensorLink = opt_key()
+
+
+@dataclass(frozen=True, kw_only=True)
+class UniformMargin:
+    """`network.uniform_margin`"""
+
+    value: float | None
+    interval: list[float | None]
+    unbounded: bool | None
+    rule: str
+    reason: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkNMinus1:
+    """`network.n_minus_1[]`"""
+
+    name: str
+    verdict: str
+    reason: str
+    facts: StabilityFacts = opt_key()
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkBottleneck:
+    """`network.bottleneck`: the named bottleneck sensor, or (``name`` None) why the margin
+    bounds name none and which sensors they cannot rank (``candidates``)."""
+
+    name: str | None
+    margin: float | None
+    margin_interval: list[float | None] = opt_key()
+    rule: str
+    reason: str = opt_key()
+    candidates: list[str] = opt_key()
+
+
+@dataclass(frozen=True, kw_only=True)
+class NecessaryConstraint:
+    """`network.necessary_constraints[]`"""
+
+    unobservable_without: list[str]
+    blind_sensors: list[str]
+    eigenvalue: str
+    modulus2: float | None
+    modulus2_expression: str
+    decided: str
+    condition: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExactRegion:
+    """`network.exact_region`"""
+
+    holds: bool
+    reason: str
+    basis: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkMethod:
+    """`network.method`"""
+
+    received_sets: int
+    all_received_sets: bool
+    tolerance: float | None
+    ball_checked: bool
+    newton: int
+    bisection: int
+    certificates: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkBurstCondition:
+    """`network.burst_condition`"""
+
+    holds: bool
+    statement: str
+    continuation: dict[str, float | None]
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkSection:
+    """`network`"""
+
+    verdict: str
+    reason: str
+    basis: str
+    sensors: list[NetworkSensor]
+    uniform_margin: UniformMargin
+    n_minus_1: list[NetworkNMinus1]
+    bottleneck: NetworkBottleneck
+    necessary_constraints: list[NecessaryConstraint]
+    exact_region: ExactRegion
+    certificate: NetworkCertificate | None
+    method: NetworkMethod
+    claims: list[str]
+    warnings: list[str]
+    burst_condition: NetworkBurstCondition = opt_key()
+    facts: StabilityFacts = opt_key()
