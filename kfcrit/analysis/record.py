@@ -449,6 +449,12 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
     try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
         if markers["operating"] is not None:
             cb = bounds.covariance_bounds(s, markers["operating"])
+            if spec.channel is not None and spec.channel.model == "gilbert-elliott":
+                from kfcrit.theory.links.burstcov import markov_jump_bounds
+
+                cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
+                                                       float(spec.channel.recovery_rate)
+                                                       ).to_dict()
             sec["covariance_bounds"] = cb
             warnings.extend(cb.get("warnings") or [])
             if curves:

@@ -265,6 +265,9 @@ class CovarianceBounds:
     static_gain: JSON = opt()
     trace_lower: JSON = opt()
     trace_upper: JSON = opt()
+    markov_jump: JSON = opt()
+    """Bounds on lim E[tr P_t] valid for a Gilbert–Elliott channel (theory §10); the i.i.d.
+    S̄, V̄ beside them are at the stationary arrival probability and do not bound E[P_t] there."""
 
 
 @dataclass(frozen=True)

@@ -219,6 +219,12 @@ def _bounds_lines(rec: dict[str, Any]) -> list[str]:
     if (rec.get("operating_point") or {}).get("iid") is False:
         out.append("      (i.i.d. bounds at the stationary arrival probability: they do not "
                    "bound E[P] for this channel)")
+    mj = cb.get("markov_jump")
+    if isinstance(mj, dict):
+        mlo, mup = mj.get("lower") or {}, mj.get("upper") or {}
+        out.append(f"  lim E[P] bursty link   {_num(mlo.get('trace')) if mlo.get('exists') else '∞'}"
+                   f" ≤ tr lim E[P] ≤ {_num(mup.get('trace')) if mup.get('exists') else '∞'}"
+                   "  (Markov-jump bounds valid for this Gilbert–Elliott channel, theory §10)")
     if cb.get("applicable") is False and cb.get("reason"):
         out.append(f"      V̄ {cb['reason']}")
     return out
