@@ -204,14 +204,43 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
                                       else None])
     if not ch.iid or ch.model == "trace":
         out["iid_comparison_verdict"] = vd.operating_verdict(p_exact, crit)[0].value
+        out["iid_margin"] = out.get("margin")
+        out["margin_basis"] = "stationary arrival probability − p_c (i.i.d. comparison only)"
         out["note"] = ("p_c, p_up and the covariance bounds S̄, V̄ assume i.i.d. losses; for this "
                        "channel the margin compares only the stationary arrival probability, "
                        "and the verdict follows the basis stated")
+    if burst is not None and cls != "not-detectable":
+        _burst_margin(out, burst, crit, link if ch.model != "link-budget"
+                      else (link or {}).get("bursty"))
     if ch.model == "trace":
         out["trace"] = trace_summary(spec, p)
     out["verdict"] = verdict.value
     out["basis"] = basis
     return out
+
+
+def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalInputs,
+                  link: dict[str, Any] | None) -> None:
+    """The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
+    r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
+    burst condition holds), and ``margin_to_sufficient`` r − r_suf(f) from the critical curve
+    when it was computed. The i.i.d. p − p_c stays under ``iid_margin``."""
+    r = burst.recovery
+    r_nec = crit.p_low if crit.p_low is not None else 0.0
+    r_nec_exact = crit.p_low_exact if crit.p_low is not None and crit.p_low > 0 else None
+    fallback = float(r) - r_nec
+    margin = exact_difference(r, r_nec_exact, fallback) if r_nec_exact is not None else fallback
+    out.update(margin=margin, margin_robust=margin, bracket=None,
+               margin_basis="recovery rate r − r_nec, r_nec = max(1 − 1/ρ(A)², 0) (the "
+                            "necessary burst condition (1 − r)ρ(A)² < 1, theory §10)",
+               recovery_threshold=r_nec)
+    curve = (link or {}).get("critical_curve") if isinstance(link, dict) else None
+    if isinstance(curve, dict):
+        f = float(burst.failure)
+        for fi, rs in zip(curve.get("failure_rates") or [], curve.get("sufficient_recovery") or []):
+            if rs is not None and abs(fi - f) <= 1e-12:
+                out["margin_to_sufficient"] = float(r) - rs
+                break
 
 
 def exact_difference(a: Any, b: Any, fallback: float) -> float:

@@ -170,8 +170,14 @@ def summary(rec: dict[str, Any]) -> str:
         else:
             lines.append(f"  operating point p     {_num(op.get('arrival_probability'), 12)}")
         if op.get("margin") is not None:
-            label = "uniform margin δ" if network else "margin p - p_c"
+            label = ("uniform margin δ" if network else "margin r - r_nec"
+                     if op.get("recovery_threshold") is not None else "margin p - p_c")
             lines.append(f"  {label:<21} {op['margin']:+.6g}")
+            if op.get("margin_to_sufficient") is not None:
+                lines.append(f"  margin r - r_suf(f)   {op['margin_to_sufficient']:+.6g}")
+            if op.get("recovery_threshold") is not None and op.get("iid_margin") is not None:
+                lines.append(f"      (i.i.d. comparison p - p_c = {op['iid_margin']:+.6g}: not "
+                             "a margin for this channel)")
         if op.get("bracket") and not (network and op.get("margin") is not None):
             b = op["bracket"]
             label = "uniform margin δ in" if network else "bracket"
