@@ -10,7 +10,8 @@ from kfcrit.io.systemfile import SystemSpec
 
 
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
-                     single: tuple[vd.Verdict, str] | None = None
+                     single: tuple[vd.Verdict, str] | None = None,
+                     stacked: dict[str, Any] | None = None
                      ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The ``network`` section (theory §9: per-sensor critical values, uniform margin, N − 1
     verdicts, bottleneck) and the operating point of a ``sensors:`` file.
@@ -19,6 +20,8 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
     every sensor's packet arriving together, as over one joint link; the network's own values
     are in ``network``. ``single`` is the operating-point verdict of a one-sensor network,
     decided by the single-link theory: the network section states that same verdict.
+    ``stacked`` holds the stacked system's ``critical_value`` and ``upper_bound`` sections,
+    repeated under clearly named keys (``stacked_critical_value``, ``stacked_upper_bound``).
 
     Every verdict of the section (the network's, each N − 1 case's) is read from the theory's
     facts by :mod:`kfcrit.analysis.verdict`; with bursty links the burst condition joins in.
@@ -43,6 +46,12 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
     if single is not None:
         verdict, basis = single
     net["verdict"], net["basis"] = verdict.value, basis
+    if stacked is not None:
+        net["stacked_critical_value"] = stacked.get("critical_value")
+        net["stacked_upper_bound"] = stacked.get("upper_bound")
+        net["stacked_meaning"] = ("the top-level critical_value and upper_bound: the stacked "
+                                  "system, every sensor's packet arriving together as over one "
+                                  "link (not any one sensor's critical value)")
     holds = burst["holds"] if burst is not None else None
     dead_burst = (burst or {}).get("n_minus_1") or {}
     for row in list(net.get("sensors") or []) + list(net.get("n_minus_1") or []):

@@ -345,7 +345,9 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         _design_sections(spec, theory, sec, warnings)
     _link_sections(spec, opts, sec, warnings, theory)
     if spec.network is not None and spec.network.size > 1:
-        sec["network"], sec["operating_point"] = network_sections(spec, opts, warnings)
+        sec["network"], sec["operating_point"] = network_sections(
+            spec, opts, warnings, stacked={k: sec.get(k) for k in ("critical_value",
+                                                                   "upper_bound")})
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     vd.stamp_operating_verdict(sec)

@@ -138,6 +138,11 @@ def summary(rec: dict[str, Any]) -> str:
     cv = rec.get("critical_value") or {}
     # a floating-point input's values are numerical even where decided on its binary rationals
     exact_input = sysd.get("exact_input") is not False
+    stacked = (rec.get("network") is not None
+               and len((rec.get("network") or {}).get("sensors") or []) > 1)
+    if stacked:
+        lines.append("  stacked system (all sensors on one link): p_c, p_low and p_up below; "
+                     "each sensor's own critical value is in the network table")
     lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}"
                  f"{_exact(cv) if cv.get('exact') and exact_input else ''}")
     if cv.get("reason"):
