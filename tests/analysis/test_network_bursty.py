@@ -65,7 +65,7 @@ def test_anti_correlated_link_is_stable_by_simulation():
     P = np.ones(n)
     ge = rng.random(n) < 0.5
     means = []
-    for t in range(240):
+    for _ in range(240):
         u = rng.random(n)
         ge = np.where(ge, u >= 0.9, u < 0.9)
         got = ge | (rng.random(n) < 0.05)
