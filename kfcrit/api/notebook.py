@@ -140,6 +140,12 @@ def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: 
     spec = load_sweep(sweep_file, max_states=max_states)
     out = Path(output) if output is not None else \
         Path(sweep_file).with_name(Path(sweep_file).stem + "-results")
+    if write:
+        from kfcrit.cli.common import refuse_replacing_inputs
+        from kfcrit.cli.sweep import sweep_inputs, sweep_output_files
+
+        refuse_replacing_inputs(sweep_output_files(out), sweep_inputs(spec, sweep_file),
+                                "output")
     result = run_sweep(spec, out, scheduler=scheduler, workers=workers, max_states=max_states,
                        journal=write)
     if write:

@@ -334,3 +334,47 @@ def install_sigterm_handler() -> None:
         pass
 
 
+def refuse_replacing_inputs(outputs: Any, inputs: Any, field: str) -> None:
+    """Refuse (InputError naming ``field``) any output path that is, or points to, an input
+    file of the same run: the system or sweep file, a sweep's base system, a trace.
+
+    Paths are compared after following symbolic links (``os.path.realpath``) and, when both
+    exist, by device and inode, so a link or a hard link to an input is caught as well.
+    """
+    import os
+    from pathlib import Path
+
+    from kfcrit.errors import InputError
+
+    ins = [Path(p) for p in inputs if p]
+    for out in outputs:
+        if not out:
+            continue
+        o = Path(out)
+        for i in ins:
+            same = os.path.realpath(o) == os.path.realpath(i)
+            if not same and o.exists() and i.exists():
+                try:
+                    same = os.path.samefile(o, i)
+                except OSError:
+                    same = False
+            if same:
+                raise InputError(f"{str(o)[:80]!r} would replace the input file "
+                                 f"{str(i)[:80]!r} of this run", field=field)
+
+
+def spec_inputs(spec: Any, source: Any = None) -> list[Any]:
+    """The files a loaded system file reads: the file itself and a trace channel's path (also
+    each network sensor's trace)."""
+    from pathlib import Path
+
+    out = [source] if source else []
+    channels = [getattr(spec, "channel", None)]
+    net = getattr(spec, "network", None)
+    if net is not None:
+        channels += [s.channel for s in net.sensors]
+    base = Path(source).resolve().parent if source else Path.cwd()
+    for ch in channels:
+        if ch is not None and getattr(ch, "model", None) == "trace" and getattr(ch, "path", None):
+            out.append(base / ch.path if not Path(ch.path).is_absolute() else Path(ch.path))
+    return out

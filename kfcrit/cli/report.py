@@ -186,6 +186,12 @@ def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None
         progress(f"reading the saved record {source}")
         record = load_record(source)
     else:
+        from kfcrit.analysis.spec import load_spec
+        from kfcrit.cli.common import refuse_replacing_inputs, spec_inputs
+
+        refuse_replacing_inputs([path for path, _ in plan],
+                                spec_inputs(load_spec(source, max_states=max_states), source),
+                                "output")
         record = analysed_record(source, quick=quick, seed=seed, tolerance=tolerance,
                                  max_states=max_states)
     kinds = [kind for _, kind in plan]

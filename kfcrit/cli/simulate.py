@@ -45,6 +45,10 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
             raise InputError(f"folder {str(Path(plot).resolve().parent)[:80]!r} does not exist",
                              field="--plot")
     spec = load_spec(system_file, max_states=max_states)
+    if plot is not None:
+        from kfcrit.cli.common import refuse_replacing_inputs, spec_inputs
+
+        refuse_replacing_inputs([plot], spec_inputs(spec, system_file), "--plot")
     if spec.network is not None and spec.network.size == 1:   # one sensor: one link
         spec = dataclasses.replace(spec, channel=spec.network.sensors[0].channel)
     sensors = network_sensors(spec)

@@ -18,7 +18,7 @@ from kfcrit.analysis.sweep.points import (
     run_sweep,
     table_csv,
 )
-from kfcrit.cli.common import flush_std_streams
+from kfcrit.cli.common import flush_std_streams, refuse_replacing_inputs
 from kfcrit.errors import ExitCode
 from kfcrit.io.atomic import write_atomic
 from kfcrit.io.jsonio import jsonable
@@ -45,6 +45,28 @@ def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[]
     task = prog.add_task("sweep", total=total, completed=done)
     prog.start()
     return (lambda n: prog.advance(task, n)), prog.stop
+
+
+SWEEP_OUTPUT_NAMES = ("sweep.csv", "sweep.json", "margin.svg", "margin.png", "run.json",
+                      JOURNAL_NAME)
+"""The files a sweep writes in its output folder."""
+
+
+def sweep_output_files(out: Path) -> list[Path]:
+    """Every file a sweep writes into the folder ``out``."""
+    return [out / name for name in SWEEP_OUTPUT_NAMES]
+
+
+def sweep_inputs(spec: SweepSpec, sweep_file: str | Path) -> list[Path]:
+    """The files a sweep reads: the sweep file, its base system file and the base's trace."""
+    out = [Path(sweep_file)]
+    if spec.base_path:
+        out.append(Path(spec.base_path))
+    ch = spec.base_doc.get("channel") if isinstance(spec.base_doc, dict) else None
+    if isinstance(ch, dict) and ch.get("model") == "trace" and isinstance(ch.get("path"), str):
+        p = Path(ch["path"])
+        out.append(p if p.is_absolute() else Path(spec.base_dir) / p)
+    return out
 
 
 def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,
@@ -108,6 +130,8 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
         _quiet_dask_logs()
     if output is None:
         output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
+    refuse_replacing_inputs(sweep_output_files(Path(output)), sweep_inputs(spec, sweep_file),
+                            "--output")
     try:
         result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
                            max_states=max_states, progress=_progress)

@@ -723,8 +723,20 @@ def table_csv(spec: SweepSpec, rows: list[dict[str, Any]]) -> str:
     writer.writerow(columns)
     for row in rows:
         writer.writerow(["" if row[c] is None else (repr(row[c]) if isinstance(row[c], float)
-                                                    else row[c]) for c in columns])
+                                                    else csv_cell(row[c])) for c in columns])
     return buf.getvalue()
+
+
+FORMULA_PREFIXES = ("=", "+", "-", "@", "\t", "\r")
+"""First characters that make a spreadsheet read a cell as a formula (OWASP CSV injection)."""
+
+
+def csv_cell(value: Any) -> Any:
+    """A text cell made inert for spreadsheets: one starting with = + - @ tab or CR gets a
+    leading single quote (OWASP CSV injection rule); numbers are left as they are."""
+    if isinstance(value, str) and value.startswith(FORMULA_PREFIXES):
+        return "'" + value
+    return value
 
 
 # ---------------------------------------------------------------------------------------------

@@ -504,8 +504,9 @@ def _probabilities(network: Network, p: Sequence[Any] | None
         p = network.arrival_probabilities()
         if any(v is None for v in p):
             missing = [s.name for s, v in zip(network.sensors, p) if v is None]
-            raise InputError(f"sensor {missing[0]!r} has no channel: give its arrival "
-                             "probability", field="p")
+            raise InputError("is missing: every sensor of a network needs its own link (e.g. "
+                             "channel: {model: bernoulli, arrival_probability: 0.9})",
+                             field=f"sensors.{missing[0]}.channel")
     p = list(p)
     if len(p) != network.size:
         raise InputError(f"must have {network.size} entries (one per sensor), got {len(p)}",
