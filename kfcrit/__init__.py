@@ -1,7 +1,8 @@
 """kfcrit — will a Kalman filter stay stable over a lossy link, and by how much margin?
 
 Public API: :class:`System`, :func:`load_system`, :func:`load_spec`, :func:`analyze`,
-:func:`critical_value`, :func:`upper_bound`, :func:`simulate`, :func:`from_statespace`. The
+:func:`critical_value`, :func:`upper_bound`, :func:`simulate`, :func:`from_statespace`, and the
+channel models :class:`Bernoulli`, :class:`GilbertElliott`, :class:`Trace`, :class:`LinkBudget`. The
 numerical modules (cvxpy, matplotlib, …) are imported lazily, on first use, so that
 ``kfcrit --help`` and input errors answer at once.
 """
@@ -22,7 +23,10 @@ _LAZY = {"Analysis": "api", "AnalysisOptions": "analysis.record",
          "simulate": "sim.montecarlo", "covariance_bounds": "theory.covariance.bounds",
          "from_continuous_statespace": "model.continuous", "sample": "model.continuous",
          "from_statespace": "model.continuous",
-         "network_analysis": "theory.links.network"}
+         "network_analysis": "theory.links.network",
+         "Channel": "model.channels", "Bernoulli": "model.channels",
+         "GilbertElliott": "model.channels", "Trace": "model.channels",
+         "LinkBudget": "link.linkbudget"}
 
 
 def __getattr__(name: str) -> Any:
@@ -42,4 +46,5 @@ def __dir__() -> list[str]:
 __all__ = ["Analysis", "AnalysisOptions", "ExitCode", "KfcritError", "System", "SystemSpec",
            "__version__", "analyze", "covariance_bounds", "critical_value", "load_spec",
            "load_system", "simulate", "upper_bound", "from_continuous_statespace", "sample",
-           "network_analysis", "sweep", "SweepTable", "from_statespace"]
+           "network_analysis", "sweep", "SweepTable", "from_statespace", "Channel",
+           "Bernoulli", "GilbertElliott", "Trace", "LinkBudget"]

@@ -10,7 +10,8 @@ from kfcrit.io.systemfile import SystemSpec
 
 
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
-                     single: tuple[vd.Verdict, str] | None = None
+                     single: tuple[vd.Verdict, str] | None = None,
+                     stacked: dict[str, Any] | None = None
                      ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The ``network`` section (theory §9: per-sensor critical values, uniform margin, N − 1
     verdicts, bottleneck) and the operating point of a ``sensors:`` file.
@@ -19,6 +20,8 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
     every sensor's packet arriving together, as over one joint link; the network's own values
     are in ``network``. ``single`` is the operating-point verdict of a one-sensor network,
     decided by the single-link theory: the network section states that same verdict.
+    ``stacked`` holds the stacked system's ``critical_value`` and ``upper_bound`` sections,
+    repeated under clearly named keys (``stacked_critical_value``, ``stacked_upper_bound``).
 
     Every verdict of the section (the network's, each N − 1 case's) is read from the theory's
     facts by :mod:`kfcrit.analysis.verdict`; with bursty links the burst condition joins in.
@@ -39,15 +42,25 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
     if burst is not None:
         net["burst_condition"] = burst
         verdict, basis = vd.network_burst_verdict(verdict, basis, burst["holds"],
-                                                  burst["statement"])
+                                                  burst["statement"], burst["facts"])
     if single is not None:
         verdict, basis = single
     net["verdict"], net["basis"] = verdict.value, basis
+    if stacked is not None:
+        net["stacked_critical_value"] = stacked.get("critical_value")
+        net["stacked_upper_bound"] = stacked.get("upper_bound")
+        net["stacked_meaning"] = ("the top-level critical_value and upper_bound: the stacked "
+                                  "system, every sensor's packet arriving together as over one "
+                                  "link (not any one sensor's critical value)")
     holds = burst["holds"] if burst is not None else None
+    dead_burst = (burst or {}).get("n_minus_1") or {}
     for row in list(net.get("sensors") or []) + list(net.get("n_minus_1") or []):
         dead = row["n_minus_1"] if "n_minus_1" in row else row
+        bf = (dead_burst.get(row.get("name")) or {}).get("facts")
+        if bf is not None:
+            dead["burst_facts"] = bf
         dead["verdict"] = vd.dead_link_verdict(dead.get("facts") or {}, iid=iid,
-                                               burst_holds=holds).value
+                                               burst_holds=holds, burst_facts=bf).value
     sensors = net.get("sensors") or []
     bottleneck = (net.get("bottleneck") or {}).get("name")
     row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
@@ -156,17 +169,28 @@ def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
 
 
 def network_burst_condition(network: Any) -> dict[str, Any] | None:
-    """The necessary burst condition of a network with bursty links (theory §9 and §10).
+    r"""The burst facts of a network with bursty links (theory §9 and §10).
 
-    A run of k steps in which every sensor outside T loses its packets has probability of order
-    Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a lost link stays lost)
-    and 1 − p_j for an i.i.d. one, while the modes unobservable through C_T grow like ρ_T^{2k}:
-    E[P_t] is unbounded unless Π_{j∉T} c_j·ρ_T² < 1 for every T — the necessary surface of
-    :func:`kfcrit.theory.links.network.necessary_constraints` evaluated at p_j' = 1 − c_j. None when
-    every link is memoryless.
+    *Necessary.* A run of k steps in which every sensor outside T loses its packets has
+    probability of order Π_{j∉T} c_j^k, c_j = 1 − r_j for a Gilbert–Elliott link (the chance a
+    lost link stays lost) and 1 − p_j for an i.i.d. one (independent links: the all-lost run
+    of the joint chain decays like the product), while the modes unobservable through C_T grow
+    like ρ_T^{2k}: E[P_t] is unbounded unless Π_{j∉T} c_j·ρ_T² < 1 for every T — the necessary
+    surface of :func:`kfcrit.theory.links.network.necessary_constraints` at p_j' = 1 − c_j.
+
+    *Sufficient for a scalar plant.* Any arrival from a sensor with C_j ≠ 0 resets the error:
+    P⁺ ≤ 1/(C_j'R_j⁻¹C_j), so P_t ≤ a^{2τ}M + q Σ_{i<τ} a^{2i} with τ the time since the last
+    useful arrival, and P(τ ≥ k) ≤ Π_j c_j^{k−1} over the seeing sensors. Hence E[P_t] is
+    bounded iff Π_{j seeing} c_j·a² < 1 — exactly the necessary constraint with T the blind
+    sensors: the burst condition decides both ways (``facts.exact_region``).
+
+    ``n_minus_1`` gives the same facts with each link dead (c_i = 1). None when every link is
+    memoryless.
     """
     import numpy as np
+    import sympy as sp
 
+    from kfcrit.theory.facts import StabilityFacts
     from kfcrit.theory.links.network import necessary_constraints, necessary_holds
 
     chains = [bursty_channel(s.channel) for s in network.sensors]
@@ -176,11 +200,30 @@ def network_burst_condition(network: Any) -> dict[str, Any] | None:
                (s.channel.arrival_probability if s.channel is not None else None)
                for s, c in zip(network.sensors, chains)]
     q = np.array([float(v) if v is not None else 0.0 for v in q_exact])
-    holds = necessary_holds(necessary_constraints(network), q, q_exact)
+    cons = necessary_constraints(network)
+    scalar = network.n == 1
+
+    def facts(holds: bool | None, what: str) -> dict[str, Any]:
+        nec = (f"burst condition {what}: Π_(j∉T) c_j·ρ_T² < 1 for every sensor set T "
+               + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
+                  if holds is False else "undecided at float precision"))
+        suff = ("scalar plant: any useful arrival resets the error, so E[P_t] is bounded iff the "
+                "all-lost runs decay faster than a^(-2k), i.e. the burst condition (theory §10)"
+                if scalar and holds is True else "")
+        return StabilityFacts(holds, bool(scalar and holds is True), scalar, nec, suff).to_dict()
+
+    holds = necessary_holds(cons, q, q_exact)
+    dead: dict[str, Any] = {}
+    for i, s in enumerate(network.sensors):
+        qd, qde = q.copy(), list(q_exact)
+        qd[i], qde[i] = 0.0, sp.Integer(0)
+        hd = necessary_holds(cons, qd, qde)
+        dead[s.name] = {"holds": hd, "facts": facts(hd, f"with {s.name} dead")}
     names = ", ".join(s.name for s, c in zip(network.sensors, chains) if c is not None)
     statement = (f"burst condition for the bursty links ({names}): Π_(j∉T) c_j·ρ_T² < 1 for "
                  "every sensor set T, c_j = 1 − r_j (Gilbert–Elliott) or 1 − p_j (i.i.d.) — "
                  + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
                     if holds is False else "undecided at float precision"))
-    return {"holds": holds, "statement": statement,
+    return {"holds": holds, "statement": statement, "facts": facts(holds, "at the operating point"),
+            "n_minus_1": dead,
             "continuation": {s.name: 1 - float(v) for s, v in zip(network.sensors, q)}}

@@ -204,14 +204,43 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
                                       else None])
     if not ch.iid or ch.model == "trace":
         out["iid_comparison_verdict"] = vd.operating_verdict(p_exact, crit)[0].value
+        out["iid_margin"] = out.get("margin")
+        out["margin_basis"] = "stationary arrival probability − p_c (i.i.d. comparison only)"
         out["note"] = ("p_c, p_up and the covariance bounds S̄, V̄ assume i.i.d. losses; for this "
                        "channel the margin compares only the stationary arrival probability, "
                        "and the verdict follows the basis stated")
+    if burst is not None and cls != "not-detectable":
+        _burst_margin(out, burst, crit, link if ch.model != "link-budget"
+                      else (link or {}).get("bursty"))
     if ch.model == "trace":
         out["trace"] = trace_summary(spec, p)
     out["verdict"] = verdict.value
     out["basis"] = basis
     return out
+
+
+def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalInputs,
+                  link: dict[str, Any] | None) -> None:
+    """The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
+    r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
+    burst condition holds), and ``margin_to_sufficient`` r − r_suf(f) from the critical curve
+    when it was computed. The i.i.d. p − p_c stays under ``iid_margin``."""
+    r = burst.recovery
+    r_nec = crit.p_low if crit.p_low is not None else 0.0
+    r_nec_exact = crit.p_low_exact if crit.p_low is not None and crit.p_low > 0 else None
+    fallback = float(r) - r_nec
+    margin = exact_difference(r, r_nec_exact, fallback) if r_nec_exact is not None else fallback
+    out.update(margin=margin, margin_robust=margin, bracket=None,
+               margin_basis="recovery rate r − r_nec, r_nec = max(1 − 1/ρ(A)², 0) (the "
+                            "necessary burst condition (1 − r)ρ(A)² < 1, theory §10)",
+               recovery_threshold=r_nec)
+    curve = (link or {}).get("critical_curve") if isinstance(link, dict) else None
+    if isinstance(curve, dict):
+        f = float(burst.failure)
+        for fi, rs in zip(curve.get("failure_rates") or [], curve.get("sufficient_recovery") or []):
+            if rs is not None and abs(fi - f) <= 1e-12:
+                out["margin_to_sufficient"] = float(r) - rs
+                break
 
 
 def exact_difference(a: Any, b: Any, fallback: float) -> float:
@@ -316,7 +345,9 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         _design_sections(spec, theory, sec, warnings)
     _link_sections(spec, opts, sec, warnings, theory)
     if spec.network is not None and spec.network.size > 1:
-        sec["network"], sec["operating_point"] = network_sections(spec, opts, warnings)
+        sec["network"], sec["operating_point"] = network_sections(
+            spec, opts, warnings, stacked={k: sec.get(k) for k in ("critical_value",
+                                                                   "upper_bound")})
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     vd.stamp_operating_verdict(sec)
@@ -449,6 +480,12 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
     try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
         if markers["operating"] is not None:
             cb = bounds.covariance_bounds(s, markers["operating"])
+            if spec.channel is not None and spec.channel.model == "gilbert-elliott":
+                from kfcrit.theory.links.burstcov import markov_jump_bounds
+
+                cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
+                                                       float(spec.channel.recovery_rate)
+                                                       ).to_dict()
             sec["covariance_bounds"] = cb
             warnings.extend(cb.get("warnings") or [])
             if curves:

@@ -115,6 +115,8 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
     if req.get("status") == "impossible":
         return {"status": "not met", "basis": "no arrival probability meets it: "
                 + str(req.get("reason") or "L is below the no-loss floor")}
+    if (op or {}).get("iid") is False:
+        return _bursty_mean_assessment(limit, bounds, verdict)
     lower = (bounds or {}).get("lower") or {}
     upper = (bounds or {}).get("upper") or {}
     if bounds and lower.get("exists") is False:
@@ -136,6 +138,37 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
     v_text = "not available" if v_tr is None or not upper.get("exists") else f"{v_tr:.6g}"
     return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided by the "
             f"bounds: tr S̄ = {s_text} ≤ L and tr V̄ = {v_text}", "interval": [s_tr, v_tr]}
+
+
+def _bursty_mean_assessment(limit: float, bounds: dict[str, Any] | None,
+                            verdict: str) -> dict[str, Any]:
+    """The accuracy requirement over a channel that is not i.i.d. (theory §10).
+
+    The i.i.d. bounds S̄, V̄ at the stationary arrival probability do not bound E[P_t] there;
+    only the Markov-jump bounds of a Gilbert–Elliott chain (``covariance_bounds.markov_jump``,
+    :func:`kfcrit.theory.links.burstcov.markov_jump_bounds`) decide: ``met`` if the upper bound
+    is ≤ L (and the verdict is mean-stable), ``not met`` if the lower bound is > L, otherwise
+    ``not demonstrated`` (and always for channels without a chain, e.g. a measured trace)."""
+    mj = (bounds or {}).get("markov_jump")
+    if not isinstance(mj, dict):
+        return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided: the "
+                "i.i.d. bounds S̄, V̄ do not bound E[P_t] for a channel with memory, and no "
+                "bound valid for this channel is available"}
+    lo = (mj.get("lower") or {}).get("trace")
+    hi = (mj.get("upper") or {}).get("trace")
+    if lo is not None and lo > limit:
+        return {"status": "not met", "basis": f"Markov-jump lower bound lim E[tr P_t] ≥ "
+                f"{lo:.6g} > L = {limit:g} (losses-only recursion over the Gilbert–Elliott "
+                "chain, theory §10)", "interval": [lo, hi]}
+    if hi is not None and hi <= limit and verdict == vd.Verdict.MEAN_STABLE.value:
+        return {"status": "met", "basis": f"Markov-jump upper bound lim E[tr P_t] ≤ {hi:.6g} "
+                f"≤ L = {limit:g} (fixed-gain second-moment recursion over the Gilbert–Elliott "
+                "chain, theory §10)", "interval": [lo, hi]}
+    lo_text = "not available" if lo is None else f"{lo:.6g}"
+    hi_text = "not available" if hi is None else f"{hi:.6g}"
+    return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided by the "
+            f"Markov-jump bounds of the Gilbert–Elliott chain: lower {lo_text} ≤ L, upper "
+            f"{hi_text} (theory §10)", "interval": [lo, hi]}
 
 
 def requirement_assessment(requirements: dict[str, Any] | None,

@@ -308,23 +308,35 @@ def facts_from_dict(data: Mapping[str, Any]) -> StabilityFacts:
                           sufficient_basis=str(data.get("sufficient_basis") or ""))
 
 
-def dead_link_verdict(facts: Mapping[str, Any], *, iid: bool, burst_holds: bool | None
-                      ) -> Verdict:
-    """The N − 1 verdict of one dead link: the facts with that link dead; with bursty links
-    the sufficient surface (independent Bernoulli links) proves nothing, and a failing burst
-    condition makes every case mean-unstable."""
-    f = facts_from_dict(facts)
+def dead_link_verdict(facts: Mapping[str, Any], *, iid: bool, burst_holds: bool | None,
+                      burst_facts: Mapping[str, Any] | None = None) -> Verdict:
+    """The N − 1 verdict of one dead link: the facts with that link dead. With bursty links the
+    i.i.d. surfaces decide nothing (the sufficient one assumes independence in time, and the
+    necessary one at the stationary arrival probabilities is weaker than the burst condition
+    only when f + r ≤ 1): the burst facts with that link dead (``burst_facts``) decide; a
+    failing burst condition of the whole network makes every case mean-unstable."""
     if burst_holds is False:
         return Verdict.MEAN_UNSTABLE
     if not iid:
-        f = StabilityFacts(f.necessary, False, False, f.necessary_basis, "")
-    return verdict_of(f)[0]
+        if burst_facts is not None:
+            return verdict_of(facts_from_dict(burst_facts))[0]
+        f = facts_from_dict(facts)
+        return verdict_of(StabilityFacts(f.necessary, False, False, f.necessary_basis, ""))[0]
+    return verdict_of(facts_from_dict(facts))[0]
 
 
 def network_burst_verdict(verdict: Verdict, basis: str, holds: bool | None,
-                          statement: str) -> tuple[Verdict, str]:
-    """A network with bursty links: the burst condition decides instability; the network's
-    sufficient surface assumes independent Bernoulli links, so it proves nothing here."""
+                          statement: str, facts: Mapping[str, Any] | None = None
+                          ) -> tuple[Verdict, str]:
+    """A network with bursty links (theory §10): the burst facts decide (``facts``: the
+    burst condition as the necessary fact, the scalar renewal bound as the sufficient one);
+    the i.i.d. surfaces at the stationary arrival probabilities prove nothing either way."""
+    if facts is not None:
+        v, why = verdict_of(facts_from_dict(facts))
+        if v is Verdict.UNDETERMINED:
+            return v, (f"{statement}; the i.i.d. surfaces of theory §9 at the stationary "
+                       "arrival probabilities decide nothing for links with memory")
+        return v, why
     if holds is False:
         return Verdict.MEAN_UNSTABLE, statement
     if verdict is Verdict.MEAN_STABLE:

@@ -130,7 +130,9 @@ def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: 
     """Run (or resume) the sweep of ``sweep_file`` from Python and return its table.
 
     ``output`` is the results folder (default: beside the sweep file, as for ``kfcrit sweep``);
-    with ``write`` the CSV, JSON and figures are written there too.
+    with ``write`` the CSV, JSON and figures are written there too, and the journal that lets
+    a sweep resume; with ``write=False`` nothing is written (no folder, no journal) and every
+    point is computed. ``workers`` must be a whole number ≥ 1.
     """
     from kfcrit.analysis.sweep.points import RESULT_COLUMNS, load_sweep, run_sweep
     from kfcrit.api.sweepfiles import write_outputs
@@ -138,7 +140,14 @@ def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: 
     spec = load_sweep(sweep_file, max_states=max_states)
     out = Path(output) if output is not None else \
         Path(sweep_file).with_name(Path(sweep_file).stem + "-results")
-    result = run_sweep(spec, out, scheduler=scheduler, workers=workers, max_states=max_states)
+    if write:
+        from kfcrit.api.sweepfiles import sweep_inputs, sweep_output_files
+        from kfcrit.io.atomic import refuse_replacing_inputs
+
+        refuse_replacing_inputs(sweep_output_files(out), sweep_inputs(spec, sweep_file),
+                                "output")
+    result = run_sweep(spec, out, scheduler=scheduler, workers=workers, max_states=max_states,
+                       journal=write)
     if write:
         write_outputs(spec, result.rows, Path(result.output), runner=result.runner,
                       workers=result.workers, computed=result.computed, reused=result.reused)

@@ -9,11 +9,38 @@ import json
 from pathlib import Path
 from typing import Any
 
-from kfcrit.analysis.sweep.points import FORMAT_VERSION, RESULT_COLUMNS, SweepSpec, table_csv
+from kfcrit.analysis.sweep.points import (
+    FORMAT_VERSION,
+    JOURNAL_NAME,
+    RESULT_COLUMNS,
+    SweepSpec,
+    table_csv,
+)
 from kfcrit.io.atomic import write_atomic
 from kfcrit.io.jsonio import jsonable
 from kfcrit.version import __version__
 from kfcrit.views.figures.sweep import margin_images
+
+SWEEP_OUTPUT_NAMES = ("sweep.csv", "sweep.json", "margin.svg", "margin.png", "run.json",
+                      JOURNAL_NAME)
+"""The files a sweep writes in its output folder."""
+
+
+def sweep_output_files(out: Path) -> list[Path]:
+    """Every file a sweep writes into the folder ``out``."""
+    return [out / name for name in SWEEP_OUTPUT_NAMES]
+
+
+def sweep_inputs(spec: SweepSpec, sweep_file: str | Path) -> list[Path]:
+    """The files a sweep reads: the sweep file, its base system file and the base's trace."""
+    out = [Path(sweep_file)]
+    if spec.base_path:
+        out.append(Path(spec.base_path))
+    ch = spec.base_doc.get("channel") if isinstance(spec.base_doc, dict) else None
+    if isinstance(ch, dict) and ch.get("model") == "trace" and isinstance(ch.get("path"), str):
+        p = Path(ch["path"])
+        out.append(p if p.is_absolute() else Path(spec.base_dir) / p)
+    return out
 
 
 def write_outputs(spec: SweepSpec, rows: list[dict[str, Any]], out: Path, *,

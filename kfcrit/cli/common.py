@@ -334,3 +334,18 @@ def install_sigterm_handler() -> None:
         pass
 
 
+def spec_inputs(spec: Any, source: Any = None) -> list[Any]:
+    """The files a loaded system file reads: the file itself and a trace channel's path (also
+    each network sensor's trace)."""
+    from pathlib import Path
+
+    out = [source] if source else []
+    channels = [getattr(spec, "channel", None)]
+    net = getattr(spec, "network", None)
+    if net is not None:
+        channels += [s.channel for s in net.sensors]
+    base = Path(source).resolve().parent if source else Path.cwd()
+    for ch in channels:
+        if ch is not None and getattr(ch, "model", None) == "trace" and getattr(ch, "path", None):
+            out.append(base / ch.path if not Path(ch.path).is_absolute() else Path(ch.path))
+    return out

@@ -59,11 +59,27 @@ def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool
     from kfcrit.views.text.terminal import summary
 
     spec = load_spec(system_file, max_states=max_states)
+    hint = long_run_hint(spec.system.n, quick=quick, simulate=not no_simulate)
+    if hint:
+        click.echo(hint, err=True)
     record = run(spec, AnalysisOptions(tolerance=tolerance, simulate=not no_simulate,
                                        quick=quick, seed=seed))
     data = record.to_dict()
     click.echo(dumps(data) if as_json else summary(data))
     sys.exit(exit_code(data))
+
+
+LONG_RUN_STATES = 50
+"""Above this many states ``kfcrit analyze`` says on stderr that the run may take minutes."""
+
+
+def long_run_hint(n: int, *, quick: bool, simulate: bool) -> str | None:
+    """The stderr line announcing a long analysis (by the state count, never by a clock)."""
+    if n <= LONG_RUN_STATES:
+        return None
+    if quick:
+        return f"kfcrit: n = {n} states: this may take a while (--quick draft)"
+    return f"kfcrit: n = {n} states: this may take minutes; --quick skips the Monte Carlo"
 
 
 @main.command(epilog=EXAMPLES)

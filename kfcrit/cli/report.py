@@ -101,8 +101,17 @@ def load_record(path: str | Path) -> dict[str, Any]:
     if not isinstance(record, dict) or not any(k in record for k in RECORD_KEYS):
         raise InputError("not a kfcrit analysis record (save one with 'kfcrit analyze FILE "
                          "--json > record.json')", field="record")
-    from kfcrit.analysis.sections import record_from_json
+    from kfcrit.analysis.sections import SCHEMA_VERSION, record_from_json
     from kfcrit.io.typed import RecordError
+
+    version = record.get("schema_version")
+    if version is not None:
+        major = str(version).split(".")[0] if isinstance(version, str) else None
+        if major != SCHEMA_VERSION.split(".")[0]:
+            raise InputError(f"{str(version)[:20]!r} is not supported: this kfcrit reads "
+                             f"records of schema {SCHEMA_VERSION.split('.')[0]}.x (re-run "
+                             "'kfcrit analyze FILE --json' with this version)",
+                             field="schema_version")
 
     try:  # the typed record's strict reader: every view then reads a well-formed record
         return record_from_json(record).to_dict()
@@ -177,6 +186,13 @@ def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None
         progress(f"reading the saved record {source}")
         record = load_record(source)
     else:
+        from kfcrit.analysis.spec import load_spec
+        from kfcrit.cli.common import spec_inputs
+        from kfcrit.io.atomic import refuse_replacing_inputs
+
+        refuse_replacing_inputs([path for path, _ in plan],
+                                spec_inputs(load_spec(source, max_states=max_states), source),
+                                "output")
         record = analysed_record(source, quick=quick, seed=seed, tolerance=tolerance,
                                  max_states=max_states)
     kinds = [kind for _, kind in plan]

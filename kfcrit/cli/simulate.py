@@ -45,6 +45,11 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
             raise InputError(f"folder {str(Path(plot).resolve().parent)[:80]!r} does not exist",
                              field="--plot")
     spec = load_spec(system_file, max_states=max_states)
+    if plot is not None:
+        from kfcrit.cli.common import spec_inputs
+        from kfcrit.io.atomic import refuse_replacing_inputs
+
+        refuse_replacing_inputs([plot], spec_inputs(spec, system_file), "--plot")
     if spec.network is not None and spec.network.size == 1:   # one sensor: one link
         spec = dataclasses.replace(spec, channel=spec.network.sensors[0].channel)
     sensors = network_sensors(spec)
@@ -67,18 +72,49 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
         lv = sorted(set(levels + ([float(req)] if req is not None else [])))
         erg = ergodic(spec.system, int(ergodic_steps), seed, spec.channel,
                       replicas=ERGODIC_REPLICAS, levels=lv)
+    no_mean = mean_does_not_exist(spec) if sensors is None else None
     if as_json:
         record = result.to_dict()
         record["ergodic"] = None if erg is None else erg.to_dict()
+        if no_mean is not None:
+            record["mean_exists"] = False
+            record["mean_basis"] = no_mean
         print(dumps(record))
     else:
         text = summary_text(result, spec.requirements.max_error_trace)
+        if no_mean is not None:
+            text += ("\nwarning: the mean does not exist: " + no_mean + "; the sample mean "
+                     "and its interval above estimate nothing")
         if erg is not None:
             text += "\n" + ergodic_text(erg)
         print(text)
     if plot is not None:
         write_plot(result, plot)
     return 0
+
+
+def mean_does_not_exist(spec: Any) -> str | None:
+    """Why lim E[tr P_t] is infinite at the file's channel, or None when that is not proven.
+
+    The necessary condition (1 − x)·ρ(A)² < 1 (theory §3 for i.i.d. losses with x = p, theory
+    §10 for a Gilbert–Elliott link with x = r, the recovery rate) decided exactly, as
+    ``kfcrit analyze`` does; measured traces and time-correlated shadowing are not judged."""
+    from kfcrit.theory.links.markov import burst_necessary
+
+    ch = spec.channel
+    if ch is None or ch.model == "trace":
+        return None
+    if ch.model == "gilbert-elliott" and not ch.iid:
+        x, what = ch.recovery_rate, "recovery rate r"
+    elif ch.iid:
+        x, what = ch.arrival_probability, "arrival probability p"
+    else:
+        return None
+    nec = burst_necessary(spec.system, x)
+    if nec.holds is not False:
+        return None
+    return (f"(1 − x)·ρ(A)² = {nec.value:.6g} ≥ 1 with x the {what} = {float(x):.6g} (theory "
+            f"§{'10' if what.startswith('recovery') else '3'}): E[tr P_t] diverges")
 
 
 ERGODIC_REPLICAS = 4

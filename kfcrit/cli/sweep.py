@@ -12,9 +12,10 @@ from kfcrit.analysis.sweep.points import (
     load_sweep,
     run_sweep,
 )
-from kfcrit.api.sweepfiles import write_outputs
+from kfcrit.api.sweepfiles import sweep_inputs, sweep_output_files, write_outputs
 from kfcrit.cli.common import flush_std_streams
 from kfcrit.errors import ExitCode
+from kfcrit.io.atomic import refuse_replacing_inputs
 from kfcrit.io.safeio import printable
 
 
@@ -73,6 +74,8 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
         _quiet_dask_logs()
     if output is None:
         output = str(Path(sweep_file).with_name(Path(sweep_file).stem + "-results"))
+    refuse_replacing_inputs(sweep_output_files(Path(output)), sweep_inputs(spec, sweep_file),
+                            "--output")
     try:
         result = run_sweep(spec, output, scheduler=scheduler, workers=workers,
                            max_states=max_states, progress=_progress)

@@ -23,6 +23,7 @@ import os
 import stat
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from kfcrit.errors import OutputError
 
@@ -156,3 +157,32 @@ def write_atomic(path: str | Path, data: bytes, *, follow_symlinks: bool = True)
             os.close(dfd)
     except OSError:
         pass
+
+
+def refuse_replacing_inputs(outputs: Any, inputs: Any, field: str) -> None:
+    """Refuse (InputError naming ``field``) any output path that is, or points to, an input
+    file of the same run: the system or sweep file, a sweep's base system, a trace.
+
+    Paths are compared after following symbolic links (``os.path.realpath``) and, when both
+    exist, by device and inode, so a link or a hard link to an input is caught as well.
+    """
+    import os
+    from pathlib import Path
+
+    from kfcrit.errors import InputError
+
+    ins = [Path(p) for p in inputs if p]
+    for out in outputs:
+        if not out:
+            continue
+        o = Path(out)
+        for i in ins:
+            same = os.path.realpath(o) == os.path.realpath(i)
+            if not same and o.exists() and i.exists():
+                try:
+                    same = os.path.samefile(o, i)
+                except OSError:
+                    same = False
+            if same:
+                raise InputError(f"{str(o)[:80]!r} would replace the input file "
+                                 f"{str(i)[:80]!r} of this run", field=field)

@@ -172,10 +172,27 @@ def process_arrivals(process: ArrivalProcess, rng: np.random.Generator, steps: i
 
 @dataclass(frozen=True)
 class Bernoulli(Channel):
-    """I.i.d. arrivals: P(γ_t = 1) = p."""
+    """I.i.d. arrivals: P(γ_t = 1) = p.
+
+    Parameters
+    ----------
+    p : number or str
+        The arrival probability in [0, 1] (a Python float by its shortest decimal, a string as
+        an exact expression such as ``"9/10"``); anything else raises
+        :class:`kfcrit.errors.InputError` naming ``arrival_probability``.
+
+    Examples
+    --------
+    >>> Bernoulli("9/10").arrival_probability
+    9/10
+    """
 
     p: sp.Expr
     model: ClassVar[str] = "bernoulli"
+
+    def __post_init__(self) -> None:
+        # Bernoulli(90) is a mistake, not a probability: refused here, naming the field
+        object.__setattr__(self, "p", exact_probability(self.p, "arrival_probability"))
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> Bernoulli:
@@ -207,6 +224,11 @@ class GilbertElliott(Channel):
     failure_rate: sp.Expr
     recovery_rate: sp.Expr
     model: ClassVar[str] = "gilbert-elliott"
+
+    def __post_init__(self) -> None:
+        for name in ("failure_rate", "recovery_rate"):
+            object.__setattr__(self, name, exact_probability(getattr(self, name), name,
+                                                             low_open=True))
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str,

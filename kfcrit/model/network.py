@@ -202,8 +202,16 @@ class Network:
                                      field="R_cross")
                 start += s.m
             R_ = rc
-        # the stacked System validates Q, Sigma0 and the stacked R (symmetric, definite)
-        stacked = System(A_, C_, Q, R_, Sigma0, name=name, max_states=max_states)
+        # the stacked System validates Q, Sigma0 and the stacked R (symmetric, definite); the
+        # stacked R is R_cross when given, so its errors name R_cross, not R
+        try:
+            stacked = System(A_, C_, Q, R_, Sigma0, name=name, max_states=max_states)
+        except InputError as exc:
+            if rc is None or exc.field is None or not (exc.field == "R"
+                                                       or exc.field.startswith("R[")):
+                raise
+            message = str(exc)[len(exc.field) + 2:]
+            raise type(exc)(message, field="R_cross" + exc.field[1:]) from None
         set_ = object.__setattr__
         set_(self, "A", stacked.A)
         set_(self, "Q", stacked.Q)

@@ -178,3 +178,23 @@ def test_compiled_lmi_reused_across_rates_equals_a_fresh_one() -> None:
         _, t_reused = reused.solve(f, r)
         _, t_fresh = markov.CoupledLmi(A, C).solve(f, r)
         assert t_reused == pytest.approx(t_fresh, rel=1e-6, abs=1e-9), (f, r)
+
+
+def test_smallest_certified_finds_a_stretch_plain_bisection_misses():
+    # Certified on [0.30, 0.40] and [0.80, 1]: a plain bisection on [0.1, 1] tests 0.55 (not
+    # certified) and then never looks below it, ending at 0.80. The grid 0.1 + 0.075 k hits
+    # 0.325 (certified) after 0.25 (not), so the bisection inside [0.25, 0.325] ends within
+    # tol above 0.30.
+    from kfcrit.theory.links.markov import smallest_certified
+
+    calls = []
+
+    def feasible(r: float) -> bool:
+        calls.append(r)
+        return 0.30 <= r <= 0.40 or r >= 0.80
+
+    got = smallest_certified(feasible, 0.1, 1.0, 1e-4, points=12)
+    assert 0.30 <= got <= 0.30 + 1e-4
+    assert all(feasible(r) is False or r >= 0.30 for r in calls)
+    assert smallest_certified(lambda r: False, 0.1, 1.0, 1e-3) is None
+    assert smallest_certified(lambda r: r >= 0.95, 0.1, 1.0, 1e-3) == pytest.approx(0.95, abs=1e-3)

@@ -186,6 +186,14 @@ class OperatingPoint:
     """Per-sensor arrival probabilities of a network (``arrival_probability`` is then the
     bottleneck sensor's and ``margin`` the uniform margin)."""
     bottleneck: str | None = opt_key()
+    margin_basis: str | None = opt_key()
+    """What ``margin`` measures: p − p_c for i.i.d. links, r − r_nec for a bursty link."""
+    iid_margin: float | None = opt_key()
+    """The i.i.d. comparison p − p_c of a channel with memory (not its margin)."""
+    recovery_threshold: float | None = opt_key()
+    """r_nec = max(1 − 1/ρ(A)², 0) of a bursty link (theory §10)."""
+    margin_to_sufficient: float | None = opt_key()
+    """r − r_suf(f): the distance to the certified sufficient curve of a bursty link."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -27,6 +27,38 @@ class CovarianceSummary:
 
 
 @dataclass(frozen=True, kw_only=True)
+class MarkovJumpLower:
+    """`covariance_bounds.markov_jump.lower`: lim E[tr P_t] from below (losses-only recursion)."""
+
+    trace: float | None
+    exists: bool
+    basis: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarkovJumpUpper:
+    """`covariance_bounds.markov_jump.upper`: lim sup E[tr P_t] from above (fixed gains)."""
+
+    trace: float | None
+    exists: bool
+    basis: str
+    spectral_radius: float | None
+    gains: list[list[float | None]] | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarkovJumpBounds:
+    """`covariance_bounds.markov_jump`: bounds valid for a Gilbert–Elliott channel (theory §10);
+    the i.i.d. bounds beside them are at the stationary arrival probability only."""
+
+    failure_rate: float | None
+    recovery_rate: float | None
+    lower: MarkovJumpLower
+    upper: MarkovJumpUpper
+    method: str
+
+
+@dataclass(frozen=True, kw_only=True)
 class CovarianceBounds:
     """`covariance_bounds`"""
 
@@ -37,6 +69,7 @@ class CovarianceBounds:
     warnings: list[str] = opt_key()
     applicable: bool = opt_key()
     reason: str = opt_key()
+    markov_jump: MarkovJumpBounds = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)

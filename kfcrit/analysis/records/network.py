@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from kfcrit.analysis.records.bursty import StabilityFacts
+from kfcrit.analysis.records.contract import CriticalValue, UpperBound
 from kfcrit.analysis.records.covariance import ValueExpression
 from kfcrit.analysis.records.link import DesignCheck, LinkState, MarginPolicy, Shadowing
 from kfcrit.io.typed import opt_key
@@ -70,6 +71,7 @@ class SensorNMinus1:
     verdict: str
     reason: str
     facts: StabilityFacts = opt_key()
+    burst_facts: StabilityFacts = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -118,6 +120,7 @@ class NetworkNMinus1:
     verdict: str
     reason: str
     facts: StabilityFacts = opt_key()
+    burst_facts: StabilityFacts = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -169,12 +172,23 @@ class NetworkMethod:
 
 
 @dataclass(frozen=True, kw_only=True)
-class NetworkBurstCondition:
-    """`network.burst_condition`"""
+class DeadLinkBurst:
+    """`network.burst_condition.n_minus_1[name]`: the burst condition with that sensor dead."""
 
-    holds: bool
+    holds: bool | None
+    facts: StabilityFacts
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkBurstCondition:
+    """`network.burst_condition`: the burst condition of the bursty links (theory §9–§10) at
+    the operating point and with each sensor dead."""
+
+    holds: bool | None
     statement: str
     continuation: dict[str, float | None]
+    facts: StabilityFacts = opt_key()
+    n_minus_1: dict[str, DeadLinkBurst] = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -196,3 +210,7 @@ class NetworkSection:
     warnings: list[str]
     burst_condition: NetworkBurstCondition = opt_key()
     facts: StabilityFacts = opt_key()
+    stacked_critical_value: CriticalValue | None = opt_key()
+    """The stacked system's critical value (the record's top-level one), repeated by name."""
+    stacked_upper_bound: UpperBound | None = opt_key()
+    stacked_meaning: str = opt_key()

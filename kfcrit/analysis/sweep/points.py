@@ -724,8 +724,20 @@ def table_csv(spec: SweepSpec, rows: list[dict[str, Any]]) -> str:
     writer.writerow(columns)
     for row in rows:
         writer.writerow(["" if row[c] is None else (repr(row[c]) if isinstance(row[c], float)
-                                                    else row[c]) for c in columns])
+                                                    else csv_cell(row[c])) for c in columns])
     return buf.getvalue()
+
+
+FORMULA_PREFIXES = ("=", "+", "-", "@", "\t", "\r")
+"""First characters that make a spreadsheet read a cell as a formula (OWASP CSV injection)."""
+
+
+def csv_cell(value: Any) -> Any:
+    """A text cell made inert for spreadsheets: one starting with = + - @ tab or CR gets a
+    leading single quote (OWASP CSV injection rule); numbers are left as they are."""
+    if isinstance(value, str) and value.startswith(FORMULA_PREFIXES):
+        return "'" + value
+    return value
 
 
 # ---------------------------------------------------------------------------------------------
@@ -755,13 +767,21 @@ class SweepResult:
 def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = None,
               workers: int | None = None, max_states: int = 400,
               progress: Callable[[int, int], tuple[Callable[[int], None], Callable[[], None]]]
-              | None = None) -> SweepResult:
+              | None = None, journal: bool = True) -> SweepResult:
     """Run (or resume) a sweep, journalling each finished point in the folder ``output``.
 
     Returns the table (rows sorted by point index); the files are written by
     :func:`kfcrit.api.sweepfiles.write_outputs` (or by the caller). ``progress(total, done)`` may
-    return an ``(advance, stop)`` pair of callbacks.
+    return an ``(advance, stop)`` pair of callbacks. ``workers`` must be a whole number ≥ 1
+    (or None: one per core). With ``journal`` False nothing is written: the output folder is
+    neither created nor read, and every point is computed.
     """
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise InputError(f"must be a whole number ≥ 1, got {workers!r}", field="workers")
+    if not journal:
+        return _run_unjournalled(spec, scheduler=scheduler, workers=workers,
+                                 max_states=max_states)
     out = Path(output)
     if out.exists() and not out.is_dir():
         raise InputError(f"{str(out)[:80]!r} exists and is not a folder", field="--output")
@@ -822,3 +842,38 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
     return SweepResult(rows=rows, computed=len(pending), reused=reused, errors=len(errors),
                        exit_code=exit_code, output=str(out), files={},
                        runner="dask" if scheduler else "local", workers=workers)
+
+
+def _run_unjournalled(spec: SweepSpec, *, scheduler: str | None, workers: int | None,
+                      max_states: int) -> SweepResult:
+    """Every point computed in memory, nothing written (``run_sweep(..., journal=False)``)."""
+    client = connect_dask(scheduler) if scheduler else None
+    pending: Items = []
+    seen: set[str] = set()
+    for index, key in enumerate(spec.keys):
+        if key not in seen:
+            seen.add(key)
+            pending.append((index, key, spec.assignments(index)))
+    workers = workers or os.cpu_count() or 1
+    job = PointJob(evaluate=evaluate_chunk, base_doc=spec.base_doc, base_dir=str(spec.base_dir),
+                   tolerance=spec.tolerance, max_states=max_states)
+    if client is not None:
+        batches = run_dask(job, pending, client, scheduler or "")
+    elif workers == 1 or len(pending) <= 8:
+        batches = run_serial(job, pending)
+    else:
+        batches = run_processes(job, pending, workers)
+    known: dict[str, dict[str, Any]] = {}
+    try:
+        for batch in batches:
+            for _, key, res in batch:
+                known[key] = res
+    finally:
+        batches.close()
+    rows = assemble_rows(spec, known)
+    errors = [r for r in rows if r["status"] != "ok"]
+    codes = [known[k]["error_code"] if known[k].get("error_code") in POINT_ERROR_CODES
+             else int(ExitCode.BAD_INPUT) for k in spec.keys if known[k].get("status") != "ok"]
+    return SweepResult(rows=rows, computed=len(pending), reused=0, errors=len(errors),
+                       exit_code=max(codes) if codes else int(ExitCode.OK), output="",
+                       files={}, runner="dask" if scheduler else "local", workers=workers)

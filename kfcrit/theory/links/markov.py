@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -595,8 +596,11 @@ def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
         r_{nec} = \\max(1 - 1/\\rho(A)^2, 0), \\qquad
         r_{suf}(f) = \\min\\{r : \\exists K,\\ \\rho(\\mathcal{M}_{K,f,r}) < 1\\}
 
-    r_nec does not depend on f; r_suf(f) is found by bisection on r ∈ [r_nec, 1] to width
-    ``tol`` (stability is monotone in r, Wu–Shi–Anderson–Johansson TAC 2018). Grid: ``points``
+    r_nec does not depend on f; r_suf(f) is the smallest certified r found by a grid scan of
+    (r_nec, 1] and a bisection inside the first bracket where the grid changes from not
+    certified to certified, to width ``tol`` (:func:`smallest_certified`: the certificate's
+    feasibility is not assumed monotone in r, although stability is, Wu–Shi–Anderson–Johansson
+    TAC 2018). Grid: ``points``
     values f = k/points (k = 1..points) unless ``failure_rates`` is given.
     """
     t0 = time.perf_counter()
@@ -621,20 +625,45 @@ def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
         op = {"failure_rate": float(exact_rate(operating[0], "failure_rate")),
               "recovery_rate": float(exact_rate(operating[1], "recovery_rate"))}
     return CriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
-                         "bisection on r of the coupled LMI / candidate-gain spectral radius "
+                         "grid scan on r, then bisection inside the first not-certified → "
+                         "certified bracket, of the coupled LMI / candidate-gain spectral radius "
                          "(numerical)", op, tuple(notes), time.perf_counter() - t0)
+
+
+CURVE_GRID_POINTS = 12
+"""Grid points in r ∈ (r_nec, 1] scanned before bisecting (the certificate's feasibility is not
+proven monotone in r, so a plain bisection on [r_nec, 1] can miss a certified stretch)."""
+
+
+def smallest_certified(feasible: Callable[[float], bool], lo: float, hi: float, tol: float,
+                       points: int = CURVE_GRID_POINTS) -> float | None:
+    """The smallest r in (lo, hi] found with ``feasible(r)`` True, or None.
+
+    Scans the grid lo + k (hi − lo)/points (k = 1..points); at the first certified grid point
+    it bisects only inside the bracket [previous grid point (not certified), that point],
+    where the grid shows the change from not certified to certified, down to width ``tol``;
+    the smallest certified r found is kept (never a point that was not checked).
+    """
+    step = (hi - lo) / points
+    prev = lo
+    for k in range(1, points + 1):
+        r = hi if k == points else lo + k * step
+        if feasible(r):
+            a, b = prev, r
+            while b - a > tol:
+                mid = 0.5 * (a + b)
+                if feasible(mid):
+                    b = mid
+                else:
+                    a = mid
+            return b
+        prev = r
+    return None
 
 
 def _sufficient_threshold(A: np.ndarray, C: np.ndarray, f: float, r_nec: float,
                           tol: float, lmi: CoupledLmi,
                           candidates: list[tuple[str, np.ndarray]]) -> float | None:
-    lo, hi = r_nec, 1.0
-    if not certificate_feasible(A, C, f, hi, lmi=lmi, candidates=candidates):
-        return None
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if certificate_feasible(A, C, f, mid, lmi=lmi, candidates=candidates):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return smallest_certified(
+        lambda r: certificate_feasible(A, C, f, r, lmi=lmi, candidates=candidates),
+        r_nec, 1.0, tol)

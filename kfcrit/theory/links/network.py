@@ -504,8 +504,9 @@ def _probabilities(network: Network, p: Sequence[Any] | None
         p = network.arrival_probabilities()
         if any(v is None for v in p):
             missing = [s.name for s, v in zip(network.sensors, p) if v is None]
-            raise InputError(f"sensor {missing[0]!r} has no channel: give its arrival "
-                             "probability", field="p")
+            raise InputError("is missing: every sensor of a network needs its own link (e.g. "
+                             "channel: {model: bernoulli, arrival_probability: 0.9})",
+                             field=f"sensors.{missing[0]}.channel")
     p = list(p)
     if len(p) != network.size:
         raise InputError(f"must have {network.size} entries (one per sensor), got {len(p)}",
@@ -712,8 +713,38 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     dead = StabilityFacts(necessary=nec0, sufficient=suff0, exact_region=exact_region,
                           necessary_basis="necessary surface with this link dead",
                           sufficient_basis="certificate with this link dead" if suff0 else "")
+    if network.size == 2 and not exact_region:
+        dead, why = _lone_sensor_facts(ctx, 1 - i, pe, dead, why)
     return SensorResult(name, float(pf[i]), _expr_text(pe[i]), crit, surfaces, margin,
                         dead, why)
+
+
+def _lone_sensor_facts(ctx: _Context, j: int, pe: list[sp.Expr | None], dead: StabilityFacts,
+                       why: str) -> tuple[StabilityFacts, str]:
+    """N − 1 of a two-sensor network leaves sensor j alone: its single-link theory (exact p_c
+    of Mo–Sinopoli where a theorem applies, else [block lower bound, certified p_up]) compared
+    exactly with p_j (theory §3–§4, §9), combined with the network facts with the link dead
+    (either necessary condition failing fails; either sufficient one suffices)."""
+    network = ctx.network
+    sub = network.received_system([j])
+    klass, crit, pc_exact, _ = _single_link_critical(sub, ctx.tol)
+    lone, _ = _single_link_facts(klass, crit, pe[j], pc_exact)
+    nec = (False if False in (dead.necessary, lone.necessary) else
+           None if None in (dead.necessary, lone.necessary) else True)
+    suff = dead.sufficient or lone.sufficient
+    name = network.names[j]
+    what = (f"p_c = {crit['expression'] or crit['value']}" if crit.get("value") is not None else
+            f"the bracket {crit['interval']}" if crit.get("interval") is not None else
+            "(C, A) not detectable")
+    basis = f"single-link theory of {name} alone ({what}) against p_{name}"
+    facts = StabilityFacts(nec, suff, lone.exact_region and nec is not None,
+                           basis if lone.necessary is False else dead.necessary_basis,
+                           basis if lone.sufficient else dead.sufficient_basis)
+    if nec is False:
+        why = f"{name} alone: {basis}: p ≤ its critical value"
+    elif lone.sufficient or (lone.exact_region and nec is True):
+        why = f"{name} alone: {basis}: p above its critical value"
+    return facts, why
 
 
 def _uniform_margin(b: Boundary, pf: np.ndarray, exact_region: bool) -> dict[str, Any]:
@@ -796,31 +827,9 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
     """For N = 1 the critical value, verdict and margins of the single-link theory (exact
     Mo–Sinopoli values where a theorem applies; else the bracket [block lower bound, p_up])."""
     system = network.stacked_system()
-    cvo = critical_value(system)
-    cv = cvo.to_dict()
     p = float(pf[0])
     row = res.sensors[0]
-    klass = cv["classification"]
-    pc = cv["critical_value"]["value"]
-    if klass == "stable":
-        crit = {"value": 0.0, "interval": [0.0, 0.0], "exact": True, "expression": "0",
-                "basis": "single link: ρ(A) < 1"}
-    elif klass == "not-detectable":
-        crit = {"value": None, "interval": None, "exact": True, "expression": None,
-                "basis": "single link: (C, A) not detectable"}
-    elif pc is not None:
-        crit = {"value": pc, "interval": [pc, pc], "exact": bool(cv["critical_value"]["exact"]),
-                "expression": cv["critical_value"]["expression"],
-                "basis": f"single link: {cv['critical_value']['reason']}"}
-    else:
-        up = upper_bound(system, tol)
-        lo = (cv.get("block_lower_bound") or {}).get("value")
-        if lo is None:
-            lo = cv["lower_bound"]["value"]
-        hi = up.interval[1] if up.certified else None
-        crit = {"value": None, "interval": [lo, hi], "exact": False, "expression": None,
-                "basis": "single link: bracket [block lower bound, certified p_up]"}
-    pc_exact = cvo.value.expr if cvo.value is not None and cvo.value.expr is not None else None
+    klass, crit, pc_exact, cv = _single_link_critical(system, tol)
     facts, reason = _single_link_facts(klass, crit, pe[0], pc_exact)
     iv = crit["interval"]
     margin = {"value": p - crit["value"] if crit["value"] is not None else None,
@@ -846,6 +855,36 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                          certificate=res.certificate, method=res.method, claims=res.claims,
                          warnings=res.warnings + tuple(cv.get("warnings") or ()),
                          seconds=res.seconds)
+
+
+def _single_link_critical(system: Any, tol: float
+                          ) -> tuple[str, dict[str, Any], sp.Expr | None, dict[str, Any]]:
+    """The single-link critical value of one system (theory §3–§4): (classification, the
+    ``crit`` dict of a sensor row, the exact p_c or None, the critical-value record)."""
+    cvo = critical_value(system)
+    cv = cvo.to_dict()
+    klass = cv["classification"]
+    pc = cv["critical_value"]["value"]
+    if klass == "stable":
+        crit = {"value": 0.0, "interval": [0.0, 0.0], "exact": True, "expression": "0",
+                "basis": "single link: ρ(A) < 1"}
+    elif klass == "not-detectable":
+        crit = {"value": None, "interval": None, "exact": True, "expression": None,
+                "basis": "single link: (C, A) not detectable"}
+    elif pc is not None:
+        crit = {"value": pc, "interval": [pc, pc], "exact": bool(cv["critical_value"]["exact"]),
+                "expression": cv["critical_value"]["expression"],
+                "basis": f"single link: {cv['critical_value']['reason']}"}
+    else:
+        up = upper_bound(system, tol)
+        lo = (cv.get("block_lower_bound") or {}).get("value")
+        if lo is None:
+            lo = cv["lower_bound"]["value"]
+        hi = up.interval[1] if up.certified else None
+        crit = {"value": None, "interval": [lo, hi], "exact": False, "expression": None,
+                "basis": "single link: bracket [block lower bound, certified p_up]"}
+    pc_exact = cvo.value.expr if cvo.value is not None and cvo.value.expr is not None else None
+    return klass, crit, pc_exact, cv
 
 
 def _single_link_facts(klass: str, crit: dict[str, Any], p: sp.Expr | None,

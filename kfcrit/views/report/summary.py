@@ -47,7 +47,7 @@ def markdown_summary(record: dict[str, Any]) -> str:
         lines.append(review["missing"])
     margin = verdict["margin"]
     lines += ["", f"Stability at the operating point: **{filters.verdict_label(verdict['verdict'])}**"
-              + (f" ({'uniform margin δ' if verdict['network'] else 'p − p_c'} = "
+              + (f" ({_margin_label(verdict)} = "
                  f"{filters.signed(margin, 4)})" if margin is not None else ""), "",
               "| quantity | value | exact form |", "|---|---|---|"]
     for row in bounds_view(rec)["rows"]:
@@ -55,3 +55,10 @@ def markdown_summary(record: dict[str, Any]) -> str:
         exact = filters.pretty_expr(row["expression"]) if row["expression"] else ""
         lines.append(f"| {_cell(row['name'])} | {_cell(value)} | {_cell(exact)} |")
     return "\n".join(lines) + "\n"
+
+
+def _margin_label(verdict: dict) -> str:
+    """What the operating point's margin measures (uniform δ, r − r_nec or p − p_c)."""
+    if verdict["network"]:
+        return "uniform margin δ"
+    return "r − r_nec" if verdict.get("burst_margin") else "p − p_c"

@@ -86,6 +86,8 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "critical_reason": prose(cv.get("reason")) or None,
         "margin": number(opd.get("margin")),
         "margin_robust": number(opd.get("margin_robust")),
+        "burst_margin": opd.get("recovery_threshold") is not None,
+        "iid_margin": number(opd.get("iid_margin")),
         "robust": {"available": isinstance(rob, dict),
                    "value": number(robd.get("value")), "tolerance": number(robd.get("tolerance")),
                    "expression": exact_text(robd.get("expression")),

@@ -138,6 +138,11 @@ def summary(rec: dict[str, Any]) -> str:
     cv = rec.get("critical_value") or {}
     # a floating-point input's values are numerical even where decided on its binary rationals
     exact_input = sysd.get("exact_input") is not False
+    stacked = (rec.get("network") is not None
+               and len((rec.get("network") or {}).get("sensors") or []) > 1)
+    if stacked:
+        lines.append("  stacked system (all sensors on one link): p_c, p_low and p_up below; "
+                     "each sensor's own critical value is in the network table")
     lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}"
                  f"{_exact(cv) if cv.get('exact') and exact_input else ''}")
     if cv.get("reason"):
@@ -170,8 +175,14 @@ def summary(rec: dict[str, Any]) -> str:
         else:
             lines.append(f"  operating point p     {_num(op.get('arrival_probability'), 12)}")
         if op.get("margin") is not None:
-            label = "uniform margin δ" if network else "margin p - p_c"
+            label = ("uniform margin δ" if network else "margin r - r_nec"
+                     if op.get("recovery_threshold") is not None else "margin p - p_c")
             lines.append(f"  {label:<21} {op['margin']:+.6g}")
+            if op.get("margin_to_sufficient") is not None:
+                lines.append(f"  margin r - r_suf(f)   {op['margin_to_sufficient']:+.6g}")
+            if op.get("recovery_threshold") is not None and op.get("iid_margin") is not None:
+                lines.append(f"      (i.i.d. comparison p - p_c = {op['iid_margin']:+.6g}: not "
+                             "a margin for this channel)")
         if op.get("bracket") and not (network and op.get("margin") is not None):
             b = op["bracket"]
             label = "uniform margin δ in" if network else "bracket"
@@ -219,6 +230,12 @@ def _bounds_lines(rec: dict[str, Any]) -> list[str]:
     if (rec.get("operating_point") or {}).get("iid") is False:
         out.append("      (i.i.d. bounds at the stationary arrival probability: they do not "
                    "bound E[P] for this channel)")
+    mj = cb.get("markov_jump")
+    if isinstance(mj, dict):
+        mlo, mup = mj.get("lower") or {}, mj.get("upper") or {}
+        out.append(f"  lim E[P] bursty link   {_num(mlo.get('trace')) if mlo.get('exists') else '∞'}"
+                   f" ≤ tr lim E[P] ≤ {_num(mup.get('trace')) if mup.get('exists') else '∞'}"
+                   "  (Markov-jump bounds valid for this Gilbert–Elliott channel, theory §10)")
     if cb.get("applicable") is False and cb.get("reason"):
         out.append(f"      V̄ {cb['reason']}")
     return out
