@@ -15,6 +15,7 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any
 
+from kfcrit.analysis.mesh.section import MeshSection
 from kfcrit.analysis.verdict import Reason, Review, Verdict
 from kfcrit.io.typed import JSON, from_json, internal, json_schema, opt, to_json
 
@@ -550,6 +551,8 @@ class Analysis:
     design: JSON = opt()
     tail: JSON = opt()
     network: JSON = opt()
+    mesh: MeshSection | None = opt()
+    """A mesh file's routes, joint losses, facts, forwarding modes and N − 1 (theory §13)."""
     timings: dict[str, float] = internal(dict)
     """Wall-clock seconds of the sections (kept out of the JSON form: same input and seed give
     byte-identical JSON)."""
