@@ -5,7 +5,8 @@ A mesh file gives the plant (``A``, ``Q``, optional ``Sigma0``) and one ``mesh:`
     mesh:
       relay_mode: aggregate            # or forward (default aggregate)
       slots_per_period: 6              # optional slot budget D per route and period
-      retries: 3                       # default retries k_h of every hop (default 0)
+      retries: 3                       # default retries k_h of every hop (default: none,
+                                       # i.e. one attempt, or the slot budget's limit only)
       links: {radio: ..., ...}         # link-budget defaults of every hop (no distance_m)
       nodes:
         - {name: s1, role: sensor, C: [[1, 0]], R: 1, position_m: [40, 0]}
@@ -186,7 +187,7 @@ def _link_hop(hop: dict, where: str, links: dict | None, positions: Mapping[str,
     return q, MeshHopLink("link-budget", channel, float(d))
 
 
-def _hops(raw: Any, names: set[str], links: dict | None, default_retries: int,
+def _hops(raw: Any, names: set[str], links: dict | None, default_retries: int | None,
           positions: Mapping[str, Any], parse: ChannelParse) -> tuple[list[Hop],
                                                                       list[MeshHopLink]]:
     if not isinstance(raw, list) or not raw:
@@ -260,8 +261,9 @@ def mesh_from_mapping(doc: Mapping[str, Any], parse: ChannelParse, *, name: str,
         if key in (links or {}):
             raise InputError("is per hop (distance_m or positions; retries)",
                              field=f"mesh.links.{key}")
+    # no retries anywhere: one attempt per period, or under a slot budget no cap but the budget
     default_retries = (_retries(data["retries"], "mesh.retries")
-                       if data.get("retries") is not None else 0)
+                       if data.get("retries") is not None else None)
     nodes, sensors, positions = _nodes(data["nodes"], max_states)
     hops, details = _hops(data["hops"], {n.name for n in nodes}, links, default_retries,
                           positions, parse)

@@ -74,7 +74,7 @@ def hop_rows(mfile: Any, analysis: Any) -> list[MeshHopRow]:
         exact = h.period_success_exact()
         out.append(MeshHopRow(
             name=h.name, source=h.source, target=h.target, attempt_success=h.q,
-            attempt_success_expression=_text(h.q_exact), retries=h.retries or 0,
+            attempt_success_expression=_text(h.q_exact), retries=h.retries,
             period_success=h.period_success(), period_success_expression=_text(exact),
             origin=link.source, critical=head.critical,
             critical_attempt_success=head.critical_q, headroom=head.headroom,

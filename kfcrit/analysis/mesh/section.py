@@ -48,7 +48,8 @@ class MeshHopRow:
     target: str
     attempt_success: float
     attempt_success_expression: str | None
-    retries: int
+    retries: int | None
+    """k_h; None: not set (one attempt per period, or under a slot budget no cap)."""
     period_success: float
     period_success_expression: str | None
     origin: str
