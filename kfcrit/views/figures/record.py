@@ -47,7 +47,6 @@ from kfcrit.views.figures.design import (  # noqa: E402
     draw_per_sinr,
 )
 from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
-from kfcrit.views.mesh.meshfigure import draw_mesh_topology  # noqa: E402
 from kfcrit.views.figures.network import draw_network_map, draw_network_region  # noqa: E402
 from kfcrit.views.figures.style import (  # noqa: E402,F401
     COLORS,
@@ -66,6 +65,7 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     positive,
     section,
 )
+from kfcrit.views.mesh.meshfigure import draw_mesh_topology  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",

@@ -58,8 +58,8 @@ def hop_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
         out.append({
             "name": h.get("name"), "bottleneck": h.get("name") == mesh.get("bottleneck"),
             "q": _with_exact(h.get("attempt_success"), h.get("attempt_success_expression")),
-            "retries": "—" if h.get("retries") is None else h.get("retries"), "s": _with_exact(h.get("period_success"),
-                                                          h.get("period_success_expression")),
+            "retries": "—" if h.get("retries") is None else h.get("retries"),
+            "s": _with_exact(h.get("period_success"), h.get("period_success_expression")),
             "link": (f"{link.get('radio')}, {_num(link.get('distance_m'), 4)} m, SINR "
                      f"{_num(link.get('sinr_db'), 3)} dB" if link else "given"),
             "critical": _num(h.get("critical_attempt_success"), 4) if h.get("critical")

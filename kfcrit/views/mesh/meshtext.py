@@ -19,8 +19,9 @@ def route_lines(mesh: dict[str, Any]) -> list[str]:
     out = [f"    routes ({mesh.get('routing')}); hop success {per}"]
     for r in mesh.get("routes") or []:
         hops = " ".join(_num(s, 4) for s in r.get("hop_success") or [])
+        delivers = _exact(r.get("arrival_probability"), r.get("arrival_expression"))
         out.append(f"      {str(r.get('sensor'))[:12]:<12} {' → '.join(r.get('nodes') or [])}"
-                   f"  [{hops}]  delivers {_exact(r.get('arrival_probability'), r.get('arrival_expression'))}")
+                   f"  [{hops}]  delivers {delivers}")
     return out
 
 
@@ -39,9 +40,9 @@ def mesh_lines(rec: dict[str, Any]) -> list[str]:
     for name, p in (mesh.get("arrival_probability") or {}).items():
         lines.append(f"    arrival {str(name)[:12]:<12} {_exact(p, expr.get(name))}")
     al = mesh.get("all_lost") or {}
+    product = _exact(al.get("product_of_marginals"), al.get("product_expression"))
     lines.append(f"    P(all lost)           {_exact(al.get('value'), al.get('expression'))} vs "
-                 f"product of marginals {_exact(al.get('product_of_marginals'), al.get('product_expression'))}"
-                 f" (ratio {_num(al.get('ratio'), 4)})")
+                 f"product of marginals {product} (ratio {_num(al.get('ratio'), 4)})")
     facts = mesh.get("facts") or {}
     lines.append(f"    facts                 necessary {facts.get('necessary')}, sufficient "
                  f"{facts.get('sufficient')} ({facts.get('reason')})")
@@ -62,7 +63,8 @@ def mesh_lines(rec: dict[str, Any]) -> list[str]:
     if isinstance(sim, dict):
         mean = (f"E[tr P] ≈ {_num(sim.get('mean_trace'))}; " if sim.get("mean_trace") is not None
                 else "")
-        lines.append(f"    Monte Carlo           {mean}{sim.get('statement')}; "
-                     f"{'agrees with' if sim.get('consistent') else 'inconclusive against' if sim.get('consistent') is None else 'CONTRADICTS'} the verdict "
+        agree = {True: "agrees with", None: "inconclusive against", False: "CONTRADICTS"}[
+            sim.get("consistent")]
+        lines.append(f"    Monte Carlo           {mean}{sim.get('statement')}; {agree} the verdict "
                      f"({sim.get('paths')} paths × {sim.get('steps')} periods)")
     return lines
