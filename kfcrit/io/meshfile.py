@@ -281,3 +281,49 @@ def mesh_from_mapping(doc: Mapping[str, Any], parse: ChannelParse, *, name: str,
                       max_states=max_states)
     fpos = {k: tuple(float(x) for x in v) for k, v in positions.items()}
     return MeshFile(network, mesh, fpos, tuple(details))
+
+
+def mesh_schema(number: dict[str, Any], matrix: dict[str, Any]) -> dict[str, Any]:
+    """JSON Schema of the ``mesh:`` section (for ``kfcrit schema system``)."""
+    def obj(props: dict[str, Any], required: list[str], description: str) -> dict[str, Any]:
+        return {"type": "object", "properties": props, "required": required,
+                "additionalProperties": False, "description": description}
+
+    name = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_-]{0,39}$"}
+    count = {"type": "integer", "minimum": 0}
+    position = {"type": "array", "minItems": 2, "maxItems": 3, "items": number,
+                "description": "position in metres [x, y] (hop distances and the map)"}
+    node = obj({"name": {**name, "description": "unique node name"},
+                "role": {"enum": list(ROLES), "description": "sensor, relay or gateway (exactly "
+                         "one gateway: the estimator)"},
+                "C": {**matrix, "description": "a sensor's rows of C (m_i × n); sensors only"},
+                "R": {**matrix, "description": "a sensor's noise covariance; sensors only"},
+                "position_m": position,
+                "mode": {"enum": list(RELAY_MODES), "description": "relay mode of the hops this "
+                         "node transmits (default mesh.relay_mode)"}},
+               ["name", "role"], "a node of the mesh")
+    hop = obj({"from": {**name, "description": "transmitting node"},
+               "to": {**name, "description": "receiving node"},
+               "attempt_success": {**number, "description": "per-attempt success q_h in [0, 1] "
+                                   "(instead of a link budget)"},
+               "retries": {**count, "description": "retries k_h (default mesh.retries)"},
+               "channel": {"type": "object", "description": "link-budget keys of this hop over "
+                           "mesh.links (not max_retries); q_h = 1 − PER at its distance"},
+               "distance_m": {**number, "description": "hop length (default: from the nodes' "
+                              "position_m)"}},
+              ["from", "to"], "a directed hop; q_h from attempt_success or a link budget")
+    return obj({
+        "nodes": {"type": "array", "minItems": 2, "items": node},
+        "hops": {"type": "array", "minItems": 1, "items": hop},
+        "routes": {"type": "array", "minItems": 1, "description": "node lists from a sensor to "
+                   "the gateway (several per sensor: path diversity); default the most reliable "
+                   "path per sensor", "items": {"type": "array", "minItems": 2, "items": name}},
+        "relay_mode": {"enum": list(RELAY_MODES), "description": "aggregate (one frame per hop "
+                       "and period, default) or forward (one frame per packet)"},
+        "slots_per_period": {"type": "integer", "minimum": 1, "description": "slot budget D of "
+                             "each route per period (one attempt per slot, hops in order)"},
+        "retries": {**count, "description": "default retries of every hop (default none: one "
+                    "attempt, or under a slot budget no cap but the budget)"},
+        "links": {"type": "object", "description": "link-budget defaults of every hop (no "
+                  "distance_m, no max_retries)"}},
+        ["nodes", "hops"], "a multi-hop mesh of sensors, relays and one gateway (theory §13)")
