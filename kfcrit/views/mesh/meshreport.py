@@ -100,13 +100,15 @@ def mesh_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]:
                     f"({mesh.get('relay_mode')} by default), {len(as_list(mesh.get('hops')))} hops"
                     + (f", a slot budget of {slots} slots per route and period" if slots else
                        ", no slot budget (retries within the period)")),
-        "routing": prose(mesh.get("routing")),
+        "routing": ("most reliable path per sensor: Dijkstra on −log s_h, s_h the per-period "
+                    "hop success" if "Dijkstra" in str(mesh.get("routing"))
+                    else prose(mesh.get("routing"))),
         "verdict": mesh.get("verdict"), "verdict_css": VERDICT_CSS.get(str(mesh.get("verdict")),
                                                                        "none"),
         "basis": prose(mesh.get("basis")), "recommendation": prose(mesh.get("recommendation")),
         "sensors": sensor_rows(mesh), "routes": route_rows(mesh), "hops": hop_rows(mesh),
         "hop_success_kind": "per attempt (the slot schedule decides the rest)" if slots
-        else "per period, s = 1 − (1 − q)^(k+1)",
+        else "per period",
         "all_lost": _with_exact(al.get("value"), al.get("expression")),
         "product": _with_exact(al.get("product_of_marginals"), al.get("product_expression")),
         "ratio": _num(al.get("ratio"), 4), "law_method": prose(law.get("method")),
