@@ -28,6 +28,7 @@ from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel, design_check, link_curves
+from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
 from kfcrit.analysis.requirements import (
     power_law_tail,
@@ -348,6 +349,7 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         sec["network"], sec["operating_point"] = network_sections(
             spec, opts, warnings, stacked={k: sec.get(k) for k in ("critical_value",
                                                                    "upper_bound")})
+    hop_reasons = mesh_sections(spec, opts, sec, warnings) if spec.mesh is not None else []
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
     vd.stamp_operating_verdict(sec)
@@ -359,7 +361,8 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     _tail_section(spec, theory, sec)
     if spec.network is not None and spec.network.size > 1:
         sec["covariance_bounds"] = network_lower_bound(spec.network)
-    elif opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
+    elif spec.mesh is None and (opts.details
+                                or getattr(reqs, "max_mean_error_trace", None) is not None):
         _bounds_sections(spec, sec, warnings, curves=opts.details, quick=opts.quick)
     tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
     if spec.network is not None and spec.network.size > 1:
@@ -368,6 +371,8 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
             sec["simulation"] = network_simulation(spec, opts, sec["operating_point"])
         else:
             sec["simulation"] = {"skipped": True, "reason": "simulation disabled"}
+    elif spec.mesh is not None:
+        pass  # mesh_sections simulated over the hop outcomes
     elif opts.quick and s.n > QUICK_SIMULATION_MAX_STATES and not tail:
         sec["simulation"] = {"skipped": True, "reason": f"--quick draft of a system with "
                              f"n = {s.n} > {QUICK_SIMULATION_MAX_STATES} states: the Monte Carlo "
@@ -387,7 +392,8 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
                     for row in (sec.get("network") or {}).get("sensors") or []]
     review = vd.review(op.get("verdict"), op.get("basis"), sec["requirements"],
-                       lb.get("design_check"), extra=[r for rs in sensor_links for r in rs])
+                       lb.get("design_check"),
+                       extra=[r for rs in sensor_links for r in rs] + hop_reasons)
     if not op and (sec.get("upper_bound") or {}).get("status") == "undetermined":
         review = vd.review(None, None, None, None, extra=[vd.Reason(
             "upper bound p_up", vd.CheckStatus.UNDETERMINED,

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from kfcrit.analysis.mesh.section import MeshSection
 from kfcrit.analysis.records.bursty import GilbertElliottSection
 from kfcrit.analysis.records.contract import (
     BlockLowerBound,
@@ -92,6 +93,8 @@ class Analysis:
     design: AccuracyDesign = opt_key()
     tail: TailSection = opt_key()
     network: NetworkSection = opt_key()
+    mesh: MeshSection = opt_key()
+    """A mesh file's routes, joint losses, facts, forwarding modes and N − 1 (theory §13)."""
     timings: dict[str, float] = internal(dict)
     """Wall-clock seconds of the sections (kept out of the JSON form: same input and seed give
     byte-identical JSON)."""

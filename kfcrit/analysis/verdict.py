@@ -299,6 +299,17 @@ def network_verdict(result: Mapping[str, Any]) -> tuple[Verdict, str]:
     return verdict_of(facts_from_dict(result.get("facts") or {}))
 
 
+def condition_verdict(holds: bool | None, *, necessary: bool) -> Verdict:
+    """The verdict of one stated condition (theory §13: estimate relaying's p_cut·ρ(A)² < 1):
+    it holding proves mean stability; it failing proves instability only when the condition is
+    also ``necessary`` (one sensor, Gupta et al. 2009); otherwise, or undecided, undetermined."""
+    if holds is True:
+        return Verdict.MEAN_STABLE
+    if holds is False and necessary:
+        return Verdict.MEAN_UNSTABLE
+    return Verdict.UNDETERMINED
+
+
 def facts_from_dict(data: Mapping[str, Any]) -> StabilityFacts:
     """:class:`StabilityFacts` from its JSON form."""
     return StabilityFacts(necessary=data.get("necessary"),

@@ -67,6 +67,10 @@ def check(file: str, max_states: int, debug: bool) -> None:
         spec = load_spec(file, max_states=max_states)
         s = spec.system
         channel = spec.channel.model if spec.channel is not None else "no channel"
+        if spec.mesh is not None:
+            m = spec.mesh.mesh
+            channel = (f"mesh of {len(m.sensors)} sensors, {len(m.relays)} relays, "
+                       f"{len(m.hops)} hops, {len(m.routes)} routes")
         click.echo(f"{file}: valid system file: n = {s.n}, m = {s.m}, {channel}")
     sys.exit(0)
 

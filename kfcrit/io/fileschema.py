@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from kfcrit.io.meshfile import mesh_schema
+
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 
 NUMBER = {"description": "a number (read exactly from its text) or an exact expression string "
@@ -197,7 +199,8 @@ def system_schema() -> dict[str, Any]:
                                  "description": "position of the estimator (with the sensors' "
                                                 "position_m: distances)"},
              "R_cross": {**mat, "description": "covariance of all sensors' stacked noise "
-                                               "(default: independent sensors)"}}
+                                               "(default: independent sensors)"},
+             "mesh": mesh_schema(num, mat)}
     sensor = _object({"name": {"type": "string", "description": "unique name of the sensor"},
                       "C": {**mat, "description": "the sensor's rows of C (m_i × n)"},
                       "R": {**mat, "description": "the sensor's noise covariance (m_i × m_i)"},
@@ -217,14 +220,18 @@ def system_schema() -> dict[str, Any]:
     sampled = {"required": ["continuous", "sampling_time"],
                "not": {"anyOf": [{"required": ["A"]}, {"required": ["Q"]}]}}
     one_sensor = {"required": ["C", "R"], "not": {"anyOf": [
-        {"required": ["sensors"]}, {"required": ["links"]}, {"required": ["R_cross"]}]}}
+        {"required": ["sensors"]}, {"required": ["links"]}, {"required": ["R_cross"]},
+        {"required": ["mesh"]}]}}
     network = {"required": ["sensors", "A", "Q"], "not": {"anyOf": [
         {"required": ["C"]}, {"required": ["R"]}, {"required": ["channel"]},
-        {"required": ["continuous"]}]}}
+        {"required": ["continuous"]}, {"required": ["mesh"]}]}}
+    mesh = {"required": ["mesh", "A", "Q"], "not": {"anyOf": [
+        {"required": [k]} for k in ("C", "R", "channel", "sensors", "links", "continuous",
+                                    "sampling_time", "sink_position_m", "R_cross")]}}
     return {"$schema": SCHEMA_DIALECT, "$id": "https://kfcrit.invalid/schema/system.json",
             "title": "kfcrit system file", "type": "object", "properties": props,
             "required": ["name"], "additionalProperties": False,
-            "oneOf": [{"allOf": [one_sensor, {"oneOf": [discrete, sampled]}]}, network],
+            "oneOf": [{"allOf": [one_sensor, {"oneOf": [discrete, sampled]}]}, network, mesh],
             "$defs": defs}
 
 

@@ -31,7 +31,8 @@ MAX_NODES = 1_000_000
 """Most YAML values (scalars and collections) in a file read by :func:`read_yaml` by default."""
 MATRIX_KEYS = frozenset({"A", "C", "Q", "R", "Sigma0"})
 TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements",
-            "continuous", "sampling_time", "sensors", "links", "sink_position_m", "R_cross"}
+            "continuous", "sampling_time", "sensors", "links", "sink_position_m", "R_cross",
+            "mesh"}
 REQUIRED_KEYS = {"name", "C", "R"}
 """Required in every system file; the model is either ``A`` and ``Q`` (discrete time) or
 ``continuous: {A, Q}`` with ``sampling_time`` (:data:`CONTINUOUS_KEYS`), never both."""
@@ -250,6 +251,10 @@ class SystemSpec:
     network: Network | None = None
     """The sensors of a ``sensors:`` file (each with its rows of C, its noise and its channel);
     ``system`` is then the stacked system (every sensor's rows) and ``channel`` None."""
+    mesh: Any = None
+    """The :class:`kfcrit.io.meshfile.MeshFile` of a ``mesh:`` file (theory §13): ``system`` is
+    the stacked system of its sensors, ``network`` and ``channel`` None (the mesh is the
+    channel)."""
 
 
 def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: int = MAX_NODES,
@@ -503,6 +508,8 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                              field=key_name(key))
     if "sensors" in doc:
         return _network_spec(doc, base_dir, max_states, channels)
+    if "mesh" in doc:
+        return _mesh_spec(doc, base_dir, max_states, channels)
     for key in sorted(REQUIRED_KEYS):
         if key not in doc or doc[key] is None:
             raise InputError("is required", field=key)
@@ -556,6 +563,24 @@ def _network_spec(doc: dict, base_dir: Path | None, max_states: int,
                       description=description, network=network)
 
 
+def _mesh_spec(doc: dict, base_dir: Path | None, max_states: int,
+               channels: Mapping[str, ChannelParser]) -> SystemSpec:
+    """The spec of a ``mesh:`` file (theory §13, :mod:`kfcrit.io.meshfile`)."""
+    from kfcrit.io.meshfile import mesh_from_mapping
+
+    name, description = _name_and_description(doc)
+
+    def parse(mapping: dict, prefix: str) -> Channel:
+        return channel_from_mapping(mapping, prefix, base_dir, parsers=channels)
+
+    plain = {k: (_plain(v) if k == "mesh" else v) for k, v in doc.items()}
+    mesh = mesh_from_mapping(plain, parse, name=name, max_states=max_states)
+    reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
+        else Requirements()
+    return SystemSpec(system=mesh.network.stacked_system(), requirements=reqs,
+                      description=description, mesh=mesh)
+
+
 def max_nodes_for(max_states: int) -> int:
     """The YAML value budget of a system file: five full matrices of the largest size, plus
     room for the rest (so a file is refused before it is built, not after)."""
@@ -584,7 +609,7 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
                              channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
                      description=spec.description, path=str(path), sha256=digest,
-                     continuous=spec.continuous, network=spec.network)
+                     continuous=spec.continuous, network=spec.network, mesh=spec.mesh)
     return out
 
 

@@ -34,6 +34,9 @@ def operating_verdicts(record: dict) -> list[tuple[str, str]]:
     net = record.get("network") or {}
     if net.get("verdict"):
         out.append(("network", net["verdict"]))
+    mesh = record.get("mesh") or {}
+    if mesh.get("verdict"):   # raw forwarding: the mesh file's operating point
+        out.append(("mesh", mesh["verdict"]))
     link = record.get("link_budget")
     if isinstance(link, dict):
         for name, holder in (("link_budget", link), ("link_budget.bursty", link.get("bursty"))):

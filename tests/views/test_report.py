@@ -684,9 +684,10 @@ def test_render_every_example_html(path, records, capsys):
     assert not raw_dumps(text), raw_dumps(text)
     assert "SeedSequence" not in text and "^" not in text
     network = path.stem.startswith("network-")
+    mesh = path.stem.startswith("mesh-")
     # every example has a channel; a network's record has its own Lyapunov bound (no i.i.d.
-    # phase-transition curve of one link) and always its stability-region figure
-    for fig_id in (("fig-network-region",) if network else
+    # phase-transition curve of one link) and always its stability-region figure; a mesh its map
+    for fig_id in (("fig-network-region",) if network else ("fig-mesh-topology",) if mesh else
                    ("fig-phase-transition", "fig-traces", "fig-operating", "fig-cdf",
                     "fig-almost-sure")):
         chunk = html.split(f'id="{fig_id}"')[1].split("</figure>")[0]

@@ -161,3 +161,13 @@ class NetworkChannel:
 
     model: str
     sensors: list[NetworkChannelSensor]
+
+
+@dataclass(frozen=True, kw_only=True)
+class MeshChannel:
+    """`@MeshChannel`: the channel of a mesh file's operating point (the hops are in ``mesh``)."""
+
+    model: str
+    relay_mode: str
+    slots_per_period: int | None
+    routing: str

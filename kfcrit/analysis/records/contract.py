@@ -16,7 +16,7 @@ from kfcrit.analysis.records.bounds import (
     UpperLowerEvidence,
     UpperSolver,
 )
-from kfcrit.analysis.records.channel import ChannelRecord, NetworkChannel
+from kfcrit.analysis.records.channel import ChannelRecord, MeshChannel, NetworkChannel
 from kfcrit.analysis.records.system import (
     AnalysisOptionsRecord,
     ContinuousModel,
@@ -169,7 +169,7 @@ class OperatingPoint:
     """The configured channel's arrival probability against p_c, and the stability verdict."""
 
     arrival_probability: float
-    channel: ChannelRecord | NetworkChannel
+    channel: ChannelRecord | NetworkChannel | MeshChannel
     iid: bool
     margin: float | None
     margin_robust: float | None

@@ -65,10 +65,11 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     positive,
     section,
 )
+from kfcrit.views.mesh.meshfigure import draw_mesh_topology  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",
-               "arrival_distance", "per_sinr", "outage_distance")
+               "arrival_distance", "per_sinr", "outage_distance", "mesh_topology")
 
 
 def _to_svg(fig: Figure, label: str) -> str:
@@ -402,7 +403,8 @@ DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "invariant": draw_invariant, "network_region": draw_network_region,
     "network_map": draw_network_map, "critical_curve": draw_critical_curve,
     "accuracy": draw_accuracy, "arrival_distance": draw_arrival_distance,
-    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance}
+    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance,
+    "mesh_topology": draw_mesh_topology}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -420,7 +422,8 @@ LABELS = {
                 "requirement",
     "arrival_distance": "Arrival probability against distance",
     "per_sinr": "Packet error rate against SINR",
-    "outage_distance": "Shadowing outage against distance"}
+    "outage_distance": "Shadowing outage against distance",
+    "mesh_topology": "Mesh topology: nodes, routes and hops coloured by their success"}
 # Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
 # costs more per figure than the rest of a page's layout.
 DENSE = frozenset(FIGURE_KEYS)

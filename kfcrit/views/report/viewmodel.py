@@ -10,6 +10,7 @@ import datetime
 from typing import Any
 
 from kfcrit.version import __version__
+from kfcrit.views.mesh.meshreport import mesh_view
 from kfcrit.views.report.design import design_view, link_figures
 from kfcrit.views.report.link import channel_view
 from kfcrit.views.report.network import network_view
@@ -119,6 +120,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
         "channel": channel,
         "network": network_view(rec, figures),
+        "mesh": mesh_view(rec, figures),
         "design": design_view(rec, figures),
         "appendix": appendix_view(rec),
     }
