@@ -15,6 +15,7 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any
 
+from kfcrit.analysis.loop.schema import LoopSection
 from kfcrit.analysis.verdict import Reason, Review, Verdict
 from kfcrit.io.typed import JSON, from_json, internal, json_schema, opt, to_json
 
@@ -141,6 +142,7 @@ class Requirements:
     max_error_trace: float | None
     max_tail_probability: float | None
     max_mean_error_trace: float | None = opt()
+    max_cost: float | None = opt()
     assessment: JSON = opt()
     assessments: list[RequirementAssessment] = field(default_factory=list)
 
@@ -550,6 +552,8 @@ class Analysis:
     design: JSON = opt()
     tail: JSON = opt()
     network: JSON = opt()
+    loop: LoopSection | None = opt()
+    """A closed loop over the sensing and actuation links (theory §12)."""
     timings: dict[str, float] = internal(dict)
     """Wall-clock seconds of the sections (kept out of the JSON form: same input and seed give
     byte-identical JSON)."""
