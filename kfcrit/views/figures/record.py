@@ -47,6 +47,7 @@ from kfcrit.views.figures.design import (  # noqa: E402
     draw_per_sinr,
 )
 from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
+from kfcrit.views.figures.loop import draw_loop_cost, draw_loop_plane  # noqa: E402
 from kfcrit.views.figures.network import draw_network_map, draw_network_region  # noqa: E402
 from kfcrit.views.figures.style import (  # noqa: E402,F401
     COLORS,
@@ -68,7 +69,7 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",
-               "arrival_distance", "per_sinr", "outage_distance")
+               "arrival_distance", "per_sinr", "outage_distance", "loop_plane", "loop_cost")
 
 
 def _to_svg(fig: Figure, label: str) -> str:
@@ -402,7 +403,8 @@ DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "invariant": draw_invariant, "network_region": draw_network_region,
     "network_map": draw_network_map, "critical_curve": draw_critical_curve,
     "accuracy": draw_accuracy, "arrival_distance": draw_arrival_distance,
-    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance}
+    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance,
+    "loop_plane": draw_loop_plane, "loop_cost": draw_loop_cost}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -420,7 +422,10 @@ LABELS = {
                 "requirement",
     "arrival_distance": "Arrival probability against distance",
     "per_sinr": "Packet error rate against SINR",
-    "outage_distance": "Shadowing outage against distance"}
+    "outage_distance": "Shadowing outage against distance",
+    "loop_plane": "Closed loop: stable regions in the sensing, actuation arrival-probability "
+                  "plane with the operating point",
+    "loop_cost": "Closed loop: average cost against each link's arrival probability"}
 # Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
 # costs more per figure than the rest of a page's layout.
 DENSE = frozenset(FIGURE_KEYS)

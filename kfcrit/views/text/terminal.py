@@ -4,6 +4,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from kfcrit.views.text.looptext import loop_lines
 from kfcrit.views.text.netmargin import (
     NETWORK_P_MEANING,
     bottleneck_margin_text,
@@ -188,6 +189,7 @@ def summary(rec: dict[str, Any]) -> str:
             lines.append(f"      note: {op['note']}")
         lines.extend(_trace_lines(op.get("trace")))
     lines.extend(network_lines(rec.get("network")))
+    lines.extend(loop_lines(rec.get("loop")))
     lines.extend(design_lines(rec.get("design")))
     lines.extend(_bounds_lines(rec))
     lines.extend(_simulation_lines(rec))
