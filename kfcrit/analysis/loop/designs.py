@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.loop.curve import critical_curve
 from kfcrit.theory.loop.filter_mean import FilterMoments, filter_moments, rre_mean_monte_carlo
 from kfcrit.theory.loop.fixed import fixed_loop
 from kfcrit.theory.loop.links import LossLink
 from kfcrit.theory.loop.stack import FixedDesign, fixed_design
 from kfcrit.theory.loop.tcp import LoopCost, control_gain, control_mare, tcp_cost
-from kfcrit.theory.covariance.riccati import symmetrize
 
 SIM_SIZE = {"full": (1000, 1500), "quick": (300, 600)}
 """Closed-loop Monte Carlo (paths, steps) of ``kfcrit analyze`` and of ``--quick``."""

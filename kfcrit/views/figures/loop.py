@@ -13,8 +13,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from kfcrit.views.figures.style import COLORS, finite, floats, fmt, new_figure, readable_rc, \
-    section
+from kfcrit.views.figures.style import COLORS, finite, floats, fmt, new_figure, readable_rc, section
 
 CURVE_COLORS = {"TCP-like optimal": "#1d4ed8", "this design": "#b91c1c",
                 "UDP-like (Kalman + LQR)": "#d9730d", "TCP-like (Kalman + LQR)": "#7c3aed"}

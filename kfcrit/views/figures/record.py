@@ -46,8 +46,8 @@ from kfcrit.views.figures.design import (  # noqa: E402
     draw_outage_distance,
     draw_per_sinr,
 )
-from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
 from kfcrit.views.figures.loop import draw_loop_cost, draw_loop_plane  # noqa: E402
+from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
 from kfcrit.views.figures.network import draw_network_map, draw_network_region  # noqa: E402
 from kfcrit.views.figures.style import (  # noqa: E402,F401
     COLORS,
