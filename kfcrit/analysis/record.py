@@ -352,6 +352,11 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     hop_reasons = mesh_sections(spec, opts, sec, warnings) if spec.mesh is not None else []
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
+    loop_reasons, loop_cost = [], None
+    if spec.loop is not None:  # theory §12: operating_point.verdict becomes estimator AND loop
+        from kfcrit.analysis.loop.section import loop_analysis
+
+        sec["loop"], loop_reasons, loop_cost = loop_analysis(spec, opts, sec, warnings)
     vd.stamp_operating_verdict(sec)
     if spec.network is not None and spec.network.size == 1:
         op1 = sec["operating_point"]
@@ -385,15 +390,27 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
                                                  sec.get("simulation"),
                                                  sec.get("covariance_bounds"),
                                                  sec.get("operating_point"), sec.get("design"))
+    if loop_cost is not None:
+        sec["requirements"]["assessments"].append(loop_cost)
     power_law_tail(sec)
     sec["verification"] = verification(sec, warnings)
+    if sec.get("loop") is not None:
+        from kfcrit.analysis.loop.designs import loop_check
+
+        check = loop_check(sec["loop"])
+        if check is not None:
+            sec["verification"].append(check)
+            if check["status"] == "inconclusive":
+                warnings.append(f"Monte Carlo check inconclusive: {check['check']} "
+                                f"({check['reason']})")
     op = sec.get("operating_point") or {}
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
     sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
                     for row in (sec.get("network") or {}).get("sensors") or []]
     review = vd.review(op.get("verdict"), op.get("basis"), sec["requirements"],
                        lb.get("design_check"),
-                       extra=[r for rs in sensor_links for r in rs] + hop_reasons)
+                       extra=[r for rs in sensor_links for r in rs] + hop_reasons
+                       + loop_reasons)
     if not op and (sec.get("upper_bound") or {}).get("status") == "undetermined":
         review = vd.review(None, None, None, None, extra=[vd.Reason(
             "upper bound p_up", vd.CheckStatus.UNDETERMINED,

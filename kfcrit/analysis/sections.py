@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from kfcrit.analysis.loop.schema import LoopSection
 from kfcrit.analysis.mesh.section import MeshSection
 from kfcrit.analysis.records.bursty import GilbertElliottSection
 from kfcrit.analysis.records.contract import (
@@ -95,6 +96,8 @@ class Analysis:
     network: NetworkSection = opt_key()
     mesh: MeshSection = opt_key()
     """A mesh file's routes, joint losses, facts, forwarding modes and N − 1 (theory §13)."""
+    loop: LoopSection = opt_key()
+    """A closed loop over the sensing and actuation links (theory §12)."""
     timings: dict[str, float] = internal(dict)
     """Wall-clock seconds of the sections (kept out of the JSON form: same input and seed give
     byte-identical JSON)."""

@@ -36,6 +36,14 @@ class Verdict(str, enum.Enum):
     UNDETERMINED = "undetermined"
 
 
+class LoopVerdict(str, enum.Enum):
+    """Mean-square stability of a closed loop at the operating point (theory §12, §16.5)."""
+
+    MEAN_SQUARE_STABLE = "mean-square-stable"
+    MEAN_SQUARE_UNSTABLE = "mean-square-unstable"
+    UNDETERMINED = "undetermined"
+
+
 class Decision(str, enum.Enum):
     """The review decision a CI gate uses."""
 
@@ -354,6 +362,56 @@ def network_burst_verdict(verdict: Verdict, basis: str, holds: bool | None,
         return (Verdict.UNDETERMINED, f"{statement}; the sufficient surface (theory §9) assumes "
                 "independent Bernoulli links, so with bursty links it proves nothing")
     return verdict, f"{basis}; {statement}"
+
+
+# ----------------------------------------------------------------------------- closed loops
+
+LOOP_CHECK = "closed loop: mean-square stability over both links"
+
+
+def loop_verdict(facts: StabilityFacts) -> tuple[LoopVerdict, str]:
+    r"""The closed loop's verdict from its facts (theory §12, §16.5), by the rule of
+    :func:`verdict_of`: for the TCP-like optimal loop N is "γ̄ > γ_c and ν̄ > ν_c" and the
+    region is exact; for a fixed design N = S = "ρ(Σ π_m Φ_m ⊗ Φ_m) < 1", decided exactly.
+
+    .. math:: \text{ms-unstable} \iff \neg N, \qquad
+              \text{ms-stable} \iff S \lor (E \land N)
+    """
+    verdict, basis = verdict_of(facts)
+    return {Verdict.MEAN_STABLE: LoopVerdict.MEAN_SQUARE_STABLE,
+            Verdict.MEAN_UNSTABLE: LoopVerdict.MEAN_SQUARE_UNSTABLE,
+            Verdict.UNDETERMINED: LoopVerdict.UNDETERMINED}[verdict], basis
+
+
+def loop_operating_verdict(estimator: tuple[Verdict | str, str],
+                           loop: tuple[LoopVerdict | str, str]) -> tuple[Verdict, str]:
+    """``operating_point.verdict`` of a file with a loop: the estimator's mean stability AND
+    the loop's mean-square stability (theory §16.5).
+
+    mean-unstable if either is unstable; mean-stable if both are stable; else undetermined.
+    """
+    est, est_basis = Verdict(estimator[0]), estimator[1]
+    lv, loop_basis = LoopVerdict(loop[0]), loop[1]
+    both = f"estimator {est.value} ({est_basis}); closed loop {lv.value} ({loop_basis})"
+    if lv is LoopVerdict.MEAN_SQUARE_UNSTABLE or est is Verdict.MEAN_UNSTABLE:
+        return Verdict.MEAN_UNSTABLE, both
+    if lv is LoopVerdict.MEAN_SQUARE_STABLE and est is Verdict.MEAN_STABLE:
+        return Verdict.MEAN_STABLE, both
+    return Verdict.UNDETERMINED, both
+
+
+def loop_reasons(verdict: LoopVerdict | str | None, basis: str,
+                 actuation_check: Mapping[str, Any] | None) -> list[Reason]:
+    """The review's reasons of a loop: its mean-square stability, and the actuation link's
+    margin and outage policy (of a link budget)."""
+    if verdict is None:
+        return []
+    lv = LoopVerdict(verdict)
+    status = {LoopVerdict.MEAN_SQUARE_STABLE: CheckStatus.PASS,
+              LoopVerdict.MEAN_SQUARE_UNSTABLE: CheckStatus.FAIL,
+              LoopVerdict.UNDETERMINED: CheckStatus.UNDETERMINED}[lv]
+    return [Reason(LOOP_CHECK, status, f"{lv.value}: {basis}"),
+            *link_reasons(actuation_check, "actuation link")]
 
 
 # ----------------------------------------------------------------------------- review

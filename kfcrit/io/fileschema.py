@@ -160,6 +160,27 @@ def links_schema() -> dict[str, Any]:
                    "position_m); a sensor's own channel keys take precedence")
 
 
+def loop_schema(mat: dict[str, Any]) -> dict[str, Any]:
+    """JSON Schema of the ``loop:`` section (a closed loop, docs/theory.md §12)."""
+    return _object({
+        "B": {**mat, "description": "input matrix (n × m_u), exact entries like A"},
+        "W": {**mat, "description": "state weight of the cost (n × n, PSD; default identity)"},
+        "U": {**mat, "description": "input weight of the cost (m_u × m_u, PD; default "
+                                    "identity)"},
+        "channel": {"$ref": "#/$defs/channel",
+                    "description": "the actuation link (controller → actuator), any model"},
+        "acknowledged": {"type": "boolean", "description": "true: TCP-like (acknowledged "
+                         "actuation, default); false: UDP-like"},
+        "on_loss": {"enum": ["zero", "hold"], "description": "input applied when a control "
+                    "packet is lost: zero (default) or the last applied input"},
+        "estimator_gain": {**mat, "description": "fixed estimator gain K (n × m, filter "
+                           "form); with controller_gain"},
+        "controller_gain": {**mat, "description": "fixed controller gain L (m_u × n), "
+                            "u = L x̂; with estimator_gain"}},
+        ["B", "channel"], "a closed loop over the sensing link (channel:) and an actuation "
+        "link (docs/theory.md §12)")
+
+
 def system_schema() -> dict[str, Any]:
     """JSON Schema of a system file."""
     num = {"$ref": "#/$defs/number"}
@@ -168,7 +189,9 @@ def system_schema() -> dict[str, Any]:
         "max_error_trace": {**num, "description": "M of the tail requirement P(tr P > M) ≤ α"},
         "max_tail_probability": {**PROBABILITY, "description": "α of the tail requirement"},
         "max_mean_error_trace": {**num, "description": "L of the accuracy requirement "
-                                 "lim E[tr P] ≤ L"}}, [], "design requirements")
+                                 "lim E[tr P] ≤ L"},
+        "max_cost": {**num, "description": "limit of the closed loop's average cost J "
+                     "(with loop:; docs/theory.md §12)"}}, [], "design requirements")
     continuous = _object({
         "A": {**mat, "description": "continuous-time state matrix A_c (n × n): dx = A_c x dt + dw"},
         "Q": {**mat, "description": "spectral density Q_c of the process noise w (n × n, PSD)"}},
@@ -200,7 +223,8 @@ def system_schema() -> dict[str, Any]:
                                                 "position_m: distances)"},
              "R_cross": {**mat, "description": "covariance of all sensors' stacked noise "
                                                "(default: independent sensors)"},
-             "mesh": mesh_schema(num, mat)}
+             "mesh": mesh_schema(num, mat),
+             "loop": loop_schema(mat)}
     sensor = _object({"name": {"type": "string", "description": "unique name of the sensor"},
                       "C": {**mat, "description": "the sensor's rows of C (m_i × n)"},
                       "R": {**mat, "description": "the sensor's noise covariance (m_i × m_i)"},

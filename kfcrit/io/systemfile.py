@@ -17,6 +17,7 @@ import yaml
 
 from kfcrit.errors import InputError
 from kfcrit.io.channelfile import BASIC_CHANNELS, ChannelParser, channel_from_mapping
+from kfcrit.io.loopfile import LoopSpec, loop_from_mapping
 from kfcrit.io.safeio import read_text
 from kfcrit.model.channels import Channel, check_keys, exact_probability, key_name
 from kfcrit.model.continuous import SampledModel, sample
@@ -32,14 +33,15 @@ MAX_NODES = 1_000_000
 MATRIX_KEYS = frozenset({"A", "C", "Q", "R", "Sigma0"})
 TOP_KEYS = {"name", "description", "A", "C", "Q", "R", "Sigma0", "channel", "requirements",
             "continuous", "sampling_time", "sensors", "links", "sink_position_m", "R_cross",
-            "mesh"}
+            "mesh", "loop"}
 REQUIRED_KEYS = {"name", "C", "R"}
 """Required in every system file; the model is either ``A`` and ``Q`` (discrete time) or
 ``continuous: {A, Q}`` with ``sampling_time`` (:data:`CONTINUOUS_KEYS`), never both."""
 CONTINUOUS_KEYS = {"A", "Q"}
-SCAN_MATRIX_KEYS = MATRIX_KEYS | {"continuous", "sensors", "R_cross"}
+SCAN_MATRIX_KEYS = MATRIX_KEYS | {"continuous", "sensors", "R_cross", "loop"}
 """Top-level keys whose lists the size guard of :func:`scan_yaml` covers."""
-REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability", "max_mean_error_trace"}
+REQUIREMENT_KEYS = {"max_error_trace", "max_tail_probability", "max_mean_error_trace",
+                    "max_cost"}
 
 
 class YamlNumber(str):
@@ -222,17 +224,21 @@ class Requirements:
     max_tail_probability: float | None = None
     max_mean_error_trace: float | None = None
     """Limit L of the accuracy requirement lim E[tr P_t] ≤ L (theory §11)."""
+    max_cost: float | None = None
+    """Limit of the closed loop's average cost J (theory §12; a file with ``loop:``)."""
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"max_error_trace": self.max_error_trace,
                                "max_tail_probability": self.max_tail_probability}
         if self.max_mean_error_trace is not None:
             out["max_mean_error_trace"] = self.max_mean_error_trace
+        if self.max_cost is not None:
+            out["max_cost"] = self.max_cost
         return out
 
     def __bool__(self) -> bool:
         return any(v is not None for v in (self.max_error_trace, self.max_tail_probability,
-                                           self.max_mean_error_trace))
+                                           self.max_mean_error_trace, self.max_cost))
 
 
 @dataclass(frozen=True, eq=False)
@@ -255,6 +261,8 @@ class SystemSpec:
     """The :class:`kfcrit.io.meshfile.MeshFile` of a ``mesh:`` file (theory §13): ``system`` is
     the stacked system of its sensors, ``network`` and ``channel`` None (the mesh is the
     channel)."""
+    loop: LoopSpec | None = None
+    """The closed loop of a ``loop:`` file (theory §12): B, weights, actuation link, design."""
 
 
 def read_yaml(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES, max_nodes: int = MAX_NODES,
@@ -326,7 +334,7 @@ def _requirements(data: Any) -> Requirements:
         raise InputError("must be a mapping", field="requirements")
     check_keys(data, REQUIREMENT_KEYS, set(), "requirements")
     out: dict[str, float] = {}
-    for key in ("max_error_trace", "max_mean_error_trace"):
+    for key in ("max_error_trace", "max_mean_error_trace", "max_cost"):
         if key in data:
             out[key] = _positive_number(data[key], f"requirements.{key}")
     if "max_tail_probability" in data:
@@ -528,8 +536,17 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                if doc.get("channel") is not None else None)
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()
+    loop = None if doc.get("loop") is None else loop_from_mapping(
+        doc["loop"], system.n, system.m, convert=_exact_numbers,
+        parse_channel=lambda d, prefix: channel_from_mapping(_plain(d), prefix, base_dir,
+                                                             parsers=channels))
+    if loop is not None and channel is None:
+        raise InputError("is required with loop: (the sensing link)", field="channel")
+    if reqs.max_cost is not None and loop is None:
+        raise InputError("needs a loop: section (the cost is the closed loop's)",
+                         field="requirements.max_cost")
     return SystemSpec(system=system, channel=channel, requirements=reqs,
-                      description=description, continuous=sampled)
+                      description=description, continuous=sampled, loop=loop)
 
 
 def _name_and_description(doc: dict) -> tuple[str, str]:
@@ -551,6 +568,9 @@ def _network_spec(doc: dict, base_dir: Path | None, max_states: int,
     for key in ("continuous", "sampling_time"):
         if key in doc:
             raise InputError("a sensors: file gives A and Q in discrete time", field=key)
+    if "loop" in doc:
+        raise InputError("a closed loop has one sensing link (channel:), not sensors:",
+                         field="loop")
 
     def parse(mapping: dict, prefix: str) -> Channel:
         return channel_from_mapping(_plain(mapping), prefix, base_dir, parsers=channels)
@@ -609,7 +629,8 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
                              channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
                      description=spec.description, path=str(path), sha256=digest,
-                     continuous=spec.continuous, network=spec.network, mesh=spec.mesh)
+                     continuous=spec.continuous, network=spec.network, mesh=spec.mesh,
+                     loop=spec.loop)
     return out
 
 

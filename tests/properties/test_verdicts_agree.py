@@ -43,6 +43,16 @@ def operating_verdicts(record: dict) -> list[tuple[str, str]]:
             cert = (holder or {}).get("certificate") if isinstance(holder, dict) else None
             if isinstance(cert, dict) and cert.get("verdict"):
                 out.append((name + ".certificate", cert["verdict"]))
+    loop = record.get("loop")
+    if isinstance(loop, dict):
+        # the loop's own verdict is mean-square stability of the closed loop; the operating
+        # point's is estimator AND loop (README "Closed loops"): the loop's stamped copy must
+        # equal it, an unstable loop makes it mean-unstable, and mean-stable needs a stable loop
+        out.append(("loop.operating_verdict", loop["operating_verdict"]))
+        if loop["verdict"] == "mean-square-unstable":
+            out.append(("loop.verdict (unstable loop)", "mean-unstable"))
+        elif op.get("verdict") == "mean-stable":
+            assert loop["verdict"] == "mean-square-stable", loop["verdict"]
     return out
 
 
@@ -129,3 +139,16 @@ def test_generated_bursty_links_have_one_verdict(f: Fraction, r: Fraction) -> No
     verdict = assert_one_verdict(analyze_doc(doc))
     if (1 - r) * Fraction(25, 16) >= 1:
         assert verdict == "mean-unstable"
+
+
+@pytest.mark.parametrize("gamma, nu, expected", [
+    ("9/25 + 10^-40", "4/5", "mean-stable"), ("9/25", "4/5", "mean-unstable"),
+    ("4/5", "9/25", "mean-unstable"), ("4/5", "9/25 + 10^-40", "mean-stable")])
+def test_closed_loop_at_its_thresholds(gamma: str, nu: str, expected: str) -> None:
+    # scalar a = 5/4, b = c = 1, TCP-like: γ_c = ν_c = 1 − 1/a² = 9/25 (by hand); the
+    # operating point is mean-stable iff γ̄ > 9/25 and ν̄ > 9/25
+    doc = {"name": "loop", "A": [[1.25]], "C": [[1]], "Q": 1, "R": 1,
+           "channel": {"model": "bernoulli", "arrival_probability": gamma},
+           "loop": {"B": [[1]], "channel": {"model": "bernoulli",
+                                            "arrival_probability": nu}}}
+    assert assert_one_verdict(analyze_doc(doc)) == expected

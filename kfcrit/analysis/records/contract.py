@@ -237,6 +237,8 @@ class Requirements:
     max_error_trace: float | None
     max_tail_probability: float | None
     max_mean_error_trace: float | None = opt_key()
+    max_cost: float | None = opt_key()
+    """Largest acceptable average LQG cost of a closed loop (theory §12)."""
     assessment: TailAssessment = opt_key()
     assessments: list[RequirementAssessment] = field(default_factory=list)
 

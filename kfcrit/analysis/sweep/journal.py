@@ -39,6 +39,8 @@ _STRING_COLUMNS = ("error", "classification", "critical_expression", "requiremen
 _WORD_COLUMNS = {"status": ("ok", "error"),
                  "verdict": (None, "mean-stable", "mean-unstable", "undetermined"),
                  "decision": (None, "pass", "fail", "undetermined"),
+                 "loop_verdict": (None, "mean-square-stable", "mean-square-unstable",
+                                  "undetermined"),
                  "requirement_basis": (None, "robust critical value", "critical value",
                                        "upper bound (sufficient)",
                                        "lower bound (necessary only)", ACCURACY_BASIS,

@@ -96,12 +96,16 @@ _CHANNEL_PATH = re.compile(r"^channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
 _SENSOR_PATH = re.compile(r"^sensors\.([A-Za-z][A-Za-z0-9_-]{0,39})\.channel"
                           r"((\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6})$")
 _LINKS_PATH = re.compile(r"^links(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
+_LOOP_PATH = re.compile(r"^loop\.channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
+"""``loop.channel.KEY[.KEY…]``: the actuation link of a closed loop (theory §12)."""
 RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
                   "critical_expression", "robust_critical_value", "upper_bound", "requirement",
                   "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
                   "decision",
                   "sinr_db", "required_sinr_db", "link_margin_db", "required_margin_db",
-                  "max_distance_m", "outage_probability", "mean_arrival_probability")
+                  "max_distance_m", "outage_probability", "mean_arrival_probability",
+                  "loop_verdict", "actuation_arrival_probability", "actuation_critical",
+                  "loop_spectral_radius", "loop_cost")
 """Columns of every row after ``index``, ``key`` and the parameters (fixed: a tidy table)."""
 
 
@@ -281,7 +285,10 @@ def check_parameter(path: Any, base_doc: dict, where: str) -> str:
             raise InputError(f"index out of range ({name} is {len(rows)}x{len(rows[0])})",
                              field=where)
         return path
-    if _CHANNEL_PATH.match(path) or _SENSOR_PATH.match(path) or _LINKS_PATH.match(path):
+    if _LOOP_PATH.match(path) and not isinstance(base_doc.get("loop"), dict):
+        raise InputError("the base system has no loop: mapping", field=where)
+    if (_CHANNEL_PATH.match(path) or _SENSOR_PATH.match(path) or _LINKS_PATH.match(path)
+            or _LOOP_PATH.match(path)):
         node, keys, what = _mapping_root(copy.deepcopy(base_doc), path)
         if not isinstance(node, dict):
             # the fault is in the base system, not in the grid that refers to it
@@ -293,7 +300,8 @@ def check_parameter(path: Any, base_doc: dict, where: str) -> str:
                 raise InputError(f"{what} has no mapping {key!r}", field=where)
         return path
     raise InputError("unknown parameter: use channel.KEY[.KEY...], sensors.NAME.channel.KEY"
-                     "[.KEY...], links.KEY[.KEY...] or a matrix entry like A[0][1]",
+                     "[.KEY...], links.KEY[.KEY...], loop.channel.KEY[.KEY...] or a matrix "
+                     "entry like A[0][1]",
                      field=where)
 
 
@@ -614,6 +622,7 @@ def row_of(record: dict[str, Any]) -> dict[str, Any]:
         row.update(arrival_probability=p, iid=op.get("iid"),
                    margin=(p - req) if None not in (p, req) else None,
                    verdict=op.get("verdict"))
+    row.update(loop_columns(record.get("loop")))
     if lb.get("applicable") and "link" in lb:
         link = lb.get("link") or {}
         row.update(sinr_db=link.get("sinr_db"), required_sinr_db=lb.get("required_sinr_db"),
@@ -624,6 +633,20 @@ def row_of(record: dict[str, Any]) -> dict[str, Any]:
                    mean_arrival_probability=(lb.get("shadowing") or {}).get(
                        "mean_arrival_probability"))
     return row
+
+
+def loop_columns(loop: dict[str, Any] | None) -> dict[str, Any]:
+    """The closed loop's columns (theory §12): its verdict, the actuation link's arrival
+    probability and threshold (ν_c, or the upper end of its bracket), ρ and the cost J."""
+    if not loop:
+        return {}
+    act = loop.get("actuation_critical") or {}
+    iv = act.get("interval") or [None, None]
+    return {"loop_verdict": loop.get("verdict"),
+            "actuation_arrival_probability": _value(loop.get("actuation_arrival_probability")),
+            "actuation_critical": _value(act.get("value")) if act.get("exact") else _value(iv[1]),
+            "loop_spectral_radius": _value(loop.get("spectral_radius")),
+            "loop_cost": _value(loop.get("cost"))}
 
 
 def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,

@@ -46,6 +46,7 @@ from kfcrit.views.figures.design import (  # noqa: E402
     draw_outage_distance,
     draw_per_sinr,
 )
+from kfcrit.views.figures.loop import draw_loop_cost, draw_loop_plane  # noqa: E402
 from kfcrit.views.figures.mathsvg import clean_svg  # noqa: E402
 from kfcrit.views.figures.network import draw_network_map, draw_network_region  # noqa: E402
 from kfcrit.views.figures.style import (  # noqa: E402,F401
@@ -69,7 +70,8 @@ from kfcrit.views.mesh.meshfigure import draw_mesh_topology  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",
-               "arrival_distance", "per_sinr", "outage_distance", "mesh_topology")
+               "arrival_distance", "per_sinr", "outage_distance", "mesh_topology",
+               "loop_plane", "loop_cost")
 
 
 def _to_svg(fig: Figure, label: str) -> str:
@@ -404,7 +406,8 @@ DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "network_map": draw_network_map, "critical_curve": draw_critical_curve,
     "accuracy": draw_accuracy, "arrival_distance": draw_arrival_distance,
     "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance,
-    "mesh_topology": draw_mesh_topology}
+    "mesh_topology": draw_mesh_topology,
+    "loop_plane": draw_loop_plane, "loop_cost": draw_loop_cost}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -423,7 +426,10 @@ LABELS = {
     "arrival_distance": "Arrival probability against distance",
     "per_sinr": "Packet error rate against SINR",
     "outage_distance": "Shadowing outage against distance",
-    "mesh_topology": "Mesh topology: nodes, routes and hops coloured by their success"}
+    "mesh_topology": "Mesh topology: nodes, routes and hops coloured by their success",
+    "loop_plane": "Closed loop: stable regions in the sensing, actuation arrival-probability "
+                  "plane with the operating point",
+    "loop_cost": "Closed loop: average cost against each link's arrival probability"}
 # Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
 # costs more per figure than the rest of a page's layout.
 DENSE = frozenset(FIGURE_KEYS)

@@ -26,6 +26,7 @@ from kfcrit.views.report.theory import (
     system_view,
 )
 from kfcrit.views.report.verdict import requirement_view, verdict_view
+from kfcrit.views.text.looptext import loop_view
 
 IID_CAVEAT = ("The channel is bursty (Gilbert–Elliott): p_c, p_up, S̄ and V̄ assume i.i.d. "
               "losses, so they do not decide stability at the operating point; the burst "
@@ -71,6 +72,27 @@ def critical_curve_figure(rec: dict[str, Any], figures: dict[str, str | None],
         "The dotted diagonal f + r = 1 is the i.i.d. channel.",
         "critical curve: not computed (the record has no critical curve: an analysis without "
         "details, a stable plant, or more than 12 states)")
+
+
+def loop_figures(view: dict[str, Any], figures: dict[str, str | None]) -> dict[str, Any]:
+    """The closed loop's section view with its two figures (theory §12)."""
+    if not view.get("available"):
+        return view
+    figs = as_dict(figures)
+    view["plane"] = figure_entry(
+        figs.get("loop_plane"), "Stable region in the (γ̄, ν̄) plane",
+        "Sensing arrival probability γ̄ against actuation arrival probability ν̄ (i.i.d. links). "
+        "Solid: the judged design's boundary; dashed: the other acknowledgement mode's "
+        "(TCP-like optimal: γ̄ > γ_c and ν̄ > ν_c; a fixed design: least ν̄ with "
+        "ρ(Σ π_m Φ_m ⊗ Φ_m) < 1 at each γ̄ of the scan). Shaded: ρ ≥ 1 on the scanned grid.",
+        "stable-region figure: not computed (an analysis without details)")
+    view["cost_figure"] = figure_entry(
+        figs.get("loop_cost"), "Average cost against each link",
+        "J against γ̄ with ν̄ at its operating value (left) and against ν̄ with γ̄ at its "
+        "operating value (right), one line per design; gaps are infinite costs. TCP-like "
+        "values for n > 1 use a seeded Monte Carlo of lim E[P_t|t].",
+        "cost figure: not computed (an analysis without details)")
+    return view
 
 
 def view_model(record: dict[str, Any], figures: dict[str, str | None],
@@ -121,6 +143,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "channel": channel,
         "network": network_view(rec, figures),
         "mesh": mesh_view(rec, figures),
+        "loop": loop_figures(loop_view(rec), figures),
         "design": design_view(rec, figures),
         "appendix": appendix_view(rec),
     }

@@ -5,6 +5,7 @@ import re
 from typing import Any
 
 from kfcrit.views.mesh.meshtext import mesh_lines
+from kfcrit.views.text.looptext import loop_lines
 from kfcrit.views.text.netmargin import (
     NETWORK_P_MEANING,
     bottleneck_margin_text,
@@ -201,6 +202,7 @@ def summary(rec: dict[str, Any]) -> str:
         lines.extend(_trace_lines(op.get("trace")))
     lines.extend(network_lines(rec.get("network")))
     lines.extend(mesh_lines(rec))
+    lines.extend(loop_lines(rec.get("loop")))
     lines.extend(design_lines(rec.get("design")))
     lines.extend(_bounds_lines(rec))
     lines.extend(_simulation_lines(rec))

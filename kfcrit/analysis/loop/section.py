@@ -1,0 +1,403 @@
+"""The ``loop`` section of a system file with a closed loop (theory §12).
+
+:func:`loop_analysis` reads the facts of :mod:`kfcrit.theory.loop` at the operating point of the
+two links — the sensing link (the file's ``channel``) and the actuation link (``loop.channel``):
+
+* the TCP-like optimal loop (acknowledged, ``zero``, no gains given, i.i.d. links): γ_c (the
+  record's p_c of (A, C)), ν_c = p_up(A', B') (exact where a theorem or the single-input
+  identity gives it), S and L of the control MARE and the cost J with its bounds;
+* any other loop (UDP-like, ``hold``, Gilbert–Elliott or traced links, or the file's own K
+  and L; defaults: steady-state Kalman and LQR gains) as a fixed linear design: the exact
+  mean-square stability test ρ(Σ π_m Φ_m ⊗ Φ_m) < 1 and the Lyapunov cost;
+
+then the critical curve in the (γ̄, ν̄) plane, the TCP-like/UDP-like comparison, the cost against
+each link's arrival probability, a seeded closed-loop Monte Carlo and the actuation link budget.
+The verdict words come from :mod:`kfcrit.analysis.verdict` only.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.links import design_check
+from kfcrit.analysis.loop.designs import (
+    comparison_rows,
+    cost_curves,
+    fixed_curve,
+    loss_link,
+    tcp_cost_at,
+    tcp_rectangle,
+)
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.model.system import to_float
+from kfcrit.theory.facts import StabilityFacts
+from kfcrit.theory.loop.fixed import fixed_loop
+from kfcrit.theory.loop.stack import FixedDesign, fixed_design
+from kfcrit.theory.loop.thresholds import Threshold, actuation_threshold
+
+SIM_PATHS, SIM_STEPS = 1000, 1500
+"""Closed-loop Monte Carlo size of ``kfcrit analyze`` (``--quick``: a third of each)."""
+
+
+def threshold_dict(th: Threshold) -> dict[str, Any]:
+    """The record form {value, expression, exact, interval, basis, certified, reason}."""
+    return {"value": th.value, "expression": th.expression, "exact": bool(th.exact),
+            "interval": list(th.interval) if th.interval is not None else None,
+            "basis": th.basis, "certified": bool(th.certified), "reason": th.reason}
+
+
+def sensing_critical(sec: dict[str, Any]) -> dict[str, Any]:
+    r"""γ_c of the TCP-like loop: the record's p_c of (A, C) (theory §3–§4), or its bracket
+    [block lower bound, p_up].
+
+    .. math:: \gamma_c = p_c(A, C)
+    """
+    cls = sec.get("classification")
+    cv = sec.get("critical_value") or {}
+    if cls == "not-detectable":
+        return {"value": None, "expression": None, "exact": False, "interval": None,
+                "basis": "none", "certified": True, "reason": "(C, A) is not detectable"}
+    if cls == "stable":
+        return {"value": 0.0, "expression": "0", "exact": True, "interval": [0.0, 0.0],
+                "basis": "theorem", "certified": True, "reason": "ρ(A) < 1"}
+    if cv.get("value") is not None:
+        v = float(cv["value"])
+        return {"value": v, "expression": cv.get("expression") if cv.get("exact") else None,
+                "exact": bool(cv.get("exact")), "interval": [v, v],
+                "basis": "theorem" if cv.get("exact") else "numerical",
+                "certified": bool(cv.get("exact")), "reason": cv.get("reason") or ""}
+    ub = sec.get("upper_bound") or {}
+    lo = (sec.get("block_lower_bound") or {}).get("value")
+    lo = lo if lo is not None else (sec.get("lower_bound") or {}).get("value") or 0.0
+    hi = (ub.get("interval") or [None, ub.get("value")])[1]
+    return {"value": None, "expression": None, "exact": False,
+            "interval": [float(lo), float(hi)] if hi is not None else None,
+            "basis": "certified-interval" if ub.get("certified") else "numerical",
+            "certified": bool(ub.get("certified")),
+            "reason": "no closed form: [block lower bound, p_up(A, C)]"}
+
+
+def threshold_below(p: Any, th: dict[str, Any], expression: Any = None) -> bool | None:
+    r"""Whether threshold < p is proven (True), threshold ≥ p is (False), or neither (None),
+    compared exactly (:func:`kfcrit.analysis.verdict.exceeds`).
+
+    .. math:: [\,p > \theta\,] \text{ with } \theta \text{ exact, or against } [\theta_-, \theta_+]
+    """
+    if expression is not None:
+        return bool(vd.exceeds(p, expression))
+    if th.get("interval") is None:
+        return False          # no finite threshold: an unstable mode is unreachable/unseen
+    lo, hi = th["interval"]
+    if vd.exceeds(p, hi):
+        return True
+    if not vd.exceeds(p, lo):
+        return False
+    return None
+
+
+def _exact_threshold(th: dict[str, Any]) -> Any:
+    """The exact threshold when a theorem gives it (a claim decides by its interval)."""
+    if not th.get("exact") or th.get("basis") != "theorem" or th.get("expression") is None:
+        return None
+    from kfcrit.model.exprparse import parse_expression
+
+    return parse_expression(str(th["expression"]).replace("**", "^"), "threshold")
+
+
+def tcp_facts(gamma: Any, nu: Any, sens: dict[str, Any], act: dict[str, Any]
+              ) -> StabilityFacts:
+    """The TCP-like loop's facts: finite cost iff γ̄ > γ_c and ν̄ > ν_c (theory §12)."""
+    below = [threshold_below(gamma, sens, _exact_threshold(sens)),
+             threshold_below(nu, act, _exact_threshold(act))]
+    names = ("γ̄ > γ_c", "ν̄ > ν_c")
+    failed = [n.replace(">", "≤") for n, b in zip(names, below) if b is False]
+    if failed:
+        return StabilityFacts(False, False, True, f"{' and '.join(failed)}: the TCP-like "
+                              "cost is infinite (theory §12)")
+    if all(b is True for b in below):
+        return StabilityFacts(True, True, True, "", "γ̄ > γ_c and ν̄ > ν_c (theory §12)")
+    open_ = [n for n, b in zip(names, below) if b is None]
+    return StabilityFacts(True, False, False, f"{', '.join(open_)} undecided: the arrival "
+                          "probability lies inside the threshold's interval")
+
+
+def tcp_finite(facts: StabilityFacts) -> bool | None:
+    """The fact "γ̄ > γ_c and ν̄ > ν_c": True, False, or undecided (None)."""
+    if facts.necessary is False:
+        return False
+    return True if facts.sufficient else None
+
+
+def fixed_facts(stability: Any) -> StabilityFacts:
+    """A fixed design's facts: ρ(Σ π_m Φ_m ⊗ Φ_m) < 1 is necessary and sufficient."""
+    text = f"ρ = {stability.rho:.6g}: {stability.status} ({stability.method})"
+    if stability.holds is False:
+        return StabilityFacts(False, False, True, text)
+    if stability.holds is True:
+        return StabilityFacts(True, True, True, text, text)
+    return StabilityFacts(True, False, False, text)
+
+
+def _floats(M: Any) -> np.ndarray:
+    return to_float(M) if isinstance(M, sp.MatrixBase) else np.asarray(M, dtype=float)
+
+
+def plant(spec: SystemSpec) -> dict[str, np.ndarray]:
+    """Float matrices of the loop: A, B, C, Q, R, W, U."""
+    s, lp = spec.system, spec.loop
+    return {"A": s.a, "B": _floats(lp.B), "C": s.c, "Q": s.q, "R": s.r, "W": _floats(lp.W),
+            "U": _floats(lp.U)}
+
+
+def judged_design(spec: SystemSpec, acked: bool | None = None) -> FixedDesign:
+    """The fixed design of the file (its K and L, else steady-state Kalman and LQR gains)."""
+    lp = spec.loop
+    m = plant(spec)
+    K = None if lp.estimator_gain is None else _floats(lp.estimator_gain)
+    L = None if lp.controller_gain is None else _floats(lp.controller_gain)
+    return fixed_design(m["A"], m["B"], m["C"], m["Q"], m["R"], m["W"], m["U"], K=K, L=L,
+                        acked=lp.acknowledged if acked is None else acked,
+                        on_loss=lp.on_loss)
+
+
+def is_tcp_optimal(spec: SystemSpec) -> bool:
+    """The optimal TCP-like loop applies: acknowledged, zero on loss, no fixed gains, and
+    i.i.d. (Bernoulli-type) links on both sides (theory §12)."""
+    lp = spec.loop
+    return (lp.acknowledged and lp.on_loss == "zero" and not lp.fixed
+            and all(ch.iid and ch.model != "trace" for ch in (spec.channel, lp.channel)))
+
+
+def cost_dict(cost: Any) -> dict[str, Any]:
+    """A :class:`~kfcrit.theory.loop.tcp.LoopCost` as the record's ``{value, lower, upper, …}``."""
+    def num(x: float) -> float | None:
+        return float(x) if x is not None and math.isfinite(x) else None
+
+    return {"value": num(cost.value), "lower": num(cost.lower), "upper": num(cost.upper),
+            "finite": cost.finite, "method": cost.method,
+            "error": num(cost.error) if cost.error is not None else None, "reason": cost.reason}
+
+
+def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str]
+                  ) -> tuple[dict[str, Any], list[vd.Reason], dict[str, Any] | None]:
+    """The ``loop`` section, the review's loop reasons and the cost requirement's assessment.
+
+    Also sets ``operating_point.verdict`` to the rule of
+    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop).
+    """
+    lp = spec.loop
+    m = plant(spec)
+    gamma_x, nu_x = spec.channel.arrival_probability, lp.channel.arrival_probability
+    s_link, s_note = loss_link(spec.channel)
+    a_link, a_note = loss_link(lp.channel)
+    notes = [n for n in (s_note, a_note) if n]
+    sens = sensing_critical(sec)
+    act = threshold_dict(actuation_threshold(spec.system.A, lp.B, lp.W, lp.U,
+                                             tol=max(opts.upper_tol, 1e-9)))
+    out: dict[str, Any] = {
+        "acknowledged": lp.acknowledged, "on_loss": lp.on_loss,
+        "sensing_arrival_probability": float(gamma_x),
+        "actuation_arrival_probability": float(nu_x),
+        "sensing_iid": bool(spec.channel.iid), "actuation_iid": bool(lp.channel.iid),
+        "actuation_model": lp.channel.model,
+        "sensing_critical": sens, "actuation_critical": act, "spectral_radius": None,
+        "stability": None, "gains": None, "control_gain": None, "comparison": [],
+        "cost_curves": [], "simulation": None, "actuation_link": None,
+        "alternative_curve": None, "critical_curve": None}
+    design = None
+    tcp_parts = None
+    if is_tcp_optimal(spec):
+        out["design"] = "tcp-optimal"
+        facts = tcp_facts(gamma_x, nu_x, sens, act)
+        tcp_parts = tcp_cost_at(m, spec.system, float(gamma_x), float(nu_x),
+                                finite=tcp_finite(facts), seed=opts.seed,
+                                quick=opts.quick or not opts.details)
+        out["cost"] = cost_dict(tcp_parts["cost"])
+        out["control_gain"] = tcp_parts["L"]
+        out["critical_curve"] = tcp_rectangle(sens, act)
+    else:
+        out["design"] = "fixed"
+        try:
+            design = judged_design(spec)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            return _no_design(out, spec, sec, exc, act, notes, warnings)
+        res = fixed_loop(design, s_link, a_link)
+        facts = fixed_facts(res.stability)
+        out["stability"] = {"status": res.stability.status, "holds": res.stability.holds,
+                            "spectral_radius": res.stability.rho,
+                            "method": res.stability.method,
+                            "dimension": res.stability.dimension}
+        out["spectral_radius"] = res.stability.rho
+        out["cost"] = cost_dict(res.cost)
+        out["gains"] = {"estimator_gain": design.K.tolist(), "controller_gain": design.L.tolist(),
+                        "source": "the file's estimator_gain and controller_gain" if lp.fixed
+                        else "steady-state Kalman gain and LQR gain (defaults)"}
+        notes.append("the fixed design's matrices are judged as binary floats (each taken as "
+                     "the rational it is)")
+        if opts.details:
+            out["critical_curve"] = fixed_curve(design, "this design", quick=opts.quick)
+    if _trace_link(spec):
+        facts = StabilityFacts(True, False, False, "measured trace: the theorems are about "
+                               "arrival models; the loop is judged at the empirical rate for "
+                               "information only")
+    verdict, basis = vd.loop_verdict(facts)
+    if verdict is vd.LoopVerdict.UNDETERMINED and facts.necessary_basis:
+        basis = facts.necessary_basis
+    out["verdict"], out["basis"] = verdict.value, basis
+    if opts.details:
+        _details(spec, opts, out, design, tcp_parts, s_link, a_link, m, warnings)
+    out["actuation_link"], check = actuation_link(spec, out, design, warnings)
+    out["notes"] = notes
+    op = sec.get("operating_point")
+    joint, why = vd.loop_operating_verdict((op["verdict"], op.get("basis") or ""),
+                                           (verdict, basis))
+    op["verdict"], op["basis"] = joint.value, why
+    out["operating_verdict"] = joint.value
+    return out, vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
+
+
+def _trace_link(spec: SystemSpec) -> bool:
+    return "trace" in (spec.channel.model, spec.loop.channel.model)
+
+
+def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: Exception,
+               act: dict[str, Any], notes: list[str], warnings: list[str]
+               ) -> tuple[dict[str, Any], list[vd.Reason], dict[str, Any] | None]:
+    """No default gains exist (a Riccati equation has no stabilising solution): the loop is
+    mean-square unstable when (A, B) is not stabilisable (ν_c does not exist), else
+    undetermined."""
+    warnings.append(f"closed loop: the default design could not be formed ({exc})")
+    unstab = act.get("basis") == "none"
+    facts = StabilityFacts(False, False, True, "(A, B) is not stabilisable: no controller "
+                           "bounds the state") if unstab else StabilityFacts(
+        True, False, False, f"no default design: {exc}")
+    verdict, basis = vd.loop_verdict(facts)
+    if not unstab:
+        basis = facts.necessary_basis
+    out.update(verdict=verdict.value, basis=basis, notes=notes,
+               cost={"value": None, "lower": None, "upper": None,
+                     "finite": False if unstab else None, "method": "none", "error": None,
+                     "reason": str(exc)})
+    op = sec["operating_point"]
+    joint, why = vd.loop_operating_verdict((op["verdict"], op.get("basis") or ""),
+                                           (verdict, basis))
+    op["verdict"], op["basis"] = joint.value, why
+    out["operating_verdict"] = joint.value
+    return out, vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
+
+
+def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesign | None,
+             tcp_parts: dict[str, Any] | None, s_link: Any, a_link: Any,
+             m: dict[str, np.ndarray], warnings: list[str]) -> None:
+    """The comparison, the cost curves, the other design's curve and the Monte Carlo."""
+    try:
+        finite = tcp_finite(tcp_facts(spec.channel.arrival_probability,
+                                      spec.loop.channel.arrival_probability,
+                                      out["sensing_critical"], out["actuation_critical"]))
+        rows, udp = comparison_rows(spec, m, out, design, tcp_parts, s_link, a_link,
+                                    judged_design, tcp_finite=finite, cost_of=cost_dict,
+                                    quick=opts.quick, seed=opts.seed)
+        out["comparison"] = rows
+        if out["design"] == "tcp-optimal" and udp is not None:
+            out["alternative_curve"] = fixed_curve(udp, "UDP-like (Kalman + LQR)",
+                                                   quick=opts.quick)
+        elif spec.loop.on_loss == "zero":
+            out["alternative_curve"] = tcp_rectangle(out["sensing_critical"],
+                                                     out["actuation_critical"])
+        out["cost_curves"] = cost_curves(spec, m, out, design, tcp_parts, udp,
+                                         quick=opts.quick, seed=opts.seed)
+    except (ValueError, np.linalg.LinAlgError, ArithmeticError) as exc:
+        warnings.append(f"closed loop: comparison or cost curves not computed ({exc})")
+    if opts.simulate:
+        from kfcrit.analysis.loop.designs import loop_monte_carlo
+
+        out["simulation"] = loop_monte_carlo(out, design, m, s_link, a_link,
+                                             seed=opts.seed, quick=opts.quick,
+                                             L=(tcp_parts or {}).get("L"))
+
+
+def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | None,
+                   warnings: list[str]) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+    """The actuation link budget against its margin policy, read against the arrival
+    probability the loop needs there: ν_c (TCP-like) or the design's critical ν̄ at the
+    operating γ̄ (the upper end of its bracket)."""
+    ch = spec.loop.channel
+    if ch.model != "link-budget":
+        return None, None
+    from kfcrit.link import linkbudget
+
+    need, bracket, basis = _required_nu(out, design)
+    try:
+        lb = linkbudget.design_section(ch, critical_value=need, robust_value=None,
+                                       bracket=bracket, upper_bound=None)
+    except (ValueError, ArithmeticError) as exc:
+        warnings.append(f"actuation link budget not computed: {exc}")
+        return None, None
+    check = design_check(lb) if isinstance(lb, dict) else None
+    if not check:
+        return None, None
+    link = lb.get("link") or {}
+    req = (lb.get("required_arrival_probability") or {}).get("design_value")
+    summary = {"required_arrival_probability": req, "required_basis": basis,
+               "arrival_probability": out["actuation_arrival_probability"],
+               "link_margin_db": check.get("link_margin_db"),
+               "required_margin_db": check.get("required_margin_db"),
+               "margin_policy_met": check.get("margin_policy_met"),
+               "distance_m": check.get("distance_m"), "max_distance_m": check.get("max_distance_m"),
+               "outage_probability": check.get("outage_probability"),
+               "max_outage": check.get("max_outage"),
+               "outage_within_policy": check.get("outage_within_policy"),
+               "sinr_db": link.get("sinr_db"), "radio": (lb.get("radio") or {}).get("name")}
+    return summary, check
+
+
+def _required_nu(out: dict[str, Any], design: FixedDesign | None
+                 ) -> tuple[float | None, tuple[float | None, float | None], str]:
+    if out["design"] == "tcp-optimal" or design is None:
+        act = out["actuation_critical"]
+        if act.get("exact") and act.get("value") is not None:
+            return act["value"], (None, None), "ν_c of the TCP-like loop"
+        iv = act.get("interval") or [None, None]
+        return None, (iv[0], iv[1]), "the bracket of ν_c"
+    row = next((r for r in out.get("comparison") or [] if r.get("design") == "this design"),
+               None)
+    iv = (row or {}).get("critical_nu_interval")
+    if iv:
+        return None, (iv[0], iv[1]), "the design's critical ν̄ at the operating γ̄"
+    return None, (None, None), "the design's critical ν̄ (not found)"
+
+
+def cost_assessment(spec: SystemSpec, out: dict[str, Any]) -> dict[str, Any] | None:
+    r"""The cost requirement J ≤ max_cost: met when the upper bound (or the Monte Carlo value
+    plus three standard errors) is within it, not met when the lower bound (or the value minus
+    three standard errors) exceeds it or J is infinite, else not demonstrated.
+
+    .. math:: J_{up} \le J_{max} \Rightarrow \text{met}, \qquad J_{low} > J_{max}
+              \Rightarrow \text{not met}
+    """
+    limit = spec.requirements.max_cost
+    if limit is None:
+        return None
+    c = out.get("cost") or {}
+    value, lo, hi, err = c.get("value"), c.get("lower"), c.get("upper"), c.get("error") or 0.0
+    name = f"closed-loop cost J ≤ {limit:g}"
+    base = {"requirement": name, "estimate": value,
+            "interval": [lo, hi] if lo is not None or hi is not None else None}
+    if c.get("finite") is False:
+        return {**base, "status": "not met", "basis": "J is infinite (the loop is not "
+                "mean-square stable at the operating point)"}
+    if hi is not None and hi <= limit:
+        return {**base, "status": "met", "basis": f"upper bound {hi:.6g} ≤ {limit:g}"}
+    if lo is not None and lo > limit:
+        return {**base, "status": "not met", "basis": f"lower bound {lo:.6g} > {limit:g}"}
+    if value is not None and err and value + 3 * err <= limit:
+        return {**base, "status": "met", "basis": f"J = {value:.6g} ± {err:.2g} (3 standard "
+                f"errors within {limit:g})"}
+    if value is not None and value - 3 * err > limit:
+        return {**base, "status": "not met", "basis": f"J = {value:.6g} > {limit:g}"}
+    return {**base, "status": "not demonstrated", "basis": "the cost's bounds straddle the "
+            "limit" if value is not None else "the cost is not known"}
