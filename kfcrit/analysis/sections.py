@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from kfcrit.analysis.verdict import Reason, Review, Verdict
+from kfcrit.analysis.measured.section import ChannelFitSection
 from kfcrit.io.typed import JSON, from_json, internal, json_schema, opt, to_json
 
 SCHEMA_VERSION = "2.0"
@@ -550,6 +551,8 @@ class Analysis:
     design: JSON = opt()
     tail: JSON = opt()
     network: JSON = opt()
+    channel_fit: ChannelFitSection | None = opt()
+    """A measured trace's fits and the confidence region of its verdict (theory §14)."""
     timings: dict[str, float] = internal(dict)
     """Wall-clock seconds of the sections (kept out of the JSON form: same input and seed give
     byte-identical JSON)."""

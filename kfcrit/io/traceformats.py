@@ -37,9 +37,10 @@ from typing import Any
 import numpy as np
 
 from kfcrit.errors import InputError
-from kfcrit.io.channelfile import MAX_TRACE_BYTES
 from kfcrit.io.safeio import printable, read_text
 
+MAX_TRACE_BYTES = 50_000_000
+"""Largest trace file read (bytes)."""
 MAX_LOG_LINES = 5_000_000
 """Most data lines of a sequence-number or receive-log file."""
 MAX_PERIODS = 50_000_000
@@ -354,6 +355,6 @@ def read_trace_file(path: str | os.PathLike[str], format: str = "binary", *,
                      if "." in field else "format")
 
 
-__all__ = ["MAX_LOG_LINES", "MAX_PERIODS", "MAX_SENSORS", "NO_SENSOR", "TRACE_FORMATS",
+__all__ = ["MAX_LOG_LINES", "MAX_TRACE_BYTES", "MAX_PERIODS", "MAX_SENSORS", "NO_SENSOR", "TRACE_FORMATS",
            "parse_binary", "parse_receive_log", "parse_sequence_numbers", "read_binary",
            "read_receive_log", "read_sequence_numbers", "read_trace_file"]
