@@ -111,7 +111,8 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     holds = all(r["_sign_high"] is not None and r["_sign_high"] < 0 for r in rows)
     binding = max(rows, key=lambda r: r["value"]) if rows else None
     length = None
-    if binding is not None and (ls.exact_region or binding["value"] >= 1):
+    decided = bool(fails) or (holds and bool(ls.exact_region))
+    if binding is not None and not decided and (ls.exact_region or binding["value"] >= 1):
         length = rows_to_decide(binding["probability"], 1.0 / binding["modulus2"],
                                 binding["_level"])
     c = vd.confidence_text(confidence)
@@ -135,11 +136,12 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     fit = fit_trace(any_received, confidence)
     p_hat = np.array([t.mean() for t in traces])
     independent = None if not cons else all(c.factor(p_hat) < 1 for c in cons)
-    covered = bool(fails) or (holds and bool(ls.exact_region))
+    covered = decided
     section = {"subject": "at least one sensor received (the network's time-aligned traces)",
                **fit_fields(fit, any_received),
                "length_to_decide": length,
                "length_to_decide_basis": (
+                   "decided: the whole confidence region is on one side" if decided else
                    "the binding constraint's probability against 1/ρ_T²" if length is not None
                    else "no trace length decides at the estimated law"),
                "sensors": [_sensor_row(name, t, confidence)

@@ -236,10 +236,13 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
         inputs = vd.MeasuredInputs("gilbert-elliott", fit.confidence, worst_burst=w_in,
                                    best_burst=b_in, length_to_decide=length,
                                    threshold_text=text)
+    outcome = _outcome(worst, best)
     out["region"] = {"model": fit.model, "confidence": fit.confidence, "worst": worst,
-                     "best": best, "outcome": _outcome(worst, best)}
-    out["length_to_decide"] = inputs.length_to_decide
-    out["length_to_decide_basis"] = inputs.threshold_text
+                     "best": best, "outcome": outcome}
+    decided = outcome != "neither"  # a decided region needs no longer trace
+    out["length_to_decide"] = None if decided else inputs.length_to_decide
+    out["length_to_decide_basis"] = ("decided: the whole confidence region is on one side"
+                                     if decided else inputs.threshold_text)
     out["boundary"] = boundary_section(system, crit, fit, structure=structure,
                                        curve=details and fit.model == "gilbert-elliott")
     out["notes"] = notes(fit)
