@@ -120,7 +120,7 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     if fails:
         f = max(fails, key=lambda r: r["value_low"])
         fails_basis = (f"the joint law of the time-aligned traces gives P(S ⊆ "
-                       f"{{{', '.join(f['unobservable'])}}}) ≥ {f['interval'][0]:.6g} (lower end "
+                       f"{set_text(f['unobservable'])}) ≥ {f['interval'][0]:.6g} (lower end "
                        f"of its simultaneous {c} interval), and that times ρ_T² = "
                        f"{f['modulus2']:.6g} is {f['value_low']:.6g} ≥ 1: the necessary "
                        "condition fails on the whole confidence region (theory §13)")
@@ -169,6 +169,11 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     return MeasuredFit(section, None, inputs)
 
 
+def set_text(names: list[str]) -> str:
+    """A sensor set as text: ``∅`` (every packet lost) or ``{a, b}``."""
+    return "{" + ", ".join(names) + "}" if names else "∅"
+
+
 def _statement(covered: bool, reason: str) -> str:
     if covered:
         return "the facts hold on the whole confidence region of the joint law"
@@ -190,4 +195,4 @@ def network_confidence(network: Network) -> float:
 
 
 __all__ = ["MAX_LAW_CELLS_SHOWN", "constraint_rows", "empirical_law", "joint_fit",
-           "network_confidence", "network_traces"]
+           "network_confidence", "network_traces", "set_text"]

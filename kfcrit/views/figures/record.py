@@ -22,7 +22,9 @@ Figures (names for :func:`figure`, keys of :func:`build_figures`):
 * ``critical_curve``: a Gilbert–Elliott link's critical curve (:mod:`kfcrit.views.figures.burst`);
 * ``accuracy``, ``arrival_distance``, ``per_sinr``, ``outage_distance``: the accuracy
   requirement against the covariance bounds and the link curves
-  (:mod:`kfcrit.views.figures.design`).
+  (:mod:`kfcrit.views.figures.design`);
+* ``burst_histogram``, ``fit_region``: a measured trace's loss runs against the fitted geometric
+  law and its confidence region in the (f, r) plane (:mod:`kfcrit.views.figures.tracefit`).
 """
 from __future__ import annotations
 
@@ -40,6 +42,7 @@ matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
 from kfcrit.views.figures.burst import draw_critical_curve  # noqa: E402
+from kfcrit.views.figures.tracefit import draw_burst_histogram, draw_fit_region  # noqa: E402
 from kfcrit.views.figures.design import (  # noqa: E402
     draw_accuracy,
     draw_arrival_distance,
@@ -68,7 +71,8 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",
-               "arrival_distance", "per_sinr", "outage_distance")
+               "arrival_distance", "per_sinr", "outage_distance", "burst_histogram",
+               "fit_region")
 
 
 def _to_svg(fig: Figure, label: str) -> str:
@@ -402,7 +406,8 @@ DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "invariant": draw_invariant, "network_region": draw_network_region,
     "network_map": draw_network_map, "critical_curve": draw_critical_curve,
     "accuracy": draw_accuracy, "arrival_distance": draw_arrival_distance,
-    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance}
+    "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance,
+    "burst_histogram": draw_burst_histogram, "fit_region": draw_fit_region}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -420,7 +425,11 @@ LABELS = {
                 "requirement",
     "arrival_distance": "Arrival probability against distance",
     "per_sinr": "Packet error rate against SINR",
-    "outage_distance": "Shadowing outage against distance"}
+    "outage_distance": "Shadowing outage against distance",
+    "burst_histogram": "Loss-burst lengths of the measured trace against the fitted geometric "
+                       "law",
+    "fit_region": "Confidence region of the trace fit in the failure-rate, recovery-rate plane "
+                  "with the stability boundary"}
 # Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
 # costs more per figure than the rest of a page's layout.
 DENSE = frozenset(FIGURE_KEYS)
