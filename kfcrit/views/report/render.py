@@ -38,7 +38,7 @@ def template_dir() -> Path:
     ``pip install -e .`` or in a source checkout they are the repository's top-level
     ``templates/``.
     """
-    package = Path(__file__).resolve().parents[1]
+    package = Path(__file__).resolve().parents[2]
     for candidate in (package / "templates", package.parent / "templates"):
         if (candidate / TEMPLATE).is_file():
             return candidate

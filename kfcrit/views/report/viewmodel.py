@@ -13,6 +13,7 @@ from kfcrit.version import __version__
 from kfcrit.views.report.design import design_view, link_figures
 from kfcrit.views.report.link import channel_view
 from kfcrit.views.report.network import network_view
+from kfcrit.views.report.tracefit import measured_view
 from kfcrit.views.report.parts import as_dict, as_list, figure_entry, prose
 from kfcrit.views.report.sim import appendix_view, figures_view, simulation_view
 from kfcrit.views.report.theory import (
@@ -119,6 +120,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
         "channel": channel,
         "network": network_view(rec, figures),
+        "channel_fit": measured_view(rec, figures),
         "design": design_view(rec, figures),
         "appendix": appendix_view(rec),
     }
