@@ -15,8 +15,8 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any
 
-from kfcrit.analysis.verdict import Reason, Review, Verdict
 from kfcrit.analysis.measured.section import ChannelFitSection
+from kfcrit.analysis.verdict import Reason, Review, Verdict
 from kfcrit.io.typed import JSON, from_json, internal, json_schema, opt, to_json
 
 SCHEMA_VERSION = "2.0"

@@ -160,9 +160,9 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
                    "exact_region": bool(ls.exact_region), "independent_necessary": independent,
                    "region_covered": covered,
                    "statement": _statement(covered, ls.reason)},
-               "notes": [f"the sensors' traces are read time-aligned (period k of each is the "
-                         f"same sampling period): the joint law of the received set replaces "
-                         f"the product of independent links (theory §13)",
+               "notes": ["the sensors' traces are read time-aligned (period k of each is the "
+                         "same sampling period): the joint law of the received set replaces "
+                         "the product of independent links (theory §13)",
                          f"the fit above is of the trace 'at least one sensor received'; the "
                          f"likelihood-ratio p-value {fit.lrt_p_value:.3g} tests whether it is "
                          "i.i.d. in time, as the joint-law theory assumes"]}

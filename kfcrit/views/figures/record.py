@@ -42,7 +42,6 @@ matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
 from kfcrit.views.figures.burst import draw_critical_curve  # noqa: E402
-from kfcrit.views.figures.tracefit import draw_burst_histogram, draw_fit_region  # noqa: E402
 from kfcrit.views.figures.design import (  # noqa: E402
     draw_accuracy,
     draw_arrival_distance,
@@ -68,6 +67,7 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     positive,
     section,
 )
+from kfcrit.views.figures.tracefit import draw_burst_histogram, draw_fit_region  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",

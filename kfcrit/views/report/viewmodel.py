@@ -13,7 +13,6 @@ from kfcrit.version import __version__
 from kfcrit.views.report.design import design_view, link_figures
 from kfcrit.views.report.link import channel_view
 from kfcrit.views.report.network import network_view
-from kfcrit.views.report.tracefit import measured_view
 from kfcrit.views.report.parts import as_dict, as_list, figure_entry, prose
 from kfcrit.views.report.sim import appendix_view, figures_view, simulation_view
 from kfcrit.views.report.theory import (
@@ -25,6 +24,7 @@ from kfcrit.views.report.theory import (
     structure_view,
     system_view,
 )
+from kfcrit.views.report.tracefit import measured_view
 from kfcrit.views.report.verdict import requirement_view, verdict_view
 
 IID_CAVEAT = ("The channel is bursty (Gilbert–Elliott): p_c, p_up, S̄ and V̄ assume i.i.d. "
