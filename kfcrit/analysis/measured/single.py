@@ -46,7 +46,7 @@ class MeasuredFit:
     joint: vd.JointLawInputs | None = None
 
 
-def spectral_radius(system: System) -> float:
+def plant_spectral_radius(system: System) -> float:
     """ρ(A) in floats (for the figures and texts; decisions use the exact p_low)."""
     return float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
 
@@ -182,7 +182,7 @@ def boundary_section(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *
                      curve: bool, structure: Any = None) -> dict[str, Any]:
     """The stability boundary of the (f, r) plane: r = 1 − 1/ρ² and, for small vector plants,
     the sufficient curve of the coupled certificate (theory §10)."""
-    rho = spectral_radius(system)
+    rho = plant_spectral_radius(system)
     nec = crit.p_low if crit.p_low else (max(0.0, 1.0 - 1.0 / rho ** 2) if rho > 1 else None)
     out = {"spectral_radius": rho, "necessary_recovery": nec, "failure_rates": [],
            "sufficient_recovery": [], "note": ""}
@@ -245,11 +245,11 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
                                      if decided else inputs.threshold_text)
     out["boundary"] = boundary_section(system, crit, fit, structure=structure,
                                        curve=details and fit.model == "gilbert-elliott")
-    out["notes"] = notes(fit)
+    out["notes"] = model_notes(fit)
     return MeasuredFit(out, inputs)
 
 
-def notes(fit: ChannelFit) -> list[str]:
+def model_notes(fit: ChannelFit) -> list[str]:
     """What the reader should know about the model choice."""
     out = [f"model chosen by the likelihood-ratio test at level {1 - fit.confidence:.3g}: "
            f"p-value {fit.lrt_p_value:.3g} → {fit.model}"]
@@ -262,5 +262,5 @@ def notes(fit: ChannelFit) -> list[str]:
 
 
 __all__ = ["CURVE_MAX_STATES", "MeasuredFit", "boundary_section", "burst_corner",
-           "burst_section", "fit_fields", "ge_length", "iid_facts", "iid_threshold", "notes",
-           "spectral_radius", "trace_fit"]
+           "burst_section", "fit_fields", "ge_length", "iid_facts", "iid_threshold", "model_notes",
+           "plant_spectral_radius", "trace_fit"]
