@@ -134,6 +134,8 @@ def test_shipped_examples_and_report(tmp_path: Path) -> None:
     html = out.read_text()
     assert "Measured trace" in html and 'id="fig-trace-bursts"' in html
     assert 'id="fig-trace-region"' in html and "Bonferroni" in html
+    for fig_id in ("fig-trace-bursts", "fig-trace-region"):   # both figures drawn
+        assert "<svg" in html.split(f'id="{fig_id}"')[1].split("</figure>")[0]
     text = kfcrit("analyze", str(ROOT / "reports" / "trace-bursty-link.yaml"), "--quick",
                   "--no-simulate").stdout
     assert "measured trace" in text and "loss bursts" in text and "worst corner" in text
