@@ -28,6 +28,7 @@ from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel, design_check, link_curves
+from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
 from kfcrit.analysis.requirements import (
@@ -172,8 +173,20 @@ def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInput
                           sufficient=sufficient, basis=basis)
 
 
+def joint_verdict(sec: dict[str, Any], joint: vd.JointLawInputs, warnings: list[str]) -> None:
+    """A network of time-aligned traces: its one verdict is that of the joint law of the
+    received set (theory §13, §14), stated in the operating point and the network section."""
+    verdict, basis = vd.joint_law_verdict(joint)
+    for holder in (sec["operating_point"], sec["network"]):
+        holder["verdict"], holder["basis"] = verdict.value, basis
+    warnings.append("network of measured traces: the verdict uses the joint law of the "
+                    "received set (`channel_fit.joint_law`); the per-sensor critical values "
+                    "and the uniform margin in `network` assume independent links")
+
+
 def operating_point(spec: SystemSpec, theory: TheorySections,
-                    link: dict[str, Any] | None = None) -> dict[str, Any] | None:
+                    link: dict[str, Any] | None = None,
+                    measured: vd.MeasuredInputs | None = None) -> dict[str, Any] | None:
     """Arrival probability of the configured channel against p_c, the robust value and bracket,
     with the verdict of :func:`kfcrit.analysis.verdict.operating_verdict`."""
     if spec.channel is None:
@@ -185,7 +198,7 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     crit = critical_inputs(theory)
     burst = burst_inputs(spec, link)
     verdict, basis = vd.operating_verdict(p_exact, crit, iid=bool(ch.iid), burst=burst,
-                                          measured_trace=ch.model == "trace")
+                                          measured_trace=ch.model == "trace", measured=measured)
     out: dict[str, Any] = {"arrival_probability": p, "channel": ch.to_dict(), "iid": ch.iid}
     cls = sec.get("classification")
     pc = crit.critical
@@ -213,8 +226,6 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     if burst is not None and cls != "not-detectable":
         _burst_margin(out, burst, crit, link if ch.model != "link-budget"
                       else (link or {}).get("bursty"))
-    if ch.model == "trace":
-        out["trace"] = trace_summary(spec, p)
     out["verdict"] = verdict.value
     out["basis"] = basis
     return out
@@ -256,15 +267,6 @@ def exact_difference(a: Any, b: Any, fallback: float) -> float:
         except (TypeError, ValueError):
             return fallback
     return fallback
-
-
-def trace_summary(spec: SystemSpec, p: float) -> dict[str, Any]:
-    """Length, empirical arrival rate and a Gilbert–Elliott fit of a measured trace (for
-    information: a finite recording decides nothing about mean stability)."""
-    from kfcrit.link.linkbudget import gilbert_elliott_fit
-
-    return {"length": int(spec.channel.arrivals.size), "empirical_arrival_probability": p,
-            "gilbert_elliott_fit": gilbert_elliott_fit(spec.channel.arrivals, spec.system)}
 
 
 def theory_sections(system: System, options: AnalysisOptions | None = None,
@@ -345,13 +347,20 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
         # before the link: the link design reads the accuracy requirement's [p_S, p_V]
         _design_sections(spec, theory, sec, warnings)
     _link_sections(spec, opts, sec, warnings, theory)
+    measured = measured_channel(spec, critical_inputs(theory), details=opts.details,
+                                structure=theory.structure)
+    if measured is not None:
+        sec["channel_fit"] = measured.section
     if spec.network is not None and spec.network.size > 1:
         sec["network"], sec["operating_point"] = network_sections(
             spec, opts, warnings, stacked={k: sec.get(k) for k in ("critical_value",
                                                                    "upper_bound")})
+        if measured is not None and measured.joint is not None:
+            joint_verdict(sec, measured.joint, warnings)
     hop_reasons = mesh_sections(spec, opts, sec, warnings) if spec.mesh is not None else []
     if sec.get("operating_point") is None:
-        sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"))
+        sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"),
+                                                 measured.inputs if measured else None)
     loop_reasons, loop_cost = [], None
     if spec.loop is not None:  # theory §12: operating_point.verdict becomes estimator AND loop
         from kfcrit.analysis.loop.section import loop_analysis

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from kfcrit.analysis.loop.schema import LoopSection
+from kfcrit.analysis.measured.section import ChannelFitSection
 from kfcrit.analysis.mesh.section import MeshSection
 from kfcrit.analysis.records.bursty import GilbertElliottSection
 from kfcrit.analysis.records.contract import (
@@ -98,6 +99,8 @@ class Analysis:
     """A mesh file's routes, joint losses, facts, forwarding modes and N − 1 (theory §13)."""
     loop: LoopSection = opt_key()
     """A closed loop over the sensing and actuation links (theory §12)."""
+    channel_fit: ChannelFitSection = opt_key()
+    """A measured trace's fits and the confidence region of its verdict (theory §14)."""
     timings: dict[str, float] = internal(dict)
     """Wall-clock seconds of the sections (kept out of the JSON form: same input and seed give
     byte-identical JSON)."""

@@ -171,15 +171,140 @@ def burst_factor(recovery: float, spectral_radius: float) -> float:
     return (1.0 - recovery) * spectral_radius ** 2
 
 
+@dataclass(frozen=True)
+class MeasuredInputs:
+    r"""A measured trace's confidence region as the verdict sees it (docs/theory.md §14).
+
+    ``model`` is the fitted model the likelihood-ratio test chose. Bernoulli: the corners are
+    the ends of the Clopper–Pearson interval of p (``worst_p`` the lower, ``best_p`` the upper
+    end). Gilbert–Elliott: the corners of the Bonferroni rectangle, with what the theory proved
+    at each (``worst_burst`` at (f_hi, r_lo) with its sufficient condition, ``best_burst`` at
+    (f_lo, r_hi)). ``length_to_decide`` is the trace length at which the interval at the fitted
+    values would exclude the threshold ``threshold_text`` (None: no length decides).
+    """
+
+    model: str
+    confidence: float
+    worst_p: Any = None
+    best_p: Any = None
+    worst_burst: BurstInputs | None = None
+    best_burst: BurstInputs | None = None
+    length_to_decide: int | None = None
+    threshold_text: str = ""
+
+
+@dataclass(frozen=True)
+class JointLawInputs:
+    """A network's empirical joint law of the received set as the verdict sees it (§13, §14).
+
+    ``point`` are the stability facts under the point estimate π̂;
+    ``necessary_fails`` / ``necessary_holds``: the necessary condition P(S ⊆ T)·ρ_T² < 1 fails
+    for some T at the lower ends / holds for every T at the upper ends of simultaneous
+    (Bonferroni) Clopper–Pearson intervals at ``confidence``; ``exact_region``: the necessary
+    condition is also sufficient for this network (so the upper ends decide stability).
+    """
+
+    confidence: float
+    point: StabilityFacts
+    necessary_fails: bool
+    necessary_holds: bool
+    exact_region: bool
+    fails_basis: str = ""
+    holds_basis: str = ""
+    length_to_decide: int | None = None
+
+
+def confidence_text(confidence: float) -> str:
+    """``95 %`` for 0.95 (the way a review states its confidence)."""
+    return f"{100 * float(confidence):.6g} %"
+
+
+def measured_verdict(crit: CriticalInputs, measured: MeasuredInputs) -> tuple[Verdict, str]:
+    r"""The verdict on the whole confidence region of a trace fit (docs/theory.md §14).
+
+    The stable set is an up-set in p (i.i.d.) and in r, a down-set in f (Gilbert–Elliott), so
+
+    .. math::
+
+        \text{mean-stable with confidence } c \iff \text{stable at the worst corner},\qquad
+        \text{mean-unstable with confidence } c \iff \text{unstable at the best corner},
+
+    each corner judged by the rules of :func:`operating_verdict` (i.i.d.: p against p_c or its
+    bracket, compared exactly; Gilbert–Elliott: the burst condition (1 − r)ρ² < 1 and the
+    sufficient condition proven at that corner); otherwise undetermined, with the trace length
+    that would decide at the fitted values.
+    """
+    if crit.classification == "not-detectable":
+        return Verdict.MEAN_UNSTABLE, NOT_DETECTABLE_BASIS
+    c = confidence_text(measured.confidence)
+    if measured.model == "bernoulli":
+        at_worst = _iid_verdict(measured.worst_p, crit)
+        at_best = _iid_verdict(measured.best_p, crit)
+        worst = f"lower end p = {float(measured.worst_p):.6g}"
+        best = f"upper end p = {float(measured.best_p):.6g}"
+        region = (f"the {c} Clopper–Pearson interval of p (i.i.d. losses: the likelihood-ratio "
+                  "test does not reject them)")
+    else:
+        at_worst = _burst_verdict(crit, measured.worst_burst)
+        at_best = _burst_verdict(crit, measured.best_burst)
+        wb, bb = measured.worst_burst, measured.best_burst
+        worst = f"worst corner (f, r) = ({float(wb.failure):.6g}, {float(wb.recovery):.6g})"
+        best = f"best corner (f, r) = ({float(bb.failure):.6g}, {float(bb.recovery):.6g})"
+        region = (f"the {c} Bonferroni rectangle of the Gilbert–Elliott fit (bursty losses: the "
+                  "likelihood-ratio test rejects i.i.d. losses)")
+    if at_worst[0] is Verdict.MEAN_STABLE and at_best[0] is not Verdict.MEAN_UNSTABLE:
+        return (Verdict.MEAN_STABLE, f"with confidence {c}: mean-stable on the whole of "
+                f"{region}; at its {worst}: {at_worst[1]}")
+    if at_best[0] is Verdict.MEAN_UNSTABLE and at_worst[0] is not Verdict.MEAN_STABLE:
+        return (Verdict.MEAN_UNSTABLE, f"with confidence {c}: mean-unstable on the whole of "
+                f"{region}; at its {best}: {at_best[1]}")
+    if measured.length_to_decide is not None:
+        length = (f"; a trace of about {measured.length_to_decide} periods would decide at the "
+                  f"fitted values ({measured.threshold_text})")
+    else:
+        length = ("; no trace length decides at the fitted values"
+                  + (f" ({measured.threshold_text})" if measured.threshold_text else ""))
+    return (Verdict.UNDETERMINED, f"{region} is not decided at confidence {c}: at its {worst} "
+            f"{at_worst[0].value}, at its {best} {at_best[0].value}{length}")
+
+
+def joint_law_verdict(joint: JointLawInputs) -> tuple[Verdict, str]:
+    r"""The verdict of a network whose sensors' traces were recorded together (§13, §14).
+
+    .. math::
+
+        \text{mean-unstable} \iff \exists T:\ \underline{P}(S \subseteq T)\,\rho_T^2 \ge 1,
+        \qquad
+        \text{mean-stable} \iff E \land \forall T:\ \overline{P}(S \subseteq T)\,\rho_T^2 < 1,
+
+    with the under/over-lined probabilities the ends of simultaneous intervals at the
+    confidence c and E the exact-region proof; otherwise undetermined, stating the point
+    estimate's verdict (the joint law's confidence region is then not covered).
+    """
+    c = confidence_text(joint.confidence)
+    if joint.necessary_fails:
+        return Verdict.MEAN_UNSTABLE, f"with confidence {c}: {joint.fails_basis}"
+    if joint.necessary_holds and joint.exact_region:
+        return Verdict.MEAN_STABLE, f"with confidence {c}: {joint.holds_basis}"
+    point, why = verdict_of(joint.point)
+    length = (f"; a trace of about {joint.length_to_decide} periods would decide at the "
+              "estimated law" if joint.length_to_decide is not None else "")
+    return (Verdict.UNDETERMINED, f"not decided at confidence {c}: the point estimate of the "
+            f"joint law gives {point.value} ({why}), but the joint law's confidence region is "
+            "not covered (the sufficient certificate is checked at the point estimate only)"
+            + length)
+
+
 def operating_verdict(p: Any, crit: CriticalInputs, *, iid: bool = True,
-                      burst: BurstInputs | None = None, measured_trace: bool = False
-                      ) -> tuple[Verdict, str]:
+                      burst: BurstInputs | None = None, measured_trace: bool = False,
+                      measured: MeasuredInputs | None = None) -> tuple[Verdict, str]:
     """Mean stability at arrival probability ``p`` and the basis of the verdict.
 
     Rules, in this order:
 
     1. not detectable → mean-unstable for every p (no p makes E[P_t] bounded);
-    2. a measured trace → undetermined (the theorems are about arrival *models*);
+    2. a measured trace → the verdict on its fit's whole confidence region
+       (:func:`measured_verdict`); without a fit, undetermined;
     3. a Gilbert–Elliott channel → mean-unstable when (1 − r)ρ(A)² ≥ 1 (any system, docs/theory.md §10),
        mean-stable when a sufficient condition is proven, else undetermined;
     4. i.i.d. losses, ρ(A) < 1 → mean-stable unless a system within the tolerance has a
@@ -191,6 +316,8 @@ def operating_verdict(p: Any, crit: CriticalInputs, *, iid: bool = True,
     """
     if crit.classification == "not-detectable":
         return Verdict.MEAN_UNSTABLE, NOT_DETECTABLE_BASIS
+    if measured is not None:
+        return measured_verdict(crit, measured)
     if measured_trace:
         return (Verdict.UNDETERMINED, "measured trace: the mean-stability theorems assume i.i.d. "
                 "(Sinopoli, Mo–Sinopoli) or Gilbert–Elliott arrivals, which a recorded sequence "

@@ -11,49 +11,20 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from kfcrit.errors import InputError
-from kfcrit.io.safeio import read_text
-from kfcrit.model.channels import Bernoulli, Channel, GilbertElliott, Trace, check_keys
+from kfcrit.io.tracechannel import measured_trace_from_mapping
+from kfcrit.io.traceformats import MAX_TRACE_BYTES
+from kfcrit.model.channels import Bernoulli, Channel, GilbertElliott
 
-MAX_TRACE_BYTES = 50_000_000
-"""Largest trace file read (bytes)."""
+__all__ = ["BASIC_CHANNELS", "MAX_TRACE_BYTES", "ChannelParser", "channel_from_mapping"]
 
 ChannelParser = Callable[[dict, str, "Path | None"], Channel]
-
-
-def read_trace(path: Path, field: str) -> np.ndarray:
-    """Read a 0/1 packet trace; anything but 0 and 1 separated by spaces/commas is an error."""
-    text, _ = read_text(path, field=field, max_bytes=MAX_TRACE_BYTES, what="trace file")
-    tokens = text.replace(",", " ").split()
-    bad = next((i for i, t in enumerate(tokens) if t not in ("0", "1")), None)
-    if bad is not None:  # the offending text is not echoed: the file may not be a trace at all
-        raise InputError(f"trace file value number {bad + 1} is not 0 or 1; only 0 and 1 are "
-                         "allowed", field=field)
-    if not tokens:
-        raise InputError("trace file is empty", field=field)
-    arr = np.fromiter((t == "1" for t in tokens), dtype=bool, count=len(tokens))
-    arr.setflags(write=False)
-    return arr
-
-
-def trace_from_mapping(data: dict, prefix: str, base_dir: Path | None = None) -> Trace:
-    """``{model: trace, path: FILE}``: the file is read relative to the system file's folder."""
-    check_keys(data, {"model", "path"}, {"path"}, prefix)
-    raw = data["path"]
-    if not isinstance(raw, str) or not raw.strip():
-        raise InputError("must be a file path", field=f"{prefix}.path")
-    path = Path(raw)
-    if not path.is_absolute() and base_dir is not None:
-        path = base_dir / path
-    return Trace(raw, read_trace(path, f"{prefix}.path"))
 
 
 BASIC_CHANNELS: Mapping[str, ChannelParser] = {
     "bernoulli": Bernoulli.from_mapping,
     "gilbert-elliott": GilbertElliott.from_mapping,
-    "trace": trace_from_mapping,
+    "trace": measured_trace_from_mapping,
 }
 """Parsers of the channel models that need no radio model."""
 

@@ -64,9 +64,29 @@ def channel_defs() -> dict[str, Any]:
                  ["model", "failure_rate", "recovery_rate"],
                  "bursty (two-state Markov) packet losses")
     trace = _object({"model": {"const": "trace"},
-                     "path": {"type": "string", "description": "file of 0/1 values, relative to "
-                              "the system file"}},
-                    ["model", "path"], "a measured arrival sequence")
+                     "path": {"type": "string", "description": "the trace file, relative to "
+                              "the system file"},
+                     "format": {"enum": ["binary", "sequence-numbers", "receive-log"],
+                                "description": "binary: one 0/1 per period (default); "
+                                               "sequence-numbers: the received packets' numbers; "
+                                               "receive-log: arrival times in seconds, optionally "
+                                               "with a sensor column"},
+                     "period_s": {**num, "description": "receive-log: sampling period T in "
+                                                        "seconds (required)"},
+                     "start_s": {**num, "description": "receive-log: start of period 0 "
+                                                       "(default 0)"},
+                     "periods": {**integer, "description": "receive-log: number of periods "
+                                                           "(default: up to the last arrival)"},
+                     "sensor": {"type": "string", "description": "receive-log with a sensor "
+                                                                 "column: whose arrivals"},
+                     "first": {**integer, "description": "sequence-numbers: first number sent "
+                                                         "(default: the first in the file)"},
+                     "last": {**integer, "description": "sequence-numbers: last number sent "
+                                                        "(default: the last in the file)"},
+                     "confidence": {**num, "description": "confidence c in (0, 1) of the verdict "
+                                                          "on the fit's confidence region "
+                                                          "(default 0.95)"}},
+                    ["model", "path"], "a measured packet trace (theory §14)")
     path_loss = {"type": "object", "description": "median path loss and log-normal shadowing",
                  "properties": {
                      "model": {"enum": ["log-distance", "free-space"]},

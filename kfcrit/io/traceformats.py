@@ -2,7 +2,8 @@
 
 Every reader turns a file into 0/1 arrays, one value per sampling period (1 = received):
 
-* ``binary`` — one 0 or 1 per period, one per line or separated by whitespace or commas;
+* ``binary`` — one 0 or 1 per period, one per line or separated by whitespace or commas, or
+  written together (``0010110``, as packet-trace tools and ns-3 scripts print them);
 * ``sequence-numbers`` — the sequence numbers of the received packets, increasing (one per line
   or whitespace/comma separated); a number missing between ``first`` and ``last`` is a loss.
   ``first`` and ``last`` default to the first and last numbers in the file (so the trace starts
@@ -37,9 +38,10 @@ from typing import Any
 import numpy as np
 
 from kfcrit.errors import InputError
-from kfcrit.io.channelfile import MAX_TRACE_BYTES
 from kfcrit.io.safeio import printable, read_text
 
+MAX_TRACE_BYTES = 50_000_000
+"""Largest trace file read (bytes)."""
 MAX_LOG_LINES = 5_000_000
 """Most data lines of a sequence-number or receive-log file."""
 MAX_PERIODS = 50_000_000
@@ -54,6 +56,7 @@ TRACE_FORMATS = ("binary", "sequence-numbers", "receive-log")
 _SPLIT = re.compile(r"[\s,]+")
 _SHOWN = re.compile(r"[-+0-9.eE]{1,12}|[!-~]")
 _SEQ = re.compile(r"[0-9]{1,18}")
+_BITS = re.compile(r"[01]+")
 _TIME = re.compile(r"[+-]?(?:[0-9]{1,30}(?:\.[0-9]{0,30})?|\.[0-9]{1,30})(?:[eE][+-]?[0-9]{1,3})?")
 _SENSOR = re.compile(r"[A-Za-z0-9_.:-]{1,64}")
 
@@ -102,20 +105,20 @@ def parse_binary(text: str, *, source: str = "<text>", field: str = "channel.pat
     """
     if "#" not in text:  # the common case: one pass over the tokens, lines only for an error
         tokens = text.replace(",", " ").split()
-        if all(t == "0" or t == "1" for t in tokens):
-            if not tokens:
+        if all(_BITS.fullmatch(t) for t in tokens):
+            joined = "".join(tokens)
+            if not joined:
                 raise _empty(field, source, "0/1 values")
-            if len(tokens) > MAX_PERIODS:
+            if len(joined) > MAX_PERIODS:
                 raise _error(field, source, None, f"more than {MAX_PERIODS} values")
-            return _frozen(np.fromiter((t == "1" for t in tokens), dtype=bool,
-                                       count=len(tokens)))
+            return _frozen(np.frombuffer(joined.encode("ascii"), dtype=np.uint8) == ord("1"))
     values: list[bool] = []
     for number, tokens in _data_lines(text, field, source, cap=MAX_PERIODS):
         for position, token in enumerate(tokens, 1):
-            if token not in ("0", "1"):
+            if not _BITS.fullmatch(token):
                 on = f" (value {position} on the line)" if len(tokens) > 1 else ""
                 raise _error(field, source, number, f"{_shown(token)}{on} is not 0 or 1")
-        values.extend(t == "1" for t in tokens)
+        values.extend(c == "1" for t in tokens for c in t)
         if len(values) > MAX_PERIODS:
             raise _error(field, source, number, f"more than {MAX_PERIODS} values")
     if not values:
@@ -354,6 +357,6 @@ def read_trace_file(path: str | os.PathLike[str], format: str = "binary", *,
                      if "." in field else "format")
 
 
-__all__ = ["MAX_LOG_LINES", "MAX_PERIODS", "MAX_SENSORS", "NO_SENSOR", "TRACE_FORMATS",
+__all__ = ["MAX_LOG_LINES", "MAX_TRACE_BYTES", "MAX_PERIODS", "MAX_SENSORS", "NO_SENSOR", "TRACE_FORMATS",
            "parse_binary", "parse_receive_log", "parse_sequence_numbers", "read_binary",
            "read_receive_log", "read_sequence_numbers", "read_trace_file"]

@@ -465,7 +465,7 @@ def with_length_to_decide(fit: ChannelFit, threshold: float, *,
 # --- joint traces of several sensors --------------------------------------------------------
 
 @dataclass(frozen=True)
-class JointLaw:
+class EmpiricalJointLaw:
     r"""Empirical joint law π̂(S) of the received set S_t of N sensors (theory §13).
 
     Attributes
@@ -508,7 +508,7 @@ class JointLaw:
         return self.p_all_lost / self.p_all_lost_product
 
 
-def joint_law(traces: Sequence[object], confidence: float = 0.95) -> JointLaw:
+def joint_law(traces: Sequence[object], confidence: float = 0.95) -> EmpiricalJointLaw:
     """The empirical joint law of time-aligned traces of equal length (one per sensor).
 
     Raises
@@ -538,12 +538,12 @@ def joint_law(traces: Sequence[object], confidence: float = 0.95) -> JointLaw:
     law = {frozenset(i for i in range(big_n) if s >> i & 1): float(counts[s] / n)
            for s in range(1 << big_n)}
     marginals = tuple(float(a.mean()) for a in arrays)
-    return JointLaw(big_n, int(n), counts, law, marginals, float(counts[0] / n),
+    return EmpiricalJointLaw(big_n, int(n), counts, law, marginals, float(counts[0] / n),
                     clopper_pearson(int(counts[0]), int(n), c),
                     float(np.prod([1.0 - m for m in marginals])), c)
 
 
-__all__ = ["BurstHistogram", "ChannelFit", "JointLaw", "RegionDecision", "as_trace",
+__all__ = ["BurstHistogram", "ChannelFit", "EmpiricalJointLaw", "RegionDecision", "as_trace",
            "burst_histogram", "clopper_pearson", "decide_on_region", "fit_trace", "joint_law",
            "length_to_decide", "loss_runs", "lrt_iid_vs_markov", "rows_to_decide",
            "transition_counts", "with_length_to_decide"]

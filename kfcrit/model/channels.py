@@ -269,17 +269,28 @@ class GilbertElliott(Channel):
 
 @dataclass(frozen=True, eq=False)
 class Trace(Channel):
-    """A measured 0/1 arrival sequence (read from a text file by
-    :func:`kfcrit.io.channelfile.trace_from_mapping`; the path is relative to the system file).
- The stationary arrival probability is the
-    empirical frequency of ones. The simulations read it cyclically, each path from its own
-    start: the path's 64-bit stream key modulo the trace length (path i of ``simulate``: the
-    key of ``SeedSequence(seed, spawn_key=(0, i))``; ergodic replica j: ``(2, j)``), so a path's
-    arrivals depend on (seed, i) only, never on how many paths are run.
+    """A measured 0/1 arrival sequence (read from a trace file by
+    :func:`kfcrit.io.tracechannel.measured_trace_from_mapping`; the path is relative to the
+    system file). The stationary arrival probability is the empirical frequency of ones.
+
+    ``format`` names the file format it was read from (``binary``, ``sequence-numbers`` or
+    ``receive-log``), ``sensor`` the sensor column it was read for (receive logs), ``confidence``
+    the confidence c of the verdict on the fit's confidence region (theory §14) and
+    ``period_s`` the sampling period a receive log was binned with.
+
+    The simulations read it cyclically, each path from its own start: the path's 64-bit stream
+    key modulo the trace length (path i of ``simulate``: the key of
+    ``SeedSequence(seed, spawn_key=(0, i))``; ergodic replica j: ``(2, j)``), so a path's
+    arrivals depend on (seed, i) only, never on how many paths are run. All sensors of a
+    network read their traces from the same start (time-aligned: their joint law is kept).
     """
 
     path: str
     arrivals: np.ndarray
+    format: str = "binary"
+    confidence: float = 0.95
+    sensor: str | None = None
+    period_s: str | None = None
     model: ClassVar[str] = "trace"
 
     @property
@@ -287,9 +298,15 @@ class Trace(Channel):
         return sp.Rational(int(self.arrivals.sum()), int(self.arrivals.size))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model": self.model, "path": self.path, "length": int(self.arrivals.size),
-                "arrival_probability": float(self.arrival_probability),
-                "arrival_probability_expression": sp.sstr(self.arrival_probability)}
+        out = {"model": self.model, "path": self.path, "length": int(self.arrivals.size),
+               "arrival_probability": float(self.arrival_probability),
+               "arrival_probability_expression": sp.sstr(self.arrival_probability),
+               "format": self.format, "confidence": self.confidence}
+        if self.sensor is not None:
+            out["sensor"] = self.sensor
+        if self.period_s is not None:
+            out["period_s"] = self.period_s
+        return out
 
     def arrival_process(self) -> ArrivalProcess:
         """The measured sequence, read cyclically."""

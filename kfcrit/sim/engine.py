@@ -273,7 +273,10 @@ class _Part:
         B = stop - start
         N = seq_len.size
         keys = np.stack([path_keys(seed, start, stop, sensor_stream(s)) for s in range(N)])
-        offsets = np.stack([trace_offsets(keys[s], int(seq_len[s])) for s in range(N)])
+        # every sensor's trace starts at the same index (the path key of sensor 0's stream):
+        # traces recorded together stay time-aligned, so their joint law is replayed as
+        # measured (independent starts would make simultaneous losses independent)
+        offsets = np.stack([trace_offsets(keys[0], int(seq_len[s])) for s in range(N)])
         k_tr = max(0, min(n_traced - start, B))
         return cls(start, stop, keys, offsets,
                    np.empty((B, S)), np.empty((B, S)), np.empty((B, SL)), np.empty((B, SL)),
@@ -351,7 +354,9 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         follow its channel, independently of the others; a step uses the stacked rows of C
         whose packets arrived (:func:`kfcrit.sim.kernels.riccati_lanes`). Sensor 0 draws from
         the path's stream ``spawn_key=(0, i)``, sensor s ≥ 1 from ``spawn_key=(2 + s, i)``, so
-        one sensor owning every row gives exactly the single-link result.
+        one sensor owning every row gives exactly the single-link result. Trace channels of
+        all sensors start at the same index (key of sensor 0's stream mod each length), so
+        traces recorded together are replayed time-aligned (theory §13: their joint law).
     progress : callable, optional
         Called as ``progress(path_steps_done, paths × steps)`` after every chunk of steps
         (the run is then cut into chunks of ``PROGRESS_WORK`` / n² lane-steps; the results do

@@ -209,34 +209,40 @@ def test_not_detectable_diverges_for_every_p_and_skips_p_up(tmp_path: Path) -> N
     assert "not applicable" in text
 
 
-def test_trace_channel_is_undetermined_with_information(tmp_path: Path) -> None:
+def test_trace_channel_passes_with_confidence(tmp_path: Path) -> None:
+    from scipy import stats
+
     from kfcrit.analysis.record import exit_code
 
     # "1 1 1 0" repeated: 750 ones in 1000 packets; of the 750 ones (each followed by a value)
-    # 250 go to 0, so f̂ = 1/3; the 249 zeros with a successor all recover, r̂ = 1.
+    # 250 go to 0, so f̂ = 1/3; the 249 zeros with a successor all recover, r̂ = 1. The LRT
+    # rejects i.i.d. losses (every 0 is followed by 1), so the Gilbert–Elliott rectangle
+    # decides: its worst r is the Clopper–Pearson lower end for 249 of 249 at level 0.975,
+    # (0.0125)^(1/249) ≈ 0.9826 > 1 − 1/a² = 9/25, and for a scalar plant (1 − r)a² < 1 is
+    # necessary and sufficient (theory §7): mean-stable with confidence 95 %.
     (tmp_path / "trace.txt").write_text("1 1 1 0\n" * 250)
     path = write(tmp_path, "name: t\nA: [[-1.25]]\nC: [[1]]\nQ: 1\nR: 2.5\n"
                            "channel: {model: trace, path: trace.txt}\n")
     code, rec, _ = analyze_json(path, "--quick")
     op = rec["operating_point"]
-    assert op["verdict"] == "undetermined"          # not mean-stable: 0.75 > p_c = 0.36 is i.i.d. only
-    assert op["iid_comparison_verdict"] == "mean-stable"
-    assert "i.i.d." in op["basis"] and "Gilbert–Elliott" in op["basis"]
-    assert "information" in op["basis"]
-    tr = op["trace"]
-    assert tr["empirical_arrival_probability"] == 0.75 and tr["length"] == 1000
-    fit = tr["gilbert_elliott_fit"]
-    assert fit["available"] is True
-    assert fit["failure_rate"] == pytest.approx(1 / 3) and fit["recovery_rate"] == 1.0
-    assert fit["condition"]["value"] == 0.0
+    assert op["verdict"] == "mean-stable" and "with confidence 95 %" in op["basis"]
+    fit = rec["channel_fit"]
+    assert fit["model"] == "gilbert-elliott" and fit["n"] == 1000 and fit["p_hat"] == 0.75
+    assert fit["failure_rate_hat"] == pytest.approx(1 / 3) and fit["recovery_rate_hat"] == 1.0
+    assert fit["recovery_rate_interval"][0] == pytest.approx(0.0125 ** (1 / 249), rel=1e-9)
+    assert fit["failure_rate_interval"][1] == pytest.approx(
+        stats.beta.ppf(1 - 0.0125, 251, 500), rel=1e-9)
+    assert fit["region"]["outcome"] == "holds" and fit["length_to_decide"] is None
     assert not [c for c in rec["verification"] if c["passed"] is False]
-    assert exit_code(rec) == 3                      # undetermined (README: exit code 3)
+    assert exit_code(rec) == 0 == code
     text = CliRunner().invoke(main, ["analyze", str(path), "--quick"]).stdout
-    assert "UNDETERMINED" in text and "Gilbert–Elliott fit" in text
+    assert "MEAN-STABLE" in text and "Gilbert–Elliott" in text
 
 
 def test_cli_exit_code_is_3_for_an_undetermined_verdict(tmp_path: Path) -> None:
-    (tmp_path / "trace.txt").write_text("1 1 1 0\n" * 250)
+    # 19 ones in 50 i.i.d.-looking periods: the 95 % Clopper–Pearson interval of p,
+    # [B⁻¹(0.025; 19, 32), B⁻¹(0.975; 20, 31)] ≈ [0.2465, 0.5283], contains p_c = 9/25
+    (tmp_path / "trace.txt").write_text("01110000000101010010110001000001100100010101101010\n")
     path = write(tmp_path, "name: t\nA: [[-1.25]]\nC: [[1]]\nQ: 1\nR: 2.5\n"
                            "channel: {model: trace, path: trace.txt}\n")
     assert analyze_json(path, "--quick", "--no-simulate")[0] == 3

@@ -683,7 +683,7 @@ def test_render_every_example_html(path, records, capsys):
     text = visible_text(html)
     assert not raw_dumps(text), raw_dumps(text)
     assert "SeedSequence" not in text and "^" not in text
-    network = path.stem.startswith("network-")
+    network = "\nsensors:" in path.read_text(encoding="utf-8")  # a sensors: file
     mesh = path.stem.startswith("mesh-")
     # every example has a channel; a network's record has its own Lyapunov bound (no i.i.d.
     # phase-transition curve of one link) and always its stability-region figure; a mesh its map

@@ -145,6 +145,13 @@ class ChannelRecord:
     mean_burst_length: float | None = opt_key()
     per_over: str = opt_key()
     fading_per_attempt: str = opt_key()
+    format: str = opt_key()
+    """A trace's file format (theory §14)."""
+    confidence: float | None = opt_key()
+    """The confidence level of a trace's verdict (theory §14)."""
+    sensor: str = opt_key()
+    period_s: str = opt_key()
+    """A receive log's sampling period as written in the file (exact decimal text)."""
 
 
 @dataclass(frozen=True, kw_only=True)

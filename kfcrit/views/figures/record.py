@@ -22,7 +22,9 @@ Figures (names for :func:`figure`, keys of :func:`build_figures`):
 * ``critical_curve``: a Gilbert–Elliott link's critical curve (:mod:`kfcrit.views.figures.burst`);
 * ``accuracy``, ``arrival_distance``, ``per_sinr``, ``outage_distance``: the accuracy
   requirement against the covariance bounds and the link curves
-  (:mod:`kfcrit.views.figures.design`).
+  (:mod:`kfcrit.views.figures.design`);
+* ``burst_histogram``, ``fit_region``: a measured trace's loss runs against the fitted geometric
+  law and its confidence region in the (f, r) plane (:mod:`kfcrit.views.figures.tracefit`).
 """
 from __future__ import annotations
 
@@ -66,12 +68,13 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     positive,
     section,
 )
+from kfcrit.views.figures.tracefit import draw_burst_histogram, draw_fit_region  # noqa: E402
 from kfcrit.views.mesh.meshfigure import draw_mesh_topology  # noqa: E402
 
 FIGURE_KEYS = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant",
                "network_region", "network_map", "critical_curve", "accuracy",
                "arrival_distance", "per_sinr", "outage_distance", "mesh_topology",
-               "loop_plane", "loop_cost")
+               "loop_plane", "loop_cost", "burst_histogram", "fit_region")
 
 
 def _to_svg(fig: Figure, label: str) -> str:
@@ -407,7 +410,8 @@ DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "accuracy": draw_accuracy, "arrival_distance": draw_arrival_distance,
     "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance,
     "mesh_topology": draw_mesh_topology,
-    "loop_plane": draw_loop_plane, "loop_cost": draw_loop_cost}
+    "loop_plane": draw_loop_plane, "loop_cost": draw_loop_cost,
+    "burst_histogram": draw_burst_histogram, "fit_region": draw_fit_region}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -429,7 +433,11 @@ LABELS = {
     "mesh_topology": "Mesh topology: nodes, routes and hops coloured by their success",
     "loop_plane": "Closed loop: stable regions in the sensing, actuation arrival-probability "
                   "plane with the operating point",
-    "loop_cost": "Closed loop: average cost against each link's arrival probability"}
+    "loop_cost": "Closed loop: average cost against each link's arrival probability",
+    "burst_histogram": "Loss-burst lengths of the measured trace against the fitted geometric "
+                       "law",
+    "fit_region": "Confidence region of the trace fit in the failure-rate, recovery-rate plane "
+                  "with the stability boundary"}
 # Figures printed as PNG (see :func:`build_figures`): all of them, since WeasyPrint's SVG painter
 # costs more per figure than the rest of a page's layout.
 DENSE = frozenset(FIGURE_KEYS)

@@ -25,6 +25,7 @@ from kfcrit.views.report.theory import (
     structure_view,
     system_view,
 )
+from kfcrit.views.report.tracefit import measured_view
 from kfcrit.views.report.verdict import requirement_view, verdict_view
 from kfcrit.views.text.looptext import loop_view
 
@@ -144,6 +145,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "network": network_view(rec, figures),
         "mesh": mesh_view(rec, figures),
         "loop": loop_figures(loop_view(rec), figures),
+        "channel_fit": measured_view(rec, figures),
         "design": design_view(rec, figures),
         "appendix": appendix_view(rec),
     }

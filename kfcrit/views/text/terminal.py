@@ -11,6 +11,7 @@ from kfcrit.views.text.netmargin import (
     bottleneck_margin_text,
     margin_text,
 )
+from kfcrit.views.text.tracefit import channel_fit_lines
 
 _DECIMAL = re.compile(r"-?\d+(\.\d+)?(e[-+]?\d+)?")
 _LONG_DECIMAL = re.compile(r"\d\.\d{9,}")
@@ -199,7 +200,7 @@ def summary(rec: dict[str, Any]) -> str:
             lines.append(f"      basis: {op['basis']}")
         if op.get("note"):
             lines.append(f"      note: {op['note']}")
-        lines.extend(_trace_lines(op.get("trace")))
+    lines.extend(channel_fit_lines(rec.get("channel_fit")))
     lines.extend(network_lines(rec.get("network")))
     lines.extend(mesh_lines(rec))
     lines.extend(loop_lines(rec.get("loop")))
@@ -294,24 +295,6 @@ def _simulation_lines(rec: dict[str, Any]) -> list[str]:
     div = sim.get("divergence") or {}
     if div.get("diverged_paths"):
         out.append(f"  diverged paths        {div['diverged_paths']} of {sim.get('paths')}")
-    return out
-
-
-def _trace_lines(tr: dict[str, Any] | None) -> list[str]:
-    if not tr:
-        return []
-    out = [f"  empirical arrival     {_num(tr.get('empirical_arrival_probability'))} over "
-           f"{tr.get('length')} packets (for information)"]
-    fit = tr.get("gilbert_elliott_fit") or {}
-    if fit.get("available"):
-        cond = fit.get("condition") or {}
-        out.append(f"  Gilbert–Elliott fit   f = {_num(fit.get('failure_rate'), 4)}, "
-                   f"r = {_num(fit.get('recovery_rate'), 4)}, mean loss burst "
-                   f"{_num(fit.get('mean_burst_length'), 4)} packets"
-                   + (f"; {cond.get('expression')}: {_num(cond.get('value'), 4)}"
-                      if cond else "") + " (for information)")
-    elif fit:
-        out.append(f"  Gilbert–Elliott fit   not available ({fit.get('reason')})")
     return out
 
 

@@ -1,0 +1,266 @@
+r"""One measured trace: its fits, the corners of its confidence region and what the theory
+proves at each corner (theory §7, §10, §14).
+
+The stable set is an up-set in p for i.i.d. losses and, for Gilbert–Elliott losses, an up-set
+in r and a down-set in f (theory §10), so the worst corner of the region decides stability on
+all of it and the best corner decides instability:
+
+.. math::
+
+    \text{Bernoulli: } p_{lo} \text{ (worst)},\ p_{hi} \text{ (best)};\qquad
+    \text{Gilbert–Elliott: } (f_{hi}, r_{lo}) \text{ (worst)},\ (f_{lo}, r_{hi}) \text{ (best)}.
+
+At a Gilbert–Elliott corner the necessary condition (1 − r)ρ(A)² < 1 is decided exactly
+(r against 1 − 1/ρ²), and the sufficient one is the exact scalar condition (theory §7) or the
+coupled fixed-gain certificate :func:`kfcrit.theory.links.markov.burst_facts` (theory §10).
+This module gathers facts; :func:`kfcrit.analysis.verdict.measured_verdict` decides.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from kfcrit.analysis import verdict as vd
+from kfcrit.link.tracefit import (
+    ChannelFit,
+    fit_trace,
+    lrt_iid_vs_markov,
+    rows_to_decide,
+    transition_counts,
+)
+from kfcrit.model.system import System
+
+CURVE_MAX_STATES = 4
+"""Largest n whose sufficient curve r_suf(f) is drawn in the (f, r) plane (it costs a
+certificate search per point)."""
+
+
+@dataclass(frozen=True)
+class MeasuredFit:
+    """The ``channel_fit`` section (plain JSON form) and the verdict's inputs."""
+
+    section: dict[str, Any]
+    inputs: vd.MeasuredInputs | None
+    joint: vd.JointLawInputs | None = None
+
+
+def plant_spectral_radius(system: System) -> float:
+    """ρ(A) in floats (for the figures and texts; decisions use the exact p_low)."""
+    return float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
+
+
+def burst_section(fit: ChannelFit) -> dict[str, Any]:
+    """The burst-length histogram of a fit in the record's form."""
+    b = fit.bursts
+    return {"lengths": list(b.lengths), "counts": list(b.counts), "expected": list(b.expected),
+            "runs": b.runs, "censored": b.censored, "mean_length": b.mean_length,
+            "fitted_recovery_rate": fit.recovery_rate_hat, "statistic": b.statistic,
+            "dof": b.dof, "p_value": b.p_value}
+
+
+def fit_fields(fit: ChannelFit, arrivals: Any) -> dict[str, Any]:
+    """The fields of ``channel_fit`` that describe the fit itself (theory §14)."""
+    stat, _ = lrt_iid_vs_markov(transition_counts(arrivals))
+    return {"model": fit.model, "n": fit.n, "p_hat": fit.p_hat,
+            "p_interval": list(fit.p_interval), "failure_rate_hat": fit.failure_rate_hat,
+            "failure_rate_interval": list(fit.failure_rate_interval),
+            "recovery_rate_hat": fit.recovery_rate_hat,
+            "recovery_rate_interval": list(fit.recovery_rate_interval),
+            "lrt_statistic": stat, "lrt_p_value": fit.lrt_p_value,
+            "confidence": fit.confidence, "bursts": burst_section(fit)}
+
+
+# ----------------------------------------------------------------------------- i.i.d. corners
+
+def iid_facts(p: float, crit: vd.CriticalInputs) -> tuple[bool | None, bool, str]:
+    """(necessary, sufficient, basis) of mean stability at i.i.d. arrival probability ``p``:
+    p above p_c (or the lower end of its bracket) is necessary, above p_c and its robust value
+    (or the upper end p_up) sufficient — compared exactly with
+    :func:`kfcrit.analysis.verdict.exceeds`."""
+    if crit.classification == "stable" and crit.robust is None:
+        return True, True, "ρ(A) < 1"
+    if crit.critical is not None:
+        pc = crit.critical_exact if crit.critical_exact is not None else crit.critical
+        worst = max(crit.critical, crit.robust if crit.robust is not None else crit.critical)
+        nec = bool(vd.exceeds(p, pc))
+        suf = nec and bool(vd.exceeds(p, worst))
+        return nec, suf, f"p = {p:.6g} against p_c = {crit.critical:.6g}"
+    lo = crit.lower if crit.lower is not None else 0.0
+    nec = bool(vd.exceeds(p, lo))
+    suf = crit.upper is not None and bool(vd.exceeds(p, crit.upper))
+    up = "unknown" if crit.upper is None else f"{crit.upper:.6g}"
+    return nec, suf, f"p = {p:.6g} against the bracket [{lo:.6g}, {up}] of p_c"
+
+
+def iid_threshold(p_hat: float, crit: vd.CriticalInputs) -> tuple[float | None, str]:
+    """The value p̂'s interval must exclude for a verdict, and how it is named; None when no
+    trace length decides (p̂ inside the bracket of p_c, or ρ(A) < 1)."""
+    if crit.classification == "stable" and crit.robust is None:
+        return None, "ρ(A) < 1: every arrival probability is stable"
+    if crit.critical is not None:
+        worst = max(crit.critical, crit.robust if crit.robust is not None else crit.critical)
+        if p_hat > worst:
+            return worst, f"p_c = {worst:.6g}"
+        if p_hat <= crit.critical:
+            return crit.critical, f"p_c = {crit.critical:.6g}"
+        return None, "p̂ lies between p_c and its robust value"
+    lo = crit.lower if crit.lower is not None else 0.0
+    if crit.upper is not None and p_hat > crit.upper:
+        return crit.upper, f"p_up = {crit.upper:.6g}"
+    if p_hat <= lo:
+        return lo, f"the lower end {lo:.6g} of the bracket of p_c"
+    return None, "p̂ lies inside the bracket of p_c: a longer trace cannot decide"
+
+
+# ----------------------------------------------------------------------------- GE corners
+
+def burst_corner(system: System, crit: vd.CriticalInputs, f: float, r: float, *,
+                 sufficient: bool, structure: Any = None) -> tuple[vd.BurstInputs, dict]:
+    r"""The facts at one corner (f, r) of the Gilbert–Elliott rectangle.
+
+    Necessary: (1 − r)ρ² < 1 ⇔ r > 1 − 1/ρ² = p_low (exactly). With ``sufficient`` the
+    sufficient condition is sought: for a scalar plant the exact condition of theory §7
+    ((1 − r)a² < 1 is also sufficient), else the coupled certificate of theory §10.
+    """
+    p_low = crit.p_low_exact if crit.p_low_exact is not None else crit.p_low
+    if crit.classification == "stable" and crit.robust is None:
+        corner = {"necessary": True, "sufficient": True, "basis": "ρ(A) < 1"}
+        return vd.BurstInputs(r, f, True, "ρ(A) < 1"), corner
+    nec = True if not crit.p_low else bool(vd.exceeds(r, p_low))
+    basis = (f"(1 − r)·ρ(A)² = {(1.0 - r) / (1.0 - crit.p_low):.6g}" if crit.p_low and
+             crit.p_low < 1 else "(1 − r)·ρ(A)² < 1")
+    suf, why = False, None
+    if nec and sufficient:
+        if system.n == 1:
+            suf, why = True, (f"scalar plant: (1 − r)·a² < 1 at r = {r:.6g} is necessary and "
+                              "sufficient (theory §7)")
+        else:
+            from kfcrit.theory.links import markov
+
+            facts = markov.burst_facts(system, f, r, structure=structure,
+                                       classification=crit.classification)
+            suf, why = bool(facts.facts.sufficient), facts.basis
+    corner = {"necessary": nec, "sufficient": suf, "basis": why or basis}
+    return vd.BurstInputs(r, f, True if suf else None, why), corner
+
+
+def _corner_row(p: float | None, f: float | None, r: float | None, facts: dict) -> dict:
+    return {"arrival_probability": p, "failure_rate": f, "recovery_rate": r,
+            "necessary": facts["necessary"], "sufficient": bool(facts["sufficient"]),
+            "basis": facts["basis"]}
+
+
+def _outcome(worst: dict, best: dict) -> str:
+    if worst["sufficient"]:
+        return "holds"
+    if best["necessary"] is False:
+        return "fails"
+    return "neither"
+
+
+def ge_length(fit: ChannelFit, crit: vd.CriticalInputs, n_states: int) -> tuple[int | None, str]:
+    """Trace length at which the interval of r̂ would exclude the burst boundary 1 − 1/ρ²."""
+    if crit.classification == "stable" and crit.robust is None:
+        return None, "ρ(A) < 1: every channel is stable"
+    if not crit.p_low or fit.recovery_rate_hat is None:
+        return None, "the recovery rate is not estimable from this trace"
+    f, r = fit.failure_rate_hat, fit.recovery_rate_hat
+    if f is None or f == 0:
+        return None, "no loss started in the trace"
+    m = rows_to_decide(r, crit.p_low, 1.0 - (1.0 - fit.confidence) / 2.0)
+    extra = "" if n_states == 1 else "; the certificate's curve may need more"
+    if m is None:
+        return None, f"r̂ = 1 − 1/ρ² = {crit.p_low:.6g}"
+    return 1 + int(np.ceil(m * (f + r) / f)), f"r against 1 − 1/ρ(A)² = {crit.p_low:.6g}{extra}"
+
+
+# ----------------------------------------------------------------------------- boundary
+
+def boundary_section(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *,
+                     curve: bool, structure: Any = None) -> dict[str, Any]:
+    """The stability boundary of the (f, r) plane: r = 1 − 1/ρ² and, for small vector plants,
+    the sufficient curve of the coupled certificate (theory §10)."""
+    rho = plant_spectral_radius(system)
+    nec = crit.p_low if crit.p_low else (max(0.0, 1.0 - 1.0 / rho ** 2) if rho > 1 else None)
+    out = {"spectral_radius": rho, "necessary_recovery": nec, "failure_rates": [],
+           "sufficient_recovery": [], "note": ""}
+    if nec is None:
+        out["note"] = "ρ(A) ≤ 1: no burst boundary"
+        return out
+    if system.n == 1:
+        out["note"] = "scalar plant: (1 − r)a² < 1 is necessary and sufficient (theory §7)"
+        return out
+    if not curve or system.n > CURVE_MAX_STATES:
+        out["note"] = "sufficient curve not computed (only for plants of at most " \
+                      f"{CURVE_MAX_STATES} states with a Gilbert–Elliott fit)"
+        return out
+    from kfcrit.theory.links import markov
+
+    hi = fit.failure_rate_interval[1]
+    grid = sorted({round(k / 6, 6) for k in range(1, 7)} | {round(min(max(hi, 1e-3), 1.0), 6)})
+    cc = markov.critical_curve(system, failure_rates=grid, tol=1e-2, structure=structure)
+    out.update(failure_rates=list(cc.failure_rates),
+               sufficient_recovery=list(cc.sufficient_recovery),
+               note="sufficient curve: least r with a coupled fixed-gain certificate (width "
+                    "1e-2, theory §10)")
+    return out
+
+
+# ----------------------------------------------------------------------------- the section
+
+def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.CriticalInputs, *,
+              details: bool = True, structure: Any = None) -> MeasuredFit:
+    """Fit a single trace channel and gather the facts at the corners of its region."""
+    fit = fit_trace(arrivals, confidence)
+    out = {"subject": "the channel's trace", **fit_fields(fit, arrivals)}
+    if fit.model == "bernoulli":
+        lo, hi = fit.p_interval
+        wn, ws, wb = iid_facts(lo, crit)
+        bn, bs, bb = iid_facts(hi, crit)
+        worst = _corner_row(lo, None, None, {"necessary": wn, "sufficient": ws, "basis": wb})
+        best = _corner_row(hi, None, None, {"necessary": bn, "sufficient": bs, "basis": bb})
+        threshold, text = iid_threshold(fit.p_hat, crit)
+        length = None if threshold is None else rows_to_decide(fit.p_hat, threshold,
+                                                               fit.confidence)
+        inputs = vd.MeasuredInputs("bernoulli", fit.confidence, worst_p=lo, best_p=hi,
+                                   length_to_decide=length, threshold_text=text)
+    else:
+        (f_lo, f_hi), (r_lo, r_hi) = fit.failure_rate_interval, fit.recovery_rate_interval
+        w_in, w = burst_corner(system, crit, f_hi, r_lo, sufficient=True, structure=structure)
+        b_in, b = burst_corner(system, crit, f_lo, r_hi, sufficient=system.n == 1,
+                               structure=structure)
+        worst, best = _corner_row(None, f_hi, r_lo, w), _corner_row(None, f_lo, r_hi, b)
+        length, text = ge_length(fit, crit, system.n)
+        inputs = vd.MeasuredInputs("gilbert-elliott", fit.confidence, worst_burst=w_in,
+                                   best_burst=b_in, length_to_decide=length,
+                                   threshold_text=text)
+    outcome = _outcome(worst, best)
+    out["region"] = {"model": fit.model, "confidence": fit.confidence, "worst": worst,
+                     "best": best, "outcome": outcome}
+    decided = outcome != "neither"  # a decided region needs no longer trace
+    out["length_to_decide"] = None if decided else inputs.length_to_decide
+    out["length_to_decide_basis"] = ("decided: the whole confidence region is on one side"
+                                     if decided else inputs.threshold_text)
+    out["boundary"] = boundary_section(system, crit, fit, structure=structure,
+                                       curve=details and fit.model == "gilbert-elliott")
+    out["notes"] = model_notes(fit)
+    return MeasuredFit(out, inputs)
+
+
+def model_notes(fit: ChannelFit) -> list[str]:
+    """What the reader should know about the model choice."""
+    out = [f"model chosen by the likelihood-ratio test at level {1 - fit.confidence:.3g}: "
+           f"p-value {fit.lrt_p_value:.3g} → {fit.model}"]
+    b = fit.bursts
+    if b.p_value is not None and b.p_value < 1 - fit.confidence:
+        out.append(f"the burst lengths do not fit the geometric law of r̂ (X² p-value "
+                   f"{b.p_value:.3g}): losses may have more memory than a two-state chain, "
+                   "and the verdict rests on the two-state model")
+    return out
+
+
+__all__ = ["CURVE_MAX_STATES", "MeasuredFit", "boundary_section", "burst_corner",
+           "burst_section", "fit_fields", "ge_length", "iid_facts", "iid_threshold", "model_notes",
+           "plant_spectral_radius", "trace_fit"]
