@@ -21,6 +21,7 @@ from kfcrit.cli.common import (
     max_states_option,
 )
 from kfcrit.cli.inspect import check, radios, schema
+from kfcrit.cli.link import link
 from kfcrit.version import __version__
 
 
@@ -35,6 +36,7 @@ def main() -> None:
 main.add_command(check)
 main.add_command(schema)
 main.add_command(radios)
+main.add_command(link)
 
 
 @main.command(epilog=EXAMPLES)
