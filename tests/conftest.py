@@ -82,10 +82,10 @@ def example_records() -> dict[str, object]:
     Shared by the tests that only read records (schema, views, round trips), so the suite pays
     for each analysis once.
     """
-    from kfcrit.analysis.record import analyze
+    from kfcrit.analysis.record import analyze_system
     from kfcrit.analysis.spec import load_spec
 
-    return {p.name: analyze(load_spec(p), quick=True) for p in example_files()}
+    return {p.name: analyze_system(load_spec(p), quick=True) for p in example_files()}
 
 
 @pytest.fixture(autouse=True)

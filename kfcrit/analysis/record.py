@@ -1,11 +1,11 @@
 """The analysis: one typed record that every view renders.
 
-``analyze(spec)`` asks each concern for its section — the critical value
+``analyze_system(spec)`` asks each concern for its section — the critical value
 (:mod:`kfcrit.theory.critical.section`), the upper bound and covariance bounds
 (:mod:`kfcrit.theory.upper.bracket`, :mod:`kfcrit.theory.covariance.bounds`), the simulation
 (:mod:`kfcrit.sim`) and the link (:mod:`kfcrit.link`) — then decides, in one place
 (:mod:`kfcrit.analysis.verdict`), the stability verdict at the operating point and the review
-decision, and returns the typed :class:`~kfcrit.analysis.sections.Analysis`. The terminal
+decision, and returns the typed :class:`~kfcrit.analysis.sections.AnalysisRecord`. The terminal
 summary, ``--json``, the HTML, the PDF and the sweep table are all views of it; no view computes
 anything.
 
@@ -36,7 +36,7 @@ from kfcrit.analysis.requirements import (
     requirement_assessment,
     tail_simulation_check,
 )
-from kfcrit.analysis.sections import SCHEMA_VERSION, Analysis, record_from_json
+from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord, record_from_json
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import System, conditioning_warnings
@@ -73,7 +73,7 @@ class TheorySections:
     """The sections that depend on (A, C) and the tolerances only (not on the channel).
 
     Computed once per system by :func:`theory_sections`; a sweep over channel parameters passes
-    the same object to every :func:`analyze` call instead of recomputing it.
+    the same object to every :func:`analyze_system` call instead of recomputing it.
     """
 
     sections: dict[str, Any]
@@ -275,7 +275,7 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     """Critical value, its bounds and robust value, the structure, and p_up of one system.
 
     These depend on the system and the tolerances only; compute them once per system and pass
-    them to :func:`analyze` (``theory=``) when only the channel changes. ``upper_bound`` is the
+    them to :func:`analyze_system` (``theory=``) when only the channel changes. ``upper_bound`` is the
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
     enter Ψ_p, theory §3), so a sweep over noise parameters computes it once.
     """
@@ -305,9 +305,9 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
                           p_low_exact=getattr(lower, "expr", None), structure=structure)
 
 
-def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
-            theory: TheorySections | None = None, **kwargs: Any) -> Analysis:
-    """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
+def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
+            theory: TheorySections | None = None, **kwargs: Any) -> AnalysisRecord:
+    """Analyse a system (or a loaded system file) and return the typed :class:`AnalysisRecord`.
 
     Parameters
     ----------
@@ -583,7 +583,7 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
         points = 5 if opts.quick else 9
         grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
                       | {0.01, float(ge.failure_rate)})
-        curve = markov.critical_curve(
+        curve = markov.burst_critical_curve(
             s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
             operating=(float(ge.failure_rate), float(ge.recovery_rate)),
             structure=theory.structure)

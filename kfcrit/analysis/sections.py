@@ -20,15 +20,15 @@ from kfcrit.analysis.records.bursty import GilbertElliottSection
 from kfcrit.analysis.records.contract import (
     BlockLowerBound,
     Classification,
-    CriticalValue,
+    CriticalValueRecord,
     LowerBound,
     OperatingPoint,
     Provenance,
     RequirementAssessment,
-    Requirements,
+    RequirementsRecord,
     RobustCriticalValue,
     SystemSection,
-    UpperBound,
+    UpperBoundRecord,
     VerificationCheck,
 )
 from kfcrit.analysis.records.covariance import (
@@ -39,10 +39,10 @@ from kfcrit.analysis.records.covariance import (
     StaticGain,
     TailSection,
 )
-from kfcrit.analysis.records.link import LinkBudget
+from kfcrit.analysis.records.link import LinkBudgetRecord
 from kfcrit.analysis.records.network import NetworkSection
 from kfcrit.analysis.records.simulation import Simulation
-from kfcrit.analysis.records.structure import Structure, Theory
+from kfcrit.analysis.records.structure import StructureRecord, Theory
 from kfcrit.analysis.verdict import Reason, Review
 from kfcrit.io.typed import from_json, internal, json_schema, opt_key, to_json
 
@@ -59,7 +59,7 @@ CONTRACT_KEYS = ("name", "classification", "critical_value", "robust_critical_va
 
 
 @dataclass(frozen=True)
-class Analysis:
+class AnalysisRecord:
     """The analysis record of one system file (JSON contract, schema :data:`SCHEMA_VERSION`).
 
     Build with :func:`kfcrit.analyze`; read with :meth:`to_dict` (the ``--json`` form), by
@@ -69,27 +69,27 @@ class Analysis:
 
     name: str
     classification: Classification | None
-    critical_value: CriticalValue | None
+    critical_value: CriticalValueRecord | None
     robust_critical_value: RobustCriticalValue | None
     lower_bound: LowerBound | None
     block_lower_bound: BlockLowerBound | None
-    upper_bound: UpperBound | None
+    upper_bound: UpperBoundRecord | None
     operating_point: OperatingPoint | None
     warnings: list[str]
     schema_version: str
     review: Review
     description: str | None
     system: SystemSection
-    structure: Structure | None
+    structure: StructureRecord | None
     theory: Theory | None
     covariance_bounds: CovarianceBounds | None
     static_gain: StaticGain | None
     phase_transition: PhaseTransition | None
     simulation: Simulation | None
     invariant: Invariant | None
-    link_budget: LinkBudget | GilbertElliottSection | None
+    link_budget: LinkBudgetRecord | GilbertElliottSection | None
     """A link budget's design, or (Gilbert–Elliott channel) the bursty-link conditions."""
-    requirements: Requirements | None
+    requirements: RequirementsRecord | None
     verification: list[VerificationCheck]
     provenance: Provenance
     design: AccuracyDesign = opt_key()
@@ -126,26 +126,26 @@ class Analysis:
         pc = self.critical_value.value if self.critical_value else None
         pc_text = (self.critical_value.expression or f"{pc:.6g}") if pc is not None else "bracket"
         cls = self.classification.value if self.classification else "?"
-        return (f"<kfcrit Analysis {self.name!r}: {cls}, "
+        return (f"<kfcrit AnalysisRecord {self.name!r}: {cls}, "
                 f"p_c = {pc_text}, verdict {self.verdict or 'n/a'}, review {self.decision}>")
 
 
-def record_from_json(data: dict[str, Any]) -> Analysis:
+def record_from_json(data: dict[str, Any]) -> AnalysisRecord:
     """The typed record from its JSON form (strict: unknown, missing or mistyped keys fail)."""
-    return from_json(Analysis, data)
+    return from_json(AnalysisRecord, data)
 
 
 def record_schema() -> dict[str, Any]:
     """JSON Schema (draft 2020-12) of the record's JSON form."""
-    schema = json_schema(Analysis, title="kfcrit analysis record")
+    schema = json_schema(AnalysisRecord, title="kfcrit analysis record")
     schema["$id"] = f"https://kfcrit.invalid/schema/record-{SCHEMA_VERSION}.json"
     return schema
 
 
-__all__ = ["SCHEMA_VERSION", "AccuracyDesign", "Analysis", "BlockLowerBound", "Classification",
-           "CovarianceBounds", "CriticalValue", "GilbertElliottSection", "Invariant",
-           "LinkBudget", "LowerBound", "NetworkSection", "OperatingPoint", "PhaseTransition",
-           "Provenance", "Reason", "RequirementAssessment", "Requirements", "Review",
-           "RobustCriticalValue", "Simulation", "StaticGain", "Structure", "SystemSection",
-           "TailSection", "Theory", "UpperBound", "VerificationCheck", "record_from_json",
+__all__ = ["SCHEMA_VERSION", "AccuracyDesign", "AnalysisRecord", "BlockLowerBound", "Classification",
+           "CovarianceBounds", "CriticalValueRecord", "GilbertElliottSection", "Invariant",
+           "LinkBudgetRecord", "LowerBound", "NetworkSection", "OperatingPoint", "PhaseTransition",
+           "Provenance", "Reason", "RequirementAssessment", "RequirementsRecord", "Review",
+           "RobustCriticalValue", "Simulation", "StaticGain", "StructureRecord", "SystemSection",
+           "TailSection", "Theory", "UpperBoundRecord", "VerificationCheck", "record_from_json",
            "record_schema"]

@@ -46,13 +46,13 @@ def parse_channel(data: Any, prefix: str = "channel", base_dir: Path | None = No
 def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
                       max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
     """Validate a parsed system document (any channel model) and build the spec."""
-    return systemfile.spec_from_mapping(doc, base_dir=base_dir, max_states=max_states,
+    return systemfile.read_system_mapping(doc, base_dir=base_dir, max_states=max_states,
                                         channels=CHANNELS)
 
 
 def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
     """Load a system file: system, channel (any model), requirements and provenance."""
-    return systemfile.load_spec(path, max_states=max_states, channels=CHANNELS)
+    return systemfile.read_system_file(path, max_states=max_states, channels=CHANNELS)
 
 
 def load_system(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> System:

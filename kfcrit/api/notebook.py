@@ -10,17 +10,17 @@ from pathlib import Path
 from typing import Any
 
 from kfcrit.analysis import sections
-from kfcrit.analysis.record import analyze as record_analyze
+from kfcrit.analysis.record import analyze_system as record_analyze
 from kfcrit.analysis.spec import load_spec
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import MAX_STATES_DEFAULT, System
 
 
 @dataclass(frozen=True, repr=False)
-class Analysis(sections.Analysis):
+class Analysis(sections.AnalysisRecord):
     """The typed analysis record, displayed in notebooks by its verdict box and bounds table.
 
-    Everything of :class:`kfcrit.analysis.sections.Analysis` (typed sections, ``to_dict()``,
+    Everything of :class:`kfcrit.analysis.sections.AnalysisRecord` (typed sections, ``to_dict()``,
     ``decision``, ``verdict``), plus :meth:`figure` and the rich displays.
     """
 
@@ -47,13 +47,13 @@ class Analysis(sections.Analysis):
         return figure(self.to_dict(), name)
 
     @classmethod
-    def of(cls, record: sections.Analysis) -> Analysis:
-        """The notebook form of a record built by :func:`kfcrit.analysis.record.analyze`."""
+    def of(cls, record: sections.AnalysisRecord) -> Analysis:
+        """The notebook form of a record built by :func:`kfcrit.analysis.record.analyze_system`."""
         return cls(**{f.name: getattr(record, f.name) for f in dataclasses.fields(record)})
 
 
 def as_spec(system: Any, *, max_states: int = MAX_STATES_DEFAULT) -> System | SystemSpec:
-    """What :func:`kfcrit.analysis.record.analyze` takes, from what a notebook user passes.
+    """What :func:`kfcrit.analysis.record.analyze_system` takes, from what a notebook user passes.
 
     A path (``str`` or :class:`os.PathLike`) is a system file, loaded as ``kfcrit analyze``
     loads it (:func:`kfcrit.analysis.spec.load_spec`: channel, requirements and provenance
@@ -81,7 +81,7 @@ def analyze(system: Any, options: Any = None, *, max_states: int = MAX_STATES_DE
     """Analyse a system file (its path), a :class:`~kfcrit.model.system.System` or a loaded
     system file (:class:`~kfcrit.io.systemfile.SystemSpec`).
 
-    See :func:`kfcrit.analysis.record.analyze` (same parameters; keyword arguments override
+    See :func:`kfcrit.analysis.record.analyze_system` (same parameters; keyword arguments override
     fields of :class:`~kfcrit.analysis.record.AnalysisOptions`, e.g. ``simulate=False``);
     ``max_states`` is the size cap applied when loading a path, as ``--max-states`` on the
     command line. The record returned displays itself in notebooks.

@@ -119,7 +119,7 @@ def write_simulation(out: Path, summary: dict[str, Any], traces: Any) -> list[st
     return names
 
 
-@link.command(epilog=LINK_EXAMPLES)
+@link.command("simulate", epilog=LINK_EXAMPLES)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", default=None, type=click.Path(file_okay=False),
               help="Folder for the traces (<sensor>.trace, one 0/1 per period) and "
@@ -140,7 +140,7 @@ def write_simulation(out: Path, summary: dict[str, Any], traces: Any) -> list[st
 @max_states_option
 @debug_option
 @handle_errors
-def simulate(file: str, output: str | None, periods: int, seed: int, period_ms: float | None,
+def link_simulate_cli(file: str, output: str | None, periods: int, seed: int, period_ms: float | None,
              jitter_ms: float, nakagami_m: float | None, as_json: bool, max_states: int,
              debug: bool) -> None:
     """Simulate FILE's link budget (or every sensor of a network file) in ns-3's lr-wpan

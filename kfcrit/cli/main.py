@@ -39,7 +39,7 @@ main.add_command(radios)
 main.add_command(link)
 
 
-@main.command(epilog=EXAMPLES)
+@main.command("analyze", epilog=EXAMPLES)
 @click.argument("system_file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the analysis record as JSON.")
 @click.option("--tolerance", type=ToleranceType(), default=1e-9, show_default=True,
@@ -50,11 +50,11 @@ main.add_command(link)
 @max_states_option
 @debug_option
 @handle_errors
-def analyze(system_file: str, as_json: bool, tolerance: float, no_simulate: bool, quick: bool,
+def analyze_cli(system_file: str, as_json: bool, tolerance: float, no_simulate: bool, quick: bool,
             seed: int, max_states: int, debug: bool) -> None:
     """Analyse SYSTEM_FILE: critical value, bounds, simulation, verdict and review decision."""
     from kfcrit.analysis.record import AnalysisOptions
-    from kfcrit.analysis.record import analyze as run
+    from kfcrit.analysis.record import analyze_system as run
     from kfcrit.analysis.spec import load_spec
     from kfcrit.analysis.verdict import exit_code
     from kfcrit.io.jsonio import dumps
@@ -119,7 +119,7 @@ def report(ctx: click.Context, source: str, outputs: tuple[str, ...], fmt: str |
                             max_states=max_states, tolerance=tolerance, options_given=given))
 
 
-@main.command(epilog=EXAMPLES)
+@main.command("simulate", epilog=EXAMPLES)
 @click.argument("system_file", type=click.Path(dir_okay=False))
 @click.option("--paths", type=click.IntRange(1, 10_000_000), default=1000, show_default=True)
 @click.option("--steps", type=click.IntRange(1, 10_000_000), default=500, show_default=True)
@@ -136,7 +136,7 @@ def report(ctx: click.Context, source: str, outputs: tuple[str, ...], fmt: str |
 @max_states_option
 @debug_option
 @handle_errors
-def simulate(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
+def simulate_cli(system_file: str, paths: int, steps: int, seed: int, as_json: bool,
              plot: str | None, ergodic_steps: int | None, tail: tuple[float, ...],
              max_states: int, debug: bool) -> None:
     """Monte Carlo of the random Riccati equation for SYSTEM_FILE."""
@@ -164,7 +164,7 @@ was numerically inconclusive, 130 interrupted (finished points are kept).
 """
 
 
-@main.command(epilog=SWEEP_EXAMPLES)
+@main.command("sweep", epilog=SWEEP_EXAMPLES)
 @click.argument("sweep_file", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", default=None, type=click.Path(),
               help="Output folder for the CSV, JSON and plots (default: next to the sweep file; "
@@ -176,7 +176,7 @@ was numerically inconclusive, 130 interrupted (finished points are kept).
 @max_states_option
 @debug_option
 @handle_errors
-def sweep(sweep_file: str, output: str | None, scheduler: str | None, workers: int | None,
+def sweep_cli(sweep_file: str, output: str | None, scheduler: str | None, workers: int | None,
           max_states: int, debug: bool) -> None:
     """Sweep a grid of system/channel parameters described in SWEEP_FILE."""
     from kfcrit.cli.sweep import sweep_command

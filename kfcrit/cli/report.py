@@ -140,13 +140,13 @@ def source_kind(source: str | Path) -> str:
 def analysed_record(source: str | Path, *, quick: bool, seed: int, tolerance: float,
                     max_states: int) -> dict[str, Any]:
     """Analyse the system file ``source`` once and return its record as a dict."""
-    from kfcrit.analysis.record import AnalysisOptions, analyze
+    from kfcrit.analysis.record import AnalysisOptions, analyze_system
     from kfcrit.analysis.spec import load_spec
 
     progress(f"reading {source}")
     spec = load_spec(source, max_states=max_states)
     progress("analysing" + (" (quick draft)" if quick else ""))
-    return analyze(spec, AnalysisOptions(quick=quick, seed=seed,
+    return analyze_system(spec, AnalysisOptions(quick=quick, seed=seed,
                                          tolerance=tolerance)).to_dict()
 
 

@@ -496,7 +496,7 @@ def _json_record(text: str) -> Any:
     return doc if is_saved_record(doc) else None
 
 
-def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
+def read_system_mapping(doc: Any, *, base_dir: Path | None = None,
                       max_states: int = MAX_STATES_DEFAULT,
                       channels: Mapping[str, ChannelParser] = BASIC_CHANNELS) -> SystemSpec:
     """Validate a parsed system document and build the :class:`SystemSpec`.
@@ -609,7 +609,7 @@ def max_nodes_for(max_states: int) -> int:
 
 
 
-def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
+def read_system_file(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
               channels: Mapping[str, ChannelParser] = BASIC_CHANNELS) -> SystemSpec:
     """Load a system file: the system, its channel, requirements and provenance (SHA-256).
 
@@ -625,7 +625,7 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
     wrong = wrong_kind_error(doc, path)
     if wrong is not None:
         raise wrong
-    spec = spec_from_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states,
+    spec = read_system_mapping(doc, base_dir=Path(path).resolve().parent, max_states=max_states,
                              channels=channels)
     out = SystemSpec(system=spec.system, channel=spec.channel, requirements=spec.requirements,
                      description=spec.description, path=str(path), sha256=digest,
@@ -634,6 +634,6 @@ def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT,
     return out
 
 
-def load_system(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> System:
+def read_system(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> System:
     """Load only the :class:`System` of a system file."""
-    return load_spec(path, max_states=max_states).system
+    return read_system_file(path, max_states=max_states).system

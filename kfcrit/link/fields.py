@@ -16,7 +16,7 @@ from kfcrit.errors import InputError
 from kfcrit.model.exprparse import number_from_text, parse_expression
 
 
-def exact_number(value: Any, field: str) -> sp.Expr:
+def exact_field_number(value: Any, field: str) -> sp.Expr:
     """Exact real number of a system-file value (text, int, float or sympy); never ``eval``."""
     if isinstance(value, bool) or value is None:
         raise InputError("must be a number", field=field)
@@ -52,7 +52,7 @@ def real_field(data: dict, key: str, prefix: str, *, low: float | None = None,
                high: float | None = None, low_open: bool = False) -> float:
     """Read ``data[key]`` exactly; check ``low ≤ x ≤ high`` (``low < x`` if ``low_open``)."""
     where = f"{prefix}.{key}"
-    x = exact_number(data[key], where)
+    x = exact_field_number(data[key], where)
     if low is not None and (bool(x <= low) if low_open else bool(x < low)):
         raise InputError(f"must be {'>' if low_open else '>='} {low:g}, got {sp.sstr(x)[:30]}",
                          field=where)
@@ -64,7 +64,7 @@ def real_field(data: dict, key: str, prefix: str, *, low: float | None = None,
 def integer_field(data: dict, key: str, prefix: str, *, low: int, high: int) -> int:
     """Read an integer exactly and check ``low ≤ x ≤ high``."""
     where = f"{prefix}.{key}"
-    x = exact_number(data[key], where)
+    x = exact_field_number(data[key], where)
     if not x.is_Integer:
         raise InputError(f"must be an integer, got {sp.sstr(x)[:30]}", field=where)
     if not low <= int(x) <= high:

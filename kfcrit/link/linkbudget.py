@@ -52,7 +52,7 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.link.fields import choice_field, exact_number, integer_field, real_field
+from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
 from kfcrit.link.radios import CalibratedOqpsk, Radio, db_to_linear, radio_from_mapping
@@ -63,7 +63,7 @@ from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check
 
 __all__ = [
     "BOLTZMANN", "SPEED_OF_LIGHT", "MAX_SIGMA_DB", "SHADOWING_MODES", "Z_RANGE", "LinkBudget",
-    "Noise", "PathLoss", "design_section", "exact_number", "gilbert_elliott_fit",
+    "Noise", "PathLoss", "design_section", "exact_field_number", "gilbert_elliott_fit",
     "integer_field", "real_field", "thermal_noise_dbm",
 ]
 

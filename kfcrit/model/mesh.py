@@ -52,7 +52,7 @@ ROUTING_RELIABLE = ("most reliable path per sensor: Dijkstra on -log(1 - (1 - q_
                     "the per-period hop success")
 
 
-def exact_probability(value: Any, where: str) -> tuple[float, sp.Rational | None]:
+def probability_pair(value: Any, where: str) -> tuple[float, sp.Rational | None]:
     """(float, exact Rational or None) of a probability in [0, 1].
 
     ints, :class:`fractions.Fraction`, sympy Rationals and number strings (``"4/5"``,
@@ -339,7 +339,7 @@ def _check_routes(mesh: Mesh) -> None:
 def make_hop(source: str, target: str, q: Any, retries: int | None = None, *,
              where: str = "mesh.hops[?]") -> Hop:
     """A :class:`Hop` from a probability given in any accepted form (exact when possible)."""
-    qf, qe = exact_probability(q, f"{where}.q")
+    qf, qe = probability_pair(q, f"{where}.q")
     return Hop(source, target, qf, qe, retries)
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import yaml
 
-from kfcrit.analysis.record import analyze
+from kfcrit.analysis.record import analyze_system
 from kfcrit.analysis.spec import spec_from_mapping
 
 from ..conftest import REPORTS
@@ -13,7 +13,7 @@ def test_link_design_uses_the_accuracy_requirement_p_v():
     doc = yaml.safe_load((REPORTS / "link-cc2420-retries.yaml").read_text())
     doc["channel"]["distance_m"] = 80
     doc["requirements"] = {"max_mean_error_trace": 100}
-    rec = analyze(spec_from_mapping(doc), simulate=False).to_dict()
+    rec = analyze_system(spec_from_mapping(doc), simulate=False).to_dict()
     p_s, p_v = rec["design"]["required_arrival_probability"]["interval"]
     lb = rec["link_budget"]
     assert p_s < p_v and lb["required_arrival_probability"]["design_value"] == p_v

@@ -41,11 +41,11 @@ def page_errors(stderr: str) -> list[str]:
 
 
 def test_report_in_chromium(tmp_path):
-    from kfcrit.analysis.record import AnalysisOptions, analyze
+    from kfcrit.analysis.record import AnalysisOptions, analyze_system
     from kfcrit.analysis.spec import load_spec
 
     spec = load_spec(ROOT / "reports" / "rotation-third-turn.yaml")
-    rec = analyze(spec, AnalysisOptions(quick=True)).to_dict()
+    rec = analyze_system(spec, AnalysisOptions(quick=True)).to_dict()
     page = tmp_path / "rotation.html"
     page.write_text(report.render_html(rec, figures.build_figures(rec)), encoding="utf-8")
     run = chromium(page.as_uri(), "--dump-dom")

@@ -11,7 +11,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from kfcrit.analysis.sections import Analysis, record_from_json
+from kfcrit.analysis.sections import AnalysisRecord, record_from_json
 from kfcrit.analysis.verdict import CheckStatus, Decision, Reason, Review, decide
 from kfcrit.cli.main import main
 from kfcrit.io.typed import RecordError
@@ -69,7 +69,7 @@ def test_records_round_trip_through_their_json_form(example_records: dict) -> No
         data = record.to_dict()
         again = record_from_json(json.loads(json.dumps(data)))
         assert again.to_dict() == data, name
-        assert isinstance(again, Analysis) and again.review == record.review
+        assert isinstance(again, AnalysisRecord) and again.review == record.review
 
 
 def test_a_renamed_or_unknown_field_fails(example_records: dict) -> None:

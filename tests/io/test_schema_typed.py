@@ -61,7 +61,7 @@ def test_record_definitions_have_unique_names() -> None:
     import dataclasses
     import typing
 
-    from kfcrit.analysis.sections import Analysis
+    from kfcrit.analysis.sections import AnalysisRecord
 
     seen: dict[str, type] = {}
 
@@ -78,7 +78,7 @@ def test_record_definitions_have_unique_names() -> None:
                 visit(hint)
 
     visited: set[str] = set()
-    visit(Analysis)
+    visit(AnalysisRecord)
     assert len(visited) == len(record_schema()["$defs"])
 
 
@@ -141,7 +141,7 @@ def test_every_example_as_analyze_builds_it_round_trips(monkeypatch: pytest.Monk
     monkeypatch.setattr(record_module, "record_from_json", capture)
     for path in example_files():
         built.clear()
-        record = record_module.analyze(load_spec(path), quick=True, simulate=False)
+        record = record_module.analyze_system(load_spec(path), quick=True, simulate=False)
         assert len(built) == 1, path.name
         same(built[0], json.loads(json.dumps(record.to_dict())), path.name)
         check_record(built[0], validator, path.name)

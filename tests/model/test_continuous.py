@@ -24,7 +24,7 @@ from kfcrit.analysis.spec import load_spec
 from kfcrit.cli.main import main
 from kfcrit.errors import InputError
 from kfcrit.io.fileschema import system_schema
-from kfcrit.io.systemfile import spec_from_mapping
+from kfcrit.io.systemfile import read_system_mapping
 from kfcrit.model.continuous import EXACT_MAX_STATES, from_continuous_statespace, sample
 
 from ..conftest import REPORTS
@@ -205,7 +205,7 @@ def test_yaml_numbers_are_exact_in_continuous_files() -> None:
                          "sampling_time: 0.1\nC: [[1, 0]]\nR: [[1]]\n")
     # yaml.safe_load gives a binary 0.1, taken as the rational it is and flagged inexact
     # (load_spec keeps the text "0.1" instead: the example-file test).
-    spec = spec_from_mapping(doc)
+    spec = read_system_mapping(doc)
     assert spec.continuous.sampling_time == sp.Rational(0.1)
     assert spec.continuous.input_exact is False
 
@@ -239,7 +239,7 @@ BAD = [
 def test_bad_continuous_input_is_a_one_line_error_naming_the_field(doc: dict,
                                                                    message: str) -> None:
     with pytest.raises(InputError, match=message) as info:
-        spec_from_mapping(doc)
+        read_system_mapping(doc)
     assert "\n" not in str(info.value)
 
 

@@ -213,3 +213,28 @@ def test_the_python_api_never_imports_the_command_line() -> None:
            for dst in dsts if dst.startswith("kfcrit.cli")]
     assert not bad, f"the API imports the CLI: {bad}"
 
+
+
+def public_definitions() -> dict[str, list[str]]:
+    """Module-level public classes and functions of the package, by name."""
+    found: dict[str, list[str]] = {}
+    for name, path in modules().items():
+        if name.startswith("kfcrit.bench"):
+            continue  # each benchmark is a script with its own ``main``
+        tree = ast.parse(path.read_text())
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) \
+                    and not node.name.startswith("_"):
+                found.setdefault(node.name, []).append(name)
+    return found
+
+
+def test_one_name_per_thing() -> None:
+    dups = {k: v for k, v in public_definitions().items() if len(v) > 1}
+    assert not dups, f"public names defined in more than one module: {dups}"
+
+
+def test_the_name_checker_sees_a_duplicate() -> None:
+    found = public_definitions()
+    assert found["analyze"] == ["kfcrit.api.notebook"]
+    assert "AnalysisRecord" in found and "Analysis" in found

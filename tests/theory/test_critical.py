@@ -16,7 +16,7 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kfcrit.io.systemfile import load_spec
+from kfcrit.io.systemfile import read_system_file
 from kfcrit.model.channels import Bernoulli, GilbertElliott
 from kfcrit.model.exprparse import parse_expression
 from kfcrit.model.system import System
@@ -53,7 +53,7 @@ def _same(expression: str, expected: str) -> bool:
 
 @pytest.mark.parametrize("name", CASES)
 def test_expected_cases(name):
-    spec = load_spec(REPORTS / name)
+    spec = read_system_file(REPORTS / name)
     exp = EXPECTED[name]
     d = critical.critical_section(spec.system, channel=spec.channel)
     assert CONTRACT <= set(d)
@@ -71,7 +71,7 @@ def test_expected_cases(name):
 
 
 def test_lower_bound_interface():
-    spec = load_spec(REPORTS / "sinopoli-general.yaml")
+    spec = read_system_file(REPORTS / "sinopoli-general.yaml")
     lb = critical_classify.lower_bound(spec.system)
     assert set(lb) == {"value", "expression"} and _same(lb["expression"], "9/25")
 
@@ -217,7 +217,7 @@ def test_exact_irrational_angle_not_flagged():
 # --------------------------------------------------------------------------- theory
 
 def test_theory_moment_thresholds_and_channels():
-    spec = load_spec(REPORTS / "mo-nondegenerate-four.yaml")
+    spec = read_system_file(REPORTS / "mo-nondegenerate-four.yaml")
     th = critical.critical_section(spec.system, channel=spec.channel)["theory"]
     mt = {m["q"]: m for m in th["moment_thresholds"]}
     # 1 − 3^{−2} = 8/9, 1 − 3^{−4} = 80/81; Cor. 2 applies (non-degenerate, all unstable)
@@ -226,7 +226,7 @@ def test_theory_moment_thresholds_and_channels():
     assert "stochastically bounded" in th["stochastic_boundedness"]
     assert any("Consequence" in s for s in th["almost_sure"])
     # single-unstable case has stable eigenvalues: Cor. 2 does not apply
-    spec = load_spec(REPORTS / "sinopoli-single-unstable.yaml")
+    spec = read_system_file(REPORTS / "sinopoli-single-unstable.yaml")
     th = critical.critical_section(spec.system)["theory"]
     assert not any(m["applies"] for m in th["moment_thresholds"])
     ge = GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2))
@@ -653,7 +653,7 @@ def test_compare_probability_exact(p, v, sign):
 
 def test_compare_probability_reads_critical_value_records():
     from kfcrit.theory.critical.compare import compare_probability
-    spec = load_spec(REPORTS / "sinopoli-general.yaml")      # p_c = 9/25 exactly
+    spec = read_system_file(REPORTS / "sinopoli-general.yaml")      # p_c = 9/25 exactly
     cv = critical.critical_value(spec.system)
     assert compare_probability(sp.Rational(9, 25) + sp.Rational(1, 10**40), cv.value) == 1
     assert compare_probability(sp.Rational(9, 25), cv.value) == 0

@@ -11,7 +11,7 @@ import pytest
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.io.systemfile import load_spec
+from kfcrit.io.systemfile import read_system_file
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import ergodic, simulate
 from kfcrit.theory.covariance.invariant import ScalarMaps, gap_levels, invariant_section, support_points
@@ -24,11 +24,11 @@ SQRT2 = sp.sqrt(2)
 
 @pytest.fixture(scope="module")
 def kar() -> System:
-    return load_spec(KAR_FILE).system
+    return read_system_file(KAR_FILE).system
 
 
 def test_same_system_as_the_shared_case(kar):
-    shared = load_spec(SHARED_CASES / "kar-scalar-fractal.yaml").system
+    shared = read_system_file(SHARED_CASES / "kar-scalar-fractal.yaml").system
     assert shared.A == kar.A and shared.C == kar.C and shared.Q == kar.Q and shared.R == kar.R
 
 

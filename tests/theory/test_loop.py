@@ -13,7 +13,7 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kfcrit.theory.loop.curve import critical_curve
+from kfcrit.theory.loop.curve import loop_critical_curve
 from kfcrit.theory.loop.fixed import fixed_loop, mean_square_stability
 from kfcrit.theory.loop.links import LossLink
 from kfcrit.theory.loop.stack import fixed_design
@@ -152,7 +152,7 @@ def test_state_feedback_stable_region_is_an_up_set(a: F, ratio: F) -> None:
 
 def test_critical_curve_of_state_feedback() -> None:
     d = fixed_design(1.25, 1, 1, 1, 0, 1, 1, K=1, L=-1.25)
-    curve = critical_curve(d, [1.0], tol=1e-6, certify_ends=True)
+    curve = loop_critical_curve(d, [1.0], tol=1e-6, certify_ends=True)
     assert curve.monotone_at_grid == [True]
     assert abs(curve.nu_star[0] - 0.36) < 1e-6 and curve.certified == [True]
 

@@ -48,10 +48,10 @@ def test_unit_spectral_radius_has_no_power_law_tail(A, C):
 
 
 def test_marginal_random_walk_is_analysed_end_to_end():
-    from kfcrit.analysis.record import analyze
+    from kfcrit.analysis.record import analyze_system
     from kfcrit.analysis.spec import spec_from_mapping
 
     spec = spec_from_mapping({"name": "walk", "A": 1, "C": 1, "Q": 1, "R": 1,
                               "channel": {"model": "bernoulli", "arrival_probability": "9/10"}})
-    rec = analyze(spec, simulate=False).to_dict()
+    rec = analyze_system(spec, simulate=False).to_dict()
     assert rec["critical_value"]["value"] == 0 and rec["review"]["decision"] == "pass"

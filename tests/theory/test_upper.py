@@ -16,7 +16,7 @@ import pytest
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
-from kfcrit.io.systemfile import load_spec
+from kfcrit.io.systemfile import read_system_file
 from kfcrit.model.system import System
 from kfcrit.theory.covariance import bounds
 from kfcrit.theory.upper.bracket import UpperBound, upper_bound, upper_section
@@ -52,7 +52,7 @@ CASES = sorted(k for k, v in EXPECTED.items() if k.endswith(".yaml")
 
 @pytest.mark.parametrize("name", CASES)
 def test_expected_upper_bounds(name):
-    spec = load_spec(SHARED_CASES / name)
+    spec = read_system_file(SHARED_CASES / name)
     ub = upper_bound(spec.system, tol=1e-9)
     d = ub.to_dict()
     assert d["certified"] and d["status"] == "determined"
@@ -603,7 +603,7 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
     upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton",
                         _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
-    rec = kfcrit.analyze(load_spec(path), simulate=False).to_dict()
+    rec = kfcrit.analyze(read_system_file(path), simulate=False).to_dict()
     assert rec["upper_bound"]["status"] == "undetermined"
     assert any("LinAlgError" in w for w in rec["upper_bound"]["warnings"])
     r = CliRunner().invoke(main, ["analyze", str(path), "--json", "--no-simulate"])
@@ -640,7 +640,7 @@ R: [[1]]
 def _sqrt3_system(tmp_path, name):
     path = tmp_path / name
     path.write_text(SQRT3_SYSTEM)
-    return load_spec(path).system
+    return read_system_file(path).system
 
 
 def test_upper_bound_does_not_depend_on_call_order(tmp_path):

@@ -17,7 +17,7 @@ from kfcrit.views.figures.link import (
     outage_distance_figure,
     per_sinr_figure,
 )
-from kfcrit.views.figures.style import arrival_formula, percent, quantity
+from kfcrit.views.figures.style import arrival_formula, legend_quantity, percent
 
 CODE_NAME = re.compile(r"\b[a-z]+_[a-z_]+\b")
 """An identifier with an underscore (``max_outage``, ``p_link``) outside mathtext."""
@@ -51,7 +51,7 @@ def arrival_curve(retries: int) -> ArrivalCurve:
     (0.129, "dB", "0.13 dB"), (-1.4812, "dB", "−1.48 dB"), (80.17, "m", "80.2 m"),
     (55.34, "m", "55.3 m"), (-0.001, "dB", "0.00 dB")])
 def test_quantities_print_as_in_the_tables(value: float, unit: str, text: str) -> None:
-    assert quantity(value, unit) == text
+    assert legend_quantity(value, unit) == text
     if value != -0.001:   # the table filter keeps the sign of a rounded-away negative zero
         assert jinja_filters.unit(value, unit) == text
 

@@ -62,12 +62,12 @@ def test_per_figure_of_a_calibrated_radio_spans_its_transition() -> None:
     PER(20 bytes) = 0.01 at SINR 15.99 dB, far from an uncalibrated O-QPSK's 0 dB."""
     from pathlib import Path
 
-    from kfcrit.analysis.record import AnalysisOptions, analyze
+    from kfcrit.analysis.record import AnalysisOptions, analyze_system
     from kfcrit.analysis.spec import load_spec
     from kfcrit.views.figures.design import draw_per_sinr
 
     path = Path(__file__).resolve().parents[2] / "reports" / "link-cc2420-retries.yaml"
-    rec = analyze(load_spec(path), AnalysisOptions(quick=True, seed=0)).to_dict()
+    rec = analyze_system(load_spec(path), AnalysisOptions(quick=True, seed=0)).to_dict()
     fig = draw_per_sinr(rec)
     assert fig is not None
     ax = fig.axes[0]

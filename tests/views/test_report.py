@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from kfcrit.analysis.record import AnalysisOptions, analyze
+from kfcrit.analysis.record import AnalysisOptions, analyze_system
 from kfcrit.analysis.spec import load_spec
 from kfcrit.cli import report as command
 from kfcrit.errors import InputError
@@ -53,7 +53,7 @@ class Records:
     def __call__(self, stem: str) -> dict:
         if stem not in self._done:
             spec = load_spec(REPORTS / f"{stem}.yaml")
-            self._done[stem] = analyze(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
+            self._done[stem] = analyze_system(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
         return copy.deepcopy(self._done[stem])
 
 
@@ -623,7 +623,7 @@ def test_saved_record_renders_without_analysing(tmp_path, records, monkeypatch, 
     def refuse(*args, **kwargs):
         raise AssertionError("the saved record was analysed again")
 
-    monkeypatch.setattr(analysis, "analyze", refuse)
+    monkeypatch.setattr(analysis, "analyze_system", refuse)
     code = command.report_command(str(saved), [str(tmp_path / "r.html"),
                                                 str(tmp_path / "r.pdf")])
     assert code == analysis.exit_code(rec)
@@ -652,8 +652,8 @@ def test_one_analysis_for_html_and_pdf(tmp_path, monkeypatch, capsys):
     from kfcrit.analysis import record as analysis
 
     calls = []
-    real = analysis.analyze
-    monkeypatch.setattr(analysis, "analyze", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = analysis.analyze_system
+    monkeypatch.setattr(analysis, "analyze_system", lambda *a, **k: calls.append(1) or real(*a, **k))
     src = REPORTS / "sinopoli-scalar.yaml"
     code = command.report_command(str(src), [str(tmp_path / "a.html"), str(tmp_path / "a.pdf")],
                                   quick=True)

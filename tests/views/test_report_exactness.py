@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from kfcrit.analysis.record import AnalysisOptions, analyze
+from kfcrit.analysis.record import AnalysisOptions, analyze_system
 from kfcrit.analysis.spec import load_spec, spec_from_mapping
 from kfcrit.theory.critical.numtext import approx_text, complex_text, modulus_from_p_low, value_text
 from kfcrit.views.figures import record as figures
@@ -48,7 +48,7 @@ _CACHE: dict[str, dict] = {}
 
 def record_of(doc: dict, key: str) -> dict:
     if key not in _CACHE:
-        _CACHE[key] = analyze(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0)
+        _CACHE[key] = analyze_system(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0)
                               ).to_dict()
     return copy.deepcopy(_CACHE[key])
 
@@ -56,7 +56,7 @@ def record_of(doc: dict, key: str) -> dict:
 def tracker() -> dict:
     if "tracker" not in _CACHE:
         spec = load_spec(REPORTS / "continuous-cv-tracker.yaml")
-        _CACHE["tracker"] = analyze(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
+        _CACHE["tracker"] = analyze_system(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
     return copy.deepcopy(_CACHE["tracker"])
 
 

@@ -13,7 +13,7 @@ import re
 import numpy as np
 import pytest
 
-from kfcrit.analysis.record import AnalysisOptions, analyze
+from kfcrit.analysis.record import AnalysisOptions, analyze_system
 from kfcrit.analysis.spec import load_spec, spec_from_mapping
 from kfcrit.views.figures import network as netplots
 from kfcrit.views.figures import record as figures
@@ -28,13 +28,13 @@ def record(stem: str) -> dict:
     """A quick analysis of an example system (made once, copied out)."""
     if stem not in _CACHE:
         spec = load_spec(REPORTS / f"{stem}.yaml")
-        _CACHE[stem] = analyze(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
+        _CACHE[stem] = analyze_system(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
     return copy.deepcopy(_CACHE[stem])
 
 
 def record_of(doc: dict, key: str) -> dict:
     if key not in _CACHE:
-        _CACHE[key] = analyze(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0)
+        _CACHE[key] = analyze_system(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0)
                               ).to_dict()
     return copy.deepcopy(_CACHE[key])
 
@@ -253,7 +253,7 @@ IRRATIONAL_PLANT = {"name": "three states, cubic eigenvalues",
 
 
 def test_short_closed_forms_only():
-    from kfcrit.views.report.parts import exact_text, numerical_text, short_closed_form
+    from kfcrit.views.report.parts import closed_form_text, numerical_text, short_closed_form
     assert short_closed_form("9/25") == "9/25"
     assert short_closed_form("1 - 2**(-3)") == "1 - 2**(-3)"
     assert short_closed_form("sqrt(3)/2") == "sqrt(3)/2"
@@ -261,7 +261,7 @@ def test_short_closed_forms_only():
                        "0.4263521177043613", "1/(1 - 0.13996696020413057)", "",
                        "sqrt(" + "1 + " * 20 + "2)"):
         assert short_closed_form(not_a_form) is None, not_a_form
-        assert exact_text(not_a_form) is None
+        assert closed_form_text(not_a_form) is None
     assert numerical_text(0.13996696020413057) == "0.139967 (numerical)"
 
 

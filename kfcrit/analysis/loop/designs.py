@@ -17,7 +17,7 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.loop.curve import critical_curve
+from kfcrit.theory.loop.curve import loop_critical_curve
 from kfcrit.theory.loop.filter_mean import FilterMoments, filter_moments, rre_mean_monte_carlo
 from kfcrit.theory.loop.fixed import fixed_loop
 from kfcrit.theory.loop.links import LossLink
@@ -131,7 +131,7 @@ def fixed_curve(design: FixedDesign, label: str, quick: bool = False) -> dict[st
     """
     gammas = np.linspace(0.0, 1.0, 11 if quick else 21)
     nus = np.linspace(0.0, 1.0, 21 if quick else 41)
-    cc = critical_curve(design, gammas, nu_grid=nus, tol=1e-3)
+    cc = loop_critical_curve(design, gammas, nu_grid=nus, tol=1e-3)
     points = [[float(g), float(v)] for g, v in zip(cc.gammas, cc.nu_star) if v is not None]
     rho = [[float(r) if math.isfinite(r) else None for r in row] for row in cc.rho]
     return {"design": label, "kind": "spectral-radius scan", "points": points,
@@ -145,7 +145,7 @@ def fixed_curve(design: FixedDesign, label: str, quick: bool = False) -> dict[st
 
 def critical_nu(design: FixedDesign, gamma: float) -> tuple[float | None, list[float] | None]:
     """The least ν̄ (a bracket of width 10⁻⁴) that stabilises ``design`` at the sensing γ̄."""
-    cc = critical_curve(design, [gamma], nu_grid=np.linspace(0.0, 1.0, 41), tol=1e-4)
+    cc = loop_critical_curve(design, [gamma], nu_grid=np.linspace(0.0, 1.0, 41), tol=1e-4)
     br = cc.bracket[0]
     return cc.nu_star[0], (None if br is None else [float(br[0]), float(br[1])])
 

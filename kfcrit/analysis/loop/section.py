@@ -37,13 +37,13 @@ from kfcrit.model.system import to_float
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.loop.fixed import fixed_loop
 from kfcrit.theory.loop.stack import FixedDesign, fixed_design
-from kfcrit.theory.loop.thresholds import Threshold, actuation_threshold
+from kfcrit.theory.loop.thresholds import LoopThresholdFact, actuation_threshold
 
 SIM_PATHS, SIM_STEPS = 1000, 1500
 """Closed-loop Monte Carlo size of ``kfcrit analyze`` (``--quick``: a third of each)."""
 
 
-def threshold_dict(th: Threshold) -> dict[str, Any]:
+def threshold_dict(th: LoopThresholdFact) -> dict[str, Any]:
     """The record form {value, expression, exact, interval, basis, certified, reason}."""
     return {"value": th.value, "expression": th.expression, "exact": bool(th.exact),
             "interval": list(th.interval) if th.interval is not None else None,

@@ -200,7 +200,7 @@ def boundary_section(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *
 
     hi = fit.failure_rate_interval[1]
     grid = sorted({round(k / 6, 6) for k in range(1, 7)} | {round(min(max(hi, 1e-3), 1.0), 6)})
-    cc = markov.critical_curve(system, failure_rates=grid, tol=1e-2, structure=structure)
+    cc = markov.burst_critical_curve(system, failure_rates=grid, tol=1e-2, structure=structure)
     out.update(failure_rates=list(cc.failure_rates),
                sufficient_recovery=list(cc.sufficient_recovery),
                note="sufficient curve: least r with a coupled fixed-gain certificate (width "

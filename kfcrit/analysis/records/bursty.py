@@ -11,7 +11,7 @@ from kfcrit.io.typed import opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
-class StabilityFacts:
+class StabilityFactsRecord:
     """What the theory establishes at this operating point (``facts`` of a network or bursty
     section): the necessary and the sufficient condition, each with its basis."""
 
@@ -111,7 +111,7 @@ class BurstClaim:
 
 
 @dataclass(frozen=True, kw_only=True)
-class BurstCertificate:
+class BurstCertificateRecord:
     """`@GilbertElliottSection.certificate`"""
 
     verdict: str
@@ -122,7 +122,7 @@ class BurstCertificate:
     necessary: NecessaryBurstCondition
     certificate: CoupledCertificate | None
     claim: BurstClaim | None
-    facts: StabilityFacts = opt_key()
+    facts: StabilityFactsRecord = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -134,7 +134,7 @@ class RatesPoint:
 
 
 @dataclass(frozen=True, kw_only=True)
-class CriticalCurve:
+class BurstCurveRecord:
     """`@GilbertElliottSection.critical_curve`"""
 
     failure_rates: list[float | None]
@@ -166,6 +166,6 @@ class GilbertElliottSection:
     simulation_consistent: bool | None
     simulation_note: str | None
     claims: list[LiteratureClaim]
-    certificate: BurstCertificate = opt_key()
-    critical_curve: CriticalCurve = opt_key()
-    facts: StabilityFacts = opt_key()
+    certificate: BurstCertificateRecord = opt_key()
+    critical_curve: BurstCurveRecord = opt_key()
+    facts: StabilityFactsRecord = opt_key()

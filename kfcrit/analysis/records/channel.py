@@ -91,7 +91,7 @@ class FrameRecord:
 
 
 @dataclass(frozen=True, kw_only=True)
-class ShadowingCorrelation:
+class ShadowingCorrelationRecord:
     """`@Channel.shadowing_correlation`"""
 
     sample_period_s: float | None
@@ -103,7 +103,7 @@ class ShadowingCorrelation:
 
 
 @dataclass(frozen=True, kw_only=True)
-class ShadowingMarkov:
+class ShadowingMarkovRecord:
     """`@Channel.gilbert_elliott`"""
 
     correlation: float | None
@@ -134,8 +134,8 @@ class ChannelRecord:
     max_outage: float | None = opt_key()
     max_retries: int = opt_key()
     frame: FrameRecord = opt_key()
-    shadowing_correlation: ShadowingCorrelation | None = opt_key()
-    gilbert_elliott: ShadowingMarkov | None = opt_key()
+    shadowing_correlation: ShadowingCorrelationRecord | None = opt_key()
+    gilbert_elliott: ShadowingMarkovRecord | None = opt_key()
     sinr_db: float | None = opt_key()
     arrival_probability_basis: str = opt_key()
     path: str = opt_key()

@@ -40,7 +40,7 @@ class Classification(str, enum.Enum):
 
 
 @dataclass(frozen=True)
-class CriticalValue:
+class CriticalValueRecord:
     """p_c: value, whether it is exact, its exact expression and the theorem that gives it."""
 
     value: float | None
@@ -101,7 +101,7 @@ class BlockLowerBound:
 
 
 @dataclass(frozen=True)
-class UpperBound:
+class UpperBoundRecord:
     """p_up (Sinopoli Thm 5): value, certified interval, method, certificate."""
 
     value: float | None
@@ -231,7 +231,7 @@ class RequirementAssessment:
 
 
 @dataclass(frozen=True)
-class Requirements:
+class RequirementsRecord:
     """The system file's requirements and their assessments (``assessment``: the tail one)."""
 
     max_error_trace: float | None

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.link import LinkDesign
+from kfcrit.analysis.records.link import LinkDesignRecord
 from kfcrit.io.typed import opt_key
 
 
@@ -47,7 +47,7 @@ class MarkovJumpUpper:
 
 
 @dataclass(frozen=True, kw_only=True)
-class MarkovJumpBounds:
+class MarkovJumpRecord:
     """`covariance_bounds.markov_jump`: bounds valid for a Gilbert–Elliott channel (theory §10);
     the i.i.d. bounds beside them are at the stationary arrival probability only."""
 
@@ -69,7 +69,7 @@ class CovarianceBounds:
     warnings: list[str] = opt_key()
     applicable: bool = opt_key()
     reason: str = opt_key()
-    markov_jump: MarkovJumpBounds = opt_key()
+    markov_jump: MarkovJumpRecord = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -199,7 +199,7 @@ class SelfSimilarity:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SupportPoints:
+class SupportPointsRecord:
     """`invariant.support_points`"""
 
     depth: int
@@ -219,7 +219,7 @@ class Invariant:
     first_gap: InvariantGap | None
     gap_levels: list[InvariantGapLevel]
     self_similarity: SelfSimilarity
-    support_points: SupportPoints
+    support_points: SupportPointsRecord
     holes: list[list[float | None]]
     note: str
     warnings: list[str] = opt_key()
@@ -270,11 +270,11 @@ class AccuracyDesign:
 
     requirement: str
     required_arrival_probability: RequiredArrivalProbability
-    radio: LinkDesign = opt_key()
+    radio: LinkDesignRecord = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
-class TailExponent:
+class TailExponentRecord:
     """`tail.exponent`"""
 
     value: float | None
@@ -307,5 +307,5 @@ class TailSimulationCheck:
 class TailSection:
     """`tail`"""
 
-    exponent: TailExponent
+    exponent: TailExponentRecord
     simulation_check: TailSimulationCheck = opt_key()

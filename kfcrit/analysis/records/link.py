@@ -6,13 +6,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from kfcrit.analysis.records.bursty import GilbertElliottSection
-from kfcrit.analysis.records.channel import FrameRecord, RadioRecord, ShadowingMarkov
+from kfcrit.analysis.records.channel import FrameRecord, RadioRecord, ShadowingMarkovRecord
 from kfcrit.io.typed import opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
 class LinkDesignRequirement:
-    """`@LinkDesign.required_arrival_probability`"""
+    """`@LinkDesignRecord.required_arrival_probability`"""
 
     interval: list[float | None]
     necessary: float | None
@@ -21,7 +21,7 @@ class LinkDesignRequirement:
 
 @dataclass(frozen=True, kw_only=True)
 class LinkDesignBound:
-    """`@LinkDesign.max_distance_m.sufficient`"""
+    """`@LinkDesignRecord.max_distance_m.sufficient`"""
 
     value: float | None
     status: str
@@ -29,7 +29,7 @@ class LinkDesignBound:
 
 @dataclass(frozen=True, kw_only=True)
 class LinkDesignDistance:
-    """`@LinkDesign.max_distance_m`"""
+    """`@LinkDesignRecord.max_distance_m`"""
 
     quantity: str
     unit: str
@@ -42,7 +42,7 @@ class LinkDesignDistance:
 
 @dataclass(frozen=True, kw_only=True)
 class LinkDesignPayloadBound:
-    """`@LinkDesign.max_payload_bytes.sufficient`"""
+    """`@LinkDesignRecord.max_payload_bytes.sufficient`"""
 
     value: float | None
     status: str
@@ -50,7 +50,7 @@ class LinkDesignPayloadBound:
 
 @dataclass(frozen=True, kw_only=True)
 class LinkDesignPayload:
-    """`@LinkDesign.max_payload_bytes`"""
+    """`@LinkDesignRecord.max_payload_bytes`"""
 
     quantity: str
     unit: str
@@ -62,8 +62,8 @@ class LinkDesignPayload:
 
 
 @dataclass(frozen=True, kw_only=True)
-class LinkDesign:
-    """`@LinkDesign`"""
+class LinkDesignRecord:
+    """`@LinkDesignRecord`"""
 
     required_arrival_probability: LinkDesignRequirement
     margin_db: float | None
@@ -232,7 +232,7 @@ class LinkCurves:
 
 
 @dataclass(frozen=True, kw_only=True)
-class LinkBudget:
+class LinkBudgetRecord:
     """`link_budget`"""
 
     applicable: bool
@@ -253,5 +253,5 @@ class LinkBudget:
     required_rx_power_dbm: float | None = opt_key()
     link_margin_db: float | None = opt_key()
     max_distance_m: float | None = opt_key()
-    gilbert_elliott: ShadowingMarkov | None = opt_key()
+    gilbert_elliott: ShadowingMarkovRecord | None = opt_key()
     bursty: GilbertElliottSection = opt_key()

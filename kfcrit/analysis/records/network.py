@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.bursty import StabilityFacts
-from kfcrit.analysis.records.contract import CriticalValue, UpperBound
+from kfcrit.analysis.records.bursty import StabilityFactsRecord
+from kfcrit.analysis.records.contract import CriticalValueRecord, UpperBoundRecord
 from kfcrit.analysis.records.covariance import ValueExpression
 from kfcrit.analysis.records.link import DesignCheck, LinkState, MarginPolicy, Shadowing
 from kfcrit.io.typed import opt_key
@@ -70,8 +70,8 @@ class SensorNMinus1:
 
     verdict: str
     reason: str
-    facts: StabilityFacts = opt_key()
-    burst_facts: StabilityFacts = opt_key()
+    facts: StabilityFactsRecord = opt_key()
+    burst_facts: StabilityFactsRecord = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -119,8 +119,8 @@ class NetworkNMinus1:
     name: str
     verdict: str
     reason: str
-    facts: StabilityFacts = opt_key()
-    burst_facts: StabilityFacts = opt_key()
+    facts: StabilityFactsRecord = opt_key()
+    burst_facts: StabilityFactsRecord = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -176,7 +176,7 @@ class DeadLinkBurst:
     """`network.burst_condition.n_minus_1[name]`: the burst condition with that sensor dead."""
 
     holds: bool | None
-    facts: StabilityFacts
+    facts: StabilityFactsRecord
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -187,7 +187,7 @@ class NetworkBurstCondition:
     holds: bool | None
     statement: str
     continuation: dict[str, float | None]
-    facts: StabilityFacts = opt_key()
+    facts: StabilityFactsRecord = opt_key()
     n_minus_1: dict[str, DeadLinkBurst] = opt_key()
 
 
@@ -209,8 +209,8 @@ class NetworkSection:
     claims: list[str]
     warnings: list[str]
     burst_condition: NetworkBurstCondition = opt_key()
-    facts: StabilityFacts = opt_key()
-    stacked_critical_value: CriticalValue | None = opt_key()
+    facts: StabilityFactsRecord = opt_key()
+    stacked_critical_value: CriticalValueRecord | None = opt_key()
     """The stacked system's critical value (the record's top-level one), repeated by name."""
-    stacked_upper_bound: UpperBound | None = opt_key()
+    stacked_upper_bound: UpperBoundRecord | None = opt_key()
     stacked_meaning: str = opt_key()

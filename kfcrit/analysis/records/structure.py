@@ -37,7 +37,7 @@ class Eigenvalue:
 
 
 @dataclass(frozen=True, kw_only=True)
-class EquiBlock:
+class EquiBlockRecord:
     """`structure.equi_blocks[]`"""
 
     indices: list[int]
@@ -81,14 +81,14 @@ class StandardForm:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Structure:
+class StructureRecord:
     """`structure`"""
 
     path: str
     path_reason: str
     tolerances: StructureTolerances
     eigenvalues: list[Eigenvalue]
-    equi_blocks: list[EquiBlock]
+    equi_blocks: list[EquiBlockRecord]
     equal_modulus_pairs: list[EqualModulusPair]
     diagonalizable: bool
     detectable: bool

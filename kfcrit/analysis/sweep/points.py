@@ -178,9 +178,9 @@ def _scalar_text(value: Any, where: str) -> str:
 
 
 def _exact(value: Any, where: str) -> sp.Expr:
-    from kfcrit.link.linkbudget import exact_number
+    from kfcrit.link.linkbudget import exact_field_number
 
-    return exact_number(_scalar_text(value, where), where)
+    return exact_field_number(_scalar_text(value, where), where)
 
 
 def _range_values(spec: dict, where: str, *, count_only: bool = False) -> list[str] | int:
@@ -654,12 +654,12 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
                    theories: dict[str, Any] | None = None) -> dict[str, Any]:
     """The result columns of one point (``status`` ``error`` with a one-line message on error).
 
-    The point is analysed by :func:`kfcrit.analysis.record.analyze` with
-    :func:`point_options`, so its verdict and review decision are those of ``kfcrit analyze``
+    The point is analysed by :func:`kfcrit.analysis.record.analyze_system` with
+    :func:`point_options`, so its verdict and review decision are those of ``kfcrit analyze_system``
     on the same file. ``theories`` memoises the channel-independent sections per system within
     one chunk of work (passed in, never module state).
     """
-    from kfcrit.analysis.record import analyze, theory_sections
+    from kfcrit.analysis.record import analyze_system, theory_sections
     from kfcrit.analysis.spec import spec_from_mapping
 
     row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
@@ -678,7 +678,7 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
                                      upper_bound=theories.get(ukey))
             theories[skey] = theory
             theories.setdefault(ukey, theory.sections["upper_bound"])
-        record = analyze(spec, opts, theory=theories[skey]).to_dict()
+        record = analyze_system(spec, opts, theory=theories[skey]).to_dict()
         row.update(row_of(record))
     except KfcritError as exc:
         row.update(status="error", error=printable(str(exc))[:300],

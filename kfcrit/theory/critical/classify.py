@@ -97,7 +97,7 @@ def block_lower(st: Structure, low: Num) -> tuple[Num, str]:
     return best, why
 
 
-def c_invertible(system: System, st: Structure) -> bool:
+def c_full_rank(system: System, st: Structure) -> bool:
     if system.m != system.n:
         return False
     if st.path == "exact":
@@ -173,7 +173,7 @@ def classify_structure(system: System, st: Structure, low: Num) -> tuple[str, Nu
     if not any(eig_above(e, st) for e in st.eigen):
         return (_structural_class(st), Num(0.0, sp.Integer(0)), _marginal_reason(system, st))
     if not st.diagonalizable:
-        if c_invertible(system, st):
+        if c_full_rank(system, st):
             return ("non-diagonalizable", low,
                     "A is not diagonalizable (outside Mo–Sinopoli), but C is invertible: "
                     "Sinopoli et al. §IV, upper and lower bounds coincide, p_c = 1 − 1/ρ(A)²")

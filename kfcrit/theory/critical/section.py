@@ -31,7 +31,7 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.model.system import System
-from kfcrit.theory.critical.classify import block_lower, c_invertible, classify_structure, lower_of
+from kfcrit.theory.critical.classify import block_lower, c_full_rank, classify_structure, lower_of
 from kfcrit.theory.critical.numtext import (
     p_c_text,
     superscript,
@@ -181,7 +181,7 @@ def _exact_p_up(system: System, st: Structure, low: Num) -> list[tuple[Num, str,
       examples and random single-output systems, *not* a theorem of the papers.
     """
     out: list[tuple[Num, str, bool]] = []
-    if c_invertible(system, st):
+    if c_full_rank(system, st):
         out.append((low, "C invertible: p_up = p_low (Sinopoli et al. 2004 §IV, theorem)", True))
     if system.m == 1 and st.path == "exact":
         unstable = [e for e in st.eigen if e.unit_cmp is not None and e.unit_cmp > 0]

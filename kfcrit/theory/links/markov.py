@@ -530,7 +530,7 @@ def burst_facts(system: System, failure_rate: Any, recovery_rate: Any,
 
 
 @dataclass(frozen=True)
-class CriticalCurve:
+class BurstCriticalCurve:
     """Both bounding curves of the critical curve in the (failure rate, recovery rate) plane:
     below ``necessary_recovery`` mean-unstable (proven), above ``sufficient_recovery``
     mean-stable (numerical bisection of the certificate's feasibility; the operating point is
@@ -586,9 +586,9 @@ def certificate_feasible(A: np.ndarray, C: np.ndarray, f: float, r: float,
     return False
 
 
-def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
+def burst_critical_curve(system: System, failure_rates: Any = None, points: int = 9,
                    tol: float = 1e-3, operating: tuple[Any, Any] | None = None,
-                   structure: Any | None = None) -> CriticalCurve:
+                   structure: Any | None = None) -> BurstCriticalCurve:
     """The two bounding curves r_nec(f) ≤ r_crit(f) ≤ r_suf(f) on a grid of failure rates.
 
     .. math::
@@ -624,7 +624,7 @@ def critical_curve(system: System, failure_rates: Any = None, points: int = 9,
     if operating is not None:
         op = {"failure_rate": float(exact_rate(operating[0], "failure_rate")),
               "recovery_rate": float(exact_rate(operating[1], "recovery_rate"))}
-    return CriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
+    return BurstCriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
                          "grid scan on r, then bisection inside the first not-certified → "
                          "certified bracket, of the coupled LMI / candidate-gain spectral radius "
                          "(numerical)", op, tuple(notes), time.perf_counter() - t0)

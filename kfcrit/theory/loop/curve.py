@@ -26,11 +26,11 @@ from kfcrit.theory.loop.fixed import mean_square_stability
 from kfcrit.theory.loop.msstab import operator_matrix
 from kfcrit.theory.loop.stack import FixedDesign, mode_matrices
 
-__all__ = ["CriticalCurve", "critical_curve", "spectral_radius"]
+__all__ = ["LoopCriticalCurve", "loop_critical_curve", "spectral_radius"]
 
 
 @dataclass(frozen=True)
-class CriticalCurve:
+class LoopCriticalCurve:
     """The critical ν̄ of a fixed design for each γ̄ of a grid.
 
     Attributes
@@ -104,9 +104,9 @@ def _bisect(design: FixedDesign, gamma: float, lo: float, hi: float, tol: float
     return lo, hi
 
 
-def critical_curve(design: FixedDesign, gammas: np.ndarray | list[float],
+def loop_critical_curve(design: FixedDesign, gammas: np.ndarray | list[float],
                    nu_grid: np.ndarray | None = None, tol: float = 1e-4,
-                   certify_ends: bool = False) -> CriticalCurve:
+                   certify_ends: bool = False) -> LoopCriticalCurve:
     """Scan ν̄ for each γ̄; refine the boundary only where the grid shows an up-set.
 
     Parameters
@@ -125,7 +125,7 @@ def critical_curve(design: FixedDesign, gammas: np.ndarray | list[float],
 
     Returns
     -------
-    CriticalCurve
+    LoopCriticalCurve
     """
     gam = np.asarray(gammas, dtype=float)
     nus = np.linspace(0.0, 1.0, 41) if nu_grid is None else np.asarray(nu_grid, dtype=float)
@@ -155,4 +155,4 @@ def critical_curve(design: FixedDesign, gammas: np.ndarray | list[float],
             certs.append(lo_fact.holds is False and hi_fact.holds is True)
         else:
             certs.append(None)
-    return CriticalCurve(gam, nus, rho, stars, brackets, mono, runs, certs)
+    return LoopCriticalCurve(gam, nus, rho, stars, brackets, mono, runs, certs)

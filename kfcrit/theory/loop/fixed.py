@@ -37,7 +37,7 @@ import numpy as np
 
 from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 from kfcrit.theory.loop.links import LossLink, joint_chain
-from kfcrit.theory.loop.msstab import StabilityFact, decide, operator_matrix
+from kfcrit.theory.loop.msstab import StabilityFact, mss_decision, operator_matrix
 from kfcrit.theory.loop.stack import FixedDesign, ModeMatrices, mode_matrices
 from kfcrit.theory.loop.tcp import LoopCost
 
@@ -112,7 +112,7 @@ def mean_square_stability(design: FixedDesign, sensing: Any, actuation: Any,
     if certified:
         mm_e = mode_matrices(design, nu, exact=True)
         M_exact, _, _ = _operator(mm_e, s, a, True)
-    return decide(M_exact, M, N, blocks)
+    return mss_decision(M_exact, M, N, blocks)
 
 
 def second_moment(mm: ModeMatrices, design: FixedDesign, sensing: LossLink,

@@ -40,7 +40,7 @@ import numpy as np
 
 from kfcrit.theory.upper import certify
 
-__all__ = ["EXACT_MAX_DIMENSION", "StabilityFact", "decide", "operator_matrix",
+__all__ = ["EXACT_MAX_DIMENSION", "StabilityFact", "mss_decision", "operator_matrix",
            "vech_operator"]
 
 EXACT_MAX_DIMENSION = 160
@@ -162,7 +162,7 @@ def _unvech_arb(values: list, n: int) -> flint.arb_mat:
     return X
 
 
-def decide(M_exact: np.ndarray | None, M: np.ndarray, n: int, blocks: int = 1
+def mss_decision(M_exact: np.ndarray | None, M: np.ndarray, n: int, blocks: int = 1
            ) -> StabilityFact:
     """Mean-square stability from the operator matrix (exact when ``M_exact`` is given).
 

@@ -37,7 +37,7 @@ from kfcrit.theory.covariance.bounds import upper_covariance
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.loop.filter_mean import FilterMoments, filter_moments
 from kfcrit.theory.loop.thresholds import (
-    Threshold,
+    LoopThresholdFact,
     actuation_threshold,
     dual_system,
     sensing_threshold,
@@ -83,7 +83,7 @@ class TCPLoop:
     ----------
     gamma_bar, nu_bar : float
         Arrival probabilities of the sensing and actuation links.
-    nu_c, gamma_c : Threshold
+    nu_c, gamma_c : LoopThresholdFact
         Actuation threshold (MARE of (A', B')) and sensing threshold (p_c of (A, C)).
     S : ndarray or None
         Control MARE fixed point at ν̄ (None when ν̄ ≤ ν_c or not reached).
@@ -97,8 +97,8 @@ class TCPLoop:
 
     gamma_bar: float
     nu_bar: float
-    nu_c: Threshold
-    gamma_c: Threshold
+    nu_c: LoopThresholdFact
+    gamma_c: LoopThresholdFact
     S: np.ndarray | None
     L: np.ndarray | None
     cost: LoopCost
@@ -133,7 +133,8 @@ def control_mare(A: Any, B: Any, W: Any, U: Any, nu: float) -> np.ndarray | None
     return symmetrize(S)
 
 
-def _finite(gamma_c: Threshold, nu_c: Threshold, g: float, nu: float) -> tuple[bool | None, str]:
+def _finite(gamma_c: LoopThresholdFact, nu_c: LoopThresholdFact, g: float,
+            nu: float) -> tuple[bool | None, str]:
     below = (gamma_c.below(g), nu_c.below(nu))
     if gamma_c.interval is None or nu_c.interval is None:
         return False, "no threshold: an unstable mode is undetectable or unstabilisable"

@@ -35,11 +35,11 @@ from kfcrit.theory.structure.eigen import structure_of
 from kfcrit.theory.upper import certify
 from kfcrit.theory.upper.bracket import upper_bound
 
-__all__ = ["Threshold", "actuation_threshold", "dual_system", "sensing_threshold"]
+__all__ = ["LoopThresholdFact", "actuation_threshold", "dual_system", "sensing_threshold"]
 
 
 @dataclass(frozen=True)
-class Threshold:
+class LoopThresholdFact:
     """A critical probability as a fact: its value where known, and an enclosing interval.
 
     Attributes
@@ -116,15 +116,15 @@ def _num_of(expr: sp.Expr) -> tuple[float, tuple[float, float]]:
     return float(sp.N(expr, 30)), (down, up)
 
 
-def _scalar(dual: System) -> Threshold:
+def _scalar(dual: System) -> LoopThresholdFact:
     a, b = dual.A[0, 0], dual.C[0, 0]
     mod2 = sp.nsimplify(a * a)
     if b == 0 and mod2 > 1:
-        return Threshold("nu_c", None, None, False, None, "none", True,
+        return LoopThresholdFact("nu_c", None, None, False, None, "none", True,
                          "scalar, b = 0 and |a| > 1: not stabilisable, no finite threshold")
     expr = sp.Integer(0) if mod2 <= 1 else sp.radsimp(1 - 1 / mod2)
     value, interval = _num_of(expr)
-    return Threshold("nu_c", value, interval, True, sp.sstr(expr), "theorem", True,
+    return LoopThresholdFact("nu_c", value, interval, True, sp.sstr(expr), "theorem", True,
                      "scalar: ν_c = max(1 − 1/a², 0) (the dual of Sinopoli's scalar p_c)")
 
 
@@ -153,7 +153,7 @@ def _from_upper(dual: System, tol: float) -> tuple[tuple[float, float], bool, st
 
 
 def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
-                        tol: float = 1e-9) -> Threshold:
+                        tol: float = 1e-9) -> LoopThresholdFact:
     """ν_c: the actuation-link threshold of the TCP-like loop (MARE solvability of (A', B')).
 
     .. math::
@@ -173,7 +173,7 @@ def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
 
     Returns
     -------
-    Threshold
+    LoopThresholdFact
         Exact with ``basis="theorem"`` for scalar plants and square invertible B; for one
         input column the closed form is given with ``basis="claim"`` and ``interval`` is the
         certified bracket it was checked against; otherwise the certified bracket.
@@ -186,32 +186,32 @@ def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
         pl = p_low_bounds(dual)
         expr = sp.sympify(pl.expression) if pl.expression is not None else None
         value = float(sp.N(expr, 30)) if expr is not None else pl.up
-        return Threshold("nu_c", value, (pl.down, pl.up), expr is not None,
+        return LoopThresholdFact("nu_c", value, (pl.down, pl.up), expr is not None,
                          pl.expression, "theorem", pl.rigorous,
                          f"B square and invertible ({how}): ν_c = max(1 − 1/ρ(A)², 0), the "
                          "dual of 'C invertible' (Sinopoli et al. 2004 §IV)")
     interval, certified, why, _ = _from_upper(dual, tol)
     if interval is None:
-        return Threshold("nu_c", None, None, False, None, "none", False,
+        return LoopThresholdFact("nu_c", None, None, False, None, "none", False,
                          "(A, B) not stabilisable: " + why)
     if dual.m == 1:
         expr = _single_column_claim(dual)
         if expr is not None:
             value, rounded = _num_of(expr)
             inside = interval[0] - 2 * tol <= value <= interval[1] + 2 * tol
-            return Threshold("nu_c", value, interval, True, sp.sstr(expr), "claim", certified,
+            return LoopThresholdFact("nu_c", value, interval, True, sp.sstr(expr), "claim", certified,
                              "one input column: ν_c = 1 − 1/Π|λ_u|² over |λ| > 1, the dual of "
                              "the single-output identity (theory §3 [beyond], a claim); "
                              + ("it lies in" if inside else "it DISAGREES with")
                              + f" the certified bracket [{interval[0]:.12g}, "
                                f"{interval[1]:.12g}] ({why})")
     mid = 0.5 * (interval[0] + interval[1])
-    return Threshold("nu_c", mid, interval, False, None,
+    return LoopThresholdFact("nu_c", mid, interval, False, None,
                      "certified-interval" if certified else "numerical", certified, why)
 
 
 def sensing_threshold(A: Any, C: Any, Q: Any = None, R: Any = None,
-                      tol: float = 1e-9) -> Threshold:
+                      tol: float = 1e-9) -> LoopThresholdFact:
     """γ_c: the estimation critical value of (A, C) (:func:`kfcrit.theory.critical.section.critical_value`).
 
     .. math::
@@ -227,18 +227,18 @@ def sensing_threshold(A: Any, C: Any, Q: Any = None, R: Any = None,
                     name="sensing link (A, C)")
     cv = critical_value(system, tolerance=tol, robust=False)
     if cv.classification == "not-detectable":
-        return Threshold("gamma_c", None, None, False, None, "none", True, cv.reason)
+        return LoopThresholdFact("gamma_c", None, None, False, None, "none", True, cv.reason)
     if cv.value is not None:
         if cv.value.expr is not None:
             value, interval = _num_of(cv.value.expr)
-            return Threshold("gamma_c", value, interval, True, sp.sstr(cv.value.expr),
+            return LoopThresholdFact("gamma_c", value, interval, True, sp.sstr(cv.value.expr),
                              cv.basis or "theorem", True, cv.reason)
         v = cv.value.value
-        return Threshold("gamma_c", v, (v, v), False, None, "numerical", False, cv.reason)
+        return LoopThresholdFact("gamma_c", v, (v, v), False, None, "numerical", False, cv.reason)
     ub = upper_bound(system, tol=tol)
     lo = cv.block_lower.value if cv.block_lower is not None else cv.lower.value
     hi = float(ub.interval[1])
-    return Threshold("gamma_c", None, (float(lo), hi), False, None,
+    return LoopThresholdFact("gamma_c", None, (float(lo), hi), False, None,
                      "certified-interval" if ub.certified else "numerical",
                      bool(ub.certified), f"{cv.classification}: no closed form; bracket "
                      "[block lower bound, p_up(A, C)]")

@@ -165,7 +165,7 @@ class Spectral:
     rho2_exact: sp.Expr | None
 
 
-def spectral_radius2(system: System) -> Spectral:
+def mesh_spectral_radius2(system: System) -> Spectral:
     """ρ(A)² of a system (from :func:`kfcrit.theory.critical.section.structure_of`)."""
     st = structure_of(system)
     top = max(st.eigen, key=lambda e: e.mod2)
@@ -210,7 +210,7 @@ def _below_one(value: float, expr: sp.Expr | None) -> bool | None:
 def relaying_condition(network: Network, mesh: Mesh, sensor: str,
                      rho: Spectral | None = None) -> RelayingCondition:
     """Gupta et al.'s condition for one sensor: (A, C_s) detectable and p_cut·ρ(A)² < 1."""
-    rho = rho or spectral_radius2(network.stacked_system())
+    rho = rho or mesh_spectral_radius2(network.stacked_system())
     cut = sensor_cut(mesh, sensor)
     value = cut.p_cut * rho.rho2
     expr = (cut.p_cut_exact * rho.rho2_exact
@@ -234,7 +234,7 @@ def estimate_relaying(network: Network, mesh: Mesh) -> RelayingResult:
     One sensor: Gupta et al.'s theorem (necessary and sufficient). Several: stable if some
     detecting sensor's verdict is stable (sufficient only; module docstring).
     """
-    rho = spectral_radius2(network.stacked_system())
+    rho = mesh_spectral_radius2(network.stacked_system())
     rows = tuple(relaying_condition(network, mesh, s, rho) for s in mesh.sensors)
     if len(rows) == 1:
         return RelayingResult(rows, rho, rows[0].stable,
@@ -262,7 +262,7 @@ def smart_sensor_critical_value(system: System) -> SmartSensor:
         return SmartSensor(None, None, "(A, C) is not detectable")
     if st.stable:
         return SmartSensor(0.0, sp.Integer(0), "ρ(A) < 1")
-    rho = spectral_radius2(system)
+    rho = mesh_spectral_radius2(system)
     expr = sp.radsimp(1 - 1 / rho.rho2_exact) if rho.rho2_exact is not None else None
     return SmartSensor(1.0 - 1.0 / rho.rho2, expr,
                        "smart sensor: the estimate carries all past measurements, so only "

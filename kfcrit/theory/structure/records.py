@@ -192,7 +192,7 @@ class Structure:
             for _ in range(e.multiplicity):
                 eigs.append({
                     "value": (sp.sstr(e.expr) if e.expr is not None else
-                              e.text if e.text is not None else complex_text(e.value)),
+                              e.text if e.text is not None else complex_sympy_text(e.value)),
                     "re": float(e.value.real), "im": float(e.value.imag),
                     "modulus": e.modulus,
                     "modulus_expression": (sp.sstr(_modulus_expr(e.mod2_expr))
@@ -222,7 +222,7 @@ def _modulus_expr(mod2: sp.Expr) -> sp.Expr:
     return sp.sqrt(mod2)
 
 
-def complex_text(z: complex) -> str:
+def complex_sympy_text(z: complex) -> str:
     if z.imag == 0:
         return repr(float(z.real))
     sign = "+" if z.imag >= 0 else "-"

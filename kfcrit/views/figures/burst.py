@@ -1,6 +1,6 @@
 """Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (theory §10).
 
-Reads ``link_budget.critical_curve`` (:meth:`kfcrit.theory.links.markov.CriticalCurve.to_dict`):
+Reads ``link_budget.critical_curve`` (:meth:`kfcrit.theory.links.markov.BurstCriticalCurve.to_dict`):
 on a grid of failure rates f, the necessary recovery rate r_nec(f) (at or below it E[P_t]
 diverges, proven) and the sufficient one r_suf(f) (at or above it the coupled fixed-gain
 certificate proves E[P_t] bounded),

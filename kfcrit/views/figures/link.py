@@ -23,9 +23,9 @@ from kfcrit.views.figures.style import (  # noqa: E402
     HEIGHT_IN,
     arrival_formula,
     fmt,
+    legend_quantity,
     new_figure,
     percent,
-    quantity,
 )
 
 LINE_COLORS = ("#1f5fa8", "#d9730d", "#15803d", "#7c3aed", "#6b7280")
@@ -61,11 +61,11 @@ def _distance_lines(ax: object, configured_m: float, design_m: float | None) -> 
     """The configured distance (thick, light, solid) and the largest distance of the margin
     policy (thin, dark, dashed, drawn on top): both stay visible when they nearly coincide."""
     ax.axvline(configured_m, color=COLORS["band"], ls="-", lw=3.2, alpha=0.8, zorder=1.5,
-               label=f"configured distance d = {quantity(configured_m, 'm')}")
+               label=f"configured distance d = {legend_quantity(configured_m, 'm')}")
     if design_m is not None:
         ax.axvline(design_m, color=COLORS["p_up"], ls=(0, (4, 2)), lw=1.1, zorder=2.5,
                    label=f"largest distance meeting the margin policy = "
-                         f"{quantity(design_m, 'm')}")
+                         f"{legend_quantity(design_m, 'm')}")
 
 
 def arrival_distance_figure(curve: ArrivalCurve, *, critical_value: float | None = None,
@@ -131,7 +131,7 @@ def per_sinr_figure(curve: PerCurve, *, marks: Sequence[tuple[str, float]] = (),
                     label=f"PSDU {length} bytes")
         for j, (label, x) in enumerate(marks):
             ax.axvline(x, color=COLORS["sim"], ls=(":" if j % 2 == 0 else "--"), lw=1,
-                       label=f"{label} = {quantity(x, 'dB')}")
+                       label=f"{label} = {legend_quantity(x, 'dB')}")
         ax.set_yscale("log")
         ax.set_ylim(1e-8, 1.5)
         ax.set_xlabel("SINR (dB)")

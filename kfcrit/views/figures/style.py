@@ -168,7 +168,7 @@ def fmt(value: float | None) -> str:
     return "?" if value is None else f"{value:.4g}".replace("-", "−")
 
 
-def quantity(value: float, unit: str) -> str:
+def legend_quantity(value: float, unit: str) -> str:
     r"""``value`` with its unit exactly as the report's tables print it
     (:func:`kfcrit.views.formatting.unit`: ``0.13 dB``, ``−1.48 dB``, ``80.2 m``), except
     that a negative value rounded to zero prints without its sign in a legend."""

@@ -21,7 +21,7 @@ def _with_exact(v: Any, expression: Any) -> str:
     return _num(v) + (f" = {expression}" if expression else "")
 
 
-def sensor_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
+def mesh_sensor_table(mesh: dict[str, Any]) -> list[dict[str, Any]]:
     """One row per sensor: routes, arrival probability, smart-sensor test, what kills it."""
     arr, expr = as_dict(mesh.get("arrival_probability")), as_dict(mesh.get("arrival_expression"))
     smart = {s.get("sensor"): s for s in as_list(as_dict(mesh.get("smart_sensor")).get("sensors"))}
@@ -41,7 +41,7 @@ def sensor_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def route_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
+def route_table(mesh: dict[str, Any]) -> list[dict[str, Any]]:
     """One row per route: hops with their success and the route's delivery probability."""
     return [{"sensor": r.get("sensor"), "path": " → ".join(as_list(r.get("nodes"))),
              "hops": ", ".join(f"{h} ({_num(s, 4)})" for h, s in
@@ -50,7 +50,7 @@ def route_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
              "origin": r.get("origin")} for r in as_list(mesh.get("routes"))]
 
 
-def hop_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
+def hop_table(mesh: dict[str, Any]) -> list[dict[str, Any]]:
     """One row per hop: q_h, retries, s_h, link budget, critical success and headroom."""
     out = []
     for h in as_list(mesh.get("hops")):
@@ -75,7 +75,7 @@ def mode_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
              "condition": prose(m.get("condition"))} for m in as_list(mesh.get("modes"))]
 
 
-def failure_rows(mesh: dict[str, Any]) -> list[dict[str, Any]]:
+def failure_table(mesh: dict[str, Any]) -> list[dict[str, Any]]:
     """N − 1 rows: element, the sensors it cuts off and the verdict with it dead."""
     return [{"kind": f.get("kind"), "element": f.get("element"),
              "lost": ", ".join(as_list(f.get("lost_sensors"))) or "none",
@@ -106,7 +106,7 @@ def mesh_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]:
         "verdict": mesh.get("verdict"), "verdict_css": VERDICT_CSS.get(str(mesh.get("verdict")),
                                                                        "none"),
         "basis": prose(mesh.get("basis")), "recommendation": prose(mesh.get("recommendation")),
-        "sensors": sensor_rows(mesh), "routes": route_rows(mesh), "hops": hop_rows(mesh),
+        "sensors": mesh_sensor_table(mesh), "routes": route_table(mesh), "hops": hop_table(mesh),
         "hop_success_kind": "per attempt (the slot schedule decides the rest)" if slots
         else "per period",
         "all_lost": _with_exact(al.get("value"), al.get("expression")),
@@ -120,7 +120,7 @@ def mesh_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]:
         "bottleneck": mesh.get("bottleneck") or "none (no hop's loss alone breaks the "
                                                 "necessary condition)",
         "bottleneck_headroom": _num(mesh.get("bottleneck_headroom"), 4),
-        "modes": mode_rows(mesh), "failures": failure_rows(mesh),
+        "modes": mode_rows(mesh), "failures": failure_table(mesh),
         "relaying_basis": prose(as_dict(mesh.get("relaying")).get("basis")),
         "simulation": None if not sim else {
             "statement": prose(sim.get("statement")),

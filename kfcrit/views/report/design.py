@@ -97,7 +97,7 @@ def radio_rows(radio: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def mean_assessment(rec: dict[str, Any]) -> dict[str, Any] | None:
+def mean_assessment_rows(rec: dict[str, Any]) -> dict[str, Any] | None:
     """The assessment of lim E[tr P] ≤ L in ``requirements.assessments`` (``None``: absent)."""
     for a in as_list(as_dict(rec.get("requirements")).get("assessments")):
         a = as_dict(a)
@@ -169,7 +169,7 @@ def design_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]:
             row("reason", None, note=prose(req.get("reason")))]
     return {
         "available": True, "level": level, "rows": rows,
-        "assessment": mean_assessment(rec),
+        "assessment": mean_assessment_rows(rec),
         "radio": radio_rows(as_dict(design.get("radio"))) if design.get("radio") else [],
         "radio_notes": [prose(n) for n in as_list(as_dict(design.get("radio")).get("notes"))],
         "accuracy": figure_entry(

@@ -11,7 +11,7 @@ from kfcrit.views.figures import mathsvg
 from kfcrit.views.report.parts import (
     as_dict,
     as_list,
-    exact_text,
+    closed_form_text,
     missing,
     number,
     prose,
@@ -28,8 +28,8 @@ def channel_rows(channel: dict[str, Any]) -> list[dict[str, Any]]:
     """The configured channel as labelled rows with units (nested mappings flattened by hand)."""
     model = channel.get("model")
     p = row("arrival probability p", channel.get("arrival_probability"), "prob",
-            note=f"= {filters.pretty_expr(exact_text(channel['arrival_probability_expression']))}"
-            if exact_text(channel.get("arrival_probability_expression")) else "")
+            note=f"= {filters.pretty_expr(closed_form_text(channel['arrival_probability_expression']))}"
+            if closed_form_text(channel.get("arrival_probability_expression")) else "")
     rows = [row("model", None, note=str(CHANNEL_NAMES.get(str(model), model)))]
     if model == "gilbert-elliott":
         rows += [row("failure rate f = P(lost | received before)", channel.get("failure_rate"),

@@ -11,8 +11,8 @@ from typing import Any
 
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.network import margin_bounds, positions_of, sink_of, weakest_pair
-from kfcrit.views.report.parts import as_dict, as_list, exact_text, figure_entry, number, prose
-from kfcrit.views.text.netmargin import bottleneck_margin_text, margin_text, value_text
+from kfcrit.views.report.parts import as_dict, as_list, closed_form_text, figure_entry, number, prose
+from kfcrit.views.text.netmargin import bottleneck_margin_text, margin_text, margin_value_text
 
 VERDICT_CSS = {"mean-stable": "ok", "mean-unstable": "no", "undetermined": "none"}
 
@@ -34,13 +34,13 @@ def node_rows(rec: dict[str, Any]) -> list[dict[str, Any]]:
         cv = as_dict(s.get("critical_value"))
         n1 = as_dict(s.get("n_minus_1"))
         low, _ = margin_bounds(s)
-        expr = exact_text(cv.get("expression"))
+        expr = closed_form_text(cv.get("expression"))
         pos = positions.get(name)
         rows.append({
             "name": name, "bottleneck": name == bottleneck,
             "p": number(s.get("arrival_probability")),
-            "p_expression": exact_text(s.get("arrival_probability_expression")),
-            "critical": value_text(cv.get("value"), cv.get("interval")),
+            "p_expression": closed_form_text(s.get("arrival_probability_expression")),
+            "critical": margin_value_text(cv.get("value"), cv.get("interval")),
             "critical_expression": expr if expr and expr != filters.num(number(cv.get("value")))
             else None,
             # "exact" describes a value: with none (only a bracket, or nothing) it is not said
@@ -129,7 +129,7 @@ def network_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]
                                                                       "none"),
         "reason": prose(netd.get("reason")), "basis": prose(netd.get("basis")),
         "nodes": node_rows(rec),
-        "uniform_margin": value_text(um.get("value"), um.get("interval"), 6)
+        "uniform_margin": margin_value_text(um.get("value"), um.get("interval"), 6)
         if not um.get("unbounded") else "unbounded",
         "uniform_reason": prose(um.get("reason")), "uniform_rule": prose(um.get("rule")),
         "bottleneck": bn.get("name"),

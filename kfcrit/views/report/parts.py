@@ -107,7 +107,7 @@ def short_closed_form(expression: Any) -> str | None:
     return text
 
 
-def exact_text(expression: Any) -> str | None:
+def closed_form_text(expression: Any) -> str | None:
     """An exact expression worth printing beside its number (:func:`short_closed_form`)."""
     return short_closed_form(expression)
 
@@ -129,12 +129,12 @@ def exact_p_low(rec: dict[str, Any]) -> str | None:
     if not input_exact(rec):
         return None
     if as_dict(rec.get("structure")).get("path") == "exact":
-        own = exact_text(as_dict(rec.get("lower_bound")).get("expression"))
+        own = closed_form_text(as_dict(rec.get("lower_bound")).get("expression"))
         if own:
             return own
     ev = as_dict(as_dict(rec.get("upper_bound")).get("lower_evidence"))
     if str(ev.get("p_low_how", "")).startswith("exact"):
-        return exact_text(ev.get("expression"))
+        return closed_form_text(ev.get("expression"))
     return None
 
 
@@ -147,7 +147,7 @@ def numerical_text(value: Any, digits: int = 6) -> str:
     return f"{filters.sig(float(v), digits).replace('-', '−')} (numerical)"
 
 
-def complex_text(re_: Any, im: Any, digits: int = 6) -> str:
+def complex_html(re_: Any, im: Any, digits: int = 6) -> str:
     """A computed complex number as ``a + bj`` (``a − bj``) at ``digits`` significant digits;
     a real one as its real part."""
     a, b = number(re_), number(im)

@@ -18,12 +18,12 @@ from kfcrit.views.report.parts import (
     INPUT_DIGITS,
     as_dict,
     as_list,
-    complex_text,
+    closed_form_text,
+    complex_html,
     decimal_entry,
     exact_claim,
     exact_p_low,
     exact_plain,
-    exact_text,
     formula,
     input_exact,
     kv_rows,
@@ -116,7 +116,7 @@ def eigenvalue_numerical(e: dict[str, Any]) -> str:
     """An eigenvalue without a short closed form: re ± im·j at 6 digits, marked numerical."""
     if number(e.get("re")) is None:
         return filters.DASH
-    return f"{complex_text(e.get('re'), e.get('im'))} (numerical)"
+    return f"{complex_html(e.get('re'), e.get('im'))} (numerical)"
 
 
 def form_entry(entry: Any, exact: bool = True) -> str:
@@ -124,7 +124,7 @@ def form_entry(entry: Any, exact: bool = True) -> str:
     at 6 digits marked numerical; a float pair ``[re, im]`` is a computed complex number."""
     pair = as_list(entry)
     if len(pair) == 2 and all(number(x) is not None for x in pair):
-        return f"{complex_text(pair[0], pair[1])} (numerical)"
+        return f"{complex_html(pair[0], pair[1])} (numerical)"
     short = exact_plain(entry) if exact else None
     if short:
         return filters.pretty_expr(short)
@@ -230,7 +230,7 @@ def classification_view(rec: dict[str, Any]) -> dict[str, Any]:
             "general_svg": safe_svg(mathsvg.latex_svg(latex, fontsize=12)),
             "instance_svg": formula(cv.get("latex"), cv.get("expression"), fontsize=12,
                                     label=cv.get("expression")) if exact else None,
-            "instance_expression": exact_text(cv.get("expression")) if exact else None,
+            "instance_expression": closed_form_text(cv.get("expression")) if exact else None,
             "value": number(cv.get("value")),
             "reason": prose(cv.get("reason")) or None, "exact": exact}
 
@@ -268,13 +268,13 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
          "source": "Sinopoli et al., Theorem 3"},
         {"symbol": "p_block", "name": "block lower bound", "available": isinstance(blb, dict),
          "value": number(as_dict(blb).get("value")),
-         "expression": exact_text(as_dict(blb).get("expression")) if exact_in else None,
+         "expression": closed_form_text(as_dict(blb).get("expression")) if exact_in else None,
          "detail": "largest critical value of an equi-block",
          "source": "Mo–Sinopoli, Theorem 3"},
         {"symbol": "p_c", "name": "critical value p_c",
          "available": number(cvd.get("value")) is not None,
          "value": number(cvd.get("value")),
-         "expression": exact_text(cvd.get("expression")) if cv_exact else None,
+         "expression": closed_form_text(cvd.get("expression")) if cv_exact else None,
          "detail": critical_detail(cvd, exact_in),
          "source": theorem_for(cls)[0],
          "missing": "not computed: " + prose(cvd.get("reason")) if cvd.get("reason")
@@ -282,7 +282,7 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
         {"symbol": "p_c,robust", "name": "robust critical value",
          "available": isinstance(rob, dict),
          "value": number(as_dict(rob).get("value")),
-         "expression": exact_text(as_dict(rob).get("expression")) if exact_in else None,
+         "expression": closed_form_text(as_dict(rob).get("expression")) if exact_in else None,
          "detail": _robust_detail(as_dict(rob)),
          "source": "largest p_c within the stated relative perturbation",
          "missing": "not needed: the decision is exact and robust to perturbations"
@@ -297,7 +297,7 @@ def bounds_view(rec: dict[str, Any]) -> dict[str, Any]:
         r.setdefault("missing", "not computed")
     th = as_dict(rec.get("theory"))
     moments = [{"q": as_dict(m).get("q"), "value": number(as_dict(m).get("value")),
-                "expression": exact_text(as_dict(m).get("expression")) if exact_in else None,
+                "expression": closed_form_text(as_dict(m).get("expression")) if exact_in else None,
                 "applies": as_dict(m).get("applies")}
                for m in as_list(th.get("moment_thresholds"))]
     note = th.get("moment_thresholds_note")
@@ -355,14 +355,14 @@ def upper_expression(ub: dict[str, Any]) -> str | None:
     """The exact form of p_up when the record has one: its own ``expression``, or, when p_up is
     decided exactly (method ``exact``), the exact value of the theorem that pins it (the lower
     evidence, e.g. p_up = p_low = 9/25 for invertible C)."""
-    own = exact_text(ub.get("expression"))
+    own = closed_form_text(ub.get("expression"))
     if own:
         return own
     ev = as_dict(ub.get("lower_evidence"))
     value, ev_value = number(ub.get("value")), number(ev.get("value"))
     if ub.get("method") == "exact" and ev.get("expression") and value is not None and \
             ev_value is not None and abs(value - ev_value) <= 1e-12 * max(1.0, abs(value)):
-        return exact_text(ev["expression"])
+        return closed_form_text(ev["expression"])
     return None
 
 
@@ -455,7 +455,7 @@ def _value_expr(x: Any) -> tuple[float | None, str | None]:
     """(value, exact expression) of a record number given either as ``{value, expression}``
     or as a bare number."""
     if isinstance(x, dict):
-        return number(x.get("value")), exact_text(x.get("expression"))
+        return number(x.get("value")), closed_form_text(x.get("expression"))
     return number(x), None
 
 

@@ -99,7 +99,7 @@ def joint_view(joint: dict[str, Any]) -> dict[str, Any] | None:
             "independent": FACT_TEXT.get(joint.get("independent_necessary"), "—")}
 
 
-def sensor_rows(sensors: list[Any]) -> list[dict[str, str]]:
+def fit_sensor_rows(sensors: list[Any]) -> list[dict[str, str]]:
     """Each sensor's own trace (its marginal)."""
     return [{"name": prose(s.get("name")), "p": _num(s.get("p_hat")),
              "interval": _interval(s.get("p_interval")),
@@ -128,7 +128,7 @@ def measured_view(rec: dict[str, Any], figures: dict[str, str | None]) -> dict[s
                        if as_dict(fit.get("bursts")).get("p_value") is not None else
                        "too few loss runs for a goodness-of-fit test"),
         "joint": joint_view(as_dict(fit.get("joint_law"))),
-        "sensors": sensor_rows(as_list(fit.get("sensors"))),
+        "sensors": fit_sensor_rows(as_list(fit.get("sensors"))),
         "notes": [prose(n) for n in as_list(fit.get("notes"))],
         "burst_figure": figure_entry(
             figs.get("burst_histogram"), "Loss bursts of the trace",
@@ -146,4 +146,4 @@ def measured_view(rec: dict[str, Any], figures: dict[str, str | None]) -> dict[s
 
 
 __all__ = ["burst_rows", "corner_rows", "fit_rows", "joint_view", "measured_view",
-           "sensor_rows"]
+           "fit_sensor_rows"]

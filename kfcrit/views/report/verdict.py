@@ -9,9 +9,9 @@ from kfcrit.views.report.link import CHANNEL_NAMES, channel_summary, link_design
 from kfcrit.views.report.parts import (
     as_dict,
     as_list,
+    closed_form_text,
     exact_claim,
     exact_p_low,
-    exact_text,
     formula,
     input_exact,
     missing,
@@ -73,7 +73,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         if op is None else "",
         "verdict": verdict, "css": css, "review": review, "box_css": review["css"],
         "p": number(opd.get("arrival_probability")),
-        "p_expression": exact_text(channel.get("arrival_probability_expression")),
+        "p_expression": closed_form_text(channel.get("arrival_probability_expression")),
         "channel_model": CHANNEL_NAMES.get(str(channel.get("model")), channel.get("model")),
         "channel_summary": channel_summary(channel) if channel else "",
         "critical_value": number(cv.get("value")),
@@ -90,7 +90,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "iid_margin": number(opd.get("iid_margin")),
         "robust": {"available": isinstance(rob, dict),
                    "value": number(robd.get("value")), "tolerance": number(robd.get("tolerance")),
-                   "expression": exact_text(robd.get("expression")),
+                   "expression": closed_form_text(robd.get("expression")),
                    "nearby_case": robd.get("nearby_case"),
                    "missing": "not needed: the classification is decided exactly and no "
                               "perturbation within the tolerance changes it"
@@ -102,14 +102,14 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "basis": prose(opd.get("basis")) if isinstance(opd.get("basis"), str) else None,
         "iid_verdict": iid_verdict if iid_verdict and iid_verdict != verdict else None,
         "note": sentence(opd.get("note")) if opd.get("note") else None,
-        "legend": verdict_legend(op, verdict, opd, network=is_network(rec, channel)),
+        "legend": verdict_legend(op, verdict, opd, network=shows_network(rec, channel)),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
-        "network": network_cells(rec) if is_network(rec, channel) else None,
+        "network": network_cells(rec) if shows_network(rec, channel) else None,
     }
 
 
-def is_network(rec: dict[str, Any], channel: dict[str, Any]) -> bool:
+def shows_network(rec: dict[str, Any], channel: dict[str, Any]) -> bool:
     """Whether the record is a sensor network's: then ``operating_point.margin`` is the uniform
     margin δ and ``operating_point.bracket`` its interval (not p − p_c and p_c's bracket)."""
     return isinstance(rec.get("network"), dict) or channel.get("model") == "network"
@@ -119,7 +119,7 @@ def critical_form(cv: dict[str, Any], exact_input: bool = True) -> str | None:
     """The exact form of p_c for the verdict card: only an exact value's short closed form on
     exact input (a numerical value is printed as a number, never as its 17-digit expression,
     and a floating-point input's value never as the fraction of its binary expansion)."""
-    return exact_text(cv.get("expression")) if cv.get("exact") and exact_input else None
+    return closed_form_text(cv.get("expression")) if cv.get("exact") and exact_input else None
 
 
 def network_cells(rec: dict[str, Any]) -> dict[str, Any]:

@@ -63,7 +63,7 @@ def _real(v: Any) -> float | None:
     return v
 
 
-def value_text(value: Any, interval: Any, digits: int = 6) -> str:
+def margin_value_text(value: Any, interval: Any, digits: int = 6) -> str:
     """A number, or an interval [a, b] when only bounds are known (— when neither)."""
     v = _real(value)
     if v is not None:
