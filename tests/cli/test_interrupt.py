@@ -204,7 +204,7 @@ def test_internal_error_is_one_short_line_exit_4(tmp_path: Path,
     def broken(*args: object, **kwargs: object) -> None:
         raise TypeError("x" * 5000)  # e.g. a sympy relational printed in full
 
-    monkeypatch.setattr(sf, "load_spec", broken)
+    monkeypatch.setattr(sf, "read_system_file", broken)
     r = CliRunner().invoke(main, ["analyze", str(REPORTS / "sinopoli-scalar.yaml")])
     assert r.exit_code == 4
     lines = r.stderr.strip().splitlines()
@@ -229,11 +229,11 @@ if where == "parse":   # start-up: before click has parsed the command line
         return real(self, ctx, args)
     KfcritGroup.parse_args = parse_args
 else:                  # inside the command, while the system file is read
-    real_load = sf.load_spec
-    def load_spec(*a, **k):
+    real_load = sf.read_system_file
+    def read_system_file(*a, **k):
         term_now()
         return real_load(*a, **k)
-    sf.load_spec = load_spec
+    sf.read_system_file = read_system_file
 sys.argv = ["kfcrit", "analyze", sys.argv[2], "--no-simulate"]
 main()
 """

@@ -355,10 +355,11 @@ class NetworkSimulation:
     steps: int
     seed: int
     sensors: list[str]
-    diverged_paths: int
-    horizon_quantiles: list[float | None]
-    horizon_levels: list[float | None]
-    mean_exists: bool
+    mean_exists: bool | None
+    diverged_paths: int | None = opt_key()
+    """Paths past the divergence threshold (not tracked by the mesh Monte Carlo)."""
+    horizon_quantiles: list[float | None] = opt_key()
+    horizon_levels: list[float | None] = opt_key()
     mean_trace: NetworkMeanTrace = opt_key()
     sample_mean_trace: float | None = opt_key()
     statement: str = opt_key()
