@@ -56,6 +56,48 @@ class AnalysisOptions:
     ``details`` False computes only what the verdict and the review need (the sweep's mode):
     no phase-transition curve, static gains or invariant support, covariance bounds only for an
     accuracy requirement and the simulation only for a tail requirement.
+
+    Parameters
+    ----------
+    tolerance : float
+        Relative perturbation size of the robust critical value (and numeric decision tolerance).
+    upper_tol : float
+        Width of the certified bracket of p_up.
+    simulate : bool
+        Run the Monte Carlo cross-check.
+    quick : bool
+        A draft: no robust critical value, smaller simulations.
+    seed : int
+        Root seed of the simulation.
+    paths, steps : int, optional
+        Simulation size (default: chosen from the system).
+    details : bool
+        Compute the sections beyond the verdict and the review.
+
+    Attributes
+    ----------
+    tolerance, upper_tol, simulate, quick, seed, paths, steps, details
+        As given (frozen).
+
+    Raises
+    ------
+    TypeError
+        An unknown option name (also from ``kfcrit.analyze(system, name=value)``).
+
+    References
+    ----------
+    docs/theory.md §3 (p_up bracket), §4 (robust value), §16 (verdict and review).
+
+    Examples
+    --------
+    >>> from kfcrit import AnalysisOptions
+    >>> opts = AnalysisOptions(simulate=False)
+    >>> opts.simulate, opts.tolerance, opts.seed
+    (False, 1e-09, 0)
+    >>> AnalysisOptions(nonsense=1)
+    Traceback (most recent call last):
+        ...
+    TypeError: AnalysisOptions.__init__() got an unexpected keyword argument 'nonsense'
     """
 
     tolerance: float = 1e-9

@@ -51,10 +51,80 @@ def spec_from_mapping(doc: Any, *, base_dir: Path | None = None,
 
 
 def load_spec(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SystemSpec:
-    """Load a system file: system, channel (any model), requirements and provenance."""
+    r"""Load a system file: system, channel (any model), requirements and provenance.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The YAML system file.
+    max_states : int
+        Largest state dimension accepted (the ``--max-states`` option).
+
+    Returns
+    -------
+    SystemSpec
+        The system, its channel, requirements, and the file's path and SHA-256.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        An unreadable file, invalid YAML, or an invalid field (the message names it).
+
+    References
+    ----------
+    docs/theory.md §1 (the model a file describes), §14 (trace channels).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "scalar.yaml"
+    >>> _ = path.write_text("name: scalar\nA: [[1.25]]\nC: [[1]]\nQ: 1\nR: 1\n"
+    ...                     "channel: {model: bernoulli, arrival_probability: 0.5}\n")
+    >>> from kfcrit import load_spec
+    >>> spec = load_spec(path)
+    >>> spec.system.A, spec.channel
+    (Matrix([[5/4]]), Bernoulli(p=1/2))
+    >>> load_spec(path.with_name("missing.yaml"))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: file: cannot read '...missing.yaml' (no such file or not readable)
+    """
     return systemfile.read_system_file(path, max_states=max_states, channels=CHANNELS)
 
 
 def load_system(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> System:
-    """Load only the :class:`~kfcrit.model.system.System` of a system file."""
+    r"""Load only the :class:`~kfcrit.model.system.System` of a system file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The YAML system file.
+    max_states : int
+        Largest state dimension accepted.
+
+    Returns
+    -------
+    System
+        ``load_spec(path).system``.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        As :func:`load_spec`.
+
+    References
+    ----------
+    docs/theory.md §1.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "scalar.yaml"
+    >>> _ = path.write_text("name: scalar\nA: [[1.25]]\nC: [[1]]\nQ: 1\nR: 1\n"
+    ...                     "channel: {model: bernoulli, arrival_probability: 0.5}\n")
+    >>> from kfcrit import critical_value, load_system
+    >>> system = load_system(path)
+    >>> system.n, critical_value(system).value.expr
+    (1, 9/25)
+    """
     return load_spec(path, max_states=max_states).system

@@ -22,6 +22,39 @@ class Analysis(sections.AnalysisRecord):
 
     Everything of :class:`kfcrit.analysis.sections.AnalysisRecord` (typed sections, ``to_dict()``,
     ``decision``, ``verdict``), plus :meth:`figure` and the rich displays.
+
+    Parameters
+    ----------
+    **fields
+        The fields of :class:`~kfcrit.analysis.sections.AnalysisRecord`; build it with
+        :func:`kfcrit.analyze` (or :meth:`Analysis.of`), not by hand.
+
+    Attributes
+    ----------
+    decision : str
+        The review decision: ``pass``, ``undetermined`` or ``fail``.
+    verdict : str or None
+        ``mean-stable``, ``mean-unstable`` or ``undetermined`` at the operating point (None with
+        no channel).
+    critical_value, upper_bound, covariance_bounds, review, …
+        The typed sections; ``record["name"]`` gives a section's JSON form.
+
+    Raises
+    ------
+    KeyError
+        ``record[name]`` for a name that is not a section; :meth:`figure` for an unknown figure.
+
+    References
+    ----------
+    docs/theory.md §16 (verdicts, the review decision and exit codes).
+
+    Examples
+    --------
+    >>> from kfcrit import Analysis, Bernoulli, System, SystemSpec, analyze
+    >>> record = analyze(SystemSpec(System(A=[[1.25]], C=[[1]], Q=1, R=1), Bernoulli("1/2")),
+    ...                  simulate=False, quick=True)
+    >>> isinstance(record, Analysis), record["critical_value"]["value"]
+    (True, 0.36)
     """
 
     def _repr_html_(self) -> str:
@@ -86,17 +119,91 @@ def analyze(system: Any, options: Any = None, *, max_states: int = MAX_STATES_DE
     ``max_states`` is the size cap applied when loading a path, as ``--max-states`` on the
     command line. The record returned displays itself in notebooks.
 
+    Parameters
+    ----------
+    system : str, pathlib.Path, System or SystemSpec
+        What to analyse; a path is loaded with :func:`kfcrit.load_spec`.
+    options : AnalysisOptions, optional
+        Tolerances, simulation size and seed.
+    max_states : int
+        Largest state dimension accepted when loading a path.
+    **kwargs
+        Overrides of ``options`` fields (``simulate=False``, ``quick=True``, …).
+
+    Returns
+    -------
+    Analysis
+        The typed record: ``decision`` (``pass``, ``undetermined``, ``fail``), ``verdict`` at the
+        operating point, the critical value, bounds, covariance bounds and the review.
+
+    Raises
+    ------
+    TypeError
+        ``system`` of another type, or an unknown option name.
+    kfcrit.errors.InputError
+        An invalid system file.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorems 2–6; Mo & Sinopoli, Theorem 4; docs/theory.md §3, §4 and §16
+    (verdicts and the review decision).
+
     Examples
     --------
-    >>> record = kfcrit.analyze("reports/link-oqpsk-sensor.yaml", quick=True)  # doctest: +SKIP
-    >>> record.decision, record.figure_names()                                 # doctest: +SKIP
+    >>> from kfcrit import Bernoulli, System, SystemSpec, analyze
+    >>> system = System(A=[["5/4"]], C=[[1]], Q=1, R=1)
+    >>> record = analyze(SystemSpec(system, Bernoulli("1/2")), simulate=False, quick=True)
+    >>> record.decision, record.verdict, record.critical_value.expression
+    ('pass', 'mean-stable', '9/25')
+    >>> analyze(SystemSpec(system, Bernoulli("3/10")), simulate=False, quick=True).decision
+    'fail'
     """
     return Analysis.of(record_analyze(as_spec(system, max_states=max_states), options, **kwargs))
 
 
 @dataclass(frozen=True)
 class SweepTable:
-    """A sweep's table: one row per point (parameters, then the result columns)."""
+    r"""A sweep's table: one row per point (parameters, then the result columns).
+
+    Parameters
+    ----------
+    rows : tuple of dict
+        One mapping per point.
+    parameters : tuple of str
+        The swept parameters (dotted system-file paths).
+    columns : tuple of str
+        Column order of :meth:`to_pandas` and the CSV.
+    computed, reused : int
+        Points computed in this run and taken from the journal of an earlier one.
+
+    Attributes
+    ----------
+    rows, parameters, columns, computed, reused
+        As given.
+
+    Raises
+    ------
+    ImportError
+        :meth:`to_pandas` without pandas installed.
+
+    References
+    ----------
+    docs/theory.md §16.4 (the exit codes of ``kfcrit sweep``).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "s.yaml").write_text(
+    ...     "name: s\nA: [[-1.25]]\nC: [[1]]\nQ: 1\nR: 2.5\n"
+    ...     "channel: {model: bernoulli, arrival_probability: 0.5}\n")
+    >>> _ = (folder / "sweep.yaml").write_text(
+    ...     "system: s.yaml\ngrid:\n  channel.arrival_probability: [0.3, 0.5]\n")
+    >>> from kfcrit import SweepTable, sweep
+    >>> table = sweep(folder / "sweep.yaml", write=False)
+    >>> isinstance(table, SweepTable), len(table), table.parameters
+    (True, 2, ('channel.arrival_probability',))
+    """
 
     rows: tuple[dict[str, Any], ...]
     parameters: tuple[str, ...]
@@ -127,12 +234,60 @@ class SweepTable:
 def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: int = 1,
           max_states: int = 400, write: bool = True, scheduler: str | None = None
           ) -> SweepTable:
-    """Run (or resume) the sweep of ``sweep_file`` from Python and return its table.
+    r"""Run (or resume) the sweep of ``sweep_file`` from Python and return its table.
 
     ``output`` is the results folder (default: beside the sweep file, as for ``kfcrit sweep``);
     with ``write`` the CSV, JSON and figures are written there too, and the journal that lets
     a sweep resume; with ``write=False`` nothing is written (no folder, no journal) and every
     point is computed. ``workers`` must be a whole number ≥ 1.
+
+    Parameters
+    ----------
+    sweep_file : str or pathlib.Path
+        The sweep file (a system file and a grid of its fields).
+    output : str or pathlib.Path, optional
+        Results folder.
+    workers : int
+        Parallel workers.
+    max_states : int
+        Largest state dimension accepted.
+    write : bool
+        Write the results and the journal.
+    scheduler : str, optional
+        A dask scheduler address (default: local processes).
+
+    Returns
+    -------
+    SweepTable
+        One row per grid point with its verdict and review decision.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        An invalid sweep or system file, ``workers`` < 1, or an output that would replace an
+        input.
+
+    References
+    ----------
+    docs/theory.md §16 (each point's verdict and review decision).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "s.yaml").write_text(
+    ...     "name: s\nA: [[-1.25]]\nC: [[1]]\nQ: 1\nR: 2.5\n"
+    ...     "channel: {model: bernoulli, arrival_probability: 0.5}\n")
+    >>> _ = (folder / "sweep.yaml").write_text(
+    ...     "system: s.yaml\ngrid:\n  channel.arrival_probability: [0.3, 0.5]\n")
+    >>> from kfcrit import sweep
+    >>> table = sweep(folder / "sweep.yaml", write=False)
+    >>> [(r["channel.arrival_probability"], r["verdict"], r["decision"]) for r in table.rows]
+    [(0.3, 'mean-unstable', 'fail'), (0.5, 'mean-stable', 'pass')]
+    >>> sweep(folder / "sweep.yaml", workers=0)
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: workers: must be a whole number ≥ 1, got 0
     """
     from kfcrit.analysis.sweep.points import RESULT_COLUMNS, load_sweep, run_sweep
     from kfcrit.api.sweepfiles import write_outputs

@@ -243,7 +243,47 @@ class Requirements:
 
 @dataclass(frozen=True, eq=False)
 class SystemSpec:
-    """Everything a system file says: the system, the channel, requirements, provenance."""
+    """Everything a system file says: the system, the channel, requirements, provenance.
+
+    Returned by :func:`kfcrit.load_spec`; built directly to pair a :class:`~kfcrit.System` with a
+    channel for :func:`kfcrit.analyze` or :func:`kfcrit.simulate`.
+
+    Parameters
+    ----------
+    system : System
+        The plant and sensor (for a ``sensors:`` or ``mesh:`` file the stacked system).
+    channel : Channel, optional
+        The link (None: no operating point, only the theory).
+    requirements : Requirements
+        Accuracy, tail and cost requirements of the file.
+    description, path, sha256 : str
+        Provenance of the file.
+    continuous, network, mesh, loop : optional
+        The continuous-time model, sensor network, mesh and closed loop of the file (each
+        documented on its field below).
+
+    Attributes
+    ----------
+    system, channel, requirements, description, path, sha256, continuous, network, mesh, loop
+        As given.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        Never from the constructor (it stores what it is given); :func:`kfcrit.load_spec` raises
+        it for an invalid file.
+
+    References
+    ----------
+    docs/theory.md §1 (the model), §9 (sensor networks), §12 (closed loops), §13 (meshes).
+
+    Examples
+    --------
+    >>> from kfcrit import Bernoulli, System, SystemSpec
+    >>> spec = SystemSpec(System(A=[[1.25]], C=[[1]], Q=1, R=1), Bernoulli("1/2"))
+    >>> spec.channel.arrival_probability, spec.network is None
+    (1/2, True)
+    """
 
     system: System
     channel: Channel | None = None

@@ -86,7 +86,12 @@ FADING_PER_ATTEMPT = ("shared", "independent")
 
 @dataclass(frozen=True, eq=False)
 class LinkBudget(Channel):
-    """A radio link: arrivals with p = 1 − PER(SINR(d), L)^{k+1} (see module docstring).
+    r"""A radio link: arrivals with p = 1 − PER(SINR(d), L)^{k+1} (see module docstring).
+
+    .. math::
+
+        p = 1 - \mathrm{PER}\bigl(\mathrm{SINR}(d), L\bigr)^{k+1},\qquad
+        1 - \mathrm{PER} = (1 - \mathrm{BER}(\mathrm{SINR}))^{8L}.
 
     Margin policy: a design must keep ``margin_db`` dB of SINR in reserve; with ``max_outage``
     the reserve is at least σ·Φ^{-1}(1 − max_outage) (per-link shadowing: at most that fraction
@@ -97,6 +102,68 @@ class LinkBudget(Channel):
     (``per_over = "ppdu"``, default) or the PSDU (``"psdu"``). ``fading_per_attempt`` is
     ``"shared"`` (the attempts of a period share its shadowing value) or ``"independent"``
     (redrawn per attempt; per-packet shadowing only).
+
+    Parameters
+    ----------
+    radio : Radio
+        The radio model (e.g. ``ieee802154-oqpsk-2450``); in a system file, its name.
+    tx_power_dbm, distance_m : float
+        Transmit power and link distance.
+    packet_bytes : int
+        Application payload per packet.
+    path_loss : PathLoss
+        Log-distance path loss and its shadowing.
+    noise : Noise
+        Noise floor (noise figure, bandwidth, temperature) and interference.
+    antenna_gain_db, margin_db : float
+        Total antenna gain, and the SINR reserve of the margin policy.
+    max_outage : float, optional
+        Largest allowed shadowing outage probability.
+    max_retries : int
+        MAC retries k.
+    mac_overhead_bytes : int, optional
+        MAC header and FCS (default: the radio's).
+    shadowing_correlation : ShadowingCorrelation, optional
+        AR(1) correlation of time-correlated shadowing.
+    per_over : {"ppdu", "psdu"}
+        What the packet error rate covers.
+    fading_per_attempt : {"shared", "independent"}
+        Whether the attempts of a period share their shadowing value.
+
+    Attributes
+    ----------
+    arrival_probability : sympy.Expr
+        The arrival probability of the median link (per-link shadowing) or the average one.
+    model : str
+        ``"link-budget"``.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        An invalid or missing field (``from_mapping`` names it with its prefix), a payload that
+        does not fit the PHY, or inconsistent shadowing options.
+
+    References
+    ----------
+    docs/theory.md §11 (link design from the required arrival probability, retries
+    1 − PER^{k+1}) and §16.3 (the margin and outage policy in the review).
+
+    Examples
+    --------
+    >>> from kfcrit import LinkBudget
+    >>> link = LinkBudget.from_mapping({
+    ...     "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": 0, "distance_m": 105,
+    ...     "packet_bytes": 40,
+    ...     "path_loss": {"model": "log-distance", "exponent": 3.0,
+    ...                   "reference_distance_m": 1, "reference_loss_db": 40.2},
+    ...     "noise": {"noise_figure_db": 10, "bandwidth_hz": 2.0e6, "temperature_k": 290}},
+    ...     "channel")
+    >>> round(float(link.arrival_probability), 4), link.iid
+    (0.9465, True)
+    >>> LinkBudget.from_mapping({"radio": "ieee802154-oqpsk-2450"}, "channel")
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: channel.distance_m: is required
     """
 
     radio: Radio

@@ -104,6 +104,34 @@ class Channel:
     arrival process from :meth:`arrival_process`; the default is i.i.d. Bernoulli with the
     stationary ``arrival_probability``, which is right for every memoryless model (a model with
     memory overrides it).
+
+    Attributes
+    ----------
+    model : str
+        The model's name in a system file (``bernoulli``, ``gilbert-elliott``, ``trace``,
+        ``link-budget``).
+    arrival_probability : sympy.Expr
+        The stationary arrival probability P(γ_t = 1).
+    iid : bool
+        True when losses are i.i.d. Bernoulli (the setting of the mean-stability theorems).
+
+    Raises
+    ------
+    NotImplementedError
+        ``arrival_probability`` and ``to_dict`` of the base class itself.
+
+    References
+    ----------
+    docs/theory.md §1 (arrival indicators), §7 and §10 (Markov losses), §14 (measured traces).
+
+    Examples
+    --------
+    >>> from kfcrit import Bernoulli, Channel, GilbertElliott
+    >>> [isinstance(c, Channel) for c in (Bernoulli("1/2"), GilbertElliott("1/10", "1/2"))]
+    [True, True]
+    >>> import numpy as np
+    >>> Bernoulli(1).draw_arrivals(np.random.default_rng(0), 4)
+    array([ True,  True,  True,  True])
     """
 
     model: ClassVar[str]
@@ -174,17 +202,42 @@ def process_arrivals(process: ArrivalProcess, rng: np.random.Generator, steps: i
 class Bernoulli(Channel):
     """I.i.d. arrivals: P(γ_t = 1) = p.
 
+    The setting of Sinopoli et al. (2004): the estimation error covariance is mean-stable iff
+    p > p_c.
+
     Parameters
     ----------
     p : number or str
         The arrival probability in [0, 1] (a Python float by its shortest decimal, a string as
-        an exact expression such as ``"9/10"``); anything else raises
-        :class:`kfcrit.errors.InputError` naming ``arrival_probability``.
+        an exact expression such as ``"9/10"``).
+
+    Attributes
+    ----------
+    p, arrival_probability : sympy.Expr
+        The exact arrival probability.
+    iid : bool
+        Always True.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        ``p`` outside [0, 1] or not a number; the error names ``arrival_probability``.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorem 2 (the phase transition at p_c); docs/theory.md §1, §3.
 
     Examples
     --------
+    >>> from kfcrit import Bernoulli
     >>> Bernoulli("9/10").arrival_probability
     9/10
+    >>> Bernoulli(0.6).to_dict()["arrival_probability_expression"]
+    '3/5'
+    >>> Bernoulli(90)
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: arrival_probability: must be in [0, 1], got 90
     """
 
     p: sp.Expr
@@ -215,10 +268,50 @@ class Bernoulli(Channel):
 
 @dataclass(frozen=True)
 class GilbertElliott(Channel):
-    """Two-state Markov losses.
+    r"""Two-state Markov losses.
 
     ``failure_rate`` f = P(lost next | received now), ``recovery_rate`` r = P(received next | lost
     now). Stationary arrival probability r / (f + r); loss bursts are geometric with mean 1/r.
+
+    .. math::
+
+        T = \begin{bmatrix} 1-r & r \\ f & 1-f \end{bmatrix}
+        \quad(\text{row = now, state 0 = lost}),\qquad
+        P(\text{burst} = j) = (1-r)^{j-1} r .
+
+    Parameters
+    ----------
+    failure_rate, recovery_rate : number or str
+        f and r in (0, 1] (strings such as ``"1/10"`` are exact).
+
+    Attributes
+    ----------
+    failure_rate, recovery_rate : sympy.Expr
+        f and r, exact.
+    arrival_probability : sympy.Expr
+        r / (f + r).
+    iid : bool
+        True only when f + r = 1 (the chain is then memoryless).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        A rate outside (0, 1] or not a number; the error names the rate.
+
+    References
+    ----------
+    docs/theory.md §7 (Markov losses, the scalar theorem (1 − r)a² < 1) and §10 (vector systems).
+
+    Examples
+    --------
+    >>> from kfcrit import GilbertElliott
+    >>> ge = GilbertElliott("1/10", "1/2")
+    >>> ge.arrival_probability, ge.iid, ge.to_dict()["mean_burst_length"]
+    (5/6, False, 2.0)
+    >>> GilbertElliott(0, "1/2")
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: failure_rate: must be in (0, 1], got 0
     """
 
     failure_rate: sp.Expr
@@ -269,20 +362,61 @@ class GilbertElliott(Channel):
 
 @dataclass(frozen=True, eq=False)
 class Trace(Channel):
-    """A measured 0/1 arrival sequence (read from a trace file by
-    :func:`kfcrit.io.tracechannel.measured_trace_from_mapping`; the path is relative to the
-    system file). The stationary arrival probability is the empirical frequency of ones.
+    """A measured 0/1 arrival sequence.
 
-    ``format`` names the file format it was read from (``binary``, ``sequence-numbers`` or
-    ``receive-log``), ``sensor`` the sensor column it was read for (receive logs), ``confidence``
-    the confidence c of the verdict on the fit's confidence region (theory §14) and
-    ``period_s`` the sampling period a receive log was binned with.
+    Read from a trace file by :func:`kfcrit.io.tracechannel.measured_trace_from_mapping` (the path
+    is relative to the system file) or built in memory by :meth:`from_arrivals`. The stationary
+    arrival probability is the empirical frequency of ones.
 
     The simulations read it cyclically, each path from its own start: the path's 64-bit stream
     key modulo the trace length (path i of ``simulate``: the key of
     ``SeedSequence(seed, spawn_key=(0, i))``; ergodic replica j: ``(2, j)``), so a path's
     arrivals depend on (seed, i) only, never on how many paths are run. All sensors of a
     network read their traces from the same start (time-aligned: their joint law is kept).
+
+    Parameters
+    ----------
+    path : str
+        Where the trace came from (a file name, or a label for an in-memory sequence).
+    arrivals : numpy.ndarray of bool
+        The sequence γ_0, γ_1, ….
+    format : str
+        The file format it was read from (``binary``, ``sequence-numbers`` or ``receive-log``).
+    confidence : float
+        The confidence c of the verdict on the fit's confidence region.
+    sensor : str, optional
+        The sensor column it was read for (receive logs).
+    period_s : str, optional
+        The sampling period a receive log was binned with.
+
+    Attributes
+    ----------
+    arrival_probability : sympy.Rational
+        (number of ones) / (length).
+    iid : bool
+        False: a trace is judged by its fitted Bernoulli or Gilbert–Elliott law.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        :meth:`from_arrivals` with an empty or multi-dimensional sequence, or values other than
+        0 and 1 (field ``arrivals``).
+
+    References
+    ----------
+    docs/theory.md §14 (measured links: reading traces, Clopper–Pearson fits, verdict with
+    confidence).
+
+    Examples
+    --------
+    >>> from kfcrit import Trace
+    >>> t = Trace.from_arrivals([1, 1, 0, 1])
+    >>> t.arrival_probability, t.to_dict()["length"]
+    (3/4, 4)
+    >>> Trace.from_arrivals([0, 2])
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: arrivals: only 0 and 1 are allowed
     """
 
     path: str

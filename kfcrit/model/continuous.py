@@ -165,6 +165,28 @@ def sample(A_c: Any, Q_c: Any, T: Any) -> SampledModel:
     SampledModel
         Exact closed forms when ``A_c`` is rational with rational eigenvalues and
         n ≤ :data:`EXACT_MAX_STATES`; otherwise certified float64 values and the reason.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        A non-square ``A_c``, a ``Q_c`` that is not symmetric PSD, or ``T`` ≤ 0 (errors name
+        ``continuous.A``, ``continuous.Q`` or the sampling time).
+
+    References
+    ----------
+    Van Loan (1978), "Computing integrals involving the matrix exponential"; docs/theory.md §1
+    (the discrete model that is sampled) and §11 (marginal modes of integrator chains).
+
+    Examples
+    --------
+    >>> from kfcrit import sample
+    >>> model = sample([[0, 1], [0, 0]], [[0, 0], [0, 1]], "1/10")   # double integrator
+    >>> model.A, model.Q, model.method
+    (Matrix([
+    [1, 1/10],
+    [0,    1]]), Matrix([
+    [1/3000, 1/200],
+    [ 1/200,  1/10]]), 'exact-nilpotent')
     """
     A, ea = to_matrix(A_c, "continuous.A")
     n = A.shape[0]
@@ -231,6 +253,18 @@ def from_continuous_statespace(sys: Any, sampling_time: Any, Q_c: Any, R: Any,
         Exact matrices (lists of strings, integers, sympy numbers) to use instead of
         ``sys.A`` and ``sys.C``; they must agree with the system's floats.
 
+    Returns
+    -------
+    System
+        The discrete-time system (exact when every input is exact).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        ``sys`` of the wrong time base or type, a missing ``sampling_time``, ``Q`` or ``R``,
+        or exact overrides that disagree with the system's floats (the error names the
+        argument).
+
     Notes
     -----
     python-control stores float arrays. Entries equal to their shortest decimal (integers,
@@ -239,6 +273,22 @@ def from_continuous_statespace(sys: Any, sampling_time: Any, Q_c: Any, R: Any,
     With exact entries throughout (``sys`` of integers, ``T = "1/10"``) the sampled ``A`` and
     ``Q`` are exact: the double integrator gives ``A = [[1, T], [0, 1]]`` and
     ``Q = q [[T³/3, T²/2], [T²/2, T]]`` for ``Q_c = diag(0, q)``.
+
+    References
+    ----------
+    Van Loan (1978) for the sampled noise integral; Sinopoli et al. (2004), eq. (1);
+    docs/theory.md §1 and §11 (marginal modes: constant-velocity trackers have p_c = 0).
+
+    Examples
+    --------
+    >>> import control
+    >>> plant = control.ss([[0, 1], [0, 0]], [[0], [1]], [[1, 0]], 0)   # continuous double integrator
+    >>> from kfcrit import critical_value, from_continuous_statespace
+    >>> system = from_continuous_statespace(plant, "1/10", [[0, 0], [0, 1]], 1)
+    >>> system.A, system.exact, critical_value(system).value.value
+    (Matrix([
+    [1, 1/10],
+    [0,    1]]), True, 0.0)
     """
     dt = getattr(sys, "dt", None)
     if dt is None or dt is True or (dt is not False and dt != 0):
@@ -289,6 +339,18 @@ def from_statespace(sys: Any, sampling_time: Any = None, Q: Any = None, R: Any =
         Exact matrices (strings, integers, sympy numbers) to use instead of ``sys.A`` (for a
         continuous ``sys``: A_c) and ``sys.C``; they must agree with the system's floats.
 
+    Returns
+    -------
+    System
+        The discrete-time system (exact when every input is exact).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        ``sys`` of the wrong time base or type, a missing ``sampling_time``, ``Q`` or ``R``,
+        or exact overrides that disagree with the system's floats (the error names the
+        argument).
+
     Notes
     -----
     python-control stores float arrays. Entries equal to their shortest decimal (integers,
@@ -296,6 +358,24 @@ def from_statespace(sys: Any, sampling_time: Any = None, Q: Any = None, R: Any =
     binary value, and the system is then inexact (``System.exact`` False). Pass ``A``/``C``
     as text (``"1/10"``) for exact values. Errors are :class:`~kfcrit.errors.InputError`
     naming the argument.
+
+    References
+    ----------
+    Van Loan (1978) for the sampled noise integral; Sinopoli et al. (2004), eq. (1);
+    docs/theory.md §1 and §11 (marginal modes: constant-velocity trackers have p_c = 0).
+
+    Examples
+    --------
+    >>> import control
+    >>> plant = control.ss([[0, 1], [0, 0]], [[0], [1]], [[1, 0]], 0)   # continuous double integrator
+    >>> from kfcrit import critical_value, from_statespace
+    >>> system = from_statespace(plant, sampling_time="1/10", Q=[[0, 0], [0, 1]], R=1)
+    >>> system.A, system.exact, critical_value(system).value.value
+    (Matrix([
+    [1, 1/10],
+    [0,    1]]), True, 0.0)
+    >>> from_statespace(control.ss([[1.25]], [[1]], [[1]], 0, 1), Q=1, R=1).A   # discrete, dt = 1
+    Matrix([[5/4]])
     """
     for value, field in ((Q, "Q"), (R, "R")):
         if value is None:

@@ -308,7 +308,16 @@ def _check_definite(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: boo
 
 @dataclass(frozen=True, eq=False)
 class System:
-    """A linear system x_{t+1} = A x_t + w_t, y_t = C x_t + v_t, w ~ N(0,Q), v ~ N(0,R).
+    r"""A linear system x_{t+1} = A x_t + w_t, y_t = C x_t + v_t, w ~ N(0,Q), v ~ N(0,R).
+
+    The plant and sensor of Sinopoli et al. (2004), eq. (1); the arrival indicator γ_t is given
+    separately by a channel. Exact input (integers, fractions, strings such as ``"5/4"``, sympy
+    numbers) stays exact; a binary float is taken as the rational number it is.
+
+    .. math::
+
+        x_{t+1} = A x_t + w_t,\qquad y_t = C x_t + v_t,\qquad
+        w_t \sim N(0, Q),\ v_t \sim N(0, R),\ x_0 \sim N(\bar x_0, \Sigma_0).
 
     Parameters
     ----------
@@ -320,6 +329,46 @@ class System:
         A label for reports.
     max_states : int
         Guard on the state dimension.
+
+    Attributes
+    ----------
+    A, C, Q, R, Sigma0 : sympy.ImmutableMatrix
+        The matrices as entered (exact rationals where the input was exact).
+    a, c, q, r, sigma0 : numpy.ndarray
+        Their float64 values.
+    exact : bool
+        True when every entry was exact (then the theory decides structure exactly).
+    n, m : int
+        State and output dimensions.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        A matrix of the wrong shape, a non-symmetric ``Q``, ``R`` or ``Sigma0``, ``R`` not positive
+        definite, ``Q`` or ``Sigma0`` not positive semidefinite, or a size above ``max_states``;
+        the error's ``field`` names the matrix.
+
+    References
+    ----------
+    Sinopoli, Schenato, Franceschetti, Poolla, Jordan & Sastry (2004), "Kalman filtering with
+    intermittent observations", eq. (1); docs/theory.md §1.
+
+    Examples
+    --------
+    >>> from kfcrit import System
+    >>> s = System(A=[[1.25, 0], [1, 1.1]], C=[[1, 1]], Q=20, R=2.5)
+    >>> s.n, s.m, s.exact
+    (2, 1, False)
+    >>> s.Q
+    Matrix([
+    [20,  0],
+    [ 0, 20]])
+    >>> System(A=[["5/4"]], C=[[1]], Q=1, R=1).exact
+    True
+    >>> System(A=[[1]], C=[[1]], Q=1, R=0)
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: R: must be symmetric positive definite
     """
 
     A: sp.ImmutableMatrix

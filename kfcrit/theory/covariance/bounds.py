@@ -94,11 +94,45 @@ def _scaled_norm_ratio(D: np.ndarray, V: np.ndarray) -> float | None:
 
 
 def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | None:
-    """S̄ = (1−p) A S̄ A' + Q, or None when (1−p) ρ(A)² ≥ 1 (no bounded solution).
+    r"""S̄ = (1−p) A S̄ A' + Q, or None when (1−p) ρ(A)² ≥ 1 (no bounded solution).
+
+    .. math::
+
+        \bar S = (1-p)\, A \bar S A' + Q
 
     scipy's direct (Kronecker) solver is tried first; when it reports an ill-conditioned system
     (``LinAlgWarning``, e.g. a strongly non-normal A near the boundary) the bilinear
     (Bartels–Stewart) method is used instead. Nothing is printed.
+
+    Parameters
+    ----------
+    A, Q : numpy.ndarray
+        Plant matrix and process-noise covariance (float64).
+    p : float
+        Arrival probability.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        The lower bound S̄ of lim E[P_t] (symmetric), or None when it does not exist.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        A (numerically) singular Lyapunov system.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorem 3 (eq. (19)) and Theorem 4; docs/theory.md §3.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kfcrit.theory.covariance.bounds import lower_covariance
+    >>> lower_covariance(np.array([[1.25]]), np.array([[1.0]]), 0.5).round(6)  # 1/(1 - 25/32)
+    array([[4.571429]])
+    >>> lower_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.5) is None
+    True
     """
     rho = float(max(abs(np.linalg.eigvals(A)))) if A.size else 0.0
     if (1.0 - p) * rho**2 >= 1.0:
@@ -135,10 +169,56 @@ def mare_residual(A, C, Q, R, V: np.ndarray, p: float) -> float | None:
 def mare_iteration(A, C, Q, R, p: float, V0: np.ndarray | None = None,
                    max_iterations: int = 200_000, rtol: float = 1e-13,
                    blowup: float = 1e14) -> tuple[np.ndarray | None, int]:
-    """V_{t+1} = g_p(V_t) from V_0 (0 by default) until ‖ΔV‖ ≤ rtol ‖V‖.
+    r"""V_{t+1} = g_p(V_t) from V_0 (0 by default) until ‖ΔV‖ ≤ rtol ‖V‖.
 
-    Returns (V, iterations), V None when the iterates exceed ``blowup``·(1 + ‖V_1‖) or the
-    iteration budget ends first (bounded ⇔ p > p_up; the iteration slows down near p_up).
+    .. math::
+
+        V_{t+1} = g_p(V_t) = A V_t A' + Q - p\, A V_t C'(C V_t C' + R)^{-1} C V_t A'
+
+    With Q ≻ 0 the orbit from 0 is bounded iff p > p_up; the iteration slows down near p_up.
+
+    Parameters
+    ----------
+    A, C, Q, R : numpy.ndarray
+        System matrices (float64).
+    p : float
+        Arrival probability.
+    V0 : numpy.ndarray, optional
+        Starting point (default 0).
+    max_iterations : int
+        Iteration budget.
+    rtol : float
+        Relative step size at which the iteration stops.
+    blowup : float
+        The orbit is declared unbounded above ``blowup``·(1 + ‖V_1‖).
+
+    Returns
+    -------
+    V : numpy.ndarray or None
+        The fixed point V̄, or None when the iterates blow up or the budget ends first.
+    iterations : int
+        Iterations used.
+
+    Raises
+    ------
+    ValueError
+        Matrices of inconsistent shapes.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorem 1 and Theorem 6(a); docs/theory.md §3 (characterisation 3
+    of p_up).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from kfcrit.theory.covariance.bounds import mare_iteration
+    >>> one = np.eye(1)
+    >>> V, its = mare_iteration(1.25 * one, one, one, one, 0.5)
+    >>> V.round(6)
+    array([[7.733944]])
+    >>> mare_iteration(1.25 * one, one, one, one, 0.3, max_iterations=1000)[0] is None  # p < 9/25
+    True
     """
     V = np.zeros_like(Q, dtype=float) if V0 is None else np.array(V0, dtype=float)
     # overflow and NaN are detected below (non-finite norm): no RuntimeWarning on stderr
@@ -192,8 +272,49 @@ def mare_newton(A, C, Q, R, p: float, K0: np.ndarray, max_iterations: int = 60,
 
 def upper_covariance(system: System, p: float, gains: list[np.ndarray] | None = None,
                      rtol: float = 1e-14) -> dict[str, Any]:
-    """V̄(p) by Newton–Kleinman (gains tried: ``gains``, then the gain of the MARE iterate),
-    falling back to the plain MARE iteration. Keys: V, method, iterations, residual."""
+    r"""V̄(p) by Newton–Kleinman, falling back to the plain MARE iteration.
+
+    Gains tried: ``gains``, then K = −A C⁻¹ when C is square, then the gain of the MARE iterate.
+    V̄ is the fixed point of the MARE
+
+    .. math::
+
+        \bar V = A \bar V A' + Q - p\, A \bar V C'(C \bar V C' + R)^{-1} C \bar V A' .
+
+    Parameters
+    ----------
+    system : System
+        The system.
+    p : float
+        Arrival probability (above p_up for V̄ to exist).
+    gains : list of numpy.ndarray, optional
+        Stabilising gains to warm-start Newton–Kleinman.
+    rtol : float
+        Relative convergence tolerance of Newton–Kleinman.
+
+    Returns
+    -------
+    dict
+        Keys ``V`` (the matrix, or None when not reached), ``method``, ``iterations`` and
+        ``residual`` (relative MARE residual).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        Only from a singular linear solve that the fallbacks cannot avoid.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorem 6(a) and Lemma 1; docs/theory.md §3.
+
+    Examples
+    --------
+    >>> from kfcrit import System
+    >>> from kfcrit.theory.covariance.bounds import upper_covariance
+    >>> res = upper_covariance(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.5)
+    >>> res["V"].round(6), res["method"]
+    (array([[7.733944]]), 'newton-kleinman (warm gain)')
+    """
     A, C, Q, R = system.a, system.c, system.q, system.r
     n = system.n
     candidates = list(gains or [])
@@ -226,12 +347,23 @@ def upper_covariance(system: System, p: float, gains: list[np.ndarray] | None = 
 
 def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = None
                       ) -> dict[str, Any]:
-    """S̄ and V̄ at arrival probability p (Sinopoli Thm 4, 6).
+    r"""S̄ and V̄ at arrival probability p (Sinopoli Thm 4, 6).
+
+    For p > p_up the limit of the mean error covariance is bracketed:
+
+    .. math::
+
+        \bar S \preceq \lim_t E[P_t] \preceq \bar V,\qquad
+        \bar S = (1-p) A \bar S A' + Q,\qquad \bar V = g_p(\bar V),
+
+    with g_p(X) = A X A' + Q − p A X C'(C X C' + R)^{-1} C X A' (the MARE).
 
     Parameters
     ----------
     system : System
+        The system.
     p : float
+        Arrival probability.
     upper : dict, optional
         ``upper.upper_section(system)`` if already computed (its interval decides where V̄
         cannot exist, and its certificate gain warm-starts Newton).
@@ -240,9 +372,29 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
     -------
     dict
         ``{"p", "lower": {exists, trace, max_eig, matrix}, "upper": {exists, trace, max_eig,
-        matrix, residual, method, iterations}, "ordered"}``; ``ordered`` is True/False when both
-        bounds exist (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9 ‖V̄‖), None otherwise. ``residual``
-        is the relative MARE residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
+        matrix, residual, method, iterations}, "ordered", "warnings"}``; ``ordered`` is True/False
+        when both bounds exist (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9 ‖V̄‖), None otherwise.
+        ``residual`` is the relative MARE residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
+
+    Raises
+    ------
+    TypeError, ValueError
+        ``p`` not convertible to float. Bounds that do not exist are reported with
+        ``exists`` False, never raised.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorems 4 and 6 (with the corrected Theorem 6(b) SDP); Lemma 1;
+    docs/theory.md §2 and §3.
+
+    Examples
+    --------
+    >>> from kfcrit import System, covariance_bounds
+    >>> b = covariance_bounds(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.5)
+    >>> round(b["lower"]["trace"], 6), round(b["upper"]["trace"], 6), b["ordered"]
+    (4.571429, 7.733944, True)
+    >>> covariance_bounds(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.3)["upper"]["exists"]
+    False
     """
     p = float(p)
     S = lower_covariance(system.a, system.q, p)

@@ -212,7 +212,18 @@ def _coinciding(system: System, st: Structure, low: Num, blow: Num, bwhy: str
 
 def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
                    structure: Structure | None = None, robust: bool = True) -> CriticalValue:
-    """Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
+    r"""Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
+
+    The critical arrival probability of Sinopoli et al. (2004), Theorem 2: for i.i.d. arrivals
+    with probability p, sup_t E[P_t] < ∞ iff p > p_c. Where every equi-block with |λ| ≥ 1 is
+    one-step observable (Mo & Sinopoli, Theorem 4)
+
+    .. math::
+
+        p_c = \max\bigl(1 - |\lambda_1(A)|^{-2},\ 0\bigr),
+
+    and for a degenerate second-order block (Theorems 5, 9, 10)
+    p_c = max(1 − |λ_1|^{−2q/(q−1)}, 0).
 
     Parameters
     ----------
@@ -236,6 +247,35 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
     -------
     CriticalValue
         Record; ``.to_dict()`` gives plain JSON data (see :class:`CriticalValue`).
+        ``classification`` is one of ``not-detectable``, ``stable``, ``non-diagonalizable``,
+        ``non-degenerate``, ``degenerate-second-order``, ``degenerate``; ``value`` is p_c as a
+        ``Num`` (``.value`` float, ``.expr`` exact) or None where no closed form applies.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        ``tolerance`` not a number in [0, 0.1].
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorems 2 and 3; Mo & Sinopoli, "Towards finding the critical value
+    for Kalman filtering with intermittent observations", Theorems 3, 4, 5, 9 and 10;
+    docs/theory.md §3 and §4.
+
+    Examples
+    --------
+    >>> from kfcrit import System, critical_value
+    >>> critical_value(System(A=[[2.0]], C=[[1.0]], Q=[[1.0]], R=[[1.0]])).value.value
+    0.75
+    >>> cv = critical_value(System(A=[[1.25, 0], [1, 1.1]], C=[[1, 1]], Q=20, R=2.5))
+    >>> cv.classification, cv.value.expr
+    ('non-degenerate', 9/25)
+    >>> critical_value(System(A=[[0, -2], [2, 0]], C=[[1, 0]], Q=1, R=1)).value.expr
+    15/16
+    >>> critical_value(System(A=[[2]], C=[[1]], Q=1, R=1), tolerance=1)
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: tolerance: must be a number in [0, 0.1], got 1
     """
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance <= 0.1):
         raise InputError(f"must be a number in [0, 0.1], got {tolerance!r}", field="tolerance")
@@ -282,5 +322,43 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
 
 def critical_section(system: System, tolerance: float = 1e-9, channel: Any = None,
                      structure: Structure | None = None) -> dict[str, Any]:
-    """``critical_value(system, tolerance, channel, structure).to_dict()``."""
+    """``critical_value(system, tolerance, channel, structure).to_dict()``.
+
+    The record sections of the critical value, as plain JSON data.
+
+    Parameters
+    ----------
+    system : System
+        The system.
+    tolerance : float
+        Relative perturbation size of the robust critical value.
+    channel : Channel, optional
+        The configured channel (for the almost-sure statements).
+    structure : Structure, optional
+        The eigen-structure of ``system``, when already computed.
+
+    Returns
+    -------
+    dict
+        Keys ``classification``, ``critical_value`` (``value``, ``exact``, ``expression``,
+        ``latex``, ``reason``), ``lower_bound``, ``block_lower_bound``, ``robust_critical_value``,
+        ``structure``, ``theory`` and ``warnings``.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        As :func:`critical_value`.
+
+    References
+    ----------
+    Mo & Sinopoli, Theorem 4; docs/theory.md §4.
+
+    Examples
+    --------
+    >>> from kfcrit import System
+    >>> from kfcrit.theory.critical.section import critical_section
+    >>> d = critical_section(System(A=[["5/4"]], C=[[1]], Q=1, R=1))
+    >>> d["classification"], d["critical_value"]["expression"], d["critical_value"]["value"]
+    ('non-degenerate', '9/25', 0.36)
+    """
     return critical_value(system, tolerance, channel, structure).to_dict()

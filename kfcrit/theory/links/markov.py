@@ -491,7 +491,7 @@ class BurstFacts:
 def burst_facts(system: System, failure_rate: Any, recovery_rate: Any,
                 structure: Any | None = None, classification: str | None = None,
                 use_lmi: bool = True) -> BurstFacts:
-    """What is proven about E[P_t] over the link (f, r), from proofs only (theory §10).
+    r"""What is proven about E[P_t] over the link (f, r), from proofs only (theory §10).
 
     * the necessary condition (1 − r)ρ(A)² < 1 holds or fails (decided exactly where r and
       ρ(A) are exact);
@@ -499,6 +499,53 @@ def burst_facts(system: System, failure_rate: Any, recovery_rate: Any,
     * for "non-degenerate" systems (``classification`` from
       :mod:`kfcrit.theory.critical.section`), the literature's exact condition as a labelled
       ``claim`` (never a fact).
+
+    .. math::
+
+        (1 - r)\,\rho(A)^2 < 1 \quad\text{(necessary)},\qquad
+        \rho\Bigl(Y_j \mapsto \sum_i T_{ij} F_i Y_i F_i'\Bigr) < 1 \quad\text{(sufficient)}.
+
+    Parameters
+    ----------
+    system : System
+        The system.
+    failure_rate, recovery_rate : number
+        f and r of the Gilbert–Elliott link (ints, fractions, sympy numbers or floats).
+    structure : Structure, optional
+        The eigen-structure of ``system`` (for an exact ρ(A)²).
+    classification : str, optional
+        The classification of :func:`kfcrit.critical_value`.
+    use_lmi : bool
+        Search the certificate's gain with the coupled Lyapunov LMI.
+
+    Returns
+    -------
+    BurstFacts
+        ``facts`` (``necessary``, ``sufficient``), ``basis``, the stationary arrival probability,
+        the necessary condition and the certificate.
+
+    Raises
+    ------
+    TypeError
+        A rate that is not a number (a string, for instance).
+
+    References
+    ----------
+    docs/theory.md §7 (scalar theorem) and §10 (necessary condition, coupled fixed-gain
+    certificate); You, Fu & Xie (2011) and Mo & Sinopoli (2012) for the labelled claim.
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit import System
+    >>> from kfcrit.theory.links.markov import burst_facts
+    >>> system = System(A=[["5/4"]], C=[[1]], Q=1, R=1)
+    >>> bf = burst_facts(system, Fraction(1, 10), Fraction(1, 2))
+    >>> bf.facts.necessary, bf.facts.sufficient, round(bf.stationary_arrival, 6)
+    (True, True, 0.833333)
+    >>> bf = burst_facts(system, Fraction(1, 20), Fraction(1, 10))   # (9/10)·(25/16) ≥ 1
+    >>> bf.facts.necessary, bf.necessary.value
+    (False, 1.40625)
     """
     fe, re_ = exact_rate(failure_rate, "failure_rate"), exact_rate(recovery_rate, "recovery_rate")
     f, r = float(fe), float(re_)

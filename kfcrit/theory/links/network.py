@@ -542,11 +542,20 @@ def _expr_text(e: sp.Expr | None) -> str | None:
 
 def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                      tol: float = 1e-9, certify: bool = True) -> NetworkResult:
-    """Stability of a sensor network at arrival probabilities ``p`` (docs/theory.md §9).
+    r"""Stability of a sensor network at arrival probabilities ``p`` (docs/theory.md §9).
+
+    N sensors, sensor i over an independent Bernoulli(p_i) link. The necessary surface (§9.2)
+    and the sufficient jump-linear certificate (§9.3) bracket the stability region, an up-set:
+
+    .. math::
+
+        p \in \mathcal S \Rightarrow \prod_{i \notin T} (1 - p_i)\, \rho_T^2 < 1
+        \quad \text{for every sensor set } T .
 
     Parameters
     ----------
     network : Network
+        The plant and its sensors (:class:`kfcrit.model.network.Network`).
     p : sequence, optional
         Arrival probabilities in sensor order (exact sympy numbers, ints, fractions or floats);
         default: the sensors' channels' arrival probabilities.
@@ -560,6 +569,35 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     NetworkResult
         Verdict at p, per-sensor critical values (least p_i keeping mean stability with the
         others at p), uniform margin, N−1 verdicts, bottleneck (see :class:`NetworkResult`).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        ``tol`` outside (0, 1e-3], or an arrival probability that is not a number in [0, 1].
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorem 3 and Lemma 1 (applied to each received set); Liu &
+    Goldsmith (2004) for two sensors; docs/theory.md §9 (§9.2 necessary, §9.3 sufficient,
+    §9.4 exact cases).
+
+    Examples
+    --------
+    A scalar plant a = 2 seen by two sensors: stable iff (1 − p_1)(1 − p_2)·4 < 1 (§9.4).
+
+    >>> from fractions import Fraction
+    >>> from kfcrit import network_analysis
+    >>> from kfcrit.model.network import Network, Sensor
+    >>> net = Network(A=[[2]], Q=1, sensors=[Sensor("a", [[1]], 1), Sensor("b", [[1]], 1)])
+    >>> res = network_analysis(net, p=[Fraction(3, 4), Fraction(3, 4)])
+    >>> res.facts.necessary, res.facts.exact_region
+    (True, True)
+    >>> round(res.uniform_margin["value"], 9)       # (1/4 + δ)² · 4 = 1
+    0.25
+    >>> network_analysis(net, p=[Fraction(3, 4), Fraction(3, 4)], tol=1)
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: tol: must be a number in (0, 1e-3], got 1
     """
     if not (isinstance(tol, (int, float)) and 0 < tol <= 1e-3):
         raise InputError(f"must be a number in (0, 1e-3], got {tol!r}", field="tol")

@@ -126,6 +126,30 @@ def loop_critical_curve(design: FixedDesign, gammas: np.ndarray | list[float],
     Returns
     -------
     LoopCriticalCurve
+
+        ``gammas``, ``nu_grid``, ``rho`` (spectral radius on the grid), ``nu_star`` (the
+        boundary ν̄ for each γ̄), ``bracket``, ``stable_intervals`` and ``certified``.
+
+    Raises
+    ------
+    ValueError
+        An arrival probability outside [0, 1].
+
+    References
+    ----------
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12
+    (critical curve of a fixed design); Costa, Fragoso & Marques (2005).
+
+    Examples
+    --------
+    >>> from kfcrit.theory.loop.stack import fixed_design
+    >>> design = fixed_design([[1.25]], [[1]], [[1]], 1, 1, 1, 1)   # steady Kalman gain and LQR
+    >>> from kfcrit.theory.loop.curve import loop_critical_curve
+    >>> curve = loop_critical_curve(design, [0.8])
+    >>> lo, hi = curve.bracket[0]
+    >>> round(lo, 4), round(hi, 4), curve.stable_intervals[0][0][1]
+    (0.4033, 0.4034, 1.0)
     """
     gam = np.asarray(gammas, dtype=float)
     nus = np.linspace(0.0, 1.0, 41) if nu_grid is None else np.asarray(nu_grid, dtype=float)

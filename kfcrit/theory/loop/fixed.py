@@ -101,6 +101,34 @@ def mean_square_stability(design: FixedDesign, sensing: Any, actuation: Any,
         they are; pass fractions.Fraction for exact decimal values).
     certified : bool
         Decide exactly (False: float spectral radius only, status "not decided").
+
+    Returns
+    -------
+    StabilityFact
+        ``status`` ("holds (certified)", "fails (certified)" or "not decided"), ``holds``, the
+        spectral radius ``rho`` and the method.
+
+    Raises
+    ------
+    ValueError
+        An arrival probability outside [0, 1].
+
+    References
+    ----------
+    Costa, Fragoso & Marques (2005), "Discrete-time Markov jump linear systems";
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12 (UDP-like loops).
+
+    Examples
+    --------
+    >>> from kfcrit.theory.loop.stack import fixed_design
+    >>> design = fixed_design([[1.25]], [[1]], [[1]], 1, 1, 1, 1)   # steady Kalman gain and LQR
+    >>> from fractions import Fraction
+    >>> from kfcrit.theory.loop.fixed import mean_square_stability
+    >>> mean_square_stability(design, 0.8, 0.8).status
+    'holds (certified)'
+    >>> mean_square_stability(design, Fraction(3, 10), Fraction(3, 10)).status
+    'fails (certified)'
     """
     s, a = as_link(sensing), as_link(actuation)
     nu = a.arrival()
@@ -177,6 +205,28 @@ def fixed_loop(design: FixedDesign, sensing: Any, actuation: Any,
     FixedLoop
         ``cost.value`` is inf when stability fails (certified), the Lyapunov value when it
         holds; when undecided the value is computed if ρ̂ < 1 and flagged ``finite=None``.
+
+    Raises
+    ------
+    ValueError
+        An arrival probability outside [0, 1].
+
+    References
+    ----------
+    Costa, Fragoso & Marques (2005);
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12.
+
+    Examples
+    --------
+    >>> from kfcrit.theory.loop.stack import fixed_design
+    >>> design = fixed_design([[1.25]], [[1]], [[1]], 1, 1, 1, 1)   # steady Kalman gain and LQR
+    >>> from kfcrit.theory.loop.fixed import fixed_loop
+    >>> loop = fixed_loop(design, 0.8, 0.8)
+    >>> loop.stability.status, round(loop.cost.value, 6)
+    ('holds (certified)', 5.949977)
+    >>> fixed_loop(design, 0.3, 0.3).cost.value
+    inf
     """
     s, a = as_link(sensing), as_link(actuation)
     fact = mean_square_stability(design, s, a, certified)

@@ -119,9 +119,57 @@ def lqr_gain(A: np.ndarray, B: np.ndarray, W: np.ndarray, U: np.ndarray) -> np.n
 
 def fixed_design(A: Any, B: Any, C: Any, Q: Any, R: Any, W: Any, U: Any, K: Any = None,
                  L: Any = None, acked: bool = True, on_loss: str = "zero") -> FixedDesign:
-    """Build a :class:`FixedDesign`; K defaults to the steady-state Kalman gain, L to LQR.
+    r"""Build a :class:`FixedDesign`; K defaults to the steady-state Kalman gain, L to LQR.
 
-    Scalars for Q, R, W, U mean that multiple of the identity.
+    Scalars for Q, R, W, U mean that multiple of the identity. The estimator and controller
+
+    .. math::
+
+        \hat x_{t+1} = A \hat x_t + \nu B u_t + \gamma_t K (y_t - C \hat x_t),\qquad u_t = L \hat x_t
+
+    (with the held or zero input on an actuation loss) are fixed, whatever the losses.
+
+    Parameters
+    ----------
+    A, B, C : array_like
+        Plant, input and output matrices.
+    Q, R : array_like
+        Process and measurement noise covariances.
+    W, U : array_like
+        State and input weights of the cost.
+    K, L : array_like, optional
+        Estimator and controller gains (default: steady-state Kalman gain and LQR gain).
+    acked : bool
+        Whether actuation losses are acknowledged (TCP-like) or not (UDP-like).
+    on_loss : {"zero", "hold"}
+        The input applied when a control packet is lost.
+
+    Returns
+    -------
+    FixedDesign
+        The matrices and gains as float64 arrays.
+
+    Raises
+    ------
+    ValueError
+        ``on_loss`` not "zero" or "hold", or matrices of inconsistent shapes.
+
+    References
+    ----------
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12
+    Costa, Fragoso & Marques (2005) for jump-linear systems.
+
+    Examples
+    --------
+    >>> from kfcrit.theory.loop.stack import fixed_design
+    >>> design = fixed_design([[1.25]], [[1]], [[1]], 1, 1, 1, 1)   # steady Kalman gain and LQR
+    >>> design.K.round(6), design.L.round(6)
+    (array([[0.672158]]), array([[-0.840197]]))
+    >>> fixed_design([[1.25]], [[1]], [[1]], 1, 1, 1, 1, on_loss="drop")
+    Traceback (most recent call last):
+        ...
+    ValueError: on_loss must be one of ('zero', 'hold'), got 'drop'
     """
     if on_loss not in ON_LOSS:
         raise ValueError(f"on_loss must be one of {ON_LOSS}, got {on_loss!r}")

@@ -203,6 +203,30 @@ def tcp_loop(A: Any, B: Any, C: Any, W: Any, U: Any, Q: Any, R: Any, gamma_bar: 
     Returns
     -------
     TCPLoop
+
+        The thresholds ν_c and γ_c, the control Riccati solution S and gain L, the cost J
+        (value and bounds, ``finite``), the filter moments and notes.
+
+    Raises
+    ------
+    ValueError
+        An arrival probability outside [0, 1].
+    kfcrit.errors.InputError
+        Matrices of the wrong shape.
+
+    References
+    ----------
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12
+    (the cost formula and its check J = 5.65894 for a = 5/4, γ̄ = ν̄ = 0.8).
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.theory.loop.tcp import tcp_loop
+    >>> loop = tcp_loop([[Fraction(5, 4)]], [[1]], [[1]], 1, 1, 1, 1, 0.8, 0.8)
+    >>> round(loop.cost.value, 5), loop.cost.finite
+    (5.65894, True)
     """
     nu_c = actuation_threshold(A, B, W, U, tol)
     gamma_c = sensing_threshold(A, C, Q, R, tol)

@@ -177,6 +177,30 @@ def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
         Exact with ``basis="theorem"`` for scalar plants and square invertible B; for one
         input column the closed form is given with ``basis="claim"`` and ``interval`` is the
         certified bracket it was checked against; otherwise the certified bracket.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        A or B of the wrong shape (the error names the matrix).
+
+    References
+    ----------
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12
+    (TCP-like: ν_c is the MARE threshold p_up of the dual pair); Sinopoli et
+    al. (2004), Theorem 5.
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.theory.loop.thresholds import actuation_threshold
+    >>> nu_c = actuation_threshold([[Fraction(5, 4)]], [[1]])
+    >>> nu_c.expression, nu_c.basis, nu_c.certified
+    ('9/25', 'theorem', True)
+    >>> actuation_threshold([[1, 2]], [[1]])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+        ...
+    kfcrit.errors.InputError: A: must be square, got ...
     """
     dual = dual_system(A, B, W, U)
     if dual.n == 1:
@@ -219,6 +243,39 @@ def sensing_threshold(A: Any, C: Any, Q: Any = None, R: Any = None,
         \\gamma_c = \\inf\\{\\bar\\gamma : \\sup_t E[P_t] < \\infty\\}
 
     Where no theorem gives the value, the interval is [block lower bound, p_up(A, C)].
+
+    Parameters
+    ----------
+    A, C : array_like
+        Plant and output matrices; exact input stays exact.
+    Q, R : array_like, optional
+        Noise covariances (default identities; γ_c does not depend on them).
+    tol : float
+        Tolerance of the critical value and width of the p_up bracket.
+
+    Returns
+    -------
+    LoopThresholdFact
+        ``value``, ``interval``, ``exact``, ``expression`` and ``basis`` of γ_c (no value when
+        (A, C) is not detectable).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        A or C of the wrong shape.
+
+    References
+    ----------
+    Schenato, Sinopoli, Franceschetti, Poolla & Sastry (2007), "Foundations of control and
+    estimation over lossy networks", Proc. IEEE 95(1); docs/theory.md §12
+    Mo & Sinopoli, Theorem 4; docs/theory.md §4.
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.theory.loop.thresholds import sensing_threshold
+    >>> sensing_threshold([[Fraction(5, 4)]], [[1]]).expression
+    '9/25'
     """
     A_, _ = to_matrix(A, "A")
     C_, _ = to_matrix(C, "C")

@@ -233,20 +233,54 @@ def _is_exact(mesh: Mesh, override: Mapping[int, Any]) -> bool:
 
 def mesh_law(mesh: Mesh, *, dead_hops: Iterable[int] = (),
              override: Mapping[int, Any] | None = None) -> JointLaw:
-    """The exact law π(S) of the received set of ``mesh`` (see the module docstring).
+    r"""The exact law π(S) of the received set of ``mesh`` (see the module docstring).
+
+    Sensors behind a shared (aggregating) relay lose their packets together, so π(S) is not a
+    product of marginals; with one shared variable Z (the relay hop's outcome)
+
+    .. math::
+
+        \pi(S) = \sum_z P(Z = z) \prod_{i \in S} p_i(z) \prod_{i \notin S} (1 - p_i(z)).
 
     Parameters
     ----------
     mesh : Mesh
+        The mesh (:func:`kfcrit.model.mesh.build_mesh`).
     dead_hops : iterable of int
-        Hops (indices into ``mesh.hops``) that never succeed (an N − 1 case).
+        Hops (indices into ``mesh.hops``) that never succeed (an N − 1 case); an index outside
+        ``mesh.hops`` has no effect.
     override : mapping, optional
         Per-attempt success of some hops replacing q_h (for sensitivity analyses).
 
     Returns
     -------
     JointLaw
-        Sympy Rationals when every q_h (and override) is exact, floats otherwise.
+        Sympy Rationals when every q_h (and override) is exact, floats otherwise; the
+        probabilities are indexed by the bit mask of the received set (bit k: sensor k).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        Not for a validated mesh: the mesh's own errors are raised by ``build_mesh``.
+
+    References
+    ----------
+    Gupta, Dana, Hespanha, Murray & Hassibi (2009) for routes and relays; docs/theory.md §13
+    (routes, aggregating relays, joint laws) and §15.5 (conditionally independent links).
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.model.mesh import build_mesh
+    >>> mesh = build_mesh([("s1", "sensor"), ("s2", "sensor"), ("r", "relay"), ("g", "gateway")],
+    ...                   [("s1", "r", Fraction(9, 10)), ("s2", "r", Fraction(9, 10)),
+    ...                    ("r", "g", Fraction(4, 5))])
+    >>> from kfcrit.theory.mesh.law import mesh_law
+    >>> law = mesh_law(mesh)
+    >>> law.probabilities              # ∅, {s1}, {s2}, {s1, s2}
+    (26/125, 9/125, 9/125, 81/125)
+    >>> mesh_law(mesh, dead_hops=[2]).all_lost()   # the relay's uplink is dead
+    1
     """
     over: dict[int, Any] = dict(override or {})
     for k in dead_hops:

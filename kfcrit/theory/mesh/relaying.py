@@ -229,10 +229,52 @@ def relaying_condition(network: Network, mesh: Mesh, sensor: str,
 
 
 def estimate_relaying(network: Network, mesh: Mesh) -> RelayingResult:
-    """Estimate relaying for every sensor of the mesh (names equal to the network's).
+    r"""Estimate relaying for every sensor of the mesh (names equal to the network's).
 
     One sensor: Gupta et al.'s theorem (necessary and sufficient). Several: stable if some
     detecting sensor's verdict is stable (sufficient only; module docstring).
+
+    .. math::
+
+        \sup_t E[P_t] < \infty \iff p_{cut}\, \rho(A)^2 < 1,
+
+    p_cut the max-cut product of the drop probabilities between the sensor and the estimator.
+
+    Parameters
+    ----------
+    network : Network
+        The plant and sensors.
+    mesh : Mesh
+        The routes (each sensor's estimate relayed hop by hop).
+
+    Returns
+    -------
+    RelayingResult
+        One :class:`RelayingCondition` per sensor (cut, p_cut·ρ(A)², stable), ρ(A)² and
+        ``network_stable`` (True, False, or None when no single sensor decides).
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        A network sensor that the mesh does not have (field ``sensor``).
+
+    References
+    ----------
+    Gupta, Dana, Hespanha, Murray & Hassibi (2009), IEEE TAC 54(8); docs/theory.md §13
+    (estimate relaying).
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.model.mesh import build_mesh
+    >>> from kfcrit.model.network import Network, Sensor
+    >>> from kfcrit.theory.mesh.relaying import estimate_relaying
+    >>> mesh = build_mesh([("s", "sensor"), ("r", "relay"), ("g", "gateway")],
+    ...                   [("s", "r", Fraction(1, 2)), ("r", "g", Fraction(1, 2))])
+    >>> net = Network(A=[["5/4"]], Q=1, sensors=[Sensor("s", [[1]], 1)])
+    >>> res = estimate_relaying(net, mesh)
+    >>> res.sensors[0].value_exact, res.network_stable     # p_cut·ρ² = (1/2)(25/16)
+    (25/32, True)
     """
     rho = mesh_spectral_radius2(network.stacked_system())
     rows = tuple(relaying_condition(network, mesh, s, rho) for s in mesh.sensors)
@@ -256,7 +298,43 @@ class SmartSensor:
 
 
 def smart_sensor_critical_value(system: System) -> SmartSensor:
-    """1 − 1/ρ(A)² for detectable (A, C) (0 when ρ(A) < 1); None when not detectable."""
+    r"""1 − 1/ρ(A)² for detectable (A, C) (0 when ρ(A) < 1); None when not detectable.
+
+    A smart sensor sends its local estimate over one hop, so the estimator's error depends on the
+    losses only through ρ(A):
+
+    .. math::
+
+        p_c = \max\bigl(1 - 1/\rho(A)^2,\ 0\bigr).
+
+    Parameters
+    ----------
+    system : System
+        The plant and the smart sensor's output matrix.
+
+    Returns
+    -------
+    SmartSensor
+        ``value`` (float or None), ``exact`` (sympy expression or None) and ``reason``.
+
+    Raises
+    ------
+    AttributeError
+        ``system`` is not a :class:`~kfcrit.System`.
+
+    References
+    ----------
+    Gupta et al. (2009); docs/theory.md §13 (smart sensor).
+
+    Examples
+    --------
+    >>> from kfcrit import System
+    >>> from kfcrit.theory.mesh.relaying import smart_sensor_critical_value
+    >>> smart_sensor_critical_value(System(A=[["5/4"]], C=[[1]], Q=1, R=1)).exact
+    9/25
+    >>> smart_sensor_critical_value(System(A=[[0, -2], [2, 0]], C=[[1, 0]], Q=1, R=1)).exact
+    3/4
+    """
     st = structure_of(system)
     if not st.detectable:
         return SmartSensor(None, None, "(A, C) is not detectable")

@@ -306,7 +306,14 @@ def sufficient_fact(network: Network, law: JointLaw, certify: bool = True) -> Su
 def law_stability(network: Network, law: JointLaw, *, certify: bool = True,
                   constraints: Sequence[Constraint] | None = None,
                   exact_region: tuple[bool | None, str] | None = None) -> LawStability:
-    """Necessary and sufficient facts of mean stability under the joint law ``law``.
+    r"""Necessary and sufficient facts of mean stability under the joint law ``law``.
+
+    For any joint law π(S) of the received set that is i.i.d. in time:
+
+    .. math::
+
+        P(S_t \subseteq T)\, \rho_T^2 < 1 \ \text{for every } T \ \text{(necessary)},\qquad
+        X \succ \sum_S \pi(S) F_S X F_S' \ \text{(sufficient)}.
 
     Parameters
     ----------
@@ -319,6 +326,37 @@ def law_stability(network: Network, law: JointLaw, *, certify: bool = True,
     constraints, exact_region : optional
         Precomputed :func:`necessary_constraints` and :func:`modal_one_step` (reused across
         the N − 1 cases).
+
+    Returns
+    -------
+    LawStability
+        ``facts`` (necessary, sufficient, exact region), ``reason``, the binding necessary
+        constraint and the certificate.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        The law's sensors differ from the network's (field ``law.sensors``).
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorem 3 and Lemma 3 (per received set); docs/theory.md §9.2, §9.3
+    and §13; §14 for empirical laws.
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.model.mesh import build_mesh
+    >>> mesh = build_mesh([("s1", "sensor"), ("s2", "sensor"), ("r", "relay"), ("g", "gateway")],
+    ...                   [("s1", "r", Fraction(9, 10)), ("s2", "r", Fraction(9, 10)),
+    ...                    ("r", "g", Fraction(4, 5))])
+    >>> from kfcrit.model.network import Network, Sensor
+    >>> net = Network(A=[["5/4"]], Q=1, sensors=[Sensor("s1", [[1]], 1), Sensor("s2", [[1]], 1)])
+    >>> from kfcrit.theory.mesh.law import mesh_law
+    >>> from kfcrit.theory.mesh.stability import law_stability
+    >>> res = law_stability(net, mesh_law(mesh))
+    >>> res.facts.necessary, res.facts.sufficient, res.necessary.binding.value_exact
+    (True, True, 13/40)
     """
     nec = necessary_fact(network, law, constraints)
     region, why = exact_region if exact_region is not None else modal_one_step(network)
@@ -459,18 +497,53 @@ def _failure_cases(network: Network, mesh: Mesh, cons: Sequence[Constraint],
 
 def mesh_analysis(network: Network, mesh: Mesh, *, certify: bool = True,
                   n_minus_1: bool = True) -> MeshAnalysis:
-    """The law, the stability facts, marginals, P(all lost) against Π(1 − marginal), hop
+    r"""The law, the stability facts, marginals, P(all lost) against Π(1 − marginal), hop
     headrooms and bottleneck, and N − 1 for every relay and every hop.
+
+    .. math::
+
+        P(\text{all lost}) = \pi(\emptyset) \ \text{versus}\ \prod_i (1 - P(i \in S)).
 
     Parameters
     ----------
     network : Network
         The plant and sensors (names equal to the mesh's sensors).
     mesh : Mesh
+        The routes, relays and hops.
     certify : bool
         Ball-check certificates.
     n_minus_1 : bool
         Compute the relay and hop failure cases.
+
+    Returns
+    -------
+    MeshAnalysis
+        ``law``, ``facts`` (a :class:`LawStability`), ``marginals``, ``all_lost`` and
+        ``product_of_losses`` (with exact forms), ``hops`` (headrooms), ``bottleneck`` and
+        ``n_minus_1``.
+
+    Raises
+    ------
+    kfcrit.errors.InputError
+        The network's sensors differ from the mesh's.
+
+    References
+    ----------
+    docs/theory.md §13 (multi-hop routes and shared relays) and §9.5 (N − 1 cases).
+
+    Examples
+    --------
+    >>> from fractions import Fraction
+    >>> from kfcrit.model.mesh import build_mesh
+    >>> mesh = build_mesh([("s1", "sensor"), ("s2", "sensor"), ("r", "relay"), ("g", "gateway")],
+    ...                   [("s1", "r", Fraction(9, 10)), ("s2", "r", Fraction(9, 10)),
+    ...                    ("r", "g", Fraction(4, 5))])
+    >>> from kfcrit.model.network import Network, Sensor
+    >>> net = Network(A=[["5/4"]], Q=1, sensors=[Sensor("s1", [[1]], 1), Sensor("s2", [[1]], 1)])
+    >>> from kfcrit.theory.mesh.stability import mesh_analysis
+    >>> res = mesh_analysis(net, mesh)
+    >>> res.all_lost_exact, res.product_of_losses_exact, res.bottleneck
+    (26/125, 49/625, 'r->g')
     """
     law = mesh_law(mesh)
     aligned_probabilities(network, law)

@@ -102,15 +102,19 @@ METHODS = ("auto", "newton", "lmi")
 
 def upper_bound(system: System, tol: float = 1e-9, method: str = "auto",
                 structure: Any | None = None) -> UpperBound:
-    """Upper bound p_up on the critical arrival probability with a bracket [lo, hi], hi − lo ≤ tol.
+    r"""Upper bound p_up on the critical arrival probability with a bracket [lo, hi], hi − lo ≤ tol.
 
     .. math::
 
-        p_{up} = \\inf\\{p : \\exists K, X \\succ 0,\\ X \\succ (1-p) A X A' + p (A+KC) X (A+KC)'\\}
+        p_{up} = \inf\{p : \exists K, X \succ 0,\ X \succ (1-p) A X A' + p (A+KC) X (A+KC)'\}
+
+    This is Sinopoli's Theorem 5 (the Ψ_p LMI) with Q and R scaled away; p_low ≤ p_c ≤ p_up
+    (Theorem 3). For a single output (m = 1) the claim p_up = 1 − 1/Π|λ_u|² is a cross-check.
 
     Parameters
     ----------
     system : System
+        The system; only A and C matter.
     tol : float
         Requested width of the bracket.
     method : {"auto", "newton", "lmi"}
@@ -126,7 +130,33 @@ def upper_bound(system: System, tol: float = 1e-9, method: str = "auto",
     Returns
     -------
     UpperBound
-        ``certified`` is True only if the upper end ``hi`` passed :func:`certify.verify_upper`.
+        ``value`` (the upper end), ``interval`` (lo, hi), ``status`` ("determined" or
+        "undetermined"), ``method`` and the certificate. ``certified`` is True only if the upper
+        end ``hi`` passed :func:`certify.verify_upper`.
+
+    Raises
+    ------
+    ValueError
+        ``method`` not one of "auto", "newton", "lmi". Numerical failures do not raise: they
+        give an "undetermined" record.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorems 3 and 5 and Corollary 1; docs/theory.md §3 (equivalent
+    characterisations of p_up).
+
+    Examples
+    --------
+    >>> from kfcrit import System, upper_bound
+    >>> ub = upper_bound(System(A=[[1.25, 0], [1, 1.1]], C=[[1, 1]], Q=20, R=2.5))
+    >>> round(ub.value, 6), ub.certified, ub.status      # 1 - 1/(1.25 * 1.1)**2 = 57/121
+    (0.471074, True, 'determined')
+    >>> upper_bound(System(A=[[2]], C=[[1]], Q=1, R=1)).interval   # C invertible: p_up = p_low
+    (0.75, 0.75)
+    >>> upper_bound(System(A=[[2]], C=[[1]], Q=1, R=1), method="sdp")
+    Traceback (most recent call last):
+        ...
+    ValueError: method must be one of ('auto', 'newton', 'lmi'), got 'sdp'
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
