@@ -53,6 +53,9 @@ def simulate_command(system_file: str, *, paths: int, steps: int, seed: int, as_
     if spec.network is not None and spec.network.size == 1:   # one sensor: one link
         spec = dataclasses.replace(spec, channel=spec.network.sensors[0].channel)
     sensors = network_sensors(spec)
+    if spec.mesh is not None:
+        raise InputError("kfcrit simulate takes one channel or a sensors: network; a mesh is "
+                         "simulated by kfcrit analyze (its simulation section)", field="mesh")
     if spec.channel is None and sensors is None:
         raise InputError("the system file has no channel (add channel: {model: bernoulli, "
                          "arrival_probability: ...})", field="channel")

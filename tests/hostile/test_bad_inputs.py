@@ -426,7 +426,7 @@ def test_os_error_naming_a_path_maps_to_exit_2(monkeypatch: pytest.MonkeyPatch) 
     def denied(*args: object, **kwargs: object) -> None:
         raise PermissionError(13, "Permission denied", "/some/output/folder")
 
-    monkeypatch.setattr(sf, "read_system_file", denied)
+    monkeypatch.setattr(sf, "load_spec", denied)
     code, out, err, _ = run_cli(["analyze", str(HOSTILE / "nan.yaml")])
     assert_refused(code, out, err)
     assert "/some/output/folder" in err and "Permission denied" in err

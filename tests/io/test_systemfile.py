@@ -62,7 +62,7 @@ def test_scalar_shorthand_for_A_and_C(tmp_path: Path) -> None:
 def test_examples_load(path: Path) -> None:
     spec = load_spec(path)
     assert spec.system.n >= 1
-    assert spec.channel is not None or (spec.network is not None and all(
+    assert spec.channel is not None or spec.mesh is not None or (spec.network is not None and all(
         s.channel is not None for s in spec.network.sensors))
     assert spec.sha256 is not None and len(spec.sha256) == 64
 

@@ -351,7 +351,7 @@ def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | 
                "outage_probability": check.get("outage_probability"),
                "max_outage": check.get("max_outage"),
                "outage_within_policy": check.get("outage_within_policy"),
-               "sinr_db": link.get("sinr_db"), "radio": (lb.get("radio") or {}).get("name")}
+               "sinr_db": link.get("sinr_db"), "radio": (lb.get("radio") or {}).get("model")}
     return summary, check
 
 
