@@ -37,8 +37,9 @@ def write_system(n: int, path: Path) -> None:
         return "[" + ", ".join("[" + ", ".join(repr(float(v)) for v in row) + "]"
                                for row in M) + "]"
 
-    path.write_text(f"system:\n  A: {mat(A)}\n  C: {mat(C)}\n  Q: {mat(Q)}\n  R: {mat(R)}\n"
-                    "channel:\n  kind: bernoulli\n  arrival_probability: 0.9\n")
+    path.write_text(f"name: random_system({n}, {OUTPUTS.get(n, max(1, n // 5))}, 0)\n"
+                    f"A: {mat(A)}\nC: {mat(C)}\nQ: {mat(Q)}\nR: {mat(R)}\n"
+                    "channel:\n  model: bernoulli\n  arrival_probability: 0.9\n")
 
 
 def run(path: Path, quick: bool, timeout: float) -> dict:
