@@ -56,12 +56,36 @@ def _reference(n: int, m: int, seed: int, tol: float):
     return time.perf_counter() - t, (lo, hi), solves
 
 
+SCALING = ((20, 6), (50, 10), (100, 20), (200, 40), (400, 60))
+"""The (n, m) of the scaling table (issue 27: (200, 40) within 10 s, (400, 60) within 60 s)."""
+
+
+def scaling_table(tol: float = 1e-6) -> list[dict]:
+    """Time p_up at each size of :data:`SCALING` (one run each) and print time, width,
+    certified and the load average (os.getloadavg) before and after the run."""
+    print(f"{'n':>4} {'m':>3} {'seconds':>8} {'width':>9} {'certified':>9} {'status':>12} "
+          f"{'load(1m) before/after':>22}")
+    rows = []
+    for n, m in SCALING:
+        before = os.getloadavg()[0]
+        med, _best, res = _ours(n, m, 0, tol, 1)
+        after = os.getloadavg()[0]
+        lo, hi = res.interval
+        rows.append({"n": n, "m": m, "seconds": med, "width": hi - lo,
+                     "certified": res.certified, "status": res.status})
+        print(f"{n:>4} {m:>3} {med:>8.2f} {hi - lo:>9.2e} {str(res.certified):>9} "
+              f"{res.status:>12} {before:>10.2f}/{after:<10.2f}", flush=True)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="skip the reference (uses 41 s)")
     ap.add_argument("--reference-seconds", type=float, default=None,
                     help="use this reference time for (20, 6) instead of running it")
     ap.add_argument("--repeat", type=int, default=3, help="runs of kfcrit per case (median)")
+    ap.add_argument("--scaling", action="store_true",
+                    help="print the scaling table n = 20, 50, 100, 200, 400 (issue 27)")
     ap.add_argument("--large", action="store_true",
                     help="also time n = 100 and n = 200 (issue 18: analyze --quick at n = 200 "
                          "within 60 s; p_up's share is printed as a ratio to that budget)")
@@ -102,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"ratio reference(20,6)/kfcrit(50,10) at 1e-6: {r2:.0f}x   (target > 1x)")
     r3 = ref_t / results[(50, 10, 1e-9)]
     print(f"ratio reference(20,6)/kfcrit(50,10) at 1e-9: {r3:.0f}x")
+    if args.scaling:
+        scaling_table()
     if args.large:
         for n, m in ((100, 10), (200, 20)):
             med, _best, res = _ours(n, m, 0, 1e-9, 1)

@@ -48,14 +48,17 @@ class CheckResult:
     min_eig_x: float | None
     margin: float | None
     reason: str
+    verified_by: str | None = None
+    """How the check was done, when not by :func:`verify_upper`'s ball arithmetic."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"ok": self.ok, "kind": self.kind, "p": self.p, "min_eig_x_lower": self.min_eig_x,
                 "margin_lower": self.margin, "reason": self.reason,
                 "margin_meaning": "rigorous lower bound on the least eigenvalue of D M D, "
                                   "D = diag(M)^(-1/2) (the equilibrated matrix)",
-                "verified_by": f"python-flint arb ball arithmetic ({PRECISION_BITS} bits) on the "
-                               "exact system matrices and the float certificate taken exactly"}
+                "verified_by": self.verified_by or (
+                    f"python-flint arb ball arithmetic ({PRECISION_BITS} bits) on the exact "
+                    "system matrices and the float certificate taken exactly")}
 
 
 def _arb_number(x: sp.Expr) -> flint.arb:

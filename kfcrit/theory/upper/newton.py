@@ -39,6 +39,7 @@ from kfcrit.theory.upper.cone import (
     threshold_newton,
     undetected_modes,
 )
+from kfcrit.theory.upper.large import large_method
 from kfcrit.theory.upper.record import (
     UpperBound,
     certificate_summary,
@@ -46,6 +47,10 @@ from kfcrit.theory.upper.record import (
     evidence_p_low,
 )
 
+KRYLOV_MIN_REDUCED = 61
+"""Unstable blocks of at least this many states (and above ``NEWTON_MAX_REDUCED``) go to the
+matrix-free method of :mod:`kfcrit.theory.upper.large`; smaller ones above the dense limit (only
+when that limit is lowered) to :func:`power_bisection`."""
 NEAR_P_LOW = 1e-6
 """A Newton root this close to p_low is first tried as p_up = p_low (certificate at p_low + tol)."""
 
@@ -92,6 +97,9 @@ def newton_method(system: System, tol: float,
                     {"not_applicable": "(A, C) is not detectable: a mode with |λ| ≥ 1 is "
                                        "invisible to C, so (A + KC) keeps it for every K and no "
                                        "p makes E[P_t] bounded; p_up is not defined"})
+    if red.k > NEWTON_MAX_REDUCED and red.k >= KRYLOV_MIN_REDUCED:
+        progress["stage"] = "matrix-free threshold Newton (large unstable block)"
+        return large_method(system, red, p_low, tol, stats, warnings, done)
     # 2. bracket by bisection on the power-iteration radius
     lo, hi = p_low, 1.0
     progress["stage"] = "power-iteration bracket"

@@ -1,0 +1,252 @@
+"""A rigorous check of the upper certificate in float64 with a priori rounding-error bounds.
+
+For large systems the ball-arithmetic check of :func:`kfcrit.theory.upper.certify.verify_upper`
+costs O(n³) *ball* operations on 160-bit numbers (minutes at n = 400). This module proves the
+same statement,
+
+.. math::
+
+    X \\succ 0, \\qquad X - (1-p) A X A' - p F X F' \\succ 0, \\qquad F = A + K C,
+
+with ordinary float64 BLAS products and rigorous bounds on every rounding error, in
+midpoint-radius form (docs/theory.md §3, "Verified float64 check"): a matrix is a pair
+(M̃, R) with |M − M̃| ≤ R entrywise for the exact M. The bounds used are
+
+* a product of floats computed in any order (BLAS, FMA or not): |fl(UV) − UV| ≤ γ_q |U||V|
+  + q·η, γ_q = q u/(1 − q u), u = 2⁻⁵³, η = 2⁻¹⁰⁷⁴ (underflow), q the inner dimension
+  (Higham, *Accuracy and Stability of Numerical Algorithms*, §3.1 and §3.5);
+* products of intervals: ⟨M₁, R₁⟩⟨M₂, R₂⟩ ⊆ ⟨M₁M₂, |M₁|R₂ + R₁(|M₂| + R₂)⟩ (Rump 1999);
+* every radius is a sum of non-negative terms computed in floats, hence at most
+  (1 + γ_{q+8}) above its computed value: radii are multiplied by ``INFLATE`` = 1 + 1e-10
+  (valid for q ≤ 10⁵) and receive q·η more.
+
+The exact A and C differ from their float views a, c by at most one ulp per entry
+(:func:`kfcrit.model.system.to_float` rounds each exact entry once, after at most a 20-digit
+evaluation): |A − a| ≤ 2u|a| + η. Positive definiteness of a symmetric interval matrix is proven
+as in :func:`kfcrit.theory.upper.certify.definite_margin`: D M D = L L' + σI + E with D a
+power-of-two diagonal (exact scaling), L a float Cholesky factor, and ‖E‖₂ ≤ max row sum
+|E| < σ, where |E| is bounded rigorously from the float residual.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+U = 2.0 ** -53
+"""Unit roundoff of float64 (round to nearest)."""
+ETA = 2.0 ** -1074
+"""Smallest positive subnormal: the absolute error of one underflowing operation."""
+INFLATE = 1.0 + 1e-10
+"""Factor covering the rounding of a computed radius (q ≤ 10⁵ terms: γ_{q+8} < 1e-10)."""
+
+
+def gamma(q: int) -> float:
+    """γ_q = q u / (1 − q u), the relative error bound of a length-q dot product."""
+    return q * U / (1.0 - q * U)
+
+
+Interval = tuple[np.ndarray, np.ndarray]
+"""(midpoint, radius): the exact matrix M satisfies |M − midpoint| ≤ radius entrywise."""
+
+
+def _up(rad: np.ndarray, q: int) -> np.ndarray:
+    """A radius computed in floats from q-term sums, made an upper bound of the exact one."""
+    return rad * INFLATE + (q + 8) * ETA
+
+
+def mul(a: Interval, b: Interval) -> Interval:
+    """Enclosure of the product of two interval matrices (midpoint-radius, Rump 1999).
+
+    .. math::
+
+        \\langle M_1, R_1\\rangle \\langle M_2, R_2\\rangle \\subseteq
+        \\langle \\mathrm{fl}(M_1 M_2),\\ \\gamma_q |M_1||M_2| + |M_1| R_2 + R_1 (|M_2| + R_2)
+        \\rangle
+    """
+    (m1, r1), (m2, r2) = a, b
+    q = m1.shape[1]
+    mid = m1 @ m2
+    a1, a2 = np.abs(m1), np.abs(m2)
+    rad = gamma(q + 2) * (a1 @ a2)
+    if r2.any():
+        rad += a1 @ r2
+    if r1.any():
+        rad += r1 @ (a2 + r2)
+    return mid, _up(rad, q)
+
+
+def add(a: Interval, b: Interval, sb: float = 1.0) -> Interval:
+    """Enclosure of a + sb·b for a float scalar sb (exact power of two or ±1 keeps it tight)."""
+    mid = a[0] + sb * b[0]
+    rad = a[1] + abs(sb) * b[1] + 2 * U * (np.abs(a[0]) + abs(sb) * np.abs(b[0]) + np.abs(mid))
+    return mid, _up(rad, 4)
+
+
+def scale(s: Interval, a: Interval) -> Interval:
+    """Enclosure of s·a for a scalar interval s = (s̃, ρ), |s − s̃| ≤ ρ."""
+    (sm, sr), (m, r) = s, a
+    mid = sm * m
+    rad = abs(sm) * r + sr * (np.abs(m) + r) + 2 * U * np.abs(mid)
+    return mid, _up(rad, 4)
+
+
+def point(M: np.ndarray) -> Interval:
+    """A float matrix taken exactly."""
+    M = np.asarray(M, dtype=float)
+    return M, np.zeros_like(M)
+
+
+def from_exact(view: np.ndarray) -> Interval:
+    """Enclosure of an exact matrix from its float view, rounded once per entry:
+    |M − view| ≤ 2u|view| + η (one ulp)."""
+    view = np.asarray(view, dtype=float)
+    return view, 2 * U * np.abs(view) + ETA
+
+
+def pow2_diagonal(d: np.ndarray) -> np.ndarray:
+    """Powers of two s_i ≈ 1/√d_i (exact scaling factors: no rounding in s_i M_ij s_j)."""
+    return np.array([math.ldexp(1.0, -round(math.log2(x) / 2)) for x in d])
+
+
+def definite_margin(M: Interval) -> float | None:
+    """Rigorous lower bound on λ_min(S M S) > 0 for the symmetric exact matrix M in the
+    interval (S a power-of-two diagonal), or None if not proven.
+
+    .. math::
+
+        S M S = L L' + \\sigma I + E, \\quad \\|E\\|_2 \\le \\max_i \\sum_j |E_{ij}| < \\sigma
+        \\;\\Rightarrow\\; \\lambda_{\\min}(S M S) \\ge \\sigma - \\|E\\|_2 > 0 .
+    """
+    mid, rad = M
+    n = mid.shape[0]
+    if not (np.all(np.isfinite(mid)) and np.all(np.isfinite(rad))):
+        return None
+    sym = 0.5 * (mid + mid.T)
+    rad = _up(0.5 * (rad + rad.T) + 2 * U * np.abs(sym), 2)
+    d = np.diag(sym)
+    if not np.all(d > 0):
+        return None
+    s = pow2_diagonal(d)
+    sym = s[:, None] * sym * s[None, :]
+    rad = s[:, None] * rad * s[None, :] + ETA
+    lam = float(np.linalg.eigvalsh(sym)[0])
+    if not lam > 0:
+        return None
+    sigma = 0.5 * lam
+    shifted = sym - sigma * np.eye(n)
+    try:
+        L = np.linalg.cholesky(shifted)
+    except np.linalg.LinAlgError:
+        return None
+    LL = L @ L.T
+    resid = shifted - LL
+    aL = np.abs(L)
+    # |E| ≤ |fl(resid)| + rounding of the subtraction, of σI, of L L' + the radius of M
+    err = (np.abs(resid) + gamma(n + 2) * (aL @ aL.T)
+           + 2 * U * (np.abs(sym) + np.abs(LL) + np.abs(resid)) + 2 * U * sigma * np.eye(n)
+           + rad)
+    err = _up(err, n)
+    # ‖E‖₂ ≤ √(‖E‖₁‖E‖_∞) ≤ the larger of the greatest row and column sums of |E|
+    bound = max(float(np.max(err.sum(axis=0))), float(np.max(err.sum(axis=1)))) * INFLATE
+    low = (sigma - bound) * (1 - 1e-12)
+    return low if low > 0 else None
+
+
+def upper_operands(a: np.ndarray, c: np.ndarray, X: np.ndarray, K: np.ndarray,
+                   p: float) -> tuple[Interval, Interval]:
+    """Enclosures of X and of X − (1−p) A X A' − p F X F' (F = A + K C) for the exact A, C
+    (views a, c) and the float certificate X (exactly symmetric), K and p (floats, exact)."""
+    A, C = from_exact(a), from_exact(c)
+    Xi, Ki = point(X), point(K)
+    F = add(A, mul(Ki, C))
+    AXA = mul(mul(A, Xi), (A[0].T, A[1].T))
+    FXF = mul(mul(F, Xi), (F[0].T, F[1].T))
+    q = (1.0 - p, 2 * U)                  # |fl(1 − p) − (1 − p)| ≤ u
+    LX = add(scale(q, AXA), scale((p, 0.0), FXF))
+    return Xi, add(Xi, LX, -1.0)
+
+
+def verify_upper_float(a: np.ndarray, c: np.ndarray, p: float, X: np.ndarray,
+                       K: np.ndarray) -> tuple[bool, float | None, float | None, str]:
+    """Prove p_up ≤ p from (X, K) by the verified float64 check (module docstring).
+
+    Returns (ok, margin of X, margin of X − L_{K,p}(X), reason); the margins are rigorous
+    lower bounds on the least eigenvalues of the power-of-two-equilibrated matrices.
+    """
+    X = np.asarray(X, dtype=float)
+    if not (0 <= p <= 1) or X.shape != (a.shape[0],) * 2 or K.shape != (a.shape[0], c.shape[0]):
+        return False, None, None, "bad shape or p outside [0, 1]"
+    if not np.array_equal(X, X.T):
+        return False, None, None, "X is not exactly symmetric"
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(K))):
+        return False, None, None, "non-finite certificate entry"
+    Xi, M = upper_operands(np.asarray(a, float), np.asarray(c, float), X, K, float(p))
+    mx = definite_margin(Xi)
+    if mx is None:
+        return False, None, None, "X is not proven positive definite"
+    mm = definite_margin(M)
+    if mm is None:
+        return False, mx, None, "X - L_{K,p}(X) is not proven positive definite"
+    return True, mx, mm, "proven"
+
+
+def transpose(a: Interval) -> Interval:
+    return a[0].T, a[1].T
+
+
+def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np.ndarray,
+                   Kz: np.ndarray, output_map: np.ndarray | None = None
+                   ) -> tuple[Interval, Interval, Interval]:
+    r"""Enclosures of G = Z'Z, Z'XZ and Z'(X − L_{K,p}(X))Z for X = Z X_z Z', K = Z K_z (M).
+
+    .. math::
+
+        Z'XZ = G X_z G, \quad Z'(X - L_{K,p}(X))Z = G X_z G - (1-p) B X_z B' - p \hat F X_z
+        \hat F', \quad B = Z'AZ, \ \hat F = B + G K_z (M C Z)
+
+    (exact identities; X and K are never rounded). For invertible Z (G ≻ 0) the congruence
+    preserves definiteness, so G X_z G ≻ 0 and the last matrix ≻ 0 prove X ≻ 0 and
+    X ≻ L_{K,p}(X).
+    """
+    A, C, Zi = from_exact(a), from_exact(c), point(Z)
+    Zt = transpose(Zi)
+    G = mul(Zt, Zi)
+    B = mul(Zt, mul(A, Zi))
+    CZ = mul(C, Zi)
+    if output_map is not None:
+        CZ = mul(point(output_map), CZ)
+    F = add(B, mul(mul(G, point(Kz)), CZ))
+    Xi = point(Xz)
+    GXG = mul(mul(G, Xi), G)
+    BXB = mul(mul(B, Xi), transpose(B))
+    FXF = mul(mul(F, Xi), transpose(F))
+    LX = add(scale((1.0 - p, 2 * U), BXB), scale((p, 0.0), FXF))
+    return G, GXG, add(GXG, LX, -1.0)
+
+
+def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray,
+                             Xz: np.ndarray, Kz: np.ndarray,
+                             output_map: np.ndarray | None = None
+                             ) -> tuple[bool, float | None, float | None, str]:
+    """:func:`verify_upper_float` for the certificate X = Z X_z Z', K = Z K_z (M) given in the
+    basis Z (:func:`basis_operands`); X_z must be exactly symmetric."""
+    n = a.shape[0]
+    Xz = np.asarray(Xz, dtype=float)
+    if not (0 <= p <= 1) or Z.shape != (n, n) or Xz.shape != (n, n):
+        return False, None, None, "bad shape or p outside [0, 1]"
+    if not np.array_equal(Xz, Xz.T):
+        return False, None, None, "X_z is not exactly symmetric"
+    if not all(np.all(np.isfinite(M)) for M in (Z, Xz, Kz)):
+        return False, None, None, "non-finite certificate entry"
+    G, GXG, M = basis_operands(np.asarray(a, float), np.asarray(c, float), float(p),
+                               np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map)
+    if definite_margin(G) is None:
+        return False, None, None, "the basis Z is not proven invertible (Z'Z > 0)"
+    mx = definite_margin(GXG)
+    if mx is None:
+        return False, None, None, "X is not proven positive definite"
+    mm = definite_margin(M)
+    if mm is None:
+        return False, mx, None, "X - L_{K,p}(X) is not proven positive definite"
+    return True, mx, mm, "proven"

@@ -1,0 +1,145 @@
+"""p_up for large unstable blocks (k > ``NEWTON_MAX_REDUCED``): matrix-free Newton on the
+threshold, a Stein certificate at hi, and the verified float64 check (docs/theory.md §3,
+"Large unstable blocks").
+
+.. math::
+
+    X_u - L_{K,hi}(X_u) = I \\;\\Rightarrow\\; X_u \\succ L_{K,hi}(X_u)
+    \\;\\Rightarrow\\; p_{up} \\le hi \\quad(\\text{after lifting, checked on the exact } A, C)
+
+Steps: (1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
+(2) damped threshold Newton (:func:`kfcrit.theory.upper.krylov.threshold_newton_krylov`), which
+either converges to p* > p_low or runs into the floor p_low (a face root: p_up = p_low);
+(3) at hi = base + tol/2 (base = p* or p_low) the cone eigenpair of G_hi, its gain K and the
+Stein solution X_u − L_{K,hi}(X_u) = I, lifted to the full state
+(:func:`kfcrit.theory.upper.cone.lift_certificate`) and proven by
+:func:`kfcrit.theory.upper.floatcheck.verify_upper_float`.
+The lower end is p_low (Sinopoli Thm 3, proven) for a face root; otherwise the Newton root
+with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not certified.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from kfcrit.model.system import System
+from kfcrit.theory.covariance.riccati import symmetrize
+from kfcrit.theory.upper import certify, floatcheck, krylov
+from kfcrit.theory.upper.certs import lower_end
+from kfcrit.theory.upper.cone import Reduced, full_gain, lift_certificate, stable_gramian
+from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
+
+START_OFFSETS = (0.02, 0.1, 0.3, 1.0)
+"""p − p_low tried (clipped to 1) for the MARE start, until its fixed point converges."""
+CERTIFICATE_OFFSETS = (0.5, 1.0, 10.0, 100.0)
+"""hi = base + offset·tol tried in turn for the certificate."""
+EIGEN_STEPS = 6
+"""Eigen-Newton steps at hi: only the gain of the eigenvector is used (the Stein solve gives
+the certificate), and near a face root the eigenvector turns singular, so more steps buy
+nothing."""
+FACE_GAP = 1e-6
+"""A converged threshold root this close to p_low is treated as the face root p_up = p_low."""
+FLOAT_CHECK = ("verified float64: midpoint-radius products with a priori rounding-error bounds "
+               "(gamma_q |U||V| + underflow) on the exact A, C (one ulp from their float views) "
+               "and the float certificate taken exactly; positive definiteness by a Cholesky "
+               "residual bound (docs/theory.md §3, Verified float64 check)")
+
+
+def _start(red: Reduced, p_low: float, stats: dict[str, Any]) -> tuple[np.ndarray, float] | None:
+    """A normalised MARE solution at the first p = p_low + offset where the iteration converges."""
+    for off in START_OFFSETS:
+        p0 = min(1.0, p_low + off)
+        X0, ok = krylov.mare_start(red.Au, red.Cu, p0)
+        stats["mare_start_p"] = p0
+        if ok and np.trace(X0) > 0:
+            return X0 / np.trace(X0), p0
+    return None
+
+
+def float_certificate(system: System, red: Reduced, hi: float, X_start: np.ndarray,
+                      stats: dict[str, Any], Ys: np.ndarray | None):
+    """The Stein certificate at hi (gain of the cone eigenvector of G_hi), lifted and checked by
+    the verified float64 check; then the eigenvector itself. Returns (basis triple, X, K,
+    CheckResult) or None."""
+    eig = krylov.eigen_newton_krylov(red.Au, red.Cu, X_start, hi, EIGEN_STEPS)
+    stats["newton_iterations"] += eig.iterations
+    stats["operator_applications"] += eig.matvecs
+    candidates = []
+    if np.all(np.isfinite(eig.K)):
+        Xs, mv = krylov.stein_solve_krylov(red.Au, red.Cu, eig.K, hi, np.eye(red.k))
+        stats["operator_applications"] += mv
+        candidates.append((Xs, eig.K))
+    if eig.converged and eig.value < 1:
+        candidates.append((eig.X, eig.K))
+    for Xu, Ku in candidates:
+        if not (np.all(np.isfinite(Xu)) and krylov._positive_definite(Xu)):
+            continue
+        Z, Xz, Kz = lift_certificate(red, system.c, Xu, Ku, hi, Ys)
+        Xz = np.triu(Xz) + np.triu(Xz, 1).T                 # exactly symmetric
+        ok, mx, mm, why = floatcheck.verify_upper_float_basis(system.a, system.c, hi, Z, Xz,
+                                                              Kz, red.M)
+        stats["certificate_checks"] += 1
+        if ok:
+            check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm,
+                                        why, FLOAT_CHECK)
+            return (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
+    return None
+
+
+def large_method(system: System, red: Reduced, p_low: float, tol: float,
+                 stats: dict[str, Any], warnings: list[str], done):
+    """The bracket for a large unstable block (module docstring); ``done`` builds the result."""
+    stats.setdefault("operator_applications", 0)
+    start = _start(red, p_low, stats)
+    if start is None:
+        warnings.append("upper bound undetermined: the MARE iteration (Q = I, R = I) did not "
+                        "converge at any start point, so no Newton start was found")
+        return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
+    X0, p0 = start
+    thr = krylov.threshold_newton_krylov(red.Au, red.Cu, X0, p0, p_low)
+    stats["newton_iterations"] += thr.iterations
+    stats["operator_applications"] += thr.matvecs
+    face = thr.face or (thr.converged and thr.value - p_low <= FACE_GAP)
+    if not (face or thr.converged):
+        warnings.append("upper bound undetermined: the threshold Newton did not converge "
+                        f"(stopped at p = {thr.value:.12g})")
+        return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
+    base = p_low if face else thr.value
+    Ys = stable_gramian(red) if red.k < system.n else None
+    found, hi = None, None
+    for off in CERTIFICATE_OFFSETS:
+        hi = float(min(base + off * tol, 1.0))
+        found = float_certificate(system, red, hi, thr.X, stats, Ys)
+        if found is not None:
+            break
+    if found is None:
+        warnings.append("no certificate could be verified; the upper end 1 is the trivial one")
+        return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
+    basis, X, K, check = found
+    origin = ("Stein solution X_u - L_{K,hi}(X_u) = I on the unstable Schur block (GMRES), K the "
+              "gain of the cone eigenvector of G_hi; lifted to the full state and checked in the "
+              "float Schur basis Z as X = Z X_z Z', K = Z K_z" + (" M" if red.M is not None
+                                                                else "")
+              + " (X, K in the record are rounded copies)")
+    cert = certificate_summary(system, check, X, K, origin, None, None)
+    lo = lower_end(hi, tol, p_low)
+    if face:
+        lo, lower = p_low, evidence_p_low(p_low)
+        lower["statement"] += ("; the threshold Newton ran into p_low with a singular "
+                               "eigenvector (face root), so p_up = p_low within the bracket")
+    else:
+        lo = max(lo, p_low)
+        lower = {"kind": "numerical", "value": lo, "certified": False,
+                 "statement": (f"Newton root p* = {thr.value:.15g} of r(p) = 1 (matrix-free "
+                               f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
+                               "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
+                               "ball proof: the invariant subspace of a block of "
+                               f"{red.k} states is not enclosed)"),
+                 "p_low_theorem": p_low}
+        warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
+                        "end is certified")
+    status = "determined" if hi - lo <= tol else "undetermined"
+    return done(hi, (lo, hi), True, status, cert, lower,
+                {"X": X, "K": K, "p_star": None if face else thr.value, "face_root": face,
+                 "output_map": red.M})
