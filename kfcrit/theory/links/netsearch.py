@@ -25,6 +25,15 @@ from kfcrit.theory.links import netseq as ns
 
 CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the fixed-gain threshold + step·tol for these steps."""
+COARSE_GAP = 1e-6
+"""A first fixed-gain threshold this far above the start of the path triggers the coarse search."""
+COARSE_STEPS = 10
+"""Bisection steps of the coarse search with fresh power-iteration gains."""
+COARSE_BUDGET = 8
+"""Most coarse bisections per analysis (each costs COARSE_STEPS power iterations); beyond,
+the brackets keep the end found from the seed gains (certified, wider)."""
+COARSE_POWER = 50
+"""Power iterations per point of the coarse search."""
 MODAL_TOL = 1e-9
 """Relative tolerance of the float rank decisions of the modal gains."""
 
@@ -98,6 +107,7 @@ class SeqContext:
         self.exact = ns.ExactPlant.of(st.A, [st.C[sl.start:sl.stop, :]
                                              for sl in self.network.row_slices()])
         self._base: list[np.ndarray] | None = None
+        self._coarse_left = COARSE_BUDGET
         self._family = None
 
     # ---- gains and certificates --------------------------------------------------------------
@@ -164,8 +174,11 @@ class SeqContext:
         def point(s: float) -> np.ndarray:
             return path(s)[0]
 
+        ta = self.plant.ta()
+
         def family(gains: list[np.ndarray]) -> Callable[[float], np.ndarray]:
-            return lambda s: ns.operator(self.plant, point(s), gains)
+            T = ns.congruence_batch(ns.closed_loops(self.plant, gains))
+            return lambda s: ns.operator_from(ta, T, point(s))
         return self._search(point, family, lo, hi, s_nec)
 
     def _search(self, point: Callable[[float], np.ndarray],
@@ -191,6 +204,10 @@ class SeqContext:
                 continue
             if best is not None and s_k >= best[0] - self.tol:
                 break
+            if best is None and s_k > start + COARSE_GAP:
+                gains = self._coarse(point, start, s_k, gains)
+                op = family(gains)
+                s_k = ns.fixed_gain_threshold(op, start, hi, atol=self.tol * 1e-2) or s_k
             found = self._certify_above(point, op, gains, s_k, start, hi,
                                         best[0] if best else None)
             if found is not None:
@@ -205,6 +222,26 @@ class SeqContext:
         if best is None:
             return Boundary(start, None, None, "no product-form certificate found on the path")
         return Boundary(start, best[0], best[1], "one-sensor maps (docs/theory.md §15), certified")
+
+    def _coarse(self, point: Callable[[float], np.ndarray], a: float, b: float,
+                gains: list[np.ndarray]) -> list[np.ndarray]:
+        """Gains from a coarse bisection on [a, b] with fresh power-iteration gains at each
+        point (policy iteration from barely stabilising gains converges slowly)."""
+        self.stats["newton"] += 1
+        g, _ = ns.power_gains(self.plant, point(a), iterations=COARSE_POWER)
+        if ns.radius(ns.operator(self.plant, point(a), g)) < 1.0:
+            return g
+        self._coarse_left -= 1
+        if self._coarse_left < 0:
+            return gains
+        for _ in range(COARSE_STEPS):
+            mid = 0.5 * (a + b)
+            g, _ = ns.power_gains(self.plant, point(mid), iterations=COARSE_POWER)
+            if ns.radius(ns.operator(self.plant, point(mid), g)) < 1.0:
+                b, gains = mid, g
+            else:
+                a = mid
+        return gains
 
     def _certify_above(self, point, op, gains, s_k: float, start: float, hi: float,
                        bound: float | None) -> tuple[float, dict[str, Any]] | None:

@@ -92,10 +92,18 @@ def operator(plant: SeqPlant, p: np.ndarray, gains: Sequence[np.ndarray]) -> np.
 
     .. math:: 𝓛_p(X) = A\\,(M_N \\circ \\cdots \\circ M_1)(X)\\,A'
     """
-    _, M = factors(plant, p, gains)
-    L = plant.ta()
-    for k in range(M.shape[0] - 1, -1, -1):
-        L = L @ M[k]
+    T = congruence_batch(closed_loops(plant, gains))
+    return operator_from(plant.ta(), T, p)
+
+
+def operator_from(ta: np.ndarray, T: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """T_A Π_{k=N..1} ((1 − p_k) I + p_k T_k) for precomputed T_k = T_{F_k} (fixed gains)."""
+    L = ta
+    for k in range(T.shape[0] - 1, -1, -1):
+        pk = float(p[k])
+        if pk == 0.0:
+            continue
+        L = L @ T[k] if pk == 1.0 else (1.0 - pk) * L + pk * (L @ T[k])
     return L
 
 
@@ -137,8 +145,10 @@ def sequential_gains(plant: SeqPlant, p: np.ndarray, X: np.ndarray,
     gains = []
     for pi, C in zip(p, plant.blocks):
         YC = Y @ C.T
-        S = C @ YC + r * np.eye(C.shape[0])
-        K = np.linalg.solve(S, YC.T).T
+        if C.shape[0] == 1:
+            K = YC / (float((C @ YC)[0, 0]) + r)
+        else:
+            K = np.linalg.solve(C @ YC + r * np.eye(C.shape[0]), YC.T).T
         gains.append(K)
         Y = symmetrize(Y - float(pi) * (K @ YC.T))
     return gains, symmetrize(plant.a @ Y @ plant.a.T)
