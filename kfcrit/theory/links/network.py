@@ -16,7 +16,8 @@ enclosed between two surfaces:
   ball arithmetic.
 
 Where they meet the region is exact. One case is proven here and in docs/theory.md §15.6
-(Theorem E, with product-form gains; Lemma D reduces the test to single sensors): **modal one-step observability**. Let the modes with |λ| ≥ 1 be
+(Theorem E, with product-form gains; Lemma D reduces the test to single sensors):
+**modal one-step observability**. Let the modes with |λ| ≥ 1 be
 diagonalizable with eigenvectors w_1..w_k, and suppose that for every received set S the
 vectors {C_S w_j : C_S w_j ≠ 0} are linearly independent. Then for every S a real gain K_S
 with K_S C_S w_j = −λ_j w_j for the seen modes and K_S = 0 on a complement exists; the unstable
