@@ -22,6 +22,7 @@ followed by the detail sections ``system``, ``structure``, ``theory``, ``covaria
 """
 from __future__ import annotations
 
+import functools
 import platform
 from dataclasses import dataclass, replace
 from typing import Any
@@ -306,6 +307,21 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
             theory: TheorySections | None = None, **kwargs: Any) -> Analysis:
     """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
 
+    The record is :func:`analysis_data`'s JSON form checked into the typed record (strict:
+    unknown, missing or mistyped keys fail); see there for the parameters.
+    """
+    data, timings = analysis_data(system, options, theory=theory, **kwargs)
+    return replace(record_from_json(data), timings=timings)
+
+
+def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
+                  theory: TheorySections | None = None, **kwargs: Any
+                  ) -> tuple[dict[str, Any], dict[str, float]]:
+    """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
+
+    Returns the record's JSON form (before the typed check; a sweep reads its row from it
+    without the round trip) and the sections' wall-clock seconds.
+
     Parameters
     ----------
     system : System or SystemSpec
@@ -397,10 +413,38 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     sec["provenance"] = provenance(spec, opts)
     sec["schema_version"] = SCHEMA_VERSION
     timings: dict[str, float] = {}
-    data = _split_timings(jsonable({k: v for k, v in sec.items() if k != "review"}), "",
-                          timings)
+    data = _json_sections(sec, theory, timings)
     data["review"] = review_json(review)
-    return replace(record_from_json(data), timings=timings)
+    return data, timings
+
+
+def _json_sections(sec: dict[str, Any], theory: TheorySections,
+                   timings: dict[str, float]) -> dict[str, Any]:
+    """``_split_timings(jsonable(sec without review))``, key by key; the JSON form of a section
+    that is the theory's own object is computed once per :class:`TheorySections` (a sweep
+    shares it across points; the values are shared, so callers must not mutate them)."""
+    memo: dict[str, Any] | None = theory.__dict__.get("_json_memo")
+    if memo is None:
+        memo = {}
+        object.__setattr__(theory, "_json_memo", memo)
+    out: dict[str, Any] = {}
+    for k, v in sec.items():
+        key = str(k)
+        if k == "review":
+            continue
+        if key in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
+            timings[key] = v
+            continue
+        if k in theory.sections and v is theory.sections[k]:
+            if key not in memo:
+                found: dict[str, float] = {}
+                memo[key] = (_split_timings(jsonable(v), f".{key}", found), found)
+            value, found = memo[key]
+            timings.update(found)
+            out[key] = value
+        else:
+            out[key] = _split_timings(jsonable(v), f".{key}", timings)
+    return out
 
 
 def review_json(review: vd.Review) -> dict[str, Any]:
@@ -712,17 +756,26 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
     return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
 
 
-def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
-    """Versions, seed, options and the input file's SHA-256 (for the verification appendix)."""
+@functools.lru_cache(maxsize=1)
+def _versions() -> tuple[tuple[str, str | None], ...]:
+    """Package versions, read once per process (reading package metadata costs milliseconds,
+    and it cannot change while the process runs)."""
     import importlib.metadata as md
 
-    versions = {"kfcrit": __version__, "python": platform.python_version()}
+    versions: list[tuple[str, str | None]] = [("kfcrit", __version__),
+                                              ("python", platform.python_version())]
     for pkg in ("numpy", "scipy", "sympy", "cvxpy", "clarabel", "python-flint", "matplotlib",
                 "jinja2"):
         try:
-            versions[pkg] = md.version(pkg)
+            versions.append((pkg, md.version(pkg)))
         except md.PackageNotFoundError:
-            versions[pkg] = None
+            versions.append((pkg, None))
+    return tuple(versions)
+
+
+def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
+    """Versions, seed, options and the input file's SHA-256 (for the verification appendix)."""
+    versions = dict(_versions())
     return {"versions": versions, "seed": opts.seed, "input_path": spec.path,
             "input_sha256": spec.sha256, "options": dict(opts.__dict__)}
 
