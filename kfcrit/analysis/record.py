@@ -314,13 +314,22 @@ def analyze(system: System | SystemSpec, options: AnalysisOptions | None = None,
     return replace(record_from_json(data), timings=timings)
 
 
+ROW_KEYS = ("classification", "critical_value", "robust_critical_value", "upper_bound",
+            "block_lower_bound", "lower_bound", "link_budget", "operating_point", "network")
+"""The sections a sweep row reads (:func:`kfcrit.analysis.sweep.points.row_of`), with
+``review``: all that :func:`analysis_data` returns with ``lean``."""
+
+
 def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
-                  theory: TheorySections | None = None, **kwargs: Any
+                  theory: TheorySections | None = None, lean: bool = False, **kwargs: Any
                   ) -> tuple[dict[str, Any], dict[str, float]]:
     """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
 
     Returns the record's JSON form (before the typed check; a sweep reads its row from it
-    without the round trip) and the sections' wall-clock seconds.
+    without the round trip) and the sections' wall-clock seconds. With ``lean`` only the
+    sections of :data:`ROW_KEYS` and the review are returned, and the sections that feed
+    neither (system text, tail exponent without a tail requirement, verification, provenance)
+    are not computed: the values returned are those of the full record.
 
     Parameters
     ----------
@@ -353,8 +362,8 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
     sec.update(theory.sections)
     sec["name"] = s.name
     sec["description"] = spec.description
-    sec["system"] = system_section(spec)
-    warnings: list[str] = conditioning_warnings(s) + list(theory.warnings)
+    sec["system"] = None if lean else system_section(spec)
+    warnings: list[str] = ([] if lean else conditioning_warnings(s)) + list(theory.warnings)
 
     if spec.network is None or spec.network.size == 1:
         # before the link: the link design reads the accuracy requirement's [p_S, p_V]
@@ -372,7 +381,8 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
         sec["network"], _ = network_sections(
             spec, opts, warnings, single=(vd.Verdict(op1["verdict"]), op1.get("basis") or ""))
     reqs = spec.requirements
-    _tail_section(spec, theory, sec)
+    if not lean or getattr(reqs, "max_error_trace", None) is not None:
+        _tail_section(spec, theory, sec)
     if spec.network is not None and spec.network.size > 1:
         sec["covariance_bounds"] = network_lower_bound(spec.network)
     elif opts.details or getattr(reqs, "max_mean_error_trace", None) is not None:
@@ -397,7 +407,7 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
                                                  sec.get("covariance_bounds"),
                                                  sec.get("operating_point"), sec.get("design"))
     power_law_tail(sec)
-    sec["verification"] = verification(sec, warnings)
+    sec["verification"] = [] if lean else verification(sec, warnings)
     op = sec.get("operating_point") or {}
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
     sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
@@ -410,9 +420,13 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
             "the p_up bracket could not be narrowed to the tolerance")])
     sec["review"] = review
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
-    sec["provenance"] = provenance(spec, opts)
     sec["schema_version"] = SCHEMA_VERSION
     timings: dict[str, float] = {}
+    if lean:
+        data = _json_sections({k: sec.get(k) for k in ROW_KEYS}, theory, timings)
+        data["review"] = review_json(review)
+        return data, timings
+    sec["provenance"] = provenance(spec, opts)
     data = _json_sections(sec, theory, timings)
     data["review"] = review_json(review)
     return data, timings

@@ -680,7 +680,7 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
                                      upper_bound=theories.get(ukey))
             theories[skey] = theory
             theories.setdefault(ukey, theory.sections["upper_bound"])
-        record, _ = analysis_data(spec, opts, theory=theories[skey])
+        record, _ = analysis_data(spec, opts, theory=theories[skey], lean=True)
         row.update(row_of(record))
     except KfcritError as exc:
         row.update(status="error", error=printable(str(exc))[:300],

@@ -659,8 +659,6 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         if N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
             chk, _ = ctx.try_at(pf)
             cert = chk.to_dict() if chk is not None else None
-            if chk is not None and chk.ok:
-                sufficient, suff_basis = True, "sufficient surface (checked certificate)"
             if chk is None:
                 warnings.append("no numerical certificate found at the operating point "
                                 "(the verdict rests on the exact-region proof)")
