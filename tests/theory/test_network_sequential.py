@@ -182,3 +182,23 @@ def test_sequential_never_beats_every_received_set():
         sa, sb = a["surfaces"]["sufficient"], b["surfaces"]["sufficient"]
         if sa is not None and sb is not None:
             assert sa["value"] >= sb["value"] - 1e-7
+
+
+def test_repeated_eigenvalue_many_sensors_enumerates_row_spaces_not_sensors():
+    # A = 2·I_3, sixty sensors, sensor i measures coordinate i mod 3 (twenty per coordinate).
+    # The eigenspace is all of R³; its maximal unobservable sets are the sensors of two
+    # coordinates (a coordinate plane), so there are exactly three constraints, each
+    # (1 − p)^20·4 < 1 over the twenty sensors of the third coordinate. At p = 1/5:
+    # (4/5)^20·4 ≈ 0.046 < 1; with one link dead (4/5)^19·4 ≈ 0.058 < 1, so every critical
+    # value is 0. Sixty sensors in combinations of two would be 1,770 rank tests per flat size;
+    # three distinct row spaces make it three.
+    N = 60
+    net = decoupled([2, 2, 2], [[i % 3] for i in range(N)])
+    res = network_analysis(net, [R(1, 5)] * N).to_dict()
+    assert len(res["necessary_constraints"]) == 3
+    assert all(len(c["unobservable_without"]) == 20 for c in res["necessary_constraints"])
+    assert res["facts"]["necessary"] is True
+    for row in res["sensors"]:
+        assert row["critical_value"]["interval"] == [0.0, 0.0]
+    # at p = 1/20: (19/20)^20·4 ≈ 1.43 ≥ 1, unstable
+    assert V(network_analysis(net, [R(1, 20)] * N).facts) == "mean-unstable"

@@ -172,8 +172,9 @@ def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Cons
             flats.add(frozenset(range(N)))
         else:
             tried = 0
+            reps = _distinct_row_spaces(rank, seen) if g > 1 else seen
             for size in range(0, g):
-                for U in itertools.combinations(seen, size):
+                for U in itertools.combinations(reps, size):
                     tried += 1
                     if tried > FLAT_BUDGET:
                         raise KfcritError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
@@ -193,6 +194,22 @@ def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Cons
         keep.append(c)
     keep.sort(key=lambda c: (-c.mod2, sorted(c.blind)))
     return tuple(keep)
+
+
+def _distinct_row_spaces(rank, seen: Sequence[int]) -> list[int]:
+    """One sensor per distinct row space C_i V among ``seen`` (first in sensor order).
+
+    Two sensors have the same row space on V iff rank([i, j]) = rank([i]) = rank([j]). A flat
+    spanned by some sensors is spanned by their representatives, and the closure is taken over
+    every sensor, so the flats (and the constraints) are unchanged; the enumeration then grows
+    with the number of distinct row spaces, not with N (many sensors seeing the same modes).
+    """
+    reps: list[int] = []
+    for i in seen:
+        ri = rank([i])
+        if not any(rank([r]) == ri and rank([r, i]) == ri for r in reps):
+            reps.append(i)
+    return reps
 
 
 def _sign_minus_one(value: float, expr: sp.Expr | None) -> int | None:
