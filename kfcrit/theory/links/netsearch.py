@@ -126,7 +126,13 @@ class SeqContext:
 
     def certify(self, p: np.ndarray, X: np.ndarray | None, gains: list[np.ndarray]
                 ) -> ns.SeqCheck | None:
-        """Float filter, then the ball check (None when X is None or the float test fails)."""
+        """Float filter, then the ball check (None when X is None or the float test fails).
+
+        The check is made at p one float below each nonzero p_i: a float within half an ulp of
+        an exact arrival probability then never exceeds it, and the region is an up-set
+        (docs/theory.md §9.1), so the certificate also holds at the exact values.
+        """
+        p = np.where(p > 0.0, np.nextafter(p, 0.0), 0.0)
         if X is None or not ns.float_ok(self.plant, p, X, gains):
             return None
         self.stats["certificates"] += 1
