@@ -22,6 +22,7 @@ followed by the detail sections ``system``, ``structure``, ``theory``, ``covaria
 """
 from __future__ import annotations
 
+import functools
 import platform
 from dataclasses import dataclass, replace
 from typing import Any
@@ -351,6 +352,30 @@ def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None 
             theory: TheorySections | None = None, **kwargs: Any) -> AnalysisRecord:
     """Analyse a system (or a loaded system file) and return the typed :class:`AnalysisRecord`.
 
+    The record is :func:`analysis_data`'s JSON form checked into the typed record (strict:
+    unknown, missing or mistyped keys fail); see there for the parameters.
+    """
+    data, timings = analysis_data(system, options, theory=theory, **kwargs)
+    return replace(record_from_json(data), timings=timings)
+
+
+ROW_KEYS = ("classification", "critical_value", "robust_critical_value", "upper_bound",
+            "block_lower_bound", "lower_bound", "link_budget", "operating_point", "network", "loop")
+"""The sections a sweep row reads (:func:`kfcrit.analysis.sweep.points.row_of`), with
+``review``: all that :func:`analysis_data` returns with ``lean``."""
+
+
+def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
+                  theory: TheorySections | None = None, lean: bool = False, **kwargs: Any
+                  ) -> tuple[dict[str, Any], dict[str, float]]:
+    """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
+
+    Returns the record's JSON form (before the typed check; a sweep reads its row from it
+    without the round trip) and the sections' wall-clock seconds. With ``lean`` only the
+    sections of :data:`ROW_KEYS` and the review are returned, and the sections that feed
+    neither (system text, tail exponent without a tail requirement, verification, provenance)
+    are not computed: the values returned are those of the full record.
+
     Parameters
     ----------
     system : System or SystemSpec
@@ -382,8 +407,8 @@ def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None 
     sec.update(theory.sections)
     sec["name"] = s.name
     sec["description"] = spec.description
-    sec["system"] = system_section(spec)
-    warnings: list[str] = conditioning_warnings(s) + list(theory.warnings)
+    sec["system"] = None if lean else system_section(spec)
+    warnings: list[str] = ([] if lean else conditioning_warnings(s)) + list(theory.warnings)
 
     if spec.network is None or spec.network.size == 1:
         # before the link: the link design reads the accuracy requirement's [p_S, p_V]
@@ -414,7 +439,8 @@ def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None 
         sec["network"], _ = network_sections(
             spec, opts, warnings, single=(vd.Verdict(op1["verdict"]), op1.get("basis") or ""))
     reqs = spec.requirements
-    _tail_section(spec, theory, sec)
+    if not lean or getattr(reqs, "max_error_trace", None) is not None:
+        _tail_section(spec, theory, sec)
     if spec.network is not None and spec.network.size > 1:
         sec["covariance_bounds"] = network_lower_bound(spec.network)
     elif spec.mesh is None and (opts.details
@@ -444,7 +470,7 @@ def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None 
     if loop_cost is not None:
         sec["requirements"]["assessments"].append(loop_cost)
     power_law_tail(sec)
-    sec["verification"] = verification(sec, warnings)
+    sec["verification"] = [] if lean else verification(sec, warnings)
     if sec.get("loop") is not None:
         from kfcrit.analysis.loop.designs import loop_check
 
@@ -468,13 +494,45 @@ def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None 
             "the p_up bracket could not be narrowed to the tolerance")])
     sec["review"] = review
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
-    sec["provenance"] = provenance(spec, opts)
     sec["schema_version"] = SCHEMA_VERSION
     timings: dict[str, float] = {}
-    data = _split_timings(jsonable({k: v for k, v in sec.items() if k != "review"}), "",
-                          timings)
+    if lean:
+        data = _json_sections({k: sec.get(k) for k in ROW_KEYS}, theory, timings)
+        data["review"] = review_json(review)
+        return data, timings
+    sec["provenance"] = provenance(spec, opts)
+    data = _json_sections(sec, theory, timings)
     data["review"] = review_json(review)
-    return replace(record_from_json(data), timings=timings)
+    return data, timings
+
+
+def _json_sections(sec: dict[str, Any], theory: TheorySections,
+                   timings: dict[str, float]) -> dict[str, Any]:
+    """``_split_timings(jsonable(sec without review))``, key by key; the JSON form of a section
+    that is the theory's own object is computed once per :class:`TheorySections` (a sweep
+    shares it across points; the values are shared, so callers must not mutate them)."""
+    memo: dict[str, Any] | None = theory.__dict__.get("_json_memo")
+    if memo is None:
+        memo = {}
+        object.__setattr__(theory, "_json_memo", memo)
+    out: dict[str, Any] = {}
+    for k, v in sec.items():
+        key = str(k)
+        if k == "review":
+            continue
+        if key in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
+            timings[key] = v
+            continue
+        if k in theory.sections and v is theory.sections[k]:
+            if key not in memo:
+                found: dict[str, float] = {}
+                memo[key] = (_split_timings(jsonable(v), f".{key}", found), found)
+            value, found = memo[key]
+            timings.update(found)
+            out[key] = value
+        else:
+            out[key] = _split_timings(jsonable(v), f".{key}", timings)
+    return out
 
 
 def review_json(review: vd.Review) -> dict[str, Any]:
@@ -786,17 +844,26 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
     return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
 
 
-def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
-    """Versions, seed, options and the input file's SHA-256 (for the verification appendix)."""
+@functools.lru_cache(maxsize=1)
+def _versions() -> tuple[tuple[str, str | None], ...]:
+    """Package versions, read once per process (reading package metadata costs milliseconds,
+    and it cannot change while the process runs)."""
     import importlib.metadata as md
 
-    versions = {"kfcrit": __version__, "python": platform.python_version()}
+    versions: list[tuple[str, str | None]] = [("kfcrit", __version__),
+                                              ("python", platform.python_version())]
     for pkg in ("numpy", "scipy", "sympy", "cvxpy", "clarabel", "python-flint", "matplotlib",
                 "jinja2"):
         try:
-            versions[pkg] = md.version(pkg)
+            versions.append((pkg, md.version(pkg)))
         except md.PackageNotFoundError:
-            versions[pkg] = None
+            versions.append((pkg, None))
+    return tuple(versions)
+
+
+def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
+    """Versions, seed, options and the input file's SHA-256 (for the verification appendix)."""
+    versions = dict(_versions())
     return {"versions": versions, "seed": opts.seed, "input_path": spec.path,
             "input_sha256": spec.sha256, "options": dict(opts.__dict__)}
 

@@ -126,7 +126,7 @@ class AnalysisRecord:
         pc = self.critical_value.value if self.critical_value else None
         pc_text = (self.critical_value.expression or f"{pc:.6g}") if pc is not None else "bracket"
         cls = self.classification.value if self.classification else "?"
-        return (f"<kfcrit AnalysisRecord {self.name!r}: {cls}, "
+        return (f"<kfcrit Analysis {self.name!r}: {cls}, "
                 f"p_c = {pc_text}, verdict {self.verdict or 'n/a'}, review {self.decision}>")
 
 

@@ -14,6 +14,7 @@ Prints points per second for each, the ratio dask / local and the load average (
 may be shared), and checks that both produced byte-identical tables. Run::
 
     python -m kfcrit.bench.bench_sweep [--points 10000] [--workers N] [--dask-workers N]
+                                       [--no-dask]
 """
 from __future__ import annotations
 
@@ -76,7 +77,8 @@ def _load() -> str:
 
 
 def run(points: int = 10_000, workers: int | None = None, dask_workers: int | None = None,
-        dask_processes: bool = True, out: TextIO | None = None) -> dict[str, Any]:
+        dask_processes: bool = True, out: TextIO | None = None,
+        dask: bool = True) -> dict[str, Any]:
     """Run the benchmark and print its report.
 
     Parameters
@@ -91,6 +93,9 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
         Dask workers as processes (True, comparable with the local pool) or threads.
     out : file, optional
         Where to print (default stdout).
+    dask : bool
+        Also run on a Dask LocalCluster (False: local processes only; ``identical`` is then
+        None).
 
     Returns
     -------
@@ -98,8 +103,6 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
         ``points, local {seconds, points_per_second, workers}, dask {...}, ratio,
         identical, load_before, load_after``.
     """
-    from distributed import LocalCluster
-
     from kfcrit.analysis.sweep.points import load_sweep, run_sweep, table_csv
 
     out = out or sys.stdout
@@ -123,7 +126,13 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
         dt = time.perf_counter() - t0
         result["local"] = {"seconds": dt, "points_per_second": points / dt, "workers": workers,
                            "errors": local.errors}
-        print(f"local processes ({workers}): {dt:8.2f} s  {points / dt:9.1f} points/s", file=out)
+        print(f"local processes ({workers}): {dt:8.2f} s  {points / dt:9.1f} points/s; "
+              f"{_load()}", file=out)
+        if not dask:
+            result["identical"] = None
+            result["load_after"] = _load()
+            return result
+        from distributed import LocalCluster
 
         with LocalCluster(n_workers=dask_workers, threads_per_worker=1,
                           processes=dask_processes, protocol="tcp", host="127.0.0.1",
@@ -155,8 +164,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--dask-workers", type=int, default=None)
     ap.add_argument("--dask-threads", action="store_true",
                     help="Dask workers as threads instead of processes.")
+    ap.add_argument("--no-dask", action="store_true",
+                    help="Local processes only (no Dask LocalCluster).")
     args = ap.parse_args(argv)
-    run(args.points, args.workers, args.dask_workers, dask_processes=not args.dask_threads)
+    run(args.points, args.workers, args.dask_workers, dask_processes=not args.dask_threads,
+        dask=not args.no_dask)
 
 
 if __name__ == "__main__":

@@ -385,14 +385,14 @@ def _requirements(data: Any) -> Requirements:
     return Requirements(**out)
 
 
-def _plain(obj: Any) -> Any:
+def plain_data(obj: Any) -> Any:
     """YamlNumber → its text, recursively (for channel mappings read by other modules)."""
     if isinstance(obj, YamlNumber):
         return str(obj)
     if isinstance(obj, dict):
-        return {k: _plain(v) for k, v in obj.items()}
+        return {k: plain_data(v) for k, v in obj.items()}
     if isinstance(obj, list):
-        return [_plain(v) for v in obj]
+        return [plain_data(v) for v in obj]
     return obj
 
 
@@ -571,14 +571,14 @@ def read_system_mapping(doc: Any, *, base_dir: Path | None = None,
             else (sampled.float_a(), sampled.float_q())
     system = System(mats["A"], mats["C"], mats["Q"], mats["R"], mats.get("Sigma0"),
                     name=name, max_states=max_states)
-    channel = (channel_from_mapping(_plain(doc["channel"]), "channel", base_dir,
+    channel = (channel_from_mapping(plain_data(doc["channel"]), "channel", base_dir,
                                     parsers=channels)
                if doc.get("channel") is not None else None)
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()
     loop = None if doc.get("loop") is None else loop_from_mapping(
         doc["loop"], system.n, system.m, convert=_exact_numbers,
-        parse_channel=lambda d, prefix: channel_from_mapping(_plain(d), prefix, base_dir,
+        parse_channel=lambda d, prefix: channel_from_mapping(plain_data(d), prefix, base_dir,
                                                              parsers=channels))
     if loop is not None and channel is None:
         raise InputError("is required with loop: (the sensing link)", field="channel")
@@ -613,9 +613,9 @@ def _network_spec(doc: dict, base_dir: Path | None, max_states: int,
                          field="loop")
 
     def parse(mapping: dict, prefix: str) -> Channel:
-        return channel_from_mapping(_plain(mapping), prefix, base_dir, parsers=channels)
+        return channel_from_mapping(plain_data(mapping), prefix, base_dir, parsers=channels)
 
-    plain = {k: (_plain(v) if k in ("sensors", "links") else v) for k, v in doc.items()}
+    plain = {k: (plain_data(v) if k in ("sensors", "links") else v) for k, v in doc.items()}
     network = network_from_mapping(plain, parse, name=name, max_states=max_states)
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()
@@ -633,7 +633,7 @@ def _mesh_spec(doc: dict, base_dir: Path | None, max_states: int,
     def parse(mapping: dict, prefix: str) -> Channel:
         return channel_from_mapping(mapping, prefix, base_dir, parsers=channels)
 
-    plain = {k: (_plain(v) if k == "mesh" else v) for k, v in doc.items()}
+    plain = {k: (plain_data(v) if k == "mesh" else v) for k, v in doc.items()}
     mesh = mesh_from_mapping(plain, parse, name=name, max_states=max_states)
     reqs = _requirements(doc["requirements"]) if doc.get("requirements") is not None \
         else Requirements()

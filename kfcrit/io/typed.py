@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import functools
 import math
 import types
 import typing
@@ -100,7 +101,9 @@ class RecordError(ValueError):
     """A JSON value does not fit the typed record (the message names the path)."""
 
 
+@functools.cache
 def _hints(cls: type) -> dict[str, Any]:
+    """Type hints of a record class, resolved once per class (classes never change)."""
     return typing.get_type_hints(cls, include_extras=False)
 
 

@@ -124,6 +124,18 @@ def required_sinr_db(radio: Radio, arrival_probability: float,
     return radio.solve_required_sinr_db(arrival_probability, packet_bytes)
 
 
+@functools.lru_cache(maxsize=1)
+def _oqpsk_terms() -> tuple[np.ndarray, np.ndarray]:
+    """k = 2..16 and (−1)^k C(16, k) of :func:`oqpsk_ber`, computed once (read-only)."""
+    from scipy.special import comb
+
+    k = np.arange(2, 17, dtype=float)
+    coeff = (-1.0) ** k * comb(16, k, exact=False)
+    k.setflags(write=False)
+    coeff.setflags(write=False)
+    return k, coeff
+
+
 def oqpsk_ber(sinr: Any) -> np.ndarray:
     r"""Bit error rate of the IEEE 802.15.4 2450 MHz O-QPSK PHY at linear SINR.
 
@@ -131,10 +143,7 @@ def oqpsk_ber(sinr: Any) -> np.ndarray:
               e^{20\,\mathrm{SINR}\,(1/k - 1)}
     """
     s = np.asarray(sinr, dtype=float)
-    k = np.arange(2, 17, dtype=float)
-    from scipy.special import comb
-
-    coeff = (-1.0) ** k * comb(16, k, exact=False)
+    k, coeff = _oqpsk_terms()
     terms = coeff * np.exp(20.0 * s[..., None] * (1.0 / k - 1.0))
     return np.clip(terms.sum(axis=-1) * (8.0 / 15.0) / 16.0, 0.0, 0.5)
 

@@ -33,9 +33,9 @@ from kfcrit.model.system import (
     to_matrix,
 )
 
-MAX_SENSORS = 64
-"""Most sensors a network may have (the exact analysis enumerates 2^N received sets up to
-N = 12; beyond, certified bounds that avoid the enumeration)."""
+MAX_SENSORS = 256
+"""Most sensors a network may have (the analysis enumerates the 2^N received sets only for
+small N; beyond, one-sensor maps whose cost grows polynomially in N, docs/theory.md §15)."""
 SENSOR_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,39}")
 """Sensor names: a letter, then letters, digits, ``_`` or ``-`` (at most 40 characters), so that
 a sweep path ``sensors.NAME.channel.distance_m`` is unambiguous."""

@@ -468,10 +468,17 @@ class System:
         return is_definite(M, Mf, self.exact, strict=True)
 
     def matrices_text(self) -> dict[str, list[list[str]]]:
-        """Exact entries as strings readable by :func:`kfcrit.model.exprparse.parse_expression`."""
-        return {nm: [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
-                for nm, M in (("A", self.A), ("C", self.C), ("Q", self.Q), ("R", self.R),
-                              ("Sigma0", self.Sigma0))}
+        """Exact entries as strings readable by :func:`kfcrit.model.exprparse.parse_expression`.
+
+        Computed once per system (the matrices never change) and returned as a fresh copy.
+        """
+        cached = self.__dict__.get("_matrices_text")
+        if cached is None:
+            cached = {nm: [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
+                      for nm, M in (("A", self.A), ("C", self.C), ("Q", self.Q), ("R", self.R),
+                                    ("Sigma0", self.Sigma0))}
+            object.__setattr__(self, "_matrices_text", cached)
+        return {nm: [list(row) for row in rows] for nm, rows in cached.items()}
 
 
 def statespace_entries(M: Any) -> list[list[Any]]:

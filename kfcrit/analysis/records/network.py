@@ -169,6 +169,8 @@ class NetworkMethod:
     newton: int
     bisection: int
     certificates: int
+    decided_by: str = opt_key()
+    """``received-sets`` (docs/theory.md §9.3) or ``sequential`` (one-sensor maps, §15)."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -649,24 +649,49 @@ def loop_columns(loop: dict[str, Any] | None) -> dict[str, Any]:
             "loop_cost": _value(loop.get("cost"))}
 
 
+def point_spec(doc: dict, base_dir: Path, max_states: int, memo: dict[str, Any]) -> Any:
+    """The spec of one point's document, re-using the parsed system of an earlier point.
+
+    A single-system document whose parts other than ``channel`` equal those of a document
+    parsed before (same JSON text) differs from it only in the channel: the earlier spec
+    (validated in full) gets this point's channel, parsed by the same parser as
+    :func:`kfcrit.analysis.spec.spec_from_mapping`. Anything else is parsed in full. The
+    result never depends on ``memo`` (the reproducibility invariant).
+    """
+    from dataclasses import replace
+
+    from kfcrit.analysis.spec import parse_channel, spec_from_mapping
+    from kfcrit.io.systemfile import plain_data as plain_yaml
+
+    if "sensors" in doc or doc.get("channel") is None:
+        return spec_from_mapping(doc, base_dir=base_dir, max_states=max_states)
+    key = "spec:" + json.dumps([{k: v for k, v in doc.items() if k != "channel"}, max_states],
+                               sort_keys=True, default=str)
+    base = memo.get(key)
+    if base is None:
+        spec = spec_from_mapping(doc, base_dir=base_dir, max_states=max_states)
+        memo[key] = spec
+        return spec
+    return replace(base, channel=parse_channel(plain_yaml(doc["channel"]), "channel", base_dir))
+
+
 def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
                    assignments: list[tuple[str, str]],
                    theories: dict[str, Any] | None = None) -> dict[str, Any]:
     """The result columns of one point (``status`` ``error`` with a one-line message on error).
 
     The point is analysed by :func:`kfcrit.analysis.record.analyze_system` with
-    :func:`point_options`, so its verdict and review decision are those of ``kfcrit analyze_system``
+    :func:`point_options`, so its verdict and review decision are those of ``kfcrit analyze``
     on the same file. ``theories`` memoises the channel-independent sections per system within
     one chunk of work (passed in, never module state).
     """
-    from kfcrit.analysis.record import analyze_system, theory_sections
-    from kfcrit.analysis.spec import spec_from_mapping
+    from kfcrit.analysis.record import analysis_data, theory_sections
 
     row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
     theories = {} if theories is None else theories
     try:
         doc = apply_point(base_doc, assignments)
-        spec = spec_from_mapping(doc, base_dir=Path(base_dir), max_states=max_states)
+        spec = point_spec(doc, Path(base_dir), max_states, theories)
         opts = point_options(tolerance)
         skey = json.dumps([{k: doc.get(k) for k in MATRICES}, max_states, tolerance,
                            (doc.get("channel") or {}).get("model")],
@@ -678,7 +703,7 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
                                      upper_bound=theories.get(ukey))
             theories[skey] = theory
             theories.setdefault(ukey, theory.sections["upper_bound"])
-        record = analyze_system(spec, opts, theory=theories[skey]).to_dict()
+        record, _ = analysis_data(spec, opts, theory=theories[skey], lean=True)
         row.update(row_of(record))
     except KfcritError as exc:
         row.update(status="error", error=printable(str(exc))[:300],

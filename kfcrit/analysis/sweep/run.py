@@ -79,8 +79,8 @@ def run_processes(job: PointJob, items: Items, workers: int,
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
                                initializer=_worker_init, initargs=(os.getpid(),))
     try:
-        futures = [pool.submit(job.evaluate, job.base_doc, job.base_dir, job.tolerance,
-                               job.max_states, chunk)
+        futures = [pool.submit(evaluate_in_worker, job.evaluate, job.base_doc, job.base_dir,
+                               job.tolerance, job.max_states, chunk)
                    for chunk in chunks(items, workers)]
         for fut in as_completed(futures):
             yield fut.result()
@@ -88,6 +88,22 @@ def run_processes(job: PointJob, items: Items, workers: int,
         terminate_pool(pool)
         raise
     pool.shutdown(wait=True)
+
+
+WORKER_MEMO_MAX = 256
+"""Most memoised entries (theory sections, parsed systems) a worker process keeps; beyond, the
+memo starts afresh (memory stays bounded when every point changes the system)."""
+_worker_memo: dict[str, Any] = {}
+"""The memo of this worker process: chunks evaluated by one process share the theory computed
+once per system. Results never depend on it (the reproducibility invariant)."""
+
+
+def evaluate_in_worker(evaluate: Callable[..., list], base_doc: dict[str, Any], base_dir: str,
+                       tolerance: float, max_states: int, chunk: Items) -> list:
+    """Run ``evaluate`` on a chunk with this process's memo (sent by reference to workers)."""
+    if len(_worker_memo) > WORKER_MEMO_MAX:
+        _worker_memo.clear()
+    return evaluate(base_doc, base_dir, tolerance, max_states, chunk, _worker_memo)
 
 
 PARENT_POLL_SECONDS = 0.5

@@ -199,11 +199,11 @@ def congruence_batch(F: np.ndarray) -> np.ndarray:
     return T
 
 
-def cone_radius(plant: Plant, col: Collection, p: np.ndarray, X0: np.ndarray | None = None,
+def network_cone_radius(plant: Plant, col: Collection, p: np.ndarray, X0: np.ndarray | None = None,
                 iterations: int = 400, rtol: float = 1e-11, eps: float = 0.0
                 ) -> tuple[float, np.ndarray]:
     """Cone spectral radius of G^ε_p by averaged normalised power iteration (as
-    :func:`kfcrit.theory.upper.bracket.cone_radius`, for the expected map over received sets)."""
+    :func:`kfcrit.theory.upper.cone.cone_radius`, for the expected map over received sets)."""
     n = plant.a.shape[0]
     rows = plant.row_masks(col)
     w, _ = weights(col, p)
@@ -242,7 +242,7 @@ class Threshold:
     iterations: int
 
 
-def threshold_newton(plant: Plant, col: Collection, path: Path, X0: np.ndarray, s0: float,
+def network_threshold_newton(plant: Plant, col: Collection, path: Path, X0: np.ndarray, s0: float,
                      eps: float = NEWTON_EPS, max_iterations: int = 40,
                      atol: float = 1e-13) -> Threshold:
     """Newton on G^ε_{p(s)}(X) = X, tr X = 1 in (X, s) (theory §3's threshold Newton, with one

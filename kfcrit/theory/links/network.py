@@ -15,8 +15,9 @@ enclosed between two surfaces:
   found by Newton on the threshold of the noise-free expected map along a path and checked in
   ball arithmetic.
 
-Where they meet the region is exact. One case is proven here (a claim beyond docs/theory.md §9 until
-reviewed; the proof is short): **modal one-step observability**. Let the modes with |λ| ≥ 1 be
+Where they meet the region is exact. One case is proven here and in docs/theory.md §15.6
+(Theorem E, with product-form gains; Lemma D reduces the test to single sensors):
+**modal one-step observability**. Let the modes with |λ| ≥ 1 be
 diagonalizable with eigenvectors w_1..w_k, and suppose that for every received set S the
 vectors {C_S w_j : C_S w_j ≠ 0} are linearly independent. Then for every S a real gain K_S
 with K_S C_S w_j = −λ_j w_j for the seen modes and K_S = 0 on a complement exists; the unstable
@@ -51,6 +52,7 @@ from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.links.netsearch import Boundary, SeqContext, modal_gains
 from kfcrit.theory.upper.bracket import upper_bound
 
 RANK_TOL = 1e-9
@@ -61,9 +63,7 @@ CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the Newton root + step·tol for these steps."""
 
 
-# ---------------------------------------------------------------------------------------------
-# the necessary surface
-# ---------------------------------------------------------------------------------------------
+# ---- the necessary surface
 
 @dataclass(frozen=True)
 class Constraint:
@@ -170,8 +170,9 @@ def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Cons
             flats.add(frozenset(range(N)))
         else:
             tried = 0
+            reps = _distinct_row_spaces(rank, seen) if g > 1 else seen
             for size in range(0, g):
-                for U in itertools.combinations(seen, size):
+                for U in itertools.combinations(reps, size):
                     tried += 1
                     if tried > FLAT_BUDGET:
                         raise KfcritError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
@@ -191,6 +192,22 @@ def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Cons
         keep.append(c)
     keep.sort(key=lambda c: (-c.mod2, sorted(c.blind)))
     return tuple(keep)
+
+
+def _distinct_row_spaces(rank, seen: Sequence[int]) -> list[int]:
+    """One sensor per distinct row space C_i V among ``seen`` (first in sensor order).
+
+    Two sensors have the same row space on V iff rank([i, j]) = rank([i]) = rank([j]). A flat
+    spanned by some sensors is spanned by their representatives, and the closure is taken over
+    every sensor, so the flats (and the constraints) are unchanged; the enumeration then grows
+    with the number of distinct row spaces, not with N (many sensors seeing the same modes).
+    """
+    reps: list[int] = []
+    for i in seen:
+        ri = rank([i])
+        if not any(rank([r]) == ri and rank([r, i]) == ri for r in reps):
+            reps.append(i)
+    return reps
 
 
 def _sign_minus_one(value: float, expr: sp.Expr | None) -> int | None:
@@ -279,13 +296,15 @@ def necessary_along(constraints: Sequence[Constraint], path: nk.Path, lo: float,
     return b
 
 
-# ---------------------------------------------------------------------------------------------
-# the exact case: modal one-step observability
-# ---------------------------------------------------------------------------------------------
+# ---- the exact case: modal one-step observability
 
 def modal_one_step(network: Network, tol: float = RANK_TOL) -> tuple[bool | None, str]:
-    """Whether the proof in the module docstring applies (True), fails (False) or was not
-    decided (None: more than ``EXACT_MAX_SENSORS`` sensors and several unstable modes)."""
+    """Whether the proof in the module docstring applies (True) or fails (False), with why.
+
+    The condition is checked sensor by sensor (O(N) rank tests): the nonzero C_S w_j are
+    linearly independent for every received set S iff they are for every single sensor
+    (docs/theory.md §15.6).
+    """
     st = structure_of(network.stacked_system())
     rel = [e for i, e in enumerate(st.eigen) if st.relevant(i)]
     if not rel:
@@ -299,42 +318,27 @@ def modal_one_step(network: Network, tol: float = RANK_TOL) -> tuple[bool | None
     scale = max(float(np.linalg.norm(sys.c, 2)), 1.0)
     if k == 1:
         return True, "one unstable mode"
-    N = network.size
-    if N > nk.EXACT_MAX_SENSORS:
-        return None, f"not decided for more than {nk.EXACT_MAX_SENSORS} sensors"
-    owner = _owner(network)
-    col = nk.all_received_sets(N)
-    rows = col.masks[:, owner]
-    M = np.where(rows[:, :, None], CW[None], 0.0)
-    seen = np.linalg.norm(M, axis=1) > tol * scale
-    sv = np.linalg.svd(M, compute_uv=False)
-    ranks = (sv > tol * scale).sum(axis=1)
-    bad = np.nonzero(ranks != seen.sum(axis=1))[0]
-    if bad.size:
-        S = [network.names[i] for i in range(N) if col.masks[bad[0], i]]
-        return False, (f"received set {{{', '.join(S)}}} sees unstable modes through dependent "
-                       "outputs (not one-step observable)")
-    return True, ("every received set sees its observable unstable modes through linearly "
-                  f"independent outputs (float64 ranks, relative tolerance {tol:g})")
+    # the condition for every received set S is equivalent to the one for every single
+    # sensor (docs/theory.md §15.6): O(N) rank tests instead of 2^N
+    for i, sl in enumerate(network.row_slices()):
+        M = CW[sl]
+        seen = np.linalg.norm(M, axis=0) > tol * scale
+        if not seen.any():
+            continue
+        rank = int(np.sum(np.linalg.svd(M[:, seen], compute_uv=False) > tol * scale))
+        if rank != int(seen.sum()):
+            return False, (f"sensor {network.names[i]} sees unstable modes through dependent "
+                           "outputs (not one-step observable)")
+    return True, ("every sensor sees its observable unstable modes through linearly "
+                  "independent outputs, hence so does every received set (docs/theory.md "
+                  f"§15.6; float64 ranks, relative tolerance {tol:g})")
 
 
 def _owner(network: Network) -> np.ndarray:
     return np.concatenate([np.full(s.m, i) for i, s in enumerate(network.sensors)])
 
 
-# ---------------------------------------------------------------------------------------------
-# boundaries along paths
-# ---------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Boundary:
-    """Where a path p(s) crosses into 𝓢: s_c ∈ [s_nec, s_cert] (None: not found)."""
-
-    s_nec: float | None
-    s_cert: float | None
-    check: dict[str, Any] | None
-    note: str
-
+# ---- boundaries along paths
 
 @dataclass
 class _Context:
@@ -354,11 +358,20 @@ class _Context:
     def try_at(self, p: np.ndarray, X0: np.ndarray | None = None):
         # a short power iteration suffices: its X only seeds the gains, and the certificate
         # (Stein solve, policy iteration, ball check) is decided independently
-        r, X = nk.cone_radius(self.plant, self.col, p, X0, iterations=60, eps=1e-10)
+        r, X = nk.network_cone_radius(self.plant, self.col, p, X0, iterations=60, eps=1e-10)
         if not (np.isfinite(r) and r < 1.0):
             return None, X
         chk, Xc, _ = self.certify(p, X)
         return (chk if chk is not None and chk.ok else None), X
+
+    def coordinate_boundary(self, i: int, p: np.ndarray, s_nec: float | None) -> Boundary:
+        """Certified crossing along p_i = s ∈ [0, 1], the others at p."""
+        return _boundary(self, coordinate_path(p, i), 0.0, 1.0, s_nec)
+
+    def path_boundary(self, path: nk.Path, lo: float, hi: float,
+                      s_nec: float | None) -> Boundary:
+        """Certified crossing along a general path on [lo, hi]."""
+        return _boundary(self, path, lo, hi, s_nec)
 
 
 def _boundary(ctx: _Context, path: nk.Path, lo: float, hi: float,
@@ -374,9 +387,9 @@ def _boundary(ctx: _Context, path: nk.Path, lo: float, hi: float,
     for frac in (0.0, 0.05, 0.25, 0.5):
         # Newton from the necessary end first, then from points further into the path
         s0 = start + frac * (hi - start)
-        _, X0 = nk.cone_radius(ctx.plant, ctx.col, path(s0)[0], iterations=80, eps=1e-10)
+        _, X0 = nk.network_cone_radius(ctx.plant, ctx.col, path(s0)[0], iterations=80, eps=1e-10)
         ctx.stats["newton"] += 1
-        th = nk.threshold_newton(ctx.plant, ctx.col, path, X0, s0)
+        th = nk.network_threshold_newton(ctx.plant, ctx.col, path, X0, s0)
         if not (th.converged and th.s >= s_nec - 1e-7 and th.s <= hi
                 and np.linalg.eigvalsh(th.X).min() > 0):
             continue
@@ -428,9 +441,7 @@ def uniform_path(p: np.ndarray) -> nk.Path:
     return path
 
 
-# ---------------------------------------------------------------------------------------------
-# the result
-# ---------------------------------------------------------------------------------------------
+# ---- the result
 
 @dataclass(frozen=True)
 class SensorResult:
@@ -540,8 +551,28 @@ def _expr_text(e: sp.Expr | None) -> str | None:
     return exact_text(e) if e is not None else None
 
 
+SEQUENTIAL = "sequential"
+"""``network.method.decided_by`` of the one-sensor maps (docs/theory.md §15)."""
+RECEIVED_SETS = "received-sets"
+"""``network.method.decided_by`` of the received-set certificate (docs/theory.md §9.3)."""
+AUTO_EXACT_MAX = 8
+"""``method="auto"`` enumerates every received set up to this many sensors (2^N is cheap
+there and tighter); beyond it the one-sensor maps decide."""
+
+
+def _choose_method(method: str, N: int) -> str:
+    """``received-sets`` or ``sequential`` for ``method`` in {auto, received-sets, sequential}."""
+    if method == "auto":
+        return RECEIVED_SETS if N <= AUTO_EXACT_MAX else SEQUENTIAL
+    if method in (RECEIVED_SETS, SEQUENTIAL):
+        return method
+    raise InputError(f"must be auto, {RECEIVED_SETS} or {SEQUENTIAL}, got {method!r}",
+                     field="method")
+
+
 def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
-                     tol: float = 1e-9, certify: bool = True) -> NetworkResult:
+                     tol: float = 1e-9, certify: bool = True,
+                     method: str = "auto") -> NetworkResult:
     r"""Stability of a sensor network at arrival probabilities ``p`` (docs/theory.md §9).
 
     N sensors, sensor i over an independent Bernoulli(p_i) link. The necessary surface (§9.2)
@@ -563,6 +594,12 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         Target width of the certified intervals.
     certify : bool
         Check certificates in ball arithmetic (True) or in float64 only (for benchmarks).
+    method : str
+        ``"received-sets"``: the jump-linear certificate over received sets (docs/theory.md
+        §9.3, 2^N sets up to ``EXACT_MAX_SENSORS`` sensors); ``"sequential"``: one-sensor maps
+        with product-form gains (docs/theory.md §15, polynomial in N); ``"auto"`` (default):
+        received sets up to ``AUTO_EXACT_MAX`` sensors, else sequential. The record's
+        ``method.decided_by`` names the one used.
 
     Returns
     -------
@@ -606,17 +643,28 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     N = network.size
     cons = necessary_constraints(network)
     exact_region, why_exact = modal_one_step(network)
+    decided_by = _choose_method(method, N)
     st = network.stacked_system()
-    plant = nk.Plant(st.a, st.c, _owner(network))
-    col = nk.collection_for(pf, N)
-    ctx = _Context(network, plant, col, tol, certify)
+    if decided_by == SEQUENTIAL:
+        ctx: _Context | SeqContext = SeqContext(network, pf, tol, certify,
+                                                seed=modal_gains(network) if exact_region
+                                                else None)
+        col = nk.Collection(np.zeros((0, N), dtype=bool), True)
+    else:
+        plant = nk.Plant(st.a, st.c, _owner(network))
+        col = nk.collection_for(pf, N)
+        ctx = _Context(network, plant, col, tol, certify)
     claims = ["docs/theory.md §9 [beyond]: the necessary and sufficient surfaces, and the up-set "
               "property of the region, are stated in docs/theory.md §9 as claims to test"]
     if exact_region:
         claims.append("exact region by modal one-step observability: proof in "
                       "kfcrit.theory.links.network (beyond docs/theory.md §9, a claim until reviewed)")
     warnings: list[str] = []
-    if not col.complete:
+    if decided_by == SEQUENTIAL:
+        claims.append("docs/theory.md §15: the sufficient surface uses one-sensor maps with "
+                      "product-form gains (polynomial in N; never less conservative than every "
+                      "received set)")
+    elif not col.complete:
         warnings.append(f"{N} sensors: the sufficient surface uses the {col.size} most likely "
                         "received sets, the rest counted as total loss (a valid, more "
                         "conservative sufficient condition)")
@@ -636,10 +684,10 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     # ---- uniform margin
     upath = uniform_path(pf)
     s_nec_u = necessary_along(cons, upath, -1.0, 1.0)
-    if exact_region:
+    if exact_region and not isinstance(ctx, SeqContext):
         bu = Boundary(s_nec_u, s_nec_u, None, "exact region (modal one-step observability)")
     else:
-        bu = _boundary(ctx, upath, -1.0, 1.0, s_nec_u)
+        bu = ctx.path_boundary(upath, -1.0, 1.0, s_nec_u)
     margin = _uniform_margin(bu, pf, exact_region)
 
     # ---- facts at p (the verdict is read from them in kfcrit.analysis.verdict)
@@ -655,7 +703,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     elif exact_region and nec is True:
         reason = ("every necessary constraint holds and the region is exactly the necessary "
                   "region (modal one-step observability)")
-        if N <= nk.EXACT_MAX_SENSORS:
+        if N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
             chk, _ = ctx.try_at(pf)
             cert = chk.to_dict() if chk is not None else None
             if chk is None:
@@ -690,7 +738,8 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                       "basis": "proof in kfcrit.theory.links.network (claim beyond docs/theory.md §9)"},
         certificate=cert,
         method={"received_sets": col.size, "all_received_sets": col.complete,
-                "tolerance": tol, "ball_checked": certify, **ctx.stats},
+                "tolerance": tol, "ball_checked": certify, "decided_by": decided_by,
+                **ctx.stats},
         claims=tuple(claims), warnings=tuple(warnings), seconds=time.perf_counter() - t0)
     if N == 1:
         result = _single_link_overlay(network, result, pf, pe, tol)
@@ -702,7 +751,6 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     network = ctx.network
     name = network.names[i]
     possible, nval, nexpr = necessary_coordinate(cons, i, pf, pe)
-    path = coordinate_path(pf, i)
     if not possible:
         crit = {"value": None, "interval": None, "exact": True, "expression": None,
                 "basis": "necessary surface: a constraint without this sensor fails, so no "
@@ -710,10 +758,10 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
         surfaces = {"necessary": None, "sufficient": None}
         b = Boundary(None, None, None, "")
     else:
-        if exact_region:
+        if exact_region and not isinstance(ctx, SeqContext):
             b = Boundary(nval, nval, None, "exact region")
         else:
-            b = _boundary(ctx, path, 0.0, 1.0, nval)
+            b = ctx.coordinate_boundary(i, pf, nval)
         surfaces = {"necessary": {"value": nval, "expression": _expr_text(nexpr)},
                     "sufficient": ({"value": b.s_cert, "certificate": b.check, "note": b.note}
                                    if b.s_cert is not None else None)}
@@ -856,9 +904,7 @@ def _constraint_dict(network: Network, c: Constraint) -> dict[str, Any]:
             "condition": "prod over sensors not blind of (1 - p_i) * modulus2 < 1"}
 
 
-# ---------------------------------------------------------------------------------------------
-# one sensor: the single-link theory
-# ---------------------------------------------------------------------------------------------
+# ---- one sensor: the single-link theory
 
 def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                          pe: list[sp.Expr | None], tol: float) -> NetworkResult:

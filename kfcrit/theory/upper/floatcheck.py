@@ -109,7 +109,7 @@ def pow2_diagonal(d: np.ndarray) -> np.ndarray:
     return np.array([math.ldexp(1.0, -round(math.log2(x) / 2)) for x in d])
 
 
-def definite_margin(M: Interval) -> float | None:
+def verified_definite_margin(M: Interval) -> float | None:
     """Rigorous lower bound on λ_min(S M S) > 0 for the symmetric exact matrix M in the
     interval (S a power-of-two diagonal), or None if not proven.
 
@@ -182,10 +182,10 @@ def verify_upper_float(a: np.ndarray, c: np.ndarray, p: float, X: np.ndarray,
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(K))):
         return False, None, None, "non-finite certificate entry"
     Xi, M = upper_operands(np.asarray(a, float), np.asarray(c, float), X, K, float(p))
-    mx = definite_margin(Xi)
+    mx = verified_definite_margin(Xi)
     if mx is None:
         return False, None, None, "X is not proven positive definite"
-    mm = definite_margin(M)
+    mm = verified_definite_margin(M)
     if mm is None:
         return False, mx, None, "X - L_{K,p}(X) is not proven positive definite"
     return True, mx, mm, "proven"
@@ -241,12 +241,12 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
         return False, None, None, "non-finite certificate entry"
     G, GXG, M = basis_operands(np.asarray(a, float), np.asarray(c, float), float(p),
                                np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map)
-    if definite_margin(G) is None:
+    if verified_definite_margin(G) is None:
         return False, None, None, "the basis Z is not proven invertible (Z'Z > 0)"
-    mx = definite_margin(GXG)
+    mx = verified_definite_margin(GXG)
     if mx is None:
         return False, None, None, "X is not proven positive definite"
-    mm = definite_margin(M)
+    mm = verified_definite_margin(M)
     if mm is None:
         return False, mx, None, "X - L_{K,p}(X) is not proven positive definite"
     return True, mx, mm, "proven"

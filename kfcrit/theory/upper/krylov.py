@@ -62,7 +62,7 @@ def gain_and_correction(A: np.ndarray, C: np.ndarray,
     return K, symmetrize(-K @ AXC.T)
 
 
-def second_moment(A: np.ndarray, F: np.ndarray, X: np.ndarray, p: float) -> np.ndarray:
+def second_moment_operator(A: np.ndarray, F: np.ndarray, X: np.ndarray, p: float) -> np.ndarray:
     """L_{K,p}(X) = (1−p) A X A' + p F X F' for F = A + K C."""
     return (1 - p) * (A @ X @ A.T) + p * (F @ X @ F.T)
 
@@ -108,7 +108,7 @@ def threshold_newton_krylov(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: fl
 
         def apply(v, F=F, P=P, p=p):
             dX = v[:-1].reshape(k, k)
-            return np.concatenate([(second_moment(A, F, dX, p) - dX - v[-1] * P).ravel(),
+            return np.concatenate([(second_moment_operator(A, F, dX, p) - dX - v[-1] * P).ravel(),
                                    [np.trace(dX)]])
 
         d = _gmres(apply, -res, 1e-11, counter)
@@ -159,7 +159,7 @@ def eigen_newton_krylov(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float,
 
         def apply(v, F=F, X=X, r=r):
             dX = v[:-1].reshape(k, k)
-            return np.concatenate([(second_moment(A, F, dX, p) - r * dX - v[-1] * X).ravel(),
+            return np.concatenate([(second_moment_operator(A, F, dX, p) - r * dX - v[-1] * X).ravel(),
                                    [np.trace(dX)]])
 
         d = _gmres(apply, -res, 1e-11, counter)
@@ -185,11 +185,11 @@ def stein_solve_krylov(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: float, W:
 
     def apply(v):
         Y = v.reshape(k, k)
-        return (Y - second_moment(A, F, Y, p)).ravel()
+        return (Y - second_moment_operator(A, F, Y, p)).ravel()
 
     X = np.zeros((k, k))
     for _ in range(refinements + 1):
-        R = W - (X - second_moment(A, F, X, p))
+        R = W - (X - second_moment_operator(A, F, X, p))
         X = symmetrize(X + _gmres(apply, symmetrize(R).ravel(), 1e-12, counter).reshape(k, k))
     return X, counter[0]
 
