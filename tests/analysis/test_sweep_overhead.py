@@ -61,7 +61,7 @@ def test_system_parsed_and_theory_computed_once_per_process(tmp_path: Path,
 
 
 def test_lean_point_path_equals_analyze(tmp_path: Path) -> None:
-    from kfcrit.analysis.record import analyze
+    from kfcrit.analysis.record import analyze_system as analyze
 
     spec = _spec(tmp_path, 30)
     memo: dict = {}
