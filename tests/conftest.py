@@ -88,11 +88,3 @@ def example_records() -> dict[str, object]:
     return {p.name: analyze_system(load_spec(p), quick=True) for p in example_files()}
 
 
-@pytest.fixture(autouse=True)
-def _fresh_upper_bound_memo():
-    """p_up is memoised by matrix contents (a pure function of A and C); a test that injects a
-    fault into its numerics must not leave a faulty memo to the next test."""
-    yield
-    from kfcrit.theory.upper import bracket as upper
-
-    upper.clear_memo()

@@ -38,6 +38,7 @@ from kfcrit.analysis.requirements import (
     tail_simulation_check,
 )
 from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord, record_from_json
+from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import System, conditioning_warnings
@@ -101,7 +102,7 @@ class AnalysisOptions:
     TypeError: AnalysisOptions.__init__() got an unexpected keyword argument 'nonsense'
     """
 
-    tolerance: float = 1e-9
+    tolerance: float = DEFAULT_TOLERANCE
     upper_tol: float = 1e-9
     simulate: bool = True
     quick: bool = False
@@ -125,6 +126,9 @@ class TheorySections:
     p_low_exact: Any = None
     structure: Any = None
     """The eigen-structure (:func:`kfcrit.theory.structure.eigen.structure_of`) the sections used."""
+    upper: Any = None
+    """The p_up bracket (:class:`kfcrit.theory.upper.record.UpperBound`) behind ``upper_bound``,
+    passed to the covariance bounds so that p_up is computed once per system."""
 
 
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
@@ -333,11 +337,15 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     d = crit.to_dict()
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])
+    ub_result = None
     if sec.get("classification") == "not-detectable":
         sec["upper_bound"] = not_detectable_upper()
     else:
-        ub = upper_bound if upper_bound is not None else upper.upper_section(
-            system, tol=opts.upper_tol, structure=structure)
+        if upper_bound is None:
+            ub_result = upper.upper_result(system, tol=opts.upper_tol, structure=structure)
+            ub = ub_result.to_dict()
+        else:
+            ub = upper_bound
         sec["upper_bound"] = ub
         warnings.extend(ub.get("warnings") or [])
     close_bracket(sec)
@@ -345,7 +353,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     lower = getattr(crit, "lower", None)
     return TheorySections(sections=sec, warnings=tuple(warnings),
                           critical_exact=getattr(value, "expr", None),
-                          p_low_exact=getattr(lower, "expr", None), structure=structure)
+                          p_low_exact=getattr(lower, "expr", None), structure=structure,
+                          upper=ub_result)
 
 
 def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
@@ -445,7 +454,8 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
         sec["covariance_bounds"] = network_lower_bound(spec.network)
     elif spec.mesh is None and (opts.details
                                 or getattr(reqs, "max_mean_error_trace", None) is not None):
-        _bounds_sections(spec, sec, warnings, curves=opts.details, quick=opts.quick)
+        _bounds_sections(spec, sec, warnings, curves=opts.details, quick=opts.quick,
+                         upper=theory.upper)
     tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
     if spec.network is not None and spec.network.size > 1:
         if opts.simulate and opts.details and not (opts.quick and s.n >
@@ -574,7 +584,7 @@ def close_bracket(sec: dict[str, Any]) -> None:
 
 
 def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str], *,
-                     curves: bool = True, quick: bool = False) -> None:
+                     curves: bool = True, quick: bool = False, upper: Any = None) -> None:
     """Covariance bounds at the operating point; with ``curves`` also the static gains and the
     phase-transition curves tr S̄(p), tr V̄(p)."""
     import numpy as np
@@ -611,7 +621,7 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
         return
     try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
         if markers["operating"] is not None:
-            cb = bounds.covariance_bounds(s, markers["operating"])
+            cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
             if spec.channel is not None and spec.channel.model == "gilbert-elliott":
                 from kfcrit.theory.links.burstcov import markov_jump_bounds
 
@@ -621,11 +631,12 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
             sec["covariance_bounds"] = cb
             warnings.extend(cb.get("warnings") or [])
             if curves:
-                sec["static_gain"] = bounds.static_gain(s, markers["operating"])
+                sec["static_gain"] = bounds.static_gain(s, markers["operating"], upper=upper)
         if not curves:
             return
-        pt = (bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS)
-              if quick and s.n > 20 else bounds.phase_transition(s, markers))
+        pt = (bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
+                                      upper=upper)
+              if quick and s.n > 20 else bounds.phase_transition(s, markers, upper=upper))
     except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
         warnings.append("covariance bounds and phase transition not computed: numerical "
                         f"failure ({type(exc).__name__}: {str(exc)[:120]})")

@@ -232,7 +232,7 @@ class SweepTable:
 
 
 def sweep(sweep_file: str | Path, output: str | Path | None = None, *, workers: int = 1,
-          max_states: int = 400, write: bool = True, scheduler: str | None = None
+          max_states: int = MAX_STATES_DEFAULT, write: bool = True, scheduler: str | None = None
           ) -> SweepTable:
     r"""Run (or resume) the sweep of ``sweep_file`` from Python and return its table.
 

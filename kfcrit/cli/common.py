@@ -17,6 +17,7 @@ from typing import Any
 
 import click
 
+from kfcrit.defaults import MAX_STATES_DEFAULT
 from kfcrit.errors import ExitCode, KfcritError
 from kfcrit.io.safeio import printable
 
@@ -316,7 +317,7 @@ class ToleranceType(click.ParamType):
 
 
 debug_option = click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
-max_states_option = click.option("--max-states", type=click.IntRange(1, 100_000), default=400,
+max_states_option = click.option("--max-states", type=click.IntRange(1, 100_000), default=MAX_STATES_DEFAULT,
                                  show_default=True, help="Refuse systems with more states.")
 
 

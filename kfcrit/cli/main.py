@@ -22,6 +22,7 @@ from kfcrit.cli.common import (
 )
 from kfcrit.cli.inspect import check, radios, schema
 from kfcrit.cli.link import link
+from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.version import __version__
 
 
@@ -42,7 +43,7 @@ main.add_command(link)
 @main.command("analyze", epilog=EXAMPLES)
 @click.argument("system_file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the analysis record as JSON.")
-@click.option("--tolerance", type=ToleranceType(), default=1e-9, show_default=True,
+@click.option("--tolerance", type=ToleranceType(), default=DEFAULT_TOLERANCE, show_default=True,
               help="Relative perturbation size for the robust critical value, in [0, 0.1].")
 @click.option("--no-simulate", is_flag=True, help="Skip the Monte Carlo simulation.")
 @click.option("--quick", is_flag=True, help="Fewer simulations (a fast draft).")
@@ -93,7 +94,7 @@ def long_run_hint(n: int, *, quick: bool, simulate: bool) -> str | None:
               help="Format of a single output whose extension does not say it.")
 @click.option("--quick", is_flag=True, help="A fast draft with fewer simulations.")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
-@click.option("--tolerance", type=ToleranceType(), default=1e-9, show_default=True,
+@click.option("--tolerance", type=ToleranceType(), default=DEFAULT_TOLERANCE, show_default=True,
               help="Relative perturbation size for the robust critical value, in [0, 0.1].")
 @max_states_option
 @debug_option

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from kfcrit.defaults import DEFAULT_TOLERANCE, MAX_STATES_DEFAULT
 from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
 from kfcrit.io.safeio import read_text
@@ -151,8 +152,8 @@ def analysed_record(source: str | Path, *, quick: bool, seed: int, tolerance: fl
 
 
 def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None = None,
-                   quick: bool = False, seed: int = 0, max_states: int = 400,
-                   tolerance: float = 1e-9, options_given: Sequence[str] = ()) -> int:
+                   quick: bool = False, seed: int = 0, max_states: int = MAX_STATES_DEFAULT,
+                   tolerance: float = DEFAULT_TOLERANCE, options_given: Sequence[str] = ()) -> int:
     """``kfcrit report``: write the report of ``source`` to every path in ``outputs``.
 
     Parameters

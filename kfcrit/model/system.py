@@ -17,12 +17,9 @@ import numpy as np
 import sympy as sp
 from sympy.core.evalf import PrecisionExhausted
 
+from kfcrit.defaults import MAX_STATES_DEFAULT
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import MAX_WORKING_DIGITS
-
-MAX_STATES_DEFAULT = 400
-"""Largest state dimension accepted unless the caller raises the guard (``max_states``)."""
-
 
 PARSE_TIME_BUDGET = 15.0
 """Seconds one System construction may spend parsing and checking expression strings; beyond

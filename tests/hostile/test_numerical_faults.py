@@ -99,7 +99,6 @@ def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
     # "undetermined" with the bracket obtained so far [p_low, 1] — never exit 4, never a guess
     import numpy as np
 
-    import kfcrit.theory.upper.bracket as upper
     import kfcrit.theory.upper.newton as newton
 
     def newton_fails(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
@@ -110,7 +109,6 @@ def test_solver_failure_through_the_cli_is_exit_3_with_the_bracket(
 
     monkeypatch.setattr(newton, "threshold_newton", newton_fails)
     monkeypatch.setattr(cp.Problem, "solve", lmi_fails)
-    upper.clear_memo()
     p = tmp_path / "s.yaml"
     p.write_text("name: general\nA: [[1.25, 0], [1, 1.1]]\nC: [[1, 1]]\nQ: 20\nR: 2.5\n")
     r = CliRunner().invoke(main, ["analyze", str(p), "--json", "--no-simulate"])

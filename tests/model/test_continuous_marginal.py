@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 from kfcrit.cli.main import main
 from kfcrit.model.system import System
-from kfcrit.theory.upper.bracket import clear_memo, upper_bound
+from kfcrit.theory.upper.bracket import upper_bound
 
 R_ = sp.Rational
 
@@ -56,7 +56,6 @@ def recheck(system: System, certificate: dict, p: float) -> bool:
 
 @pytest.mark.parametrize("name", sorted(MARGINAL))
 def test_marginal_p_up_is_certified_within_tol(name: str) -> None:
-    clear_memo()
     A, C = MARGINAL[name]
     system = System(A, C, 1, 1)
     tol = 1e-9
@@ -69,7 +68,6 @@ def test_marginal_p_up_is_certified_within_tol(name: str) -> None:
 
 def test_certificate_fails_the_recheck_at_p_zero() -> None:
     """The exact recheck is not vacuous: at p = 0 no X ≻ 0 has X ≻ A X A' for ρ(A) = 1."""
-    clear_memo()
     system = System([[1, "1/10"], [0, 1]], [[1, 0]], 1, 1)
     ub = upper_bound(system, tol=1e-9)
     assert not recheck(system, ub.certificate, 0.0)
@@ -77,7 +75,6 @@ def test_certificate_fails_the_recheck_at_p_zero() -> None:
 
 def test_unstable_system_keeps_its_newton_bracket() -> None:
     """Not marginal: p_up = 1 − 1/(1.25·1.1)² (single output, MATH §3), no slow observer."""
-    clear_memo()
     system = System([["5/4", 0], [1, "11/10"]], [[1, 1]], 20, "5/2")
     ub = upper_bound(system, tol=1e-9)
     expected = 1 - 1 / (1.25 * 1.1) ** 2

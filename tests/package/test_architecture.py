@@ -14,7 +14,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "kfcrit"
 
-LAYERS = {"errors": 0, "version": 0, "model": 1, "io": 2, "theory": 3, "sim": 4, "link": 4,
+LAYERS = {"errors": 0, "version": 0, "defaults": 0, "model": 1, "io": 2, "theory": 3, "sim": 4, "link": 4,
           "analysis": 5, "views": 6, "api": 7, "cli": 7, "bench": 8}
 """Rank of each top-level part of the package; a module may import only ranks ≤ its own, and
 the two rank-4 siblings (sim, link) not each other."""

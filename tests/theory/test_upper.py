@@ -168,7 +168,6 @@ def test_upper_section_never_raises(monkeypatch):
         raise np.linalg.LinAlgError("singular matrix")
 
     monkeypatch.setattr(upper, "newton_method", boom)
-    upper.clear_memo()
     # C not square (the exact C-invertible case does not reach the Newton method)
     d = upper_section(make([[2.0, 0.0], [0.0, 0.5]], [[1.0, 1.0]]))
     assert d["status"] == "undetermined" and d["interval"] == [0.75, 1.0]
@@ -534,7 +533,6 @@ def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
     from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.upper import newton
 
-    upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton", _raise(exc))
     s = System(*random_system(8, 2, 1))
     ub = upper_bound(s, tol=1e-9)
@@ -550,9 +548,7 @@ def test_numerical_failure_inside_upper_bound_is_undetermined(monkeypatch, exc):
 
 
 def test_numpy_solve_failure_is_undetermined(monkeypatch):
-    from kfcrit.theory.upper import bracket as upper
 
-    upper.clear_memo()
     monkeypatch.setattr(np.linalg, "solve", _raise(np.linalg.LinAlgError("Singular matrix")))
     ub = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]]))
     assert ub.status == "undetermined" and ub.interval[1] == 1.0
@@ -562,10 +558,8 @@ def test_numpy_solve_failure_is_undetermined(monkeypatch):
 def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
     import cvxpy
 
-    from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.upper import lmi
 
-    upper.clear_memo()
     monkeypatch.setattr(lmi, "lmi_upper_bound", _raise(cvxpy.error.SolverError("Clarabel")))
     ub = upper_bound(make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]]), tol=1e-7, method="lmi")
     assert ub.status == "undetermined" and ub.method == "lmi"
@@ -573,10 +567,8 @@ def test_solver_error_of_the_lmi_is_undetermined(monkeypatch):
 
 
 def test_programming_errors_are_not_swallowed(monkeypatch):
-    from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.upper import newton
 
-    upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton", _raise(TypeError("a bug")))
     with pytest.raises(TypeError):
         upper_bound(System(*random_system(8, 2, 1)), tol=1e-9)
@@ -595,12 +587,10 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
 
     import kfcrit
     from kfcrit.cli.main import main
-    from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.upper import newton
 
     path = tmp_path / "no-channel.yaml"
     path.write_text(NO_CHANNEL)
-    upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton",
                         _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
     rec = kfcrit.analyze(read_system_file(path), simulate=False).to_dict()
@@ -614,10 +604,8 @@ def test_numerical_failure_through_analyze_and_the_cli(monkeypatch, tmp_path):
 
 
 def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
-    from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.upper import newton
 
-    upper.clear_memo()
     monkeypatch.setattr(newton, "threshold_newton",
                         _raise(np.linalg.LinAlgError("Singular matrix (injected)")))
     s = make([[1.25, 0.0], [1.0, 1.1]], [[1.0, 1.0]])
@@ -646,14 +634,11 @@ def _sqrt3_system(tmp_path, name):
 def test_upper_bound_does_not_depend_on_call_order(tmp_path):
     # one unstable mode sqrt(3) seen by C: p_up = p_c = p_low = 1 - 1/3 = 2/3 (single mode)
     from kfcrit.theory.critical import section as critical
-    from kfcrit.theory.upper import bracket as upper
 
     first = _sqrt3_system(tmp_path, "a.yaml")
-    upper.clear_memo()
     before = upper_bound(first, tol=1e-9)
     second = _sqrt3_system(tmp_path, "b.yaml")
     critical.critical_value(second)            # runs (and memoises) the structure analysis
-    upper.clear_memo()
     after = upper_bound(second, tol=1e-9)
     assert after.interval == before.interval and after.lower_evidence == before.lower_evidence
     # the structure passed explicitly: the exact p_low 2/3 is enclosed by the interval
@@ -681,22 +666,17 @@ def test_power_bisection_checks_once_in_balls_and_defers_beyond_the_size_limit(m
     # random_system(8, 2, 1) through the large-block path (NEWTON_MAX_REDUCED lowered): the
     # bracket must contain the Newton path's certified p_up; with the ball check deferred the
     # upper end is labelled numerical (not certified), never silently "proven"
-    from kfcrit.theory.upper import bracket as upper
     from kfcrit.theory.upper import newton
 
     s = System(*random_system(8, 2, 1))
-    upper.clear_memo()
     ref = upper_bound(s, tol=1e-9)
     assert ref.certified
     monkeypatch.setattr(newton, "NEWTON_MAX_REDUCED", 1)
-    upper.clear_memo()
     big = upper_bound(s, tol=1e-9, method="newton")
     assert big.certified and big.solver["certificate_checks"] <= 3
     assert big.interval[0] <= ref.interval[1] and ref.interval[0] <= big.interval[1]
     monkeypatch.setattr(newton, "BALL_CHECK_MAX_STATES", 0)
-    upper.clear_memo()
     deferred = upper_bound(s, tol=1e-9, method="newton")
     assert not deferred.certified and deferred.status == "undetermined"
     assert deferred.solver["certificate_checks"] == 0
     assert any("deferred" in w for w in deferred.warnings)
-    upper.clear_memo()

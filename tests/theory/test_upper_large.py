@@ -37,9 +37,7 @@ def large_path(monkeypatch):
     """Send every unstable block with more than 8 states to the large-block method."""
     monkeypatch.setattr(newton, "NEWTON_MAX_REDUCED", 8)
     monkeypatch.setattr(newton, "KRYLOV_MIN_REDUCED", 9)
-    bracket.clear_memo()
     yield
-    bracket.clear_memo()
 
 
 def test_large_path_contains_an_independent_mare_estimate(large_path):

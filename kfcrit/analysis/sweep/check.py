@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from kfcrit.defaults import MAX_STATES_DEFAULT
 from kfcrit.errors import InputError, KfcritError
 from kfcrit.io.systemfile import read_yaml
 
@@ -126,7 +127,7 @@ def check_points(spec: SweepSpec, doc: dict, *, max_states: int) -> None:
                              field="sweep.points" if "points" in doc else "sweep.grid") from None
 
 
-def check_sweep_file(path: str | Path, *, max_states: int = 400) -> SweepSpec:
+def check_sweep_file(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SweepSpec:
     """Validate a sweep file as ``kfcrit check`` does and return its
     :class:`~kfcrit.analysis.sweep.points.SweepSpec` (nothing is analysed or written)."""
     from kfcrit.analysis.sweep.points import load_sweep

@@ -80,6 +80,7 @@ from kfcrit.analysis.sweep.run import (  # noqa: F401 - re-exported for callers
     run_serial,
     terminate_pool,
 )
+from kfcrit.defaults import MAX_STATES_DEFAULT
 from kfcrit.errors import ExitCode, InputError, KfcritError
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.safeio import printable
@@ -352,7 +353,7 @@ def _load_base(system: Any, sweep_dir: Path) -> tuple[dict, Path, str | None]:
     raise InputError("must be a system file path or an inline system mapping", field="system")
 
 
-def load_sweep(path: str | Path, *, max_states: int = 400) -> SweepSpec:
+def load_sweep(path: str | Path, *, max_states: int = MAX_STATES_DEFAULT) -> SweepSpec:
     """Read and validate a sweep file (every error is one line naming the field)."""
     from kfcrit.io.systemfile import read_yaml
     from kfcrit.model.channels import check_keys
@@ -813,7 +814,7 @@ class SweepResult:
 
 
 def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = None,
-              workers: int | None = None, max_states: int = 400,
+              workers: int | None = None, max_states: int = MAX_STATES_DEFAULT,
               progress: Callable[[int, int], tuple[Callable[[int], None], Callable[[], None]]]
               | None = None, journal: bool = True) -> SweepResult:
     """Run (or resume) a sweep, journalling each finished point in the folder ``output``.

@@ -345,8 +345,15 @@ def upper_covariance(system: System, p: float, gains: list[np.ndarray] | None = 
             "residual": None if V is None else mare_residual(A, C, Q, R, V, p)}
 
 
-def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = None
-                      ) -> dict[str, Any]:
+def upper_of(system: System, upper: Any = None) -> Any:
+    """The p_up bracket (:class:`kfcrit.theory.upper.record.UpperBound`) the caller computed,
+    else computed here: pass it in (``upper``) so that p_up is computed once per record."""
+    if upper is not None and not isinstance(upper, dict):
+        return upper
+    return upper_module.upper_bound(system)
+
+
+def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, Any]:
     r"""S̄ and V̄ at arrival probability p (Sinopoli Thm 4, 6).
 
     For p > p_up the limit of the mean error covariance is bracketed:
@@ -398,8 +405,8 @@ def covariance_bounds(system: System, p: float, upper: dict[str, Any] | None = N
     """
     p = float(p)
     S = lower_covariance(system.a, system.q, p)
-    if upper is None:
-        ub = upper_module.upper_bound(system)
+    if upper is None or not isinstance(upper, dict):
+        ub = upper_of(system, upper)
         lo_up, gains = ub.interval[0], ([ub.extras["K"]] if "K" in ub.extras else [])
     else:
         lo_up, gains = float(upper["interval"][0]), []
@@ -494,7 +501,8 @@ def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarra
 
 def phase_transition(system: System, markers: dict[str, float | None] | None = None,
                      points: int = 120, time_budget: float | None = None,
-                     clock: Callable[[], float] = time.perf_counter) -> dict[str, Any]:
+                     clock: Callable[[], float] = time.perf_counter,
+                     upper: Any = None) -> dict[str, Any]:
     """tr S̄(p) and tr V̄(p) on a grid resolving the blow-ups at p_low and p_up.
 
     ``clock`` measures the time budget (injectable, so that tests count work instead of
@@ -515,7 +523,7 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     markers = dict(markers or {})
     p_low = markers.get("p_low")
     p_low = plow.p_low_of(system.a) if p_low is None else float(p_low)
-    ub = upper_module.upper_bound(system)
+    ub = upper_of(system, upper)
     p_up = markers.get("p_up")
     p_up = (ub.value if p_up is None else float(p_up))
     lo_up = ub.interval[0] if ub.value is not None else 1.0
@@ -624,7 +632,7 @@ STATIC_GAIN_MAX_STATES = 30
 """Largest n for the fixed-gain section (its vech eigenproblems cost O(n⁶); n = 60 took 46 s)."""
 
 
-def static_gain(system: System, p: float) -> dict[str, Any]:
+def static_gain(system: System, p: float, upper: Any = None) -> dict[str, Any]:
     """Steady Kalman gain and best static gain: mean-square critical values and covariances.
 
     * steady Kalman gain K_∞ = −A P C'(C P C' + R)^{-1}, P the stabilising DARE solution (the
@@ -651,7 +659,7 @@ def static_gain(system: System, p: float) -> dict[str, Any]:
         K_kf = optimal_gain(A, C, R, P) if np.all(np.isfinite(P)) else None
     except (np.linalg.LinAlgError, ValueError):
         K_kf = None
-    ub = upper_module.upper_bound(system)
+    ub = upper_of(system, upper)
     rows = [("kalman", K_kf)]
     rows.append(("best", ub.extras.get("K")))
     for name, K in rows:

@@ -29,6 +29,7 @@ from typing import Any
 
 import sympy as sp
 
+from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.errors import InputError
 from kfcrit.model.system import System
 from kfcrit.theory.critical.classify import block_lower, c_full_rank, classify_structure, lower_of
@@ -210,7 +211,7 @@ def _coinciding(system: System, st: Structure, low: Num, blow: Num, bwhy: str
     return None
 
 
-def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
+def critical_value(system: System, tolerance: float = DEFAULT_TOLERANCE, channel: Any = None,
                    structure: Structure | None = None, robust: bool = True) -> CriticalValue:
     r"""Classify (A, C), give p_c exactly where a theorem applies, and its robust value.
 
@@ -320,7 +321,7 @@ def critical_value(system: System, tolerance: float = 1e-9, channel: Any = None,
                          theory=theory, warnings=tuple(warnings), basis=basis)
 
 
-def critical_section(system: System, tolerance: float = 1e-9, channel: Any = None,
+def critical_section(system: System, tolerance: float = DEFAULT_TOLERANCE, channel: Any = None,
                      structure: Structure | None = None) -> dict[str, Any]:
     """``critical_value(system, tolerance, channel, structure).to_dict()``.
 

@@ -23,6 +23,8 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from kfcrit.defaults import DEFAULT_TOLERANCE
+
 EXACT_MAX_STATES = 6
 """Largest n for the exact path (beyond it the number-field arithmetic grows too fast)."""
 EXACT_MAX_STATES_BINARY_FLOAT = 3
@@ -50,8 +52,6 @@ EXACT_MAX_FIELD_DEGREE = 16
 """Largest degree over Q of the entry field K for the exact path."""
 MAX_DENOMINATOR = 1000
 """Largest q for which a floating-point angle φ/2π is matched to a rational r/q."""
-DEFAULT_TOLERANCE = 1e-9
-"""Default decision tolerance of the numeric path (= the default ``--tolerance``)."""
 NUMERIC_FLOOR = 64 * float(np.finfo(float).eps)
 """Least numeric decision tolerance: below ~64 ulp a float64 comparison decides nothing."""
 NUMERIC_TOLERANCES = {

@@ -38,7 +38,6 @@ public interface.
 """
 from __future__ import annotations
 
-import functools
 import math
 import sys
 import time
@@ -172,7 +171,7 @@ def upper_bound(system: System, tol: float = 1e-9, method: str = "auto",
         key = ((sp.srepr(system.A), sp.srepr(system.C)) if system.exact else
                (system.a.tobytes(), system.c.tobytes(), system.a.shape, system.c.shape),
                float(tol), method)
-        raw = _memo(_Problem(key, system, float(tol), method, progress))
+        raw = _solve(_Problem(key, system, float(tol), method, progress))
         # the LMI works to max(tol, 1e-7): judge its width by the tolerance it used
         used = max(tol, 1e-7) if raw.method == "lmi" else tol
         return _exact_lower_end(system, raw, used, known)
@@ -196,18 +195,12 @@ class _Problem:
     progress: dict[str, Any] = field(compare=False, hash=False)
 
 
-@functools.lru_cache(maxsize=16)
-def _memo(problem: _Problem) -> UpperBound:
-    """The bracket as a pure function of ``problem.key`` (a bounded memo: the record asks for
-    p_up from several sections). Numerical failures raise and are not memoised; what the
-    caller's structure adds (the exact p_low) is applied after, outside the memo."""
+def _solve(problem: _Problem) -> UpperBound:
+    """The bracket of ``problem`` (no memo: callers that need p_up again pass the result in,
+    e.g. :func:`kfcrit.theory.covariance.bounds.phase_transition`'s ``upper``); what the
+    caller's structure adds (the exact p_low) is applied after."""
     result = _upper_bound_raw(problem.system, problem.tol, problem.method, problem.progress)
     return replace(result, tolerance=problem.tol)
-
-
-def clear_memo() -> None:
-    """Forget memoised results (tests that patch the numerics call this)."""
-    _memo.cache_clear()
 
 
 def numerical_failure_types() -> tuple[type[BaseException], ...]:
@@ -396,13 +389,19 @@ def marginal_certificate(system: System, tol: float) -> UpperBound | None:
     return None
 
 
-def upper_section(system: System, tol: float = 1e-9,
-                  structure: Any | None = None) -> dict[str, Any]:
-    """``upper_bound(system, tol, structure=structure).to_dict()``; numerical trouble gives
-    status "undetermined"."""
+def upper_result(system: System, tol: float = 1e-9,
+                 structure: Any | None = None) -> UpperBound:
+    """``upper_bound(system, tol, structure=structure)``; numerical trouble gives status
+    "undetermined" with the bracket [p_low, 1]."""
     try:
-        return upper_bound(system, tol=tol, structure=structure).to_dict()
+        return upper_bound(system, tol=tol, structure=structure)
     except (np.linalg.LinAlgError, ValueError, ArithmeticError, RuntimeError) as exc:
         p_low = p_low_bounds(system, structure).down
         return UpperBound(None, (p_low, 1.0), False, "undetermined", "newton", None,
-                          evidence_p_low(p_low), {}, (f"numerical failure: {exc}",)).to_dict()
+                          evidence_p_low(p_low), {}, (f"numerical failure: {exc}",))
+
+
+def upper_section(system: System, tol: float = 1e-9,
+                  structure: Any | None = None) -> dict[str, Any]:
+    """The record's ``upper_bound`` section: :func:`upper_result` as JSON data."""
+    return upper_result(system, tol, structure).to_dict()

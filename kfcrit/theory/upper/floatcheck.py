@@ -14,7 +14,7 @@ midpoint-radius form (docs/theory.md §3, "Verified float64 check"): a matrix is
 
 * a product of floats computed in any order (BLAS, FMA or not): |fl(UV) − UV| ≤ γ_q |U||V|
   + q·η, γ_q = q u/(1 − q u), u = 2⁻⁵³, η = 2⁻¹⁰⁷⁴ (underflow), q the inner dimension
-  (Higham, *Accuracy and Stability of Numerical Algorithms*, §3.1 and §3.5);
+  (Higham, *Accuracy and Stability of Numerical Algorithms*, sections 3.1 and 3.5);
 * products of intervals: ⟨M₁, R₁⟩⟨M₂, R₂⟩ ⊆ ⟨M₁M₂, |M₁|R₂ + R₁(|M₂| + R₂)⟩ (Rump 1999);
 * every radius is a sum of non-negative terms computed in floats, hence at most
   (1 + γ_{q+8}) above its computed value: radii are multiplied by ``INFLATE`` = 1 + 1e-10
