@@ -58,6 +58,8 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     HALF_WIDTH_IN,
     HEIGHT_IN,
     WIDTH_IN,
+    draw_ecdf,
+    draw_mean_band,
     finite,
     floats,
     fmt,
@@ -241,15 +243,9 @@ def draw_operating(record: dict[str, Any]) -> Figure | None:
     floor = 0.5 * min(shown)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = new_figure(HALF_HEIGHT_IN, HALF_WIDTH_IN)
-        if lo is not None and hi is not None and len(lo) == len(t) == len(hi):
-            # A lower band end at or below zero cannot be drawn on a log axis: it is drawn to
-            # the bottom of the plot (the band extends below it).
-            lo_c = [max(v, floor) if math.isfinite(v) else v for v in lo]
-            ax.fill_between(t, lo_c, hi, color=COLORS["band"], alpha=0.35, linewidth=0,
-                            label="95 % band of the simulated mean")
         label = ("sample mean of tr $P_t$ (E[tr $P_t$] diverges)" if mean_diverges(op)
                  else "simulated mean tr $P_t$")
-        ax.plot(t, y, color=COLORS["sim"], linewidth=1.3, label=label)
+        draw_mean_band(ax, t, y, lo, hi, floor=floor, mean_label=label)
         if s_tr is not None and s_tr > 0:
             ax.axhline(s_tr, color=COLORS["lower"], linestyle="--", linewidth=1.2,
                        label=r"tr $\bar S$")
@@ -288,8 +284,7 @@ def draw_cdf(record: dict[str, Any]) -> Figure | None:
     tail = tail_of(record)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = new_figure()
-        ax.step(x, f, where="post", color=COLORS["sim"], linewidth=1.3,
-                label="empirical CDF of tr P")
+        draw_ecdf(ax, x, f)
         if limit is not None and limit > 0:
             text = f"limit M = {limit:.4g}"
             if tail is not None:
@@ -303,7 +298,6 @@ def draw_cdf(record: dict[str, Any]) -> Figure | None:
             if math.isfinite(x[-1]) and math.isfinite(f[-1]) and x[-1] < right:
                 ax.plot([x[-1], right], [f[-1], f[-1]], color=COLORS["sim"], linewidth=1.3)
         plain_log_labels(ax, "x")
-        ax.set_ylim(0, 1.02)
         ax.set_xlabel("tr P at the simulation horizon")
         ax.set_ylabel("P(tr P ≤ x)")
         # Below the axes, as in the other figures: it can never cover the curve or the limit.

@@ -15,6 +15,7 @@ from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
 from kfcrit.sim.results import SimulationResult
 from kfcrit.sim.stats import quiet_numerics
+from kfcrit.views.figures.style import draw_ecdf, draw_mean_band
 
 BAND_FLOOR = 0.1
 """On the log axis the lower band end is floored at this fraction of the smallest positive
@@ -74,8 +75,8 @@ def plot_mean(ax: Any, result: SimulationResult) -> None:
         for k, row in enumerate(d["traces"]):
             ax.plot(steps, row, lw=0.6, alpha=0.5, color="0.5",
                     label="sample paths" if k == 0 else None)
-    ax.fill_between(d["t"], d["lower"], d["upper"], alpha=0.3, label="95% band of the mean")
-    ax.plot(d["t"], d["mean"], lw=1.5, label="E[tr P_t]")
+    draw_mean_band(ax, d["t"], d["mean"], d["lower"], d["upper"], floor=-math.inf,
+                   mean_label="simulated mean tr P_t")
     bottom, top = d["ylim"]
     if result.diverged_paths and bottom < d["threshold"] < top:
         ax.axhline(d["threshold"], ls=":", lw=1, color="#b91c1c",
@@ -97,16 +98,15 @@ def plot_cdf(ax: Any, result: SimulationResult) -> None:
     x = np.sort(result.horizon_traces)
     F = np.arange(1, x.size + 1) / x.size
     if np.all(np.isfinite(x)) and x.size and x[0] > 0:
-        ax.step(x, F, where="post")
+        draw_ecdf(ax, x, F)
         ax.set_xscale("log")
         ax.set_xlabel(f"tr P at t = {result.steps}")
     else:
         lx = np.sort(result.horizon_log10_traces if result.horizon_log10_traces is not None
                      else np.log10(result.horizon_traces))
         ok = np.isfinite(lx)
-        ax.step(lx[ok], F[ok], where="post")
+        draw_ecdf(ax, lx[ok], F[ok], label="empirical CDF of log10 tr P")
         ax.set_xlabel(f"log10 tr P at t = {result.steps}")
-    ax.set_ylim(0, 1.02)
     ax.set_ylabel("CDF")
 
 

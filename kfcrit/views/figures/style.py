@@ -192,3 +192,29 @@ def arrival_formula(max_retries: int) -> str:
     if max_retries <= 0:
         return "p = 1 − PER"
     return "p = 1 − PER" + str(max_retries + 1).translate(SUPERSCRIPT)
+
+
+def draw_mean_band(ax: Any, t: Sequence[float], mean: Sequence[float],
+                   lower: Sequence[float] | None, upper: Sequence[float] | None, *,
+                   floor: float, mean_label: str,
+                   band_label: str = "95 % band of the simulated mean") -> None:
+    r"""The simulated mean :math:`\overline{\operatorname{tr} P_t}` and its 95 % band — the one
+    drawing of this plot, for the report and for ``kfcrit simulate --plot``.
+
+    A lower band end at or below ``floor`` (zero, or below the axis) is drawn at ``floor``: on a
+    log axis the band then extends below the plot.
+    """
+    if lower is not None and upper is not None and len(lower) == len(t) == len(upper):
+        lo = [max(v, floor) if math.isfinite(v) else v for v in lower]
+        ax.fill_between(t, lo, upper, color=COLORS["band"], alpha=0.35, linewidth=0,
+                        label=band_label)
+    ax.plot(t, mean, color=COLORS["sim"], linewidth=1.3, label=mean_label)
+
+
+def draw_ecdf(ax: Any, x: Sequence[float], f: Sequence[float], *,
+              label: str = "empirical CDF of tr P") -> None:
+    r"""The empirical CDF :math:`\hat F(x) = \#\{k : \operatorname{tr} P^{(k)} \le x\} / N` of
+    the horizon traces as a right-continuous step — the one drawing of this plot, for the report
+    and for ``kfcrit simulate --plot``."""
+    ax.step(x, f, where="post", color=COLORS["sim"], linewidth=1.3, label=label)
+    ax.set_ylim(0, 1.02)
