@@ -105,3 +105,16 @@ def test_rounding_bounds_are_upper_bounds():
     i, j = 3, 7
     exact = sum(Fraction(U[i, k]) * Fraction(V[k, j]) for k in range(40))
     assert abs(Fraction(mid[i, j]) - exact) <= Fraction(rad[i, j])
+
+
+def test_a_large_block_record_is_typed_end_to_end(large_path, tmp_path):
+    """The large-block solver's statistics are fields of the typed record (``analyze`` of a
+    system whose unstable block takes that path round-trips through the strict reader)."""
+    from kfcrit.analysis.record import AnalysisOptions, analyze_system
+    from kfcrit.analysis.sections import record_from_json
+
+    s = _system(30, 6, 3)
+    rec = analyze_system(s, AnalysisOptions(simulate=False, quick=True))
+    solver = rec["upper_bound"]["solver"]
+    assert solver["reduced_states"] > 8 and solver["operator_applications"] > 0
+    assert record_from_json(rec.to_dict()) == rec

@@ -99,3 +99,8 @@ class UpperSolver:
     balancing: str = opt_key()
     ends: str = opt_key()
     cone_checks: dict[str, float | None] = opt_key()
+    mare_start_p: float | None = opt_key()
+    """Arrival probability at which the large-block path starts its MARE warm start."""
+    operator_applications: int = opt_key()
+    """Matrix-free applications of the Lyapunov-type operator (GMRES and Newton, large blocks)."""
+    verified_by: str = opt_key()

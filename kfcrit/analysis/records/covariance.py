@@ -115,6 +115,8 @@ class StaticGain:
     best: BestStaticGain
     p_up: float | None
     p_up_interval: list[float | None] | None
+    skipped: str = opt_key()
+    """Why the static gains were not computed (e.g. a state dimension beyond their limit)."""
 
 
 @dataclass(frozen=True, kw_only=True)
