@@ -76,7 +76,8 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
           "arrival_probabilities": {s.get("name"): s.get("arrival_probability")
                                     for s in sensors},
           "bottleneck": bottleneck,
-          "note": "network: arrival_probability is the bottleneck sensor's; margin is the "
+          "note": "network: the operating-point arrival probability is the bottleneck "
+                  "sensor's; the margin is the "
                   "uniform margin δ (every link degraded by δ reaches the stability boundary)",
           "verdict": verdict.value, "basis": basis}
     return net, op

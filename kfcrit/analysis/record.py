@@ -273,6 +273,16 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     if burst is not None and cls != "not-detectable":
         _burst_margin(out, burst, crit, link if ch.model != "link-budget"
                       else (link or {}).get("bursty"))
+    elif (measured is not None and measured.model == "gilbert-elliott"
+          and measured.worst_burst is not None and cls != "not-detectable"):
+        # a trace fitted as bursty is judged on its own boundary too, at the worst corner of
+        # the confidence region (so the margin's sign agrees with a verdict held there)
+        _burst_margin(out, measured.worst_burst, crit, None)
+        out["margin_basis"] += (f"; at the worst corner (f_hi, r_lo) of the "
+                                f"{measured.confidence:g} confidence region of the trace fit")
+        out["note"] = ("the trace is fitted as a Gilbert–Elliott link: its margin is the "
+                       "recovery rate against r_nec; p_c, p_up and the i.i.d. bounds S̄, V̄ "
+                       "do not apply to it (the i.i.d. comparison p − p_c is kept beside it)")
     out["verdict"] = verdict.value
     out["basis"] = basis
     return out

@@ -343,9 +343,9 @@ def mesh_operating_point(section: MeshSection) -> dict[str, Any]:
                         "routing": section.routing},
             "iid": True, "margin": None, "margin_robust": None, "bracket": None,
             "arrival_probabilities": dict(arr), "bottleneck": section.bottleneck,
-            "note": f"mesh under raw forwarding: arrival_probability is the weakest sensor's "
-                    f"({weakest}); the joint law of the received set, the forwarding modes "
-                    "and N − 1 are in `mesh`",
+            "note": f"mesh under raw forwarding: the operating-point arrival probability is "
+                    f"the weakest sensor's ({weakest}); the joint law of the received set, the "
+                    "forwarding modes and N − 1 are in the mesh section",
             "verdict": section.verdict.value, "basis": section.basis}
 
 
@@ -406,5 +406,5 @@ def mesh_sections(spec: Any, opts: Any, sec: dict[str, Any], warnings: list[str]
     if len(mfile.mesh.sensors) > 1:
         warnings.append("mesh: the top-level critical value and p_up are those of the stacked "
                         "system (every packet arriving together); the mesh's joint law, facts "
-                        "and forwarding modes are in `mesh`")
+                        "and forwarding modes are in the mesh section")
     return hop_link_reasons(mfile, section)

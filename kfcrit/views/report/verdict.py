@@ -103,6 +103,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "iid_verdict": iid_verdict if iid_verdict and iid_verdict != verdict else None,
         "note": sentence(opd.get("note")) if opd.get("note") else None,
         "legend": verdict_legend(op, verdict, opd, network=shows_network(rec, channel)),
+        "meaning": verdict_meaning(rec, opd),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
         "network": network_cells(rec) if shows_network(rec, channel) else None,
@@ -135,6 +136,22 @@ def network_cells(rec: dict[str, Any]) -> dict[str, Any]:
     return {"bottleneck": bn.get("name"),
             "bottleneck_critical": number(crit.get("value")) if crit else None,
             "bottleneck_interval": crit.get("interval") if crit else None}
+
+
+def verdict_meaning(rec: dict[str, Any], opd: dict[str, Any]) -> str:
+    """What the two verdicts mean for this channel (the first sentences of the legend): p
+    against p_c for i.i.d. links; the channel's own boundary for a bursty link, a trace fitted
+    as bursty, or a mesh."""
+    base = "Mean-stable: E[P_t] stays bounded for every initial covariance"
+    if isinstance(rec.get("mesh"), dict):
+        return (base + ", here judged on the mesh's joint law of the received set "
+                "(theory §13), not by one p against p_c. Mean-unstable: it diverges for some.")
+    basis = opd.get("margin_basis")
+    if isinstance(basis, str) and basis.startswith("recovery rate"):
+        return (base + ", here judged on the bursty link's own boundary (recovery rate r "
+                "against the burst conditions of theory §10), not by the average p against "
+                "p_c. Mean-unstable: it diverges for some.")
+    return base + " (p > p_c). Mean-unstable: it diverges for some (p ≤ p_c)."
 
 
 def verdict_legend(op: Any, verdict: Any, opd: dict[str, Any], network: bool = False) -> str:

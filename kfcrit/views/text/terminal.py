@@ -146,6 +146,10 @@ def summary(rec: dict[str, Any]) -> str:
     if stacked:
         lines.append("  stacked system (all sensors on one link): p_c, p_low and p_up below; "
                      "each sensor's own critical value is in the network table")
+    elif rec.get("mesh") is not None:
+        lines.append("  stacked system (all sensors on one link): p_c, p_low and p_up below; "
+                     "the mesh is judged on its joint law of the received set (mesh section), "
+                     "not by one p against this p_c")
     lines.append(f"  critical value p_c    {_num(cv.get('value'), 12)}"
                  f"{_exact(cv) if cv.get('exact') and exact_input else ''}")
     if cv.get("reason"):
