@@ -132,6 +132,14 @@ def channel_defs() -> dict[str, Any]:
                                            "one period see the period's shadowing value; "
                                            "independent: redrawn per attempt (per-packet "
                                            "shadowing only), arrival 1 − E[PER]^(k+1)"},
+                    "fading": _object({
+                        "model": {"enum": ["none", "rayleigh", "nakagami"],
+                                  "description": "none (default), rayleigh (m = 1) or "
+                                  "nakagami: the SNR of each attempt is Gamma(m, mean/m) around "
+                                  "the mean SNR, redrawn per attempt"},
+                        "m": {**num, "description": "Nakagami shape m >= 0.5 (nakagami only)"}},
+                        ["model"], "fast fading redrawn per attempt: the attempt PER is "
+                        "E[PER(gamma)] (exact quadrature); shadowing sets the mean SNR"),
                     "shadowing_correlation": _object({
                         "sample_period_s": {**num, "description": "sampling period of the filter"},
                         "coherence_time_s": {**num, "description": "shadowing coherence time"},

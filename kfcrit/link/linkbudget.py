@@ -7,6 +7,7 @@ The chain, in dB and dBm (every step is a stated formula, tested against indepen
     SINR          SINR_dB = Pr − (N ⊕ I)                       (noise floor and interference)
     frame         L = PHY header + payload + MAC overhead       (kfcrit.link.frames; per_over)
     one attempt   1 − PER(SINR, L) = (1 − BER(SINR))^{8L}      (radio model: kfcrit.link.radios)
+    fast fading   PER → E_γ[PER(γ, L)], γ ~ Gamma(m, SINR/m)   (optional: kfcrit.link.fading)
     arrival       p = 1 − PER^{k+1}                            (k = max_retries MAC retries)
 
 ``packet_bytes`` is the application payload; the PSDU adds the radio's MAC header and FCS
@@ -20,6 +21,11 @@ Retries and shadowing (``fading_per_attempt``): ``shared`` (default) — the k +
 period see the period's shadowing value, p̄ = E_X[1 − PER(s + X)^{k+1}]; ``independent`` (only
 with per-packet shadowing) — each attempt draws its own value, so the attempts fail
 independently with the averaged PER, p̄ = 1 − (E_X[PER(s + X)])^{k+1}.
+
+Fast fading (``fading: {model: rayleigh | nakagami, m}``, default none): the SNR of every
+attempt is redrawn from Gamma(m, γ̄/m) around the mean γ̄ (Rayleigh: m = 1), independently per
+attempt, so one attempt fails with E_γ[PER(γ)] and p = 1 − E_γ[PER(γ)]^{k+1}; the shadowing
+(below) sets γ̄ and the fading varies around it (:mod:`kfcrit.link.fading`).
 
 Shadowing X (``path_loss.shadowing``):
 
@@ -52,6 +58,7 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
+from kfcrit.link.fading import NO_FADING, FastFading, fading_note
 from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
@@ -77,7 +84,8 @@ Z_RANGE = 9.0
 
 LINK_KEYS = {"model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
              "noise", "antenna_gain_db", "margin_db", "max_outage", "max_retries",
-             "mac_overhead_bytes", "shadowing_correlation", "per_over", "fading_per_attempt"}
+             "mac_overhead_bytes", "shadowing_correlation", "per_over", "fading_per_attempt",
+             "fading"}
 LINK_REQUIRED = {"radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise"}
 MAX_PAYLOAD_BYTES = 65535
 FADING_PER_ATTEMPT = ("shared", "independent")
@@ -129,6 +137,8 @@ class LinkBudget(Channel):
         What the packet error rate covers.
     fading_per_attempt : {"shared", "independent"}
         Whether the attempts of a period share their shadowing value.
+    fading : FastFading
+        Fast fading redrawn per attempt (default none): the attempt PER is E_γ[PER(γ)].
 
     Attributes
     ----------
@@ -146,7 +156,7 @@ class LinkBudget(Channel):
     References
     ----------
     docs/theory.md §11 (link design from the required arrival probability, retries
-    1 − PER^{k+1}) and §16.3 (the margin and outage policy in the review).
+    1 − PER^{k+1}), §11.1 (fast fading) and §16.3 (the margin and outage policy in the review).
 
     Examples
     --------
@@ -180,6 +190,7 @@ class LinkBudget(Channel):
     shadowing_correlation: ShadowingCorrelation | None = None
     per_over: str = "ppdu"
     fading_per_attempt: str = "shared"
+    fading: FastFading = NO_FADING
     model: ClassVar[str] = "link-budget"
 
     def __post_init__(self) -> None:
@@ -241,6 +252,8 @@ class LinkBudget(Channel):
         if "fading_per_attempt" in data:
             kw["fading_per_attempt"] = choice_field(data, "fading_per_attempt", prefix,
                                                     FADING_PER_ATTEMPT)
+        if "fading" in data:
+            kw["fading"] = FastFading.from_mapping(data["fading"], f"{prefix}.fading")
         try:
             return cls(**kw)
         except InputError as exc:  # name the field with the caller's prefix
@@ -302,17 +315,37 @@ class LinkBudget(Channel):
         fields.update(changes)
         return LinkBudget(**fields)
 
+    def instantaneous_per(self, snr: Any) -> np.ndarray:
+        """PER at the *linear* instantaneous SNR ``snr``: 1 − (1 − BER)^{8L}."""
+        ber = np.clip(self.radio.ber(np.asarray(snr, dtype=float)), 0.0, 1.0)
+        with np.errstate(divide="ignore"):
+            return -np.expm1(8 * self.per_bytes * np.log1p(-ber))
+
     def attempt_per(self, sinr_db: Any) -> np.ndarray:
-        """PER of one attempt, 1 − (1 − BER)^{8L}, L = :attr:`per_bytes`."""
-        return self.radio.per(sinr_db, self.per_bytes)
+        r"""PER of one attempt at mean SINR ``sinr_db``, L = :attr:`per_bytes`.
+
+        .. math:: \mathrm{PER}(s) = 1 - (1 - \mathrm{BER}(s))^{8L}
+
+        and with fast fading its average E_γ[PER(γ)], γ ~ Gamma(m, 10^{s/10}/m)
+        (:meth:`kfcrit.link.fading.FastFading.mean_per`).
+        """
+        if not self.fading.active:
+            return self.radio.per(sinr_db, self.per_bytes)
+        return self.fading.mean_per(self.instantaneous_per, db_to_linear(sinr_db))
+
+    def attempt_log_arrival(self, sinr_db: Any) -> np.ndarray:
+        """log(1 − PER) of one attempt (faded: log1p(−E_γ[PER]), accurate for PER near 0)."""
+        if not self.fading.active:
+            return self.radio.log_arrival(sinr_db, self.per_bytes)
+        with np.errstate(divide="ignore"):
+            return np.log1p(-self.attempt_per(sinr_db))
 
     def link_arrival(self, sinr_db: Any) -> np.ndarray:
         r"""Arrival probability within a sample period at SINR ``sinr_db`` (no shadowing draw).
 
         .. math:: p(s) = 1 - \mathrm{PER}(s, L)^{k+1}
         """
-        return arrival_with_retries(self.radio.log_arrival(sinr_db, self.per_bytes),
-                                    self.max_retries)
+        return arrival_with_retries(self.attempt_log_arrival(sinr_db), self.max_retries)
 
     def nominal_arrival(self, sinr_db: float) -> float:
         """p(s) of :meth:`link_arrival` as a float."""
@@ -333,17 +366,19 @@ class LinkBudget(Channel):
         .. math:: \bar p(s) = 1 - (1 - \bar a)^{k+1}
 
         The integrand is smooth and decays like φ(z), so the trapezoid rule converges
-        geometrically; the step keeps σ·h ≤ 0.02 dB, far finer than the width of any PER curve.
+        geometrically; the step keeps σ·h ≤ 0.02 dB, far finer than the width of any PER curve
+        (with fast fading, a twentieth of the fading spread, at most 0.25 dB: the faded PER is
+        smooth on that scale).
         """
         sigma = self.sigma_db
         if sigma == 0:
             return self.nominal_arrival(sinr_db)
-        h = min(0.01, 0.02 / sigma)
+        h = min(0.01, self.fading.shadowing_step_db() / sigma)
         count = 2 * math.ceil(Z_RANGE / h) + 1
         z = np.linspace(-Z_RANGE, Z_RANGE, count)
         weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
         if self.independent_attempts:
-            one = np.exp(self.radio.log_arrival(sinr_db + sigma * z, self.per_bytes))
+            one = np.exp(self.attempt_log_arrival(sinr_db + sigma * z))
             a = float(min(1.0, np.trapezoid(one * weights, z)))
             if a >= 1.0:
                 return 1.0
@@ -412,10 +447,31 @@ class LinkBudget(Channel):
     def link_required_sinr_db(self, p: float) -> float | None:
         """Least SINR (dB) with p(s) ≥ p without a shadowing draw (retries included).
 
-        Solved on one attempt: PER(s)^{k+1} ≤ 1 − p ⇔ 1 − PER(s) ≥ 1 − (1 − p)^{1/(k+1)}.
+        Solved on one attempt: PER(s)^{k+1} ≤ 1 − p ⇔ 1 − PER(s) ≥ 1 − (1 − p)^{1/(k+1)}
+        (with fast fading on the averaged PER, by Brent's method on log E[PER] over
+        [−40, 160] dB).
         """
+        if self.fading.active:
+            return self.faded_required_sinr_db(attempt_probability(p, self.max_retries))
         return self.radio.required_sinr_db(attempt_probability(p, self.max_retries),
                                            self.per_bytes)
+
+    def faded_required_sinr_db(self, q: float) -> float | None:
+        """Least mean SINR (dB) whose faded attempt success 1 − E_γ[PER] is ≥ ``q``."""
+        if not q < 1.0:
+            raise ValueError("an arrival probability of 1 is not reached at finite SINR")
+        lo, hi = -40.0, 160.0
+        if q <= float(np.exp(self.attempt_log_arrival(lo))):
+            return None
+        target = math.log1p(-q)
+
+        def fn(s: float) -> float:
+            return math.log(max(float(self.attempt_per(s)), 1e-300)) - target
+        if fn(hi) > 0:
+            raise ValueError(f"arrival probability {q!r} needs more than {hi} dB SINR")
+        from scipy.optimize import brentq
+
+        return float(brentq(fn, lo, hi, xtol=1e-10, maxiter=200))
 
     def required_sinr_db(self, p: float) -> float | None:
         """Least median SINR (dB) whose arrival probability is ≥ p; None if none is needed."""
@@ -474,6 +530,8 @@ class LinkBudget(Channel):
                     + ("each with its own shadowing value (p = 1 - E[PER]^(k+1))"
                        if self.fading_per_attempt == "independent" else
                        "given the shadowing value of the period, which they share")
+                    + ("; fast fading redrawn per attempt (PER averaged over it)"
+                       if self.fading.active else "")
                     + "; acknowledgement losses cause needless retries, not lost updates; "
                     "CSMA-CA backoffs are not included in attempts_duration_s")}
 
@@ -490,7 +548,7 @@ class LinkBudget(Channel):
                 "sinr_linear": float(db_to_linear(sinr)), "bit_error_rate": ber,
                 "packet_error_rate": float(self.attempt_per(sinr)),
                 "attempt_arrival_probability": float(
-                    self.radio.arrival(sinr, self.per_bytes)),
+                    np.exp(self.attempt_log_arrival(sinr))),
                 "arrival_probability_nominal": self.nominal_arrival(sinr),
                 "arrival_probability_mean": self.mean_arrival(sinr),
                 "arrival_probability": self.arrival_value}
@@ -503,7 +561,8 @@ class LinkBudget(Channel):
                 "path_loss": self.path_loss.to_dict(), "noise": self.noise.to_dict(),
                 "margin_db": self.margin_db, "max_outage": self.max_outage,
                 "max_retries": self.max_retries, "per_over": self.per_over,
-                "fading_per_attempt": self.fading_per_attempt, "frame": self.frame_dict(),
+                "fading_per_attempt": self.fading_per_attempt,
+                "fading": self.fading.to_dict(), "frame": self.frame_dict(),
                 "shadowing_correlation": (self.shadowing_correlation.to_dict()
                                           if self.shadowing_correlation else None),
                 "gilbert_elliott": chain.to_dict() if chain else None,
@@ -569,6 +628,9 @@ def _frame_notes(channel: LinkBudget) -> list[str]:
                          f"{channel.max_retries + 1})" if channel.independent_attempts else
                          "(attempts independent given the period's shadowing value, which "
                          "they share)"))
+    note = fading_note(channel.fading)
+    if note:
+        notes.append(note)
     if isinstance(channel.radio, CalibratedOqpsk) and (channel.noise.noise_figure_db or 0) > 0:
         notes.append("the radio's implementation loss is calibrated from its datasheet "
                      "sensitivity and already contains the receiver noise figure; the noise "

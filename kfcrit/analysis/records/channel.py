@@ -117,6 +117,14 @@ class ShadowingMarkovRecord:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FadingRecord:
+    """`@Channel.fading`"""
+
+    model: str
+    m: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
 class ChannelRecord:
     """`@Channel`"""
 
@@ -145,6 +153,7 @@ class ChannelRecord:
     mean_burst_length: float | None = opt_key()
     per_over: str = opt_key()
     fading_per_attempt: str = opt_key()
+    fading: FadingRecord = opt_key()
     format: str = opt_key()
     """A trace's file format (theory §14)."""
     confidence: float | None = opt_key()

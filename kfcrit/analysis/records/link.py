@@ -192,7 +192,8 @@ class ArrivalVsDistance:
 
     distance_m: list[float | None]
     arrival: list[float | None]
-    mean_arrival: list[float | None]
+    mean_arrival: list[float | None] | None
+    """None without shadowing (the median link is the only curve)."""
     configured_distance_m: float | None
     max_retries: int
     psdu_bytes: int

@@ -260,6 +260,23 @@ def shadowing_draws(link: LinkBudget, periods: int, period_s: float,
     return x, 0.0
 
 
+def _fading_shape(links: Sequence[Any], nakagami_m: float | None, single: bool) -> float | None:
+    """The Nakagami m ns-3 applies: ``--nakagami-m``, else the links' own ``fading`` (one m for all
+    transmissions, so the links must agree, and the option must not contradict them)."""
+    shapes = {link.fading.shape for link in links}
+    if shapes == {None}:
+        return nakagami_m
+    field = "channel.fading" if single else "sensors[].channel.fading"
+    if len(shapes) > 1:
+        raise InputError("ns-3 applies one Nakagami m to every transmission: give every link "
+                         "the same fading (or use --nakagami-m)", field=field)
+    shape = shapes.pop()
+    if nakagami_m is not None and nakagami_m != shape:
+        raise InputError(f"--nakagami-m {nakagami_m:g} contradicts the file's fading "
+                         f"(m = {shape:g})", field=field)
+    return shape
+
+
 def build_plan(links: Sequence[tuple[str, Any, Sequence[float] | None]], *,
                sink_position_m: Sequence[float] | None, periods: int, period_s: float,
                seed: int, jitter_s: float = 0.0,
@@ -281,7 +298,7 @@ def build_plan(links: Sequence[tuple[str, Any, Sequence[float] | None]], *,
     jitter_s : float
         Uniform sampling jitter in [0, period_s).
     nakagami_m : float or None
-        Nakagami m ≥ 0.5, or None.
+        Nakagami m ≥ 0.5, or None (then the links' ``fading``, if they have one).
 
     Returns
     -------
@@ -308,6 +325,7 @@ def build_plan(links: Sequence[tuple[str, Any, Sequence[float] | None]], *,
     single = len(links) == 1 and links[0][2] is None
     checked = [check_ns3_link(ch, "channel" if single else f"sensors[{i}].channel")
                for i, (_, ch, _) in enumerate(links)]
+    nakagami_m = _fading_shape(checked, nakagami_m, single)
     exponent, d0, pl0 = log_distance_parameters(checked[0])
     sink = _point(sink_position_m) or (0.0, 0.0, 0.0)
     noise = min(effective_noise_dbm(link) for link in checked)
