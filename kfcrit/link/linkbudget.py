@@ -435,10 +435,15 @@ class LinkBudget(Channel):
     # -- design --------------------------------------------------------------------------------
     @property
     def effective_margin_db(self) -> float:
-        """max(margin_db, σ·Φ^{-1}(1 − max_outage)) — the SINR reserve the design keeps."""
+        """max(margin_db, σ·Φ^{-1}(1 − max_outage)) — the SINR reserve the design keeps.
+
+        The outage term applies where an outage exists: per-link shadowing (a fraction of
+        deployed links) and time-correlated shadowing (a fraction of the time); shadowing redrawn
+        i.i.d. per packet is averaged into the arrival probability instead.
+        """
         margin = self.margin_db
         if self.max_outage is not None and self.sigma_db > 0 \
-                and not self.per_packet_shadowing:
+                and (not self.per_packet_shadowing or self.time_correlated):
             from scipy.special import ndtri
 
             margin = max(margin, float(self.sigma_db * ndtri(1.0 - self.max_outage)))
@@ -721,8 +726,12 @@ def design_section(channel: Channel, *, critical_value: float | None,
                             if channel.time_correlated else None),
         "margin_policy": {"margin_db": channel.margin_db, "max_outage": channel.max_outage,
                           "effective_margin_db": channel.effective_margin_db,
-                          "rule": "keep max(margin_db, sigma * Phi^-1(1 - max_outage)) dB of "
-                                  "SINR above the requirement"},
+                          "rule": ("keep margin_db dB of SINR above the requirement (per-packet "
+                                   "shadowing is averaged into the arrival probability)"
+                                   if channel.per_packet_shadowing
+                                   and not channel.time_correlated else
+                                   "keep max(margin_db, sigma * Phi^-1(1 - max_outage)) dB of "
+                                   "SINR above the requirement")},
         "required_arrival_probability": {"critical_value": critical_value,
                                          "robust_value": robust_value,
                                          "bracket": list(bracket), "design_value": p_design,
