@@ -160,6 +160,20 @@ def relaying_row(network: Any, mesh: Any) -> MeshRelaying:
                         rho2=float(res.rho2.rho2), sensors=rows)
 
 
+def smart_summary(smart: MeshSmart) -> str:
+    """The smart-sensor comparison as a result: the best detecting sensor's a_i against
+    1 − 1/ρ(A)² (not the condition alone)."""
+    if smart.critical_value is None:
+        return smart.basis
+    seen = [r for r in smart.sensors if r.detectable]
+    if not seen:
+        return f"no single sensor detects the plant (needed: a_i > {smart.critical_value:.6g})"
+    best = max(seen, key=lambda r: r.arrival_probability)
+    rel = ">" if best.above else "≤"
+    return (f"best a_i = {best.arrival_probability:.6g} ({best.sensor}) {rel} 1 − 1/ρ(A)² = "
+            f"{smart.critical_value:.6g}")
+
+
 def smart_row(network: Any, analysis: Any, relaying: MeshRelaying) -> MeshSmart:
     r"""Smart sensors: sensor i's estimate arrives with its arrival probability a_i; one
     detecting sensor is mean-stable iff a_i > 1 − 1/ρ(A)² (theory §13). With several:
@@ -310,8 +324,7 @@ def mesh_section(mfile: Any, opts: Any) -> MeshSection:
                  f"{{{', '.join(facts.binding.within)}}}" or basis),
         MeshMode(RELAYING, relaying.verdict, f"p_cut·ρ(A)² = "
                  f"{(relaying.p_cut or 0) * relaying.rho2:.6g} (p_cut = {relaying.p_cut:.6g})"),
-        MeshMode(SMART, smart.verdict, f"a_i > 1 − 1/ρ(A)² = {smart.critical_value:.6g}"
-                 if smart.critical_value is not None else smart.basis)]
+        MeshMode(SMART, smart.verdict, smart_summary(smart))]
     sim = None
     if opts.simulate and opts.details:
         sim = simulation_row(mfile, opts, verdict, facts, ma.all_lost)
