@@ -727,7 +727,8 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         necessary=nec, sufficient=sufficient, exact_region=exact_region,
         necessary_basis="necessary surface (closed form, theory §9)",
         sufficient_basis=(suff_basis if sufficient or not exact_region else
-                          "necessary surface (closed form) + exact-region proof (claim)"))
+                          "necessary surface (closed form) + exact region (theory §15.6, "
+                          "Theorem E)"))
 
     bottleneck = _bottleneck(rows)
     result = NetworkResult(
