@@ -83,7 +83,7 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
     return net, op
 
 
-def network_lower_bound(network: Any) -> dict[str, Any]:
+def network_lower_bound(network: Any, all_lost: float | None = None) -> dict[str, Any]:
     r"""The Lyapunov lower bound of a network's error covariance (theory §9).
 
     .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
@@ -92,14 +92,17 @@ def network_lower_bound(network: Any) -> dict[str, Any]:
     (E[P_{t+1}] ⪰ π(∅) A E[P_t] A' + Q: with every packet lost the filter only predicts), so
     lim E[P_t] ⪰ S̄; V̄ of the network is not computed (``upper.computed`` False, so
     ``upper.exists`` False says nothing about existence). ``p = 1 − π(∅)`` is the probability
-    that at least one sensor's packet arrives.
+    that at least one sensor's packet arrives. ``all_lost`` is a measured π̂(∅) (time-aligned
+    traces, theory §14) that replaces the independence product.
     """
     import numpy as np
 
     from kfcrit.theory.covariance import bounds
 
+    product = all_lost is None
     lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
-                          for s in network.sensors if s.channel is not None]))
+                          for s in network.sensors if s.channel is not None])) if product \
+        else float(all_lost)
     system = network.stacked_system()
     S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
     return {"p": 1.0 - lost,
@@ -107,8 +110,11 @@ def network_lower_bound(network: Any) -> dict[str, Any]:
             "upper": {**bounds.covariance_summary(None), "computed": False,
                       "method": "not computed for a network"},
             "ordered": None, "applicable": True,
-            "reason": "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
-                      "together); p is 1 − Π(1 − p_i); V̄ is not computed"}
+            "reason": ("sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
+                       "together); p is 1 − Π(1 − p_i); V̄ is not computed" if product else
+                       "sensor network of time-aligned traces: S̄ solves S = π̂(∅) A S A' + Q "
+                       "with the measured probability π̂(∅) that every packet is lost; p is "
+                       "1 − π̂(∅); V̄ is not computed")}
 
 
 def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str]) -> None:

@@ -461,7 +461,10 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
     if not lean or getattr(reqs, "max_error_trace", None) is not None:
         _tail_section(spec, theory, sec)
     if spec.network is not None and spec.network.size > 1:
-        sec["covariance_bounds"] = network_lower_bound(spec.network)
+        joint = ((sec.get("channel_fit") or {}).get("joint_law")
+                 if isinstance(sec.get("channel_fit"), dict) else None)
+        sec["covariance_bounds"] = network_lower_bound(
+            spec.network, (joint or {}).get("p_all_lost"))
     elif spec.mesh is None and (opts.details
                                 or getattr(reqs, "max_mean_error_trace", None) is not None):
         _bounds_sections(spec, sec, warnings, curves=opts.details, quick=opts.quick,
