@@ -104,6 +104,7 @@ def verdict_view(rec: dict[str, Any]) -> dict[str, Any]:
         "note": sentence(opd.get("note")) if opd.get("note") else None,
         "legend": verdict_legend(op, verdict, opd, network=shows_network(rec, channel)),
         "meaning": verdict_meaning(rec, opd),
+        "stacked": isinstance(rec.get("mesh"), dict),
         "link_design": link_design_view(rec),
         "requirement": requirement_view(rec),
         "network": network_cells(rec) if shows_network(rec, channel) else None,
