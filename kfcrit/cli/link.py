@@ -98,8 +98,10 @@ def _output_folder(output: str) -> Path:
     return out
 
 
-def write_simulation(out: Path, summary: dict[str, Any], traces: Any) -> list[str]:
-    """Write one ``<sensor>.trace`` per sensor and ``summary.json`` into ``out``."""
+def write_simulation(out: Path, summary: dict[str, Any], traces: Any,
+                     ns3_plan: Any = None) -> list[str]:
+    """Write one ``<sensor>.trace`` per sensor, ``summary.json`` and (given the ``ns3_plan``) the
+    figure ``arrival.svg`` of the analytic against the simulated arrival by distance."""
     from kfcrit.io.atomic import write_atomic
     from kfcrit.io.jsonio import dumps
     from kfcrit.link.ns3.results import trace_file_text
@@ -115,8 +117,27 @@ def write_simulation(out: Path, summary: dict[str, Any], traces: Any) -> list[st
         names.append(name)
     summary["trace_files"] = names
     summary["output"] = str(out)
+    if ns3_plan is not None:
+        summary["figure"] = _write_arrival_figure(out, summary, ns3_plan)
     write_atomic(out / "summary.json", (dumps(summary) + "\n").encode())
     return names
+
+
+def _write_arrival_figure(out: Path, summary: dict[str, Any], plan: Any) -> str:
+    """``arrival.svg``: each sensor's link-budget p(d) with the ns-3 rate and its interval."""
+    import io
+
+    from kfcrit.io.atomic import write_atomic
+    from kfcrit.link.ns3.results import analytic_arrival_curve, simulated_distance_grid
+    from kfcrit.views.figures.link import ns3_arrival_figure
+
+    grid = simulated_distance_grid(summary)
+    curves = {s.name: analytic_arrival_curve(s, grid) for s in plan.sensors}
+    fig = ns3_arrival_figure(summary, grid, curves)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="svg", metadata={"Date": None})
+    write_atomic(out / "arrival.svg", buf.getvalue())
+    return "arrival.svg"
 
 
 @link.command("simulate", epilog=LINK_EXAMPLES)
@@ -163,6 +184,6 @@ def link_simulate_cli(file: str, output: str | None, periods: int, seed: int, pe
     run = run_plan(plan)
     summary = simulation_summary(plan, run)
     if out is not None:
-        write_simulation(out, summary, run.traces)
+        write_simulation(out, summary, run.traces, plan)
     click.echo(dumps(summary) if as_json else ns3_text(summary))
     sys.exit(0)

@@ -129,3 +129,38 @@ def test_real_ns3_run_is_seeded_and_agrees_with_the_link_budget(tmp_path: Path) 
     assert row["arrival_analytic"] == pytest.approx(0.9822, abs=5e-4)
     assert row["lost"]["collision"] == 0  # alone on the air (the sink's acks follow frames)
     assert 1.0 < row["mean_transmissions_per_period"] < 2.0  # retries happen
+    # the analytic-against-simulated figure: the link budget's curve and the ns-3 point
+    assert sa["figure"] == "arrival.svg" and (a / "arrival.svg").read_text().startswith("<?xml")
+
+
+def test_arrival_figure_from_a_summary_without_ns3(tmp_path: Path) -> None:
+    """The figure of analytic against simulated arrival by distance is drawn from the plan's
+    link budgets and the summary alone (no ns-3 needed): one curve per sensor, whose value at
+    the sensor's distance is the link budget's own arrival probability."""
+    from kfcrit.analysis.spec import load_spec
+    from kfcrit.cli.link import write_simulation
+    from kfcrit.link.ns3.results import analytic_arrival_curve, simulated_distance_grid
+    from kfcrit.link.ns3.topology import build_plan, file_links
+
+    spec = load_spec(REPORTS / "network-planar-tracker.yaml")
+    links, sink = file_links(spec)
+    plan = build_plan(links, sink_position_m=sink, periods=10, period_s=0.1, seed=1,
+                      jitter_s=0.0, nakagami_m=None)
+    rows = [{"name": s.name, "distance_m": s.link.distance_m, "arrival_simulated": 0.5,
+             "arrival_simulated_ci95": [0.4, 0.6],
+             "arrival_analytic_simulated_conditions": 0.55} for s in plan.sensors]
+    summary = {"plan": {"periods": 10, "period_s": 0.1, "seed": 1, "jitter_s": 0.0},
+               "ns3_version": "test", "sensors": rows}
+    for s in plan.sensors:
+        (value,) = analytic_arrival_curve(s, [s.link.distance_m])
+        assert value == pytest.approx(s.link.arrival_value, abs=1e-12)
+    grid = simulated_distance_grid(summary)
+    assert grid[0] <= min(r["distance_m"] for r in rows) <= max(r["distance_m"] for r in rows) \
+        <= grid[-1]
+    traces = [[1, 0] * 5 for _ in rows]
+    import numpy as np
+
+    write_simulation(tmp_path, summary, [np.array(t, dtype=bool) for t in traces], plan)
+    svg = (tmp_path / "arrival.svg").read_text()
+    assert summary["figure"] == "arrival.svg" and svg.count("<path") > len(rows)
+    assert json.loads((tmp_path / "summary.json").read_text())["figure"] == "arrival.svg"

@@ -30,6 +30,7 @@ the pairwise (Pearson, "phi") correlation of the loss indicators (theory §9, §
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -294,3 +295,22 @@ def trace_file_text(name: str, trace: np.ndarray, header: dict[str, Any]) -> str
     lines += [f"# {k}: {v}" for k, v in header.items()]
     body = "\n".join("1" if v else "0" for v in np.asarray(trace).tolist())
     return "\n".join(lines) + "\n" + body + "\n"
+
+
+def analytic_arrival_curve(sensor: Ns3Sensor, distances_m: Sequence[float]) -> list[float]:
+    r"""The link budget's arrival probability of ``sensor``'s link at each distance,
+
+    .. math:: p(d) = 1 - \mathrm{PER}(s(d))^{k+1}
+
+    (with the file's shadowing and fading models, :attr:`LinkBudget.arrival_value`), for the
+    figure of the analytic against the simulated arrival by distance. Nakagami fading added on
+    the command line is not in it (the markers at the simulated conditions include it)."""
+    return [float(sensor.link.with_changes(distance_m=float(d)).arrival_value)
+            for d in distances_m]
+
+
+def simulated_distance_grid(summary: dict[str, Any], points: int = 60) -> list[float]:
+    """Distances spanning the simulated sensors': from half the nearest to 1.5 × the farthest."""
+    ds = [float(r["distance_m"]) for r in summary["sensors"]]
+    lo, hi = max(min(ds) * 0.5, 0.1), max(ds) * 1.5
+    return [float(v) for v in np.geomspace(lo, hi, points)]

@@ -165,3 +165,40 @@ def outage_distance_figure(curve: OutageCurve) -> Figure:
         _plain_log_x(ax)
         _legend_below(fig, ax, ncols=1)
     return fig
+
+
+def ns3_arrival_figure(summary: dict, distances_m: Sequence[float],
+                       curves: dict[str, Sequence[float]]) -> Figure:
+    """Analytic against simulated arrival by distance (``kfcrit link simulate -o``).
+
+    One line per sensor: its link budget's p(d) (``curves[name]`` on ``distances_m``); at the
+    sensor's distance, the ns-3 arrival rate with its 95 % Clopper–Pearson interval (error bar)
+    and the analytic value under the simulated shadowing draw and fading (open marker).
+    """
+    with rc_context(FIG_RC):
+        fig, ax = new_figure(HEIGHT_IN + 0.5)
+        palette = [COLORS["lower"], COLORS["upper"], COLORS["p_c"], COLORS["operating"],
+                   COLORS["sim"]]
+        for k, row in enumerate(summary["sensors"]):
+            color = palette[k % len(palette)]
+            name = row["name"]
+            if name in curves:
+                ax.plot(distances_m, curves[name], color=color, lw=1.1,
+                        label=f"{name}: link budget p(d)")
+            lo, hi = row["arrival_simulated_ci95"]
+            p = row["arrival_simulated"]
+            ax.errorbar([row["distance_m"]], [p], yerr=[[p - lo], [hi - p]], fmt="o",
+                        color=color, ms=4, capsize=3,
+                        label=f"{name}: ns-3 {p:.3f} [{lo:.3f}, {hi:.3f}]")
+            ax.plot([row["distance_m"]], [row["arrival_analytic_simulated_conditions"]],
+                    marker="D", mfc="none", color=color, ms=6, ls="none")
+        ax.plot([], [], marker="D", mfc="none", color="0.3", ls="none",
+                label="analytic at the simulated shadowing and fading")
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("distance d (m)")
+        ax.set_ylabel("arrival probability")
+        ax.set_title("Analytic against simulated (ns-3) arrival by distance")
+        _plain_log_x(ax)
+        _legend_below(fig, ax, ncols=2)
+    return fig
