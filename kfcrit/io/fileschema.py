@@ -127,11 +127,18 @@ def channel_defs() -> dict[str, Any]:
                                  "description": "bits the packet error rate covers: ppdu "
                                  "(default; PHY header + PSDU, as ns-3's lr-wpan model) or "
                                  "psdu (MAC header + payload + FCS only)"},
-                    "fading_per_attempt": {"enum": ["shared", "independent"],
+                    "fading_per_attempt": {"enum": ["shared", "independent", "correlated"],
                                            "description": "shared (default): the retries of "
                                            "one period see the period's shadowing value; "
                                            "independent: redrawn per attempt (per-packet "
-                                           "shadowing only), arrival 1 − E[PER]^(k+1)"},
+                                           "shadowing only), arrival 1 − E[PER]^(k+1); correlated: a "
+                                           "Gauss–Markov value per attempt (needs "
+                                           "coherence_time_s)"},
+                    "coherence_time_s": {"type": "number", "exclusiveMinimum": 0,
+                                         "maximum": 1e6,
+                                         "description": "with fading_per_attempt: correlated, "
+                                         "the shadowing coherence time T_c (s): consecutive "
+                                         "attempts are correlated by exp(-Delta/T_c)"},
                     "fading": _object({
                         "model": {"enum": ["none", "rayleigh", "nakagami"],
                                   "description": "none (default), rayleigh (m = 1) or "

@@ -293,3 +293,64 @@ def fading_note(fading: FastFading) -> str | None:
             "E[PER(gamma)] by Gauss-Laguerre quadrature (64 vs 128 nodes, <= 1e-9) or a "
             "composite rule in ln gamma where the nodes do not resolve it; shadowing sets the "
             "mean SNR")
+
+
+def correlated_all_fail(per: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
+                        weights: np.ndarray, rho: float, attempts: int,
+                        nodes: int = 64) -> float:
+    r"""P(all ``attempts`` attempts of a period fail) when attempt j sees the shadowing
+    :math:`\sigma Z_j` of a stationary Gauss–Markov sequence,
+
+    .. math::
+
+        Z_{j+1} = \rho Z_j + \sqrt{1 - \rho^2}\, W_j, \qquad
+        P_{\text{fail}} = E\Bigl[\prod_{j} \mathrm{PER}(s + \sigma Z_j)\Bigr],
+
+    with :math:`\rho = e^{-\Delta/T_c}` (attempt spacing Δ, coherence time T_c). Computed by the
+    backward recursion :math:`g_{J}(z) = \mathrm{PER}(z)`,
+    :math:`g_j(z) = \mathrm{PER}(z)\, E[g_{j+1}(\rho z + \sqrt{1-\rho^2} W)]` on the grid ``z``
+    (the Gaussian transition density on the grid; for ρ near 1, where it is narrower than the
+    grid, linear interpolation with Gauss–Hermite in W with ``nodes`` points), then
+    :math:`P_{\text{fail}} = \int g_0(z) \varphi(z)\,dz` by the trapezoid rule with ``weights``
+    (φ on ``z``). ρ = 1 gives the shared value E[PER^J], ρ = 0 the independent (E[PER])^J.
+
+    Parameters
+    ----------
+    per : callable
+        PER of one attempt on an array of grid points z (the caller maps z to s + σz).
+    z, weights : numpy.ndarray
+        The standard-normal grid and its density values.
+    rho : float
+        Correlation of consecutive attempts, in [0, 1].
+    attempts : int
+        k + 1.
+    nodes : int
+        Gauss–Hermite nodes of the inner expectation.
+
+    Returns
+    -------
+    float
+        The probability that every attempt fails.
+    """
+    base = np.clip(np.asarray(per(z), dtype=float), 0.0, 1.0)
+    g = base.copy()
+    spread = math.sqrt(max(0.0, 1.0 - rho * rho))
+    step = float(z[1] - z[0]) if z.size > 1 else 1.0
+    if spread > 4 * step:
+        # the transition density of Z_{j+1} given Z_j on the grid (rows normalised): resolves
+        # a PER step as finely as the grid, where a fixed Gauss–Hermite rule would not
+        kernel = np.exp(-0.5 * ((z[None, :] - rho * z[:, None]) / spread) ** 2)
+        kernel /= kernel.sum(axis=1, keepdims=True)
+
+        def expect(values: np.ndarray) -> np.ndarray:
+            return kernel @ values
+    else:
+        # nearly deterministic step (ρ ≈ 1): interpolate at ρz + spread·W, W by Gauss–Hermite
+        w, wt = np.polynomial.hermite_e.hermegauss(nodes)
+        wt = wt / wt.sum()
+
+        def expect(values: np.ndarray) -> np.ndarray:
+            return np.interp(rho * z[:, None] + spread * w[None, :], z, values) @ wt
+    for _ in range(attempts - 1):
+        g = base * expect(g)
+    return float(min(1.0, max(0.0, np.trapezoid(g * weights, z))))

@@ -58,7 +58,7 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.link.fading import NO_FADING, FastFading, fading_note
+from kfcrit.link.fading import NO_FADING, FastFading, correlated_all_fail, fading_note
 from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
@@ -85,11 +85,12 @@ Z_RANGE = 9.0
 LINK_KEYS = {"model", "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss",
              "noise", "antenna_gain_db", "margin_db", "max_outage", "max_retries",
              "mac_overhead_bytes", "shadowing_correlation", "per_over", "fading_per_attempt",
-             "fading"}
+             "fading", "coherence_time_s"}
 LINK_REQUIRED = {"radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise"}
 MAX_PAYLOAD_BYTES = 65535
-FADING_PER_ATTEMPT = ("shared", "independent")
-"""How the retries of one period see the shadowing: one value per period, or one per attempt."""
+FADING_PER_ATTEMPT = ("shared", "independent", "correlated")
+"""How the retries of one period see the shadowing: one value per period, one per attempt, or
+a Gauss–Markov value per attempt correlated by exp(−Δ/T_c) (``coherence_time_s`` T_c)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,6 +192,7 @@ class LinkBudget(Channel):
     per_over: str = "ppdu"
     fading_per_attempt: str = "shared"
     fading: FastFading = NO_FADING
+    coherence_time_s: float | None = None
     model: ClassVar[str] = "link-budget"
 
     def __post_init__(self) -> None:
@@ -209,11 +211,18 @@ class LinkBudget(Channel):
         if self.fading_per_attempt not in FADING_PER_ATTEMPT:
             raise InputError(f"must be one of: {', '.join(FADING_PER_ATTEMPT)}",
                              field="fading_per_attempt")
-        if self.fading_per_attempt == "independent" and self.path_loss.shadowing != "per-packet":
-            raise InputError("independent needs a shadowing value that can be redrawn per "
-                             "attempt (path_loss.shadowing: per-packet); per-link and "
+        if self.fading_per_attempt in ("independent", "correlated") \
+                and self.path_loss.shadowing != "per-packet":
+            raise InputError(f"{self.fading_per_attempt} needs a shadowing value that can be "
+                             "redrawn per attempt (path_loss.shadowing: per-packet); per-link and "
                              "time-correlated shadowing are shared by the attempts of a period",
                              field="fading_per_attempt")
+        if (self.fading_per_attempt == "correlated") != (self.coherence_time_s is not None):
+            raise InputError("is required with fading_per_attempt: correlated, and only then",
+                             field="coherence_time_s")
+        if self.fading_per_attempt == "correlated" and self.attempt_spacing_s is None:
+            raise InputError("correlated needs the radio's airtime and acknowledgement wait "
+                             "(the attempt spacing)", field="fading_per_attempt")
 
     @classmethod
     def from_mapping(cls, data: dict, prefix: str, base_dir: Path | None = None) -> LinkBudget:
@@ -254,6 +263,9 @@ class LinkBudget(Channel):
                                                     FADING_PER_ATTEMPT)
         if "fading" in data:
             kw["fading"] = FastFading.from_mapping(data["fading"], f"{prefix}.fading")
+        if "coherence_time_s" in data:
+            kw["coherence_time_s"] = real_field(data, "coherence_time_s", prefix, low=0,
+                                                high=1e6, low_open=True)
         try:
             return cls(**kw)
         except InputError as exc:  # name the field with the caller's prefix
@@ -302,6 +314,19 @@ class LinkBudget(Channel):
                                           self.per_over)
 
     @property
+    def attempt_spacing_s(self) -> float | None:
+        """Δ = airtime + acknowledgement wait: the time between two attempts of a period."""
+        total = self.radio.frame.attempts_duration_s(self.psdu_bytes, 0)
+        return total
+
+    @property
+    def attempt_correlation(self) -> float | None:
+        r"""ρ = exp(−Δ/T_c) between consecutive attempts (``correlated`` only)."""
+        if self.fading_per_attempt != "correlated" or self.coherence_time_s is None:
+            return None
+        return math.exp(-self.attempt_spacing_s / self.coherence_time_s)
+
+    @property
     def independent_attempts(self) -> bool:
         """The attempts of a period draw their own shadowing value (``independent``)."""
         return self.fading_per_attempt == "independent" and self.sigma_db > 0
@@ -311,7 +336,8 @@ class LinkBudget(Channel):
         fields = {k: getattr(self, k) for k in (
             "radio", "tx_power_dbm", "distance_m", "packet_bytes", "path_loss", "noise",
             "antenna_gain_db", "margin_db", "max_outage", "max_retries", "mac_overhead_bytes",
-            "shadowing_correlation", "per_over", "fading_per_attempt")}
+            "shadowing_correlation", "per_over", "fading_per_attempt", "fading",
+            "coherence_time_s")}
         fields.update(changes)
         return LinkBudget(**fields)
 
@@ -377,6 +403,10 @@ class LinkBudget(Channel):
         count = 2 * math.ceil(Z_RANGE / h) + 1
         z = np.linspace(-Z_RANGE, Z_RANGE, count)
         weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+        if self.attempt_correlation is not None:
+            fail = correlated_all_fail(lambda x: self.attempt_per(sinr_db + sigma * x), z,
+                                       weights, self.attempt_correlation, self.max_retries + 1)
+            return float(1.0 - fail)
         if self.independent_attempts:
             one = np.exp(self.attempt_log_arrival(sinr_db + sigma * z))
             a = float(min(1.0, np.trapezoid(one * weights, z)))
@@ -534,6 +564,11 @@ class LinkBudget(Channel):
                     "the k + 1 attempts fit in the sample period and fail independently, "
                     + ("each with its own shadowing value (p = 1 - E[PER]^(k+1))"
                        if self.fading_per_attempt == "independent" else
+                       (f"given shadowing values that follow a Gauss-Markov sequence, "
+                        f"correlated by rho = exp(-Delta/T_c) = {self.attempt_correlation:.4g} "
+                        f"between attempts (Delta = {self.attempt_spacing_s:.4g} s, T_c = "
+                        f"{self.coherence_time_s:g} s)")
+                       if self.fading_per_attempt == "correlated" else
                        "given the shadowing value of the period, which they share")
                     + ("; fast fading redrawn per attempt (PER averaged over it)"
                        if self.fading.active else "")
@@ -567,6 +602,7 @@ class LinkBudget(Channel):
                 "margin_db": self.margin_db, "max_outage": self.max_outage,
                 "max_retries": self.max_retries, "per_over": self.per_over,
                 "fading_per_attempt": self.fading_per_attempt,
+                "coherence_time_s": self.coherence_time_s,
                 "fading": self.fading.to_dict(), "frame": self.frame_dict(),
                 "shadowing_correlation": (self.shadowing_correlation.to_dict()
                                           if self.shadowing_correlation else None),

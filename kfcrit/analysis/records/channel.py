@@ -154,6 +154,8 @@ class ChannelRecord:
     per_over: str = opt_key()
     fading_per_attempt: str = opt_key()
     fading: FadingRecord = opt_key()
+    coherence_time_s: float | None = opt_key()
+    """Shadowing coherence time of correlated retries (``fading_per_attempt: correlated``)."""
     format: str = opt_key()
     """A trace's file format (theory §14)."""
     confidence: float | None = opt_key()
