@@ -17,6 +17,7 @@ from kfcrit.cli.common import flush_std_streams
 from kfcrit.errors import ExitCode
 from kfcrit.io.atomic import refuse_replacing_inputs
 from kfcrit.io.safeio import printable
+from kfcrit.views.formatting import counted
 
 
 def _progress(total: int, done: int) -> tuple[Callable[[int], None], Callable[[], None]]:
@@ -84,7 +85,7 @@ def sweep_command(sweep_file: str, *, output: str | None, scheduler: str | None,
     except KeyboardInterrupt:
         _interrupted(Journal(Path(output) / JOURNAL_NAME, spec.sha256 or ""))
     print(f"kfcrit: sweep {spec.name!r}: {len(result.rows)} points ({result.computed} computed, "
-          f"{result.reused} from the journal), {result.errors} errors; outputs in "
+          f"{result.reused} from the journal), {counted(result.errors, 'error')}; outputs in "
           f"{printable(result.output)}", file=sys.stderr)
     if result.errors:
         first = next(r for r in result.rows if r["status"] != "ok")

@@ -355,6 +355,11 @@ def count(value: Any) -> str:
     return f"{int(value):,}".replace(",", "\u202f")
 
 
+def counted(n: int, noun: str) -> str:
+    """``n`` and the noun, plural unless n is 1 (``1 sensor``, ``3 sensors``, ``0 errors``)."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
 def vector(value: Any, digits: int = 4) -> str:
     """A vector or matrix of numbers as text: ``[−0.801, −0.997]`` (rows separated by ``;``)."""
     if not isinstance(value, (list, tuple)) or not value:

@@ -4,6 +4,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from kfcrit.views.formatting import counted
 from kfcrit.views.mesh.meshtext import mesh_lines
 from kfcrit.views.text.looptext import loop_lines
 from kfcrit.views.text.netmargin import (
@@ -110,7 +111,7 @@ def network_lines(net: dict[str, Any] | None) -> list[str]:
     verdict with that link dead), the uniform margin and the bottleneck link."""
     if not net:
         return []
-    lines = ["  sensor network        " + f"{len(net.get('sensors') or [])} sensors, verdict "
+    lines = ["  sensor network        " + f"{counted(len(net.get('sensors') or []), 'sensor')}, verdict "
              f"{(net.get('verdict') or '—').upper()}",
              f"    {'sensor':<12} {'p_i':>9}  {'critical p_i':<24} {'margin':>19}  N−1 (link dead)"]
     for s in net.get("sensors") or []:
