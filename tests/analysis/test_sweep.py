@@ -460,10 +460,8 @@ def test_bad_sweep_file_is_one_line_naming_the_field(name: str, tmp_path: Path) 
     text, field = BAD_SWEEPS[name]
     sweep = write_case(tmp_path, text)
     before = sorted(tmp_path.iterdir())
-    t0 = time.perf_counter()
     code, out, err = run_cli(["sweep", str(sweep), "-o", str(tmp_path / "out")])
     assert_refused(code, out, err, field)
-    assert time.perf_counter() - t0 < 30
     assert sorted(tmp_path.iterdir()) == before  # nothing written, not even the folder
 
 

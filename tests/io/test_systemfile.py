@@ -5,7 +5,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from fractions import Fraction
 from pathlib import Path
 
@@ -287,11 +286,11 @@ def test_dev_zero_is_refused_without_reading_it() -> None:
 def test_fifo_is_refused_without_hanging(tmp_path: Path) -> None:
     fifo = tmp_path / "system.yaml"
     os.mkfifo(fifo)
-    t0 = time.perf_counter()
-    proc = _analyze_in_subprocess(fifo, timeout=60)  # no writer: a blocking open() would hang
+    # no writer: a blocking open() would hang; the subprocess timeout only kills (and fails)
+    proc = _analyze_in_subprocess(fifo, timeout=60)
     assert proc.returncode == 2
     line = _one_error_line(proc.stderr)
-    assert "file: " in line and "FIFO" in line and time.perf_counter() - t0 < 60
+    assert "file: " in line and "FIFO" in line
 
 
 def test_directory_is_refused_by_the_loader(tmp_path: Path) -> None:

@@ -137,3 +137,16 @@ def test_exact_margin_keeps_a_tiny_difference() -> None:
     row, rec = row_and_record(doc, [])
     assert rec["operating_point"]["verdict"] == "mean-stable"       # exact: p > 9/25
     assert rec["operating_point"]["margin"] == pytest.approx(1e-40, rel=1e-12)
+
+
+@pytest.mark.parametrize("p, sign, verdict", [("9/25 + 10^-40", 1, "mean-stable"),
+                                              ("9/25 - 10^-40", -1, "mean-unstable")])
+def test_margin_at_an_exact_threshold_keeps_its_sign(p: str, sign: int, verdict: str) -> None:
+    """Sinopoli's general plant has p_c = 9/25 exactly: 10^-40 above or below it, the sweep row
+    and the record give the same verdict and a margin of the same sign (±1e-40, not 0.0)."""
+    doc = {"name": "general", "A": [[1.25, 0], [1, 1.1]], "C": [[1, 1]], "Q": 20, "R": 2.5,
+           "channel": {"model": "bernoulli", "arrival_probability": "1/2"}}
+    row, rec = row_and_record(doc, [("channel.arrival_probability", p)])
+    assert row["verdict"] == rec["operating_point"]["verdict"] == verdict
+    assert row["margin"] == rec["operating_point"]["margin"] == pytest.approx(sign * 1e-40,
+                                                                             rel=1e-9)

@@ -620,8 +620,13 @@ def row_of(record: dict[str, Any]) -> dict[str, Any]:
                                      "end of its interval when not exact)")
     elif op:
         p = op.get("arrival_probability")
+        # against p_c or its robust value the record's own margin (an exact difference, so
+        # p_c + 10^-40 keeps its sign); against other requirements p − requirement
+        own = {"critical value": op.get("margin"),
+               "robust critical value": op.get("margin_robust")}.get(basis or "")
         row.update(arrival_probability=p, iid=op.get("iid"),
-                   margin=(p - req) if None not in (p, req) else None,
+                   margin=own if own is not None and op.get("iid") else
+                   (p - req) if None not in (p, req) else None,
                    verdict=op.get("verdict"))
     row.update(loop_columns(record.get("loop")))
     if lb.get("applicable") and "link" in lb:
