@@ -316,8 +316,7 @@ class LinkBudget(Channel):
     @property
     def attempt_spacing_s(self) -> float | None:
         """Δ = airtime + acknowledgement wait: the time between two attempts of a period."""
-        total = self.radio.frame.attempts_duration_s(self.psdu_bytes, 0)
-        return total
+        return self.radio.frame.attempts_duration_s(self.psdu_bytes, 0)
 
     @property
     def attempt_correlation(self) -> float | None:
