@@ -299,6 +299,9 @@ def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalI
     r_nec_exact = crit.p_low_exact if crit.p_low is not None and crit.p_low > 0 else None
     fallback = float(r) - r_nec
     margin = exact_difference(r, r_nec_exact, fallback) if r_nec_exact is not None else fallback
+    out["note"] = ("p_c, p_up and the i.i.d. bounds S̄, V̄ assume i.i.d. losses; this link's "
+                   "margin is its recovery rate against r_nec (the i.i.d. comparison p − p_c "
+                   "is kept beside it), and the verdict follows the basis stated")
     out.update(margin=margin, margin_robust=margin, bracket=None,
                margin_basis="recovery rate r − r_nec, r_nec = max(1 − 1/ρ(A)², 0) (the "
                             "necessary burst condition (1 − r)ρ(A)² < 1, theory §10)",
