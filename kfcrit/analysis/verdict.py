@@ -295,6 +295,53 @@ def joint_law_verdict(joint: JointLawInputs) -> tuple[Verdict, str]:
             + length)
 
 
+def probability_to_beat(crit: CriticalInputs) -> tuple[float | None, str | None]:
+    """The arrival probability an i.i.d. link must exceed, and what that number is.
+
+    .. math::
+
+        p^\\star = \\begin{cases} \\max(p_c, p_c^{\\text{robust}}) & p_c \\text{ known}\\\\
+        \\overline{p}_{up} & \\text{else (sufficient)}\\\\
+        \\underline{p} & \\text{else (necessary only)} \\end{cases}
+
+    The one "p to beat" of every view that shows a requirement column (the sweep table, the
+    operating point); the verdict itself compares exactly (:func:`operating_verdict`).
+
+    Parameters
+    ----------
+    crit : CriticalInputs
+        The theory's critical value, robust value and bracket.
+
+    Returns
+    -------
+    value : float or None
+        The probability to beat (None when the record has no bound at all).
+    basis : str or None
+        ``"critical value"``, ``"robust critical value"``, ``"upper bound (sufficient)"`` or
+        ``"lower bound (necessary only)"``.
+
+    References
+    ----------
+    docs/theory.md §16 (verdict and review).
+
+    Examples
+    --------
+    >>> probability_to_beat(CriticalInputs("general", 0.36, robust=0.37))
+    (0.37, 'robust critical value')
+    >>> probability_to_beat(CriticalInputs("general", None, lower=0.3, upper=0.4))
+    (0.4, 'upper bound (sufficient)')
+    """
+    if crit.critical is not None:
+        if crit.robust is not None and crit.robust > crit.critical:
+            return crit.robust, "robust critical value"
+        return crit.critical, "critical value"
+    if crit.upper is not None:
+        return crit.upper, "upper bound (sufficient)"
+    if crit.lower is not None:
+        return crit.lower, "lower bound (necessary only)"
+    return None, None
+
+
 def operating_verdict(p: Any, crit: CriticalInputs, *, iid: bool = True,
                       burst: BurstInputs | None = None, measured_trace: bool = False,
                       measured: MeasuredInputs | None = None) -> tuple[Verdict, str]:
