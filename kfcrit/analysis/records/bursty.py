@@ -81,6 +81,9 @@ class CoupledCertificateMatrices:
     K: list[list[float | None]]
     X0: list[list[float | None]]
     X1: list[list[float | None]]
+    K1: list[list[float | None]] = opt_key()
+    """The gain after a reception when the gains depend on the previous arrival (``K`` is then
+    the gain after a loss; theory §10)."""
 
 
 @dataclass(frozen=True, kw_only=True)

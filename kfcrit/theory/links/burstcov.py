@@ -118,8 +118,15 @@ def _affine(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, T: np.nd
     return [symmetrize(X0), symmetrize(X1)]
 
 
-def _riccati_gains(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, T: np.ndarray,
-                   pi: np.ndarray) -> list[np.ndarray] | None:
+def previous_arrival_gains(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray,
+                           T: np.ndarray, pi: np.ndarray) -> list[np.ndarray] | None:
+    """Gains (K_0, K_1) chosen by the previous arrival, from the coupled Riccati iteration
+    (None when it diverges).
+
+    .. math:: K_i = -A X_i C'(C X_i C' + \\pi_i R)^{-1}
+
+    with (X_0, X_1) iterated by the fixed-gain recursion of the module docstring.
+    """
     n, m = A.shape[0], C.shape[0]
     X = [np.zeros((n, n)), np.zeros((n, n))]
     K = [np.zeros((n, m)), np.zeros((n, m))]
@@ -157,7 +164,7 @@ def burst_upper_covariance(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.nd
     n = A.shape[0]
     T = np.array([[1.0 - r, r], [f, 1.0 - f]])
     pi = _stationary(f, r)
-    K = gains if gains is not None else _riccati_gains(A, C, Q, R, T, pi)
+    K = gains if gains is not None else previous_arrival_gains(A, C, Q, R, T, pi)
     if K is None:
         return None, None, None, ("the coupled Riccati recursion that chooses the gains "
                                   "diverges: no fixed-gain bound exists")

@@ -452,10 +452,68 @@ def burst_certificate(system: System, failure_rate: Any, recovery_rate: Any,
             mats = ({"K": _mat(K), "X0": _mat(sol[0]), "X1": _mat(sol[1])} if n <= 60 else None)
             return done(True, rho, origin, check.to_dict(), "proven", margin, mats)
         last_reason = f"ball check failed for the gain '{origin}': {check.reason}"
+    pair = _previous_arrival_certificate(system, fe, re_)
+    if pair is not None and pair[0].ok:
+        check, rho, gains, Y = pair
+        mats = ({"K": _mat(gains[0]), "K1": _mat(gains[1]), "X0": _mat(Y[0]),
+                 "X1": _mat(Y[1])} if n <= 60 else None)
+        return done(True, rho, PREVIOUS_ARRIVAL_ORIGIN, check.to_dict(), "proven", margin, mats)
+    if pair is not None:
+        last_reason += f"; previous-arrival gains: {pair[0].reason}"
     if best_rho is not None and best_rho >= 1:
         last_reason = (f"no gain tried gives a mean-square stable fixed-gain error system "
                        f"(least spectral radius {best_rho:.6g} >= 1)")
     return done(False, best_rho, None, None, last_reason, margin)
+
+
+PREVIOUS_ARRIVAL_ORIGIN = ("gains chosen by the previous arrival (coupled Riccati iteration): "
+                           "K = K_0 after a loss, K1 after a reception")
+"""``gain_origin`` of a certificate whose gain depends on the previous arrival (theory §10)."""
+
+
+def previous_arrival_radius(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray,
+                            f: float, r: float) -> tuple[float, list[np.ndarray]] | None:
+    """Spectral radius of the second-moment map with gains chosen by the previous arrival
+    (the coupled Riccati gains of :func:`kfcrit.theory.links.burstcov.previous_arrival_gains`),
+    and those gains; None when the Riccati iteration diverges.
+
+    .. math:: \\mathcal M(X)_j = \\sum_i T_{ij}\\, G_{ij} X_i G_{ij}',\\quad
+              G_{i0} = A,\\; G_{i1} = A + K_i C
+    """
+    from kfcrit.theory.links import burstcov, pairgain
+
+    T = np.array([[1.0 - r, r], [f, 1.0 - f]])
+    pi = np.array([f, r]) / (f + r)
+    gains = burstcov.previous_arrival_gains(A, C, Q, R, T, pi)
+    if gains is None:
+        return None
+    G = pairgain.transition_maps(A, C, gains)
+    M = np.block([[T[i, j] * np.kron(G[i][j], G[i][j]) for i in range(2)] for j in range(2)])
+    with np.errstate(all="ignore"):
+        vals = np.linalg.eigvals(M) if np.all(np.isfinite(M)) else None
+    if vals is None:
+        return None
+    return float(max(abs(vals))), gains
+
+
+def _previous_arrival_certificate(system: System, fe: sp.Expr, re_: sp.Expr
+                                  ) -> tuple[certify.CheckResult, float, list[np.ndarray],
+                                             tuple[np.ndarray, np.ndarray]] | None:
+    """The certificate of :mod:`kfcrit.theory.links.pairgain` with the coupled Riccati gains:
+    (check, spectral radius, gains, Y), or None when no candidate exists (the Riccati
+    iteration diverges, the map's radius is ≥ 1, or the adjoint solution is not definite)."""
+    from kfcrit.theory.links import pairgain
+
+    f, r = float(fe), float(re_)
+    A, C = system.a, system.c
+    found = previous_arrival_radius(A, C, system.q, system.r, f, r)
+    if found is None or not found[0] < 1:
+        return None
+    rho, gains = found
+    Y = pairgain.adjoint_solution(A, C, gains, f, r)
+    if Y is None:
+        return None
+    return pairgain.verify_previous_arrival_gains(system, fe, re_, Y, gains), rho, gains, Y
 
 
 # ---------------------------------------------------------------------------------------------
@@ -612,12 +670,15 @@ CURVE_MAX_STATES = 12
 
 def certificate_feasible(A: np.ndarray, C: np.ndarray, f: float, r: float,
                          use_lmi: bool = True, lmi: CoupledLmi | None = None,
-                         candidates: list[tuple[str, np.ndarray]] | None = None) -> bool:
+                         candidates: list[tuple[str, np.ndarray]] | None = None,
+                         noise: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
     """Numerical test: some gain (LMI or candidates) gives spectral radius < 1 of the coupled
     second-moment recursion (no ball check: used for the curve, not for verdicts).
 
     ``lmi`` (the compiled LMI of (A, C)) and ``candidates`` (:func:`candidate_gains`) may be
-    passed in when the test is repeated for many (f, r)."""
+    passed in when the test is repeated for many (f, r). With ``noise`` = (Q, R) the gains
+    chosen by the previous arrival (:func:`previous_arrival_radius`) are tried last, as
+    :func:`burst_certificate` does."""
     gains = []
     if use_lmi:
         K, t = (lmi or CoupledLmi(A, C)).solve(f, r)
@@ -630,6 +691,9 @@ def certificate_feasible(A: np.ndarray, C: np.ndarray, f: float, r: float,
                 return True
         except (np.linalg.LinAlgError, ValueError):
             continue
+    if noise is not None:
+        found = previous_arrival_radius(A, C, noise[0], noise[1], f, r)
+        return found is not None and found[0] < 1
     return False
 
 
@@ -663,7 +727,8 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     else:
         lmi, candidates = CoupledLmi(A, C), candidate_gains(A, C)
         for f in fs:
-            suff.append(_sufficient_threshold(A, C, f, r_nec, tol, lmi, candidates))
+            suff.append(_sufficient_threshold(A, C, f, r_nec, tol, lmi, candidates,
+                                              (system.q, system.r)))
         if any(v is None for v in suff):
             notes.append("no certificate even at r = 1 for some f (None): the fixed-gain bound "
                          "does not decide there")
@@ -673,8 +738,8 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
               "recovery_rate": float(exact_rate(operating[1], "recovery_rate"))}
     return BurstCriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
                          "grid scan on r, then bisection inside the first not-certified → "
-                         "certified bracket, of the coupled LMI / candidate-gain spectral radius "
-                         "(numerical)", op, tuple(notes), time.perf_counter() - t0)
+                         "certified bracket, of the coupled LMI / candidate-gain / "
+                         "previous-arrival-gain spectral radius (numerical)", op, tuple(notes), time.perf_counter() - t0)
 
 
 CURVE_GRID_POINTS = 12
@@ -710,7 +775,8 @@ def smallest_certified(feasible: Callable[[float], bool], lo: float, hi: float, 
 
 def _sufficient_threshold(A: np.ndarray, C: np.ndarray, f: float, r_nec: float,
                           tol: float, lmi: CoupledLmi,
-                          candidates: list[tuple[str, np.ndarray]]) -> float | None:
+                          candidates: list[tuple[str, np.ndarray]],
+                          noise: tuple[np.ndarray, np.ndarray] | None = None) -> float | None:
     return smallest_certified(
-        lambda r: certificate_feasible(A, C, f, r, lmi=lmi, candidates=candidates),
+        lambda r: certificate_feasible(A, C, f, r, lmi=lmi, candidates=candidates, noise=noise),
         r_nec, 1.0, tol)
