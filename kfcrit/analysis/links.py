@@ -31,7 +31,9 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
     (:func:`kfcrit.link.requirement.binding_requirement`). With an accuracy requirement the
     check also states ``design_value`` and ``basis`` and ``requirement_reachable``: False when
     no arrival probability, or none the radio reaches at any SINR, meets the binding
-    requirement (the policy then fails: no margin exists).
+    requirement (the policy then fails: no margin exists). When the requirement is p = 0
+    (p_c = 0: every arrival probability above 0 keeps the filter mean-stable) the margin is
+    unbounded: ``margin_unbounded`` True and the policy met.
     """
     if not lb.get("applicable"):
         return None
@@ -51,6 +53,10 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
            "outage_probability": outage, "max_outage": max_outage,
            "outage_within_policy": (outage <= max_outage)
            if None not in (outage, max_outage) else None}
+    if margin is None and needed is not None and lb.get("max_distance_unbounded") \
+            and design is not None and design <= 0:
+        # p_c = 0: every SINR gives p > 0, so the margin over the requirement is unbounded
+        out.update(margin_policy_met=True, margin_unbounded=True)
     if req.get("accuracy") is None:
         return out
     reachable = not (design is None and req.get("binding") == "accuracy") and not (

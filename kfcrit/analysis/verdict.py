@@ -633,6 +633,10 @@ def link_reasons(design_check: Mapping[str, Any] | None, link: str | None = None
         out.append(Reason(LINK_MARGIN_CHECK + suffix, CheckStatus.FAIL,
                           "no link margin: the radio reaches no arrival probability that meets "
                           f"the binding requirement ({design_check.get('basis')})"))
+    elif design_check.get("margin_unbounded"):
+        out.append(Reason(LINK_MARGIN_CHECK + suffix, CheckStatus.PASS,
+                          "link margin unbounded: the requirement is p > 0 (p_c = 0), which "
+                          "every SINR meets"))
     elif met is not None:
         margin, needed = design_check.get("link_margin_db"), design_check.get("required_margin_db")
         out.append(Reason(LINK_MARGIN_CHECK + suffix,

@@ -128,6 +128,9 @@ class DesignCheck:
     design_value: float | None = opt_key()
     basis: str = opt_key()
     requirement_reachable: bool = opt_key()
+    margin_unbounded: bool = opt_key()
+    """True when the requirement is p = 0 (p_c = 0): every SINR meets it, so the link margin
+    (``link_margin_db`` null) is unbounded and the policy is met."""
 
 
 @dataclass(frozen=True, kw_only=True)
