@@ -27,3 +27,14 @@ def test_stacked_values_are_named():
     assert abs(pressure["critical_value"]["value"] - 4 / 9) < 1e-12
     text = CliRunner().invoke(main, ["analyze", path, "--quick", "--no-simulate"]).stdout
     assert "stacked system (all sensors on one link)" in text
+
+
+def test_a_network_monte_carlo_scales_its_paths_by_the_stacked_step_cost():
+    from kfcrit.analysis.network import stacked_paths
+
+    # c(n, m) = n³ + m³ + n²m + nm²: c(1, 3) = 40 ≤ c(6, 6) = 864 keeps the budget;
+    # c(6, 12) = 3240 is 3.75 × c(6, 6): 2000 → 533; c(1, 100) ≈ 1.01e6: the floor of 64
+    assert stacked_paths(2000, 1, 3) == 2000
+    assert stacked_paths(2000, 6, 12) == 533
+    assert stacked_paths(2000, 1, 100) == 64
+    assert stacked_paths(30, 1, 100) == 30  # never more than the budget
