@@ -739,7 +739,8 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     return BurstCriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
                          "grid scan on r, then bisection inside the first not-certified → "
                          "certified bracket, of the coupled LMI / candidate-gain / "
-                         "previous-arrival-gain spectral radius (numerical)", op, tuple(notes), time.perf_counter() - t0)
+                         "previous-arrival-gain spectral radius (numerical)", op, tuple(notes),
+                         time.perf_counter() - t0)
 
 
 CURVE_GRID_POINTS = 12
