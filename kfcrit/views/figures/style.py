@@ -90,16 +90,6 @@ def present(value: Any) -> bool:
     return value is not None and value is not ABSENT
 
 
-def section(record: dict[str, Any], *keys: str) -> Any:
-    """``record[k1][k2]...`` or ``None`` when any level is missing or not a mapping."""
-    cur: Any = record
-    for k in keys:
-        if not isinstance(cur, dict):
-            return None
-        cur = cur.get(k)
-    return cur
-
-
 def positive(values: Sequence[float]) -> bool:
     """True when at least one value is finite and positive (something to draw on a log axis)."""
     return any(math.isfinite(v) and v > 0 for v in values)
