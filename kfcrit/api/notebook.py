@@ -71,13 +71,13 @@ class Analysis(sections.AnalysisRecord):
         """The figures this record has data for (the report's figures, in report order)."""
         from kfcrit.views.figures.record import figure_names
 
-        return figure_names(self.to_dict())
+        return figure_names(self)
 
     def figure(self, name: str) -> Any:
         """One report figure as a :class:`matplotlib.figure.Figure` (see :meth:`figure_names`)."""
         from kfcrit.views.figures.record import figure
 
-        return figure(self.to_dict(), name)
+        return figure(self, name)
 
     @classmethod
     def of(cls, record: sections.AnalysisRecord) -> Analysis:

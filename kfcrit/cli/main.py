@@ -67,8 +67,8 @@ def analyze_cli(system_file: str, as_json: bool, tolerance: float, no_simulate: 
         click.echo(hint, err=True)
     record = run(spec, AnalysisOptions(tolerance=tolerance, simulate=not no_simulate,
                                        quick=quick, seed=seed))
-    data = record.to_dict()
-    click.echo(dumps(data) if as_json else summary(data))
+    data = record.to_dict()   # the --json form, and what exit_code reads
+    click.echo(dumps(data) if as_json else summary(record))
     sys.exit(exit_code(data))
 
 

@@ -2,16 +2,22 @@
 point stays visible, coinciding curves stay distinguishable, text prints at ≥ 7 pt."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
+from kfcrit.analysis.records.bursty import RatesPoint
+from kfcrit.analysis.records.network import SensorMargin
+from kfcrit.analysis.sections import AnalysisRecord, record_from_json
 from kfcrit.views.figures.burst import draw_critical_curve
 from kfcrit.views.figures.network import draw_network_region
 from kfcrit.views.figures.style import HEIGHT_IN, MIN_PRINT_PT, WIDTH_IN, print_scale
 from kfcrit.views.figures.sweep import margin_figure
+from tests.views.test_report_sections import record
 
 
 def legend_texts(fig: Figure) -> list[str]:
@@ -74,12 +80,16 @@ def test_sweep_legend_and_every_point_visible(distances: list) -> None:
         assert to_rgba(line.get_color()) == to_rgba(series[f"payload (bytes) = {size}"])
 
 
-def critical_curve_record(gap: float) -> dict:
+def critical_curve_record(gap: float) -> AnalysisRecord:
+    """The bursty scalar link's record with its critical curve replaced: r_nec = 9/25 at every
+    f, r_suf = 9/25 + gap, the operating point (0.05, 0.1)."""
+    rec = record_from_json(record("ge-bursty-scalar"))
     f = np.linspace(0.0, 1.0, 11).tolist()
-    return {"link_budget": {"critical_curve": {
-        "failure_rates": f, "necessary_recovery": [0.36] * 11,
-        "sufficient_recovery": [0.36 + gap] * 11, "necessary_expression": "9/25",
-        "operating_point": {"failure_rate": 0.05, "recovery_rate": 0.1}}}}
+    curve = rec.link_budget.critical_curve
+    curve = replace(curve, failure_rates=f, necessary_recovery=[0.36] * 11,
+                    sufficient_recovery=[0.36 + gap] * 11, necessary_expression="9/25",
+                    operating_point=RatesPoint(failure_rate=0.05, recovery_rate=0.1))
+    return replace(rec, link_budget=replace(rec.link_budget, critical_curve=curve))
 
 
 def test_coinciding_critical_curves_are_distinguishable() -> None:
@@ -98,18 +108,23 @@ def test_coinciding_critical_curves_are_distinguishable() -> None:
     assert not any("within" in t or "exact" in t for t in apart)
 
 
-def region_record() -> dict:
+def region_record() -> AnalysisRecord:
     """Two sensors a, b with |λ|² = 36/25 unobservable without both: the necessary
-    constraint 1.44·(1 − p_a)(1 − p_b) < 1."""
-    return {"network": {
-        "sensors": [{"name": "a", "arrival_probability": 0.9,
-                     "critical_value": {"value": 0.2}, "margin": {"value": 0.7}},
-                    {"name": "b", "arrival_probability": 0.5,
-                     "critical_value": {"interval": [0.2, 0.4]},
-                     "margin": {"interval": [0.1, 0.3]}}],
-        "bottleneck": {"name": "b"},
-        "necessary_constraints": [{"modulus2": 1.44, "modulus2_expression": "36/25",
-                                   "unobservable_without": ["a", "b"]}]}}
+    constraint 1.44·(1 − p_a)(1 − p_b) < 1 (the planar tracker's record, edited)."""
+    rec = record_from_json(record("network-planar-tracker"))
+    one, two = rec.network.sensors[:2]
+    a = replace(one, name="a", arrival_probability=0.9,
+                critical_value=replace(one.critical_value, value=0.2, interval=[0.2, 0.2]),
+                margin=SensorMargin(value=0.7, interval=[0.7, 0.7]))
+    b = replace(two, name="b", arrival_probability=0.5,
+                critical_value=replace(two.critical_value, value=None, interval=[0.2, 0.4]),
+                margin=SensorMargin(value=None, interval=[0.1, 0.3]))
+    constraint = replace(rec.network.necessary_constraints[0], modulus2=1.44,
+                         modulus2_expression="36/25", unobservable_without=["a", "b"])
+    network = replace(rec.network, sensors=[a, b],
+                      bottleneck=replace(rec.network.bottleneck, name="b"),
+                      necessary_constraints=[constraint])
+    return replace(rec, network=network)
 
 
 @pytest.mark.parametrize("fig_of", [lambda: draw_critical_curve(critical_curve_record(0.0)),

@@ -4,11 +4,13 @@
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
+from kfcrit.analysis.sections import AnalysisRecord, record_from_json
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve
 from kfcrit.views import formatting as jinja_filters
 from kfcrit.views.figures.design import draw_accuracy, radio_title
@@ -18,6 +20,7 @@ from kfcrit.views.figures.link import (
     per_sinr_figure,
 )
 from kfcrit.views.figures.style import arrival_formula, legend_quantity, percent
+from tests.views.test_report_sections import SCALAR_DESIGN, record, record_of
 
 CODE_NAME = re.compile(r"\b[a-z]+_[a-z_]+\b")
 """An identifier with an underscore (``max_outage``, ``p_link``) outside mathtext."""
@@ -102,12 +105,11 @@ def test_per_legend_uses_the_typographic_minus_and_two_decimals() -> None:
 
 
 def test_radio_title_from_the_record() -> None:
-    frame = {"standard": "IEEE 802.15.4 O-QPSK 2450 MHz"}
-    assert radio_title({"link_budget": {"radio": {"model": "cc2420", "frame": frame,
-                                                  "display_name": "TI CC2420"}}}) == "TI CC2420"
-    assert radio_title({"link_budget": {"radio": {"model": "cc2420", "frame": frame}}}) \
+    radio = record_from_json(record("link-oqpsk-sensor")).link_budget.radio
+    frame = replace(radio.frame, standard="IEEE 802.15.4 O-QPSK 2450 MHz")
+    assert radio_title(replace(radio, model="cc2420", frame=frame)) \
         == "IEEE 802.15.4 O-QPSK 2450 MHz radio"
-    assert radio_title({"link_budget": {"radio": {"model": "cc2420"}}}) is None
+    assert radio_title(replace(radio, model="cc2420", frame=replace(frame, standard=" "))) is None
 
 
 def test_outage_legend_words() -> None:
@@ -122,16 +124,20 @@ def test_outage_legend_words() -> None:
     assert "configured distance d = 105.0 m" in texts
 
 
-def accuracy_record(operating: float) -> dict:
+def accuracy_record(operating: float) -> AnalysisRecord:
     """tr S̄(p) = 1 / (1 − (1 − p)·25/16) and tr V̄ = 2·tr S̄ on p ∈ [0.4, 1] (a scalar-like
-    shape; only the drawing is under test), requirement L = 10."""
+    shape; only the drawing is under test), requirement L = 10, no floor: a scalar design's
+    record with these curves put in."""
+    rec = record_from_json(record_of(SCALAR_DESIGN, "scalar-design"))
     p = np.linspace(0.4, 1.0, 61)
     lower = 1.0 / (1.0 - (1.0 - p) * 25 / 16)
-    return {"phase_transition": {"p": p.tolist(), "trace_lower": lower.tolist(),
-                                 "trace_upper": (2 * lower).tolist(),
-                                 "markers": {"operating": operating}},
-            "design": {"required_arrival_probability": {"level": 10.0,
-                                                        "interval": [0.424, 0.53]}}}
+    pt = replace(rec.phase_transition, p=p.tolist(), trace_lower=lower.tolist(),
+                 trace_upper=(2 * lower).tolist(),
+                 markers=replace(rec.phase_transition.markers, operating=operating))
+    required = replace(rec.design.required_arrival_probability, level=10.0,
+                       interval=[0.424, 0.53], floor_trace=None)
+    return replace(rec, phase_transition=pt,
+                   design=replace(rec.design, required_arrival_probability=required))
 
 
 def test_operating_point_outside_the_axis_is_an_arrow_at_its_edge() -> None:

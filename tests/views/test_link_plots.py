@@ -67,11 +67,11 @@ def test_per_figure_of_a_calibrated_radio_spans_its_transition() -> None:
     from kfcrit.views.figures.design import draw_per_sinr
 
     path = Path(__file__).resolve().parents[2] / "reports" / "link-cc2420-retries.yaml"
-    rec = analyze_system(load_spec(path), AnalysisOptions(quick=True, seed=0)).to_dict()
+    rec = analyze_system(load_spec(path), AnalysisOptions(quick=True, seed=0))
     fig = draw_per_sinr(rec)
     assert fig is not None
     ax = fig.axes[0]
-    configured = rec["link_budget"]["link"]["sinr_db"]
+    configured = rec.link_budget.link.sinr_db
     drawn = [ln for ln in ax.get_lines() if ln.get_label().startswith("PSDU")]
     assert {ln.get_label() for ln in drawn} == {"PSDU 20 bytes", "PSDU 41 bytes",
                                                 "PSDU 127 bytes"}
@@ -80,7 +80,7 @@ def test_per_figure_of_a_calibrated_radio_spans_its_transition() -> None:
         y = np.asarray(ln.get_ydata(), dtype=float)
         assert y.max() > 0.9 and y.min() < 0.01, ln.get_label()
         assert x.min() < configured < x.max()
-        assert x.min() < rec["link_budget"]["required_sinr_db"] < x.max()
+        assert x.min() < rec.link_budget.required_sinr_db < x.max()
     short = next(ln for ln in drawn if ln.get_label() == "PSDU 20 bytes")
     sensitivity_sinr = -95.0 - (-174.0 + 10 * np.log10(2e6))
     per_there = np.interp(sensitivity_sinr, short.get_xdata(), short.get_ydata())

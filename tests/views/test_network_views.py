@@ -11,10 +11,13 @@ Expected values are hand computations from the example files (MATH §9):
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import pytest
 
+from kfcrit.analysis.records.network import SensorMargin
+from kfcrit.analysis.sections import record_from_json
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
 from kfcrit.views.report.theory import covariance_view, static_gain_view
@@ -32,7 +35,7 @@ GAUGES_S_BAR = 1.0 / (1.0 - 9.0 * GAUGES_LOST)   # 20/11
 @pytest.fixture(scope="module")
 def gauges():
     rec = record("network-redundant-gauges")
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(record_from_json(rec)))
     return rec, html, visible_text(html)
 
 
@@ -111,26 +114,27 @@ def test_fixed_gain_reason_is_the_network_not_a_missing_channel(gauges):
 
 def test_terminal_view_of_the_bounds_agrees_with_the_report(gauges):
     rec, _, words = gauges
-    lines = text.summary(rec)
+    lines = text.summary(record_from_json(rec))
     assert "tr V̄ = ∞" not in lines and "tr V̄ not computed" in lines
     assert "at p = 0.95;" in lines
     assert "the probability that at least one sensor's packet arrives" in lines
 
 
-@pytest.mark.parametrize("sensor, expected", [
-    ({"margin": {"value": 0.25, "interval": [0.25, 0.25]}}, "+0.25"),
-    ({"margin": {"value": None, "interval": [0.5388594, 0.7765047]}}, "[+0.5389, +0.7765]"),
-    ({"margin": {"value": -0.125}}, "−0.125"),
-    ({"margin": None}, "—"),
+@pytest.mark.parametrize("margin, expected", [
+    (SensorMargin(value=0.25, interval=[0.25, 0.25]), "+0.25"),
+    (SensorMargin(value=None, interval=[0.5388594, 0.7765047]), "[+0.5389, +0.7765]"),
+    (SensorMargin(value=-0.125, interval=[None, None]), "−0.125"),
+    (SensorMargin(value=None, interval=[None, None]), "—"),
 ])
-def test_margin_text_by_hand(sensor, expected):
-    assert netmargin.margin_text(sensor) == expected
+def test_margin_text_by_hand(margin, expected):
+    row = record_from_json(record("network-planar-tracker")).network.sensors[0]
+    assert netmargin.margin_text(dataclasses.replace(row, margin=margin)) == expected
 
 
 def test_cli_and_report_show_the_same_margins():
     rec = record("network-planar-tracker")
     model = view_model(rec, {})
-    cli = text.summary(rec)
+    cli = text.summary(record_from_json(rec))
     rows = {n["name"]: n for n in model["network"]["nodes"]}
     for s in rec["network"]["sensors"]:
         shown = rows[s["name"]]["margin"]

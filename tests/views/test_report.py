@@ -15,6 +15,7 @@ by hand in the tests that use them (MATH §3–§5):
 from __future__ import annotations
 
 import copy
+import dataclasses
 import io
 import json
 import os
@@ -34,6 +35,7 @@ from kfcrit.views.figures import mathsvg
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
 from kfcrit.views.report import summary
+from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.sim import appendix_view, seeds_text, simulation_view
 from kfcrit.views.report.theory import bounds_view
 
@@ -65,7 +67,7 @@ def records() -> Records:
 @pytest.fixture(scope="session")
 def rotation_html(records) -> str:
     rec = records("rotation-third-turn")
-    return report.render_html(rec, figures.build_figures(rec))
+    return report.render_html(rec, figures.build_figures(typed_record(rec)))
 
 
 class _Tags(HTMLParser):
@@ -150,62 +152,66 @@ def test_expression_latex_uses_safe_parser():
 
 def test_figures_read_the_production_record(records):
     rec = records("kar-scalar-fractal")
-    figs = figures.build_figures(rec)
+    figs = figures.build_figures(typed_record(rec))
     assert set(figs) == set(figures.FIGURE_KEYS)
     single_link = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant")
     for key in single_link:
         assert figs[key] is not None and figs[key].startswith("<svg"), key
     # one i.i.d. link, no requirement on the mean, no link budget: none of the others
     assert all(figs[key] is None for key in set(figures.FIGURE_KEYS) - set(single_link))
-    assert figures.figure_names(rec) == list(single_link)
+    assert figures.figure_names(typed_record(rec)) == list(single_link)
     # the CDF ends at probability 1 and the tail estimate is the record's own
-    x, f = figures.cdf_of(rec)
+    x, f = figures.cdf_of(typed_record(rec))
     assert x == sorted(x) and f[-1] == pytest.approx(1.0)
     exc = rec["simulation"]["operating_point"]["exceedance"]
-    assert figures.tail_of(rec) == (exc or {}).get("estimate")
+    assert figures.tail_of(typed_record(rec)) == (exc or {}).get("estimate")
 
 
 def test_figure_objects_for_notebooks(records):
     from matplotlib.figure import Figure
 
     rec = records("rotation-third-turn")
-    names = figures.figure_names(rec)
+    names = figures.figure_names(typed_record(rec))
     assert "invariant" not in names                     # n = 2: no invariant-support figure
     for name in names:
-        fig = figures.figure(rec, name)
+        fig = figures.figure(typed_record(rec), name)
         assert isinstance(fig, Figure) and fig.axes
     # the phase-transition axes carry p_c = 7/8 as a vertical line
-    ax = figures.figure(rec, "phase_transition").axes[0]
+    ax = figures.figure(typed_record(rec), "phase_transition").axes[0]
     xs = [line.get_xdata()[0] for line in ax.get_lines() if len(set(line.get_xdata())) == 1]
     assert any(abs(x - 7 / 8) < 1e-12 for x in xs)
     with pytest.raises(ValueError, match="no data"):
-        figures.figure(rec, "invariant")
+        figures.figure(typed_record(rec), "invariant")
     with pytest.raises(KeyError):
-        figures.figure(rec, "no_such_figure")
+        figures.figure(typed_record(rec), "no_such_figure")
 
 
 def test_figures_missing_or_malformed_data_give_none(records):
-    assert all(v is None for v in figures.build_figures({}).values())
-    rec = records("rotation-third-turn")
-    rec["phase_transition"]["trace_lower"] = "oops"
-    rec["phase_transition"]["trace_upper"] = [1.0]   # wrong length
-    rec["simulation"]["phase_demo"]["curves"] = [{"arrival_probability": 0.5, "times": [1, 2],
-                                                  "mean_trace": ["x", 1]}]
-    figs = figures.build_figures(rec)
+    full = typed_record(records("rotation-third-turn"))
+    assert all(v is None for v in figures.build_figures(typed_record({})).values())
+    # malformed values (the typed record does not check types at run time)
+    pt = dataclasses.replace(full.phase_transition, trace_lower="oops",
+                             trace_upper=[1.0])   # wrong length
+    demo = full.simulation.phase_demo
+    curve = dataclasses.replace(demo.curves[0], arrival_probability=0.5, times=[1, 2],
+                                mean_trace=["x", 1])
+    sim = dataclasses.replace(full.simulation,
+                              phase_demo=dataclasses.replace(demo, curves=[curve]))
+    figs = figures.build_figures(dataclasses.replace(full, phase_transition=pt, simulation=sim))
     assert figs["phase_transition"] is None and figs["traces"] is None
     assert figs["operating"] is not None
 
 
 def test_print_figures_are_png_data_uris(records):
     rec = records("rotation-third-turn")
-    figs = figures.build_figures(rec, medium="print")
+    figs = figures.build_figures(typed_record(rec), medium="print")
     assert figs["invariant"] is None                   # n = 2: no invariant-support figure
     drawn = [key for key in figures.DENSE if figs[key] is not None]
     assert set(drawn) == {"phase_transition", "traces", "operating", "cdf", "almost_sure"}
     for key in drawn:
         assert figs[key].startswith('<img class="figure-img"'), key
         assert 'src="data:image/png;base64,' in figs[key]
-    assert figures.build_figures(rec)["almost_sure"].startswith("<svg")
+    assert figures.build_figures(typed_record(rec))["almost_sure"].startswith("<svg")
 
 
 def test_phase_window_starts_where_the_bounds_exist() -> None:
@@ -280,7 +286,7 @@ def test_footer_has_system_name_date_and_version(records):
 
 def test_missing_sections_say_not_computed():
     rec = {"name": "bare", "critical_value": None}
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
     ids = parse(html).ids
     for s in SECTION_ORDER:
         assert s in ids, s
@@ -293,7 +299,7 @@ def test_missing_sections_say_not_computed():
 
 def test_every_single_section_missing_renders(records):
     full = records("rotation-third-turn")
-    figs = figures.build_figures(full)
+    figs = figures.build_figures(typed_record(full))
     for key in full:
         rec = copy.deepcopy(full)
         rec[key] = None
@@ -308,7 +314,7 @@ def test_malformed_sections_do_not_crash(records):
     rec["theory"] = {"moment_thresholds": [None], "almost_sure": "one sentence"}
     rec["upper_bound"] = {"interval": "x"}
     rec["review"] = {"decision": "maybe", "reasons": "x"}
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
     assert "one sentence" in html and "NO REVIEW DECISION" in html
 
 
@@ -324,7 +330,7 @@ def test_autoescape_of_record_text(records):
 
 def test_scalar_system_shows_invariant_support(records):
     rec = records("kar-scalar-fractal")
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
     assert "Support of the invariant distribution" in html
     assert "[3, 5.8284271]" in html     # (f₁(∞), f₀(P*)) = (3, 3 + 2√2) (module docstring)
     assert "Support of the invariant" not in report.render_html(records("rotation-third-turn"),
@@ -428,7 +434,7 @@ def test_notebook_summaries(records):
 
 def test_no_internal_names_in_the_page(records):
     rec = records("link-oqpsk-sensor")
-    text = visible_text(report.render_html(rec, figures.build_figures(rec)))
+    text = visible_text(report.render_html(rec, figures.build_figures(typed_record(rec))))
     for leak in ("SeedSequence", "spawn_key", "^", "output compression output"):
         assert leak not in text, leak
     # full float precision never shows (a p_up bracket closed to 1e-9 needs 10 decimals)
@@ -465,7 +471,7 @@ def test_exact_forms_only_where_exact(records):
 
 def test_block_maxima_caption_states_the_data_not_a_limit(records):
     rec = records("rotation-third-turn")
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
     cap = html.split('id="fig-almost-sure"')[1].split("</figcaption>")[0]
     assert "= ∞" not in cap and "limsup tr P" not in cap
     top = rec["simulation"]["operating_point"]["almost_sure"]["block_max"]
@@ -675,7 +681,7 @@ def example_files() -> list[Path]:
 @pytest.mark.parametrize("path", example_files(), ids=lambda p: p.stem)
 def test_render_every_example_html(path, records, capsys):
     rec = records(path.stem)
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
     ids = parse(html).ids
     assert [s for s in SECTION_ORDER if s in ids] == SECTION_ORDER
     assert len(ids) == len(set(ids))
@@ -698,7 +704,7 @@ def test_render_every_example_html(path, records, capsys):
 
 def test_gilbert_elliott_report_has_bursty_section(records):
     rec = records("ge-bursty-scalar")
-    html = report.render_html(rec, figures.build_figures(rec))
+    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
     assert 'id="bursty-link"' in html and "verdict basis" in html
     rows = qty_rows(html, "channel")
     r = rec["link_budget"]["recovery_rate"]

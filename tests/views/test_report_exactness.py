@@ -26,6 +26,7 @@ from kfcrit.theory.critical.numtext import approx_text, complex_text, modulus_fr
 from kfcrit.views.figures import record as figures
 from kfcrit.views.formatting import sig
 from kfcrit.views.report import render as report
+from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.theory import bounds_view, structure_view
 from kfcrit.views.report.verdict import verdict_view
 from tests.views.test_report import REPORTS, visible_text
@@ -61,7 +62,7 @@ def tracker() -> dict:
 
 
 def page_text(rec: dict) -> str:
-    return visible_text(report.render_html(rec, figures.build_figures(rec)))
+    return visible_text(report.render_html(rec, figures.build_figures(typed_record(rec))))
 
 
 def between(text: str, start: str, end: str) -> str:

@@ -18,6 +18,7 @@ from kfcrit.analysis.spec import load_spec, spec_from_mapping
 from kfcrit.views.figures import network as netplots
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
+from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.viewmodel import IID_CAVEAT, view_model
 from tests.views.test_report import REPORTS, visible_text
 
@@ -40,7 +41,7 @@ def record_of(doc: dict, key: str) -> dict:
 
 
 def html_of(rec: dict) -> str:
-    return report.render_html(rec, figures.build_figures(rec))
+    return report.render_html(rec, figures.build_figures(typed_record(rec)))
 
 
 # ----------------------------------------------------------------------------- network
@@ -55,7 +56,7 @@ GAUGES = {"radar": (0.6, 1 / 9), "float": (0.5, 0.0), "pressure": (0.75, 4 / 9)}
 
 def test_network_table_shows_each_node_with_its_critical_value():
     rec = record("network-redundant-gauges")
-    model = view_model(rec, figures.build_figures(rec))
+    model = view_model(rec, figures.build_figures(typed_record(rec)))
     nodes = {n["name"]: n for n in model["network"]["nodes"]}
     assert set(nodes) == set(GAUGES)
     for name, (p, crit) in GAUGES.items():
@@ -72,18 +73,18 @@ def test_network_table_shows_each_node_with_its_critical_value():
 
 def test_weakest_pair_and_the_drawn_constraint_follow_the_closed_form():
     rec = record("network-redundant-gauges")
-    names = [s["name"] for s in netplots.sensors_of(rec)]
-    pair = netplots.weakest_pair(rec)
+    names = [s.name for s in netplots.sensors_of(typed_record(rec))]
+    pair = netplots.weakest_pair(typed_record(rec))
     # bottleneck pressure (its loss breaks stability, least certain margin 0.75 − 4/9), then
     # radar (margin 0.6 − 1/9 ≈ 0.489 < float's 0.5)
     assert [names[i] for i in pair] == ["pressure", "radar"]
     grid = np.array([0.0, 4 / 9, 0.75, 1.0])
-    (_, values), = netplots.constraint_values(rec, pair, grid)
+    (_, values), = netplots.constraint_values(typed_record(rec), pair, grid)
     px, py = np.meshgrid(grid, grid)
     np.testing.assert_allclose(values, 9 * (1 - px) * (1 - 0.5) * (1 - py))
     # on the line through the operating point (radar at 0.6) the boundary is pressure = 4/9
     assert values[list(grid).index(0.0), 1] == pytest.approx(9 * (5 / 9) * 0.5)   # radar 0
-    fig = netplots.draw_network_region(rec)
+    fig = netplots.draw_network_region(typed_record(rec))
     ax = fig.axes[0]
     op = [ln for ln in ax.get_lines() if ln.get_label().startswith("operating point")]
     assert op and tuple(op[0].get_xydata()[0]) == pytest.approx((0.75, 0.6))
@@ -91,16 +92,16 @@ def test_weakest_pair_and_the_drawn_constraint_follow_the_closed_form():
 
 def test_network_map_draws_positions_and_the_sink_when_given():
     rec = record("network-planar-tracker")
-    pos = netplots.positions_of(rec)
+    pos = netplots.positions_of(typed_record(rec))
     assert pos == {"north": (0.0, 118.0), "east": (124.0, 0.0), "corner": (90.0, 92.0)}
     html = html_of(rec)
     assert 'id="fig-network-map"' in html
     # the planar tracker's file puts the sink at the origin: it is drawn there, with one
     # segment from each node to it
     assert rec["system"]["sink_position_m"] == [0.0, 0.0]
-    model = view_model(rec, figures.build_figures(rec))
+    model = view_model(rec, figures.build_figures(typed_record(rec)))
     assert "no sink position" not in model["network"]["map"]["caption"]
-    fig = netplots.draw_network_map(rec)
+    fig = netplots.draw_network_map(typed_record(rec))
     ax = fig.axes[0]
     texts = [t.get_text() for t in ax.texts]
     assert "sink" in texts and any(t.startswith("corner") for t in texts)
@@ -112,9 +113,9 @@ def test_network_map_draws_positions_and_the_sink_when_given():
     assert len(to_sink) == len(pos)
     # without a sink position the map says so and draws no sink
     del rec["system"]["sink_position_m"]
-    assert "no sink position" in view_model(rec, figures.build_figures(rec))[
+    assert "no sink position" in view_model(rec, figures.build_figures(typed_record(rec)))[
         "network"]["map"]["caption"]
-    fig = netplots.draw_network_map(rec)
+    fig = netplots.draw_network_map(typed_record(rec))
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert "sink" not in texts
     rec["system"]["sink_position_m"] = [0.0, 0.0]
@@ -125,7 +126,7 @@ def test_network_map_draws_positions_and_the_sink_when_given():
 
 def test_single_link_record_has_no_network_section():
     rec = record("sinopoli-scalar")
-    assert figures.build_figures(rec)["network_region"] is None
+    assert figures.build_figures(typed_record(rec))["network_region"] is None
     assert 'id="network"' not in html_of(rec)
 
 
@@ -136,7 +137,7 @@ def test_bursty_report_draws_the_critical_curve_and_carries_the_caveat():
     curve = rec["link_budget"]["critical_curve"]
     # scalar a = −5/4: r_nec = 1 − 1/a² = 9/25 for every f (MATH §7)
     assert curve["necessary_recovery"] == pytest.approx([9 / 25] * len(curve["failure_rates"]))
-    fig = figures.figure(rec, "critical_curve")
+    fig = figures.figure(typed_record(rec), "critical_curve")
     lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
     nec = lines[r"necessary recovery rate $r_{\mathrm{nec}}(f)$"]
     np.testing.assert_array_equal(nec.get_xdata(), curve["failure_rates"])
@@ -168,7 +169,7 @@ def test_accuracy_figure_shades_the_required_interval():
     # tr S̄(p) = q / (1 − (1 − p) a²) = 10  ⇔  (1 − p)·25/16 = 0.9  ⇔  p_S = 0.424 (by hand)
     p_s, p_v = rec["design"]["required_arrival_probability"]["interval"]
     assert p_s == pytest.approx(0.424, abs=1e-6) and p_s < p_v < 0.8
-    fig = figures.figure(rec, "accuracy")
+    fig = figures.figure(typed_record(rec), "accuracy")
     ax = fig.axes[0]
     spans = [p for p in ax.patches if "p_S, p_V" in p.get_label()]
     assert len(spans) == 1
@@ -190,25 +191,26 @@ def test_link_curves_from_the_record_are_drawn_as_given():
     arrival = curves.arrival_vs_distance(link, np.geomspace(30, 300, 25))
     per = curves.per_vs_sinr(link.radio, (20, 127), np.linspace(-4, 4, 17))
     outage = curves.outage_vs_distance(link, {"p_c": 0.36}, np.array([50.0, 105.0, 200.0]))
-    rec["link_budget"]["curves"] = {"arrival_vs_distance": arrival.to_dict(),
+    rec["link_budget"]["curves"] = {**rec["link_budget"]["curves"],
+                                    "arrival_vs_distance": arrival.to_dict(),
                                     "per_vs_sinr": per.to_dict(),
                                     "outage_vs_distance": outage.to_dict()}
-    fig = figures.figure(rec, "arrival_distance")
+    fig = figures.figure(typed_record(rec), "arrival_distance")
     median = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("median"))
     np.testing.assert_array_equal(median.get_ydata(), arrival.arrival)
     assert any(ln.get_label() == "critical arrival probability $p_c$ = 0.36"
                for ln in fig.axes[0].get_lines())
-    fig = figures.figure(rec, "per_sinr")
+    fig = figures.figure(typed_record(rec), "per_sinr")
     psdu127 = next(ln for ln in fig.axes[0].get_lines() if ln.get_label() == "PSDU 127 bytes")
     np.testing.assert_allclose(psdu127.get_ydata(), link.radio.per(np.linspace(-4, 4, 17), 127))
-    fig = figures.figure(rec, "outage_distance")
+    fig = figures.figure(typed_record(rec), "outage_distance")
     out = next(ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("P(arrival prob."))
     assert out.get_ydata()[1] == link.outage_probability(0.36)
     html = html_of(rec)
     assert all(f'id="fig-link-{i}"' in html for i in (1, 2, 3))
     # malformed curves: no figure, no exception
     rec["link_budget"]["curves"]["per_vs_sinr"]["per"] = [[0.1]]
-    assert figures.build_figures(rec)["per_sinr"] is None
+    assert figures.build_figures(typed_record(rec))["per_sinr"] is None
 
 
 def test_tail_exponent_is_shown_with_its_label():
@@ -230,7 +232,7 @@ def test_divergent_mean_draws_the_sample_mean_without_a_band():
     op = rec["simulation"]["operating_point"]
     assert op["mean_trace"]["diverges"] and op["mean_trace"]["mean"] is None
     sample = op["sample_mean_trace"]["mean"]
-    fig = figures.draw_operating(rec)
+    fig = figures.draw_operating(typed_record(rec))
     assert fig is not None
     ax = fig.axes[0]
     lines = [ln for ln in ax.lines if len(ln.get_xdata()) == len(op["times"])]

@@ -1,6 +1,7 @@
 """Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (theory §10).
 
-Reads ``link_budget.critical_curve`` (:meth:`kfcrit.theory.links.markov.BurstCriticalCurve.to_dict`):
+Reads the typed ``link_budget.critical_curve``
+(:class:`~kfcrit.analysis.records.bursty.BurstCurveRecord`):
 on a grid of failure rates f, the necessary recovery rate r_nec(f) (at or below it E[P_t]
 diverges, proven) and the sufficient one r_suf(f) (at or above it the coupled fixed-gain
 certificate proves E[P_t] bounded),
@@ -14,53 +15,53 @@ points only (no extrapolation beyond them).
 """
 from __future__ import annotations
 
-from typing import Any
-
 import matplotlib
 from matplotlib.figure import Figure
 
+from kfcrit.analysis.records.bursty import BurstCurveRecord, GilbertElliottSection
+from kfcrit.analysis.records.link import LinkBudgetRecord
+from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.views.figures.style import (
     COLORS,
     finite,
     floats,
     fmt,
     new_figure,
+    present,
     readable_rc,
-    section,
 )
 
 R_NEC = r"$r_{\mathrm{nec}}(f)$"
 R_SUF = r"$r_{\mathrm{suf}}(f)$"
 
 
-def critical_curve_of(record: dict[str, Any]) -> dict[str, Any] | None:
+def critical_curve_of(rec: AnalysisRecord) -> BurstCurveRecord | None:
     """The critical curve of a Gilbert–Elliott link (single link or the link budget's bursty
     part), or ``None``."""
-    for where in (("link_budget", "critical_curve"),
-                  ("link_budget", "bursty", "critical_curve")):
-        curve = section(record, *where)
-        if isinstance(curve, dict):
-            return curve
-    return None
+    lb = rec.link_budget
+    bursty = lb.bursty if isinstance(lb, LinkBudgetRecord) else lb
+    if not isinstance(bursty, GilbertElliottSection) or not present(bursty.critical_curve):
+        return None
+    return bursty.critical_curve
 
 
-def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
+def draw_critical_curve(rec: AnalysisRecord) -> Figure | None:
     """Both bounding curves of the critical curve, the regions they decide, the operating
     point and the line f + r = 1 (i.i.d. losses)."""
-    curve = critical_curve_of(record)
+    curve = critical_curve_of(rec)
     if curve is None:
         return None
-    f = floats(curve.get("failure_rates"))
-    nec = floats(curve.get("necessary_recovery"))
-    suf = floats(curve.get("sufficient_recovery"))
+    f = floats(curve.failure_rates)
+    nec = floats(curve.necessary_recovery)
+    suf = floats(curve.sufficient_recovery)
     if f is None or (nec is None and suf is None):
         return None
     nec = nec if nec is not None and len(nec) == len(f) else None
     suf = suf if suf is not None and len(suf) == len(f) else None
     if nec is None and suf is None:
         return None
-    op = curve.get("operating_point") if isinstance(curve.get("operating_point"), dict) else {}
-    of, orr = finite(op.get("failure_rate")), finite(op.get("recovery_rate"))
+    op = curve.operating_point
+    of, orr = finite(op.failure_rate), finite(op.recovery_rate)
     gap = max_gap(nec, suf) if nec is not None and suf is not None else None
     with matplotlib.rc_context(readable_rc()):
         fig, ax = new_figure()
@@ -83,9 +84,9 @@ def draw_critical_curve(record: dict[str, Any]) -> Figure | None:
                     linestyle=(0, (5, 2.5)),
                     label=rf"sufficient recovery rate {R_SUF}"
                           + coincidence_note(gap))
-        if level is not None and curve.get("necessary_expression"):
+        if level is not None and curve.necessary_expression:
             ax.axhline(level, color=COLORS["sim"], linestyle=(0, (1, 1.5)), linewidth=0.9,
-                       label=f"r = {curve['necessary_expression']}: {R_NEC} in closed form "
+                       label=f"r = {curve.necessary_expression}: {R_NEC} in closed form "
                              "(every f)")
         ax.plot([0, 1], [1, 0], color=COLORS["p_low"], linestyle=":", linewidth=1,
                 label="f + r = 1 (i.i.d. losses, p = r)")

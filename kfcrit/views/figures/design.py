@@ -4,7 +4,8 @@
   lim E[tr P] ≤ L and the required interval [p_S, p_V] of ``design.required_arrival_probability``
   shaded (theory §11: p ≤ p_S fails since tr S̄(p) > L; p ≥ p_V meets it since tr V̄(p) ≤ L);
 * ``arrival_distance``, ``per_sinr``, ``outage_distance``: the link layer's curves from
-  ``link_budget.curves`` (the ``to_dict`` forms of :mod:`kfcrit.link.curves`), drawn by
+  ``link_budget.curves`` (:class:`~kfcrit.analysis.records.link.LinkCurves`, the record forms of
+  :mod:`kfcrit.link.curves`), drawn by
   :mod:`kfcrit.views.figures.link` with p_c, the requirement and the design distance marked.
 
 Nothing is computed here: record values are only read back into arrays and drawn.
@@ -18,6 +19,9 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
+from kfcrit.analysis.records.channel import RadioRecord
+from kfcrit.analysis.records.link import LinkBudgetRecord, LinkCurves
+from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve
 from kfcrit.views.figures.link import arrival_distance_figure, outage_distance_figure, per_sinr_figure
 from kfcrit.views.figures.style import (
@@ -30,13 +34,13 @@ from kfcrit.views.figures.style import (
     new_figure,
     plain_log_labels,
     positive,
-    section,
+    present,
 )
 
 
-def required_interval(record: dict[str, Any]) -> tuple[float, float] | None:
+def required_interval(rec: AnalysisRecord) -> tuple[float, float] | None:
     """[p_S, p_V] of the accuracy requirement (``design.required_arrival_probability``)."""
-    iv = section(record, "design", "required_arrival_probability", "interval")
+    iv = rec.design.required_arrival_probability.interval if present(rec.design) else None
     if isinstance(iv, (list, tuple)) and len(iv) == 2:
         lo, hi = finite(iv[0]), finite(iv[1])
         if lo is not None and hi is not None:
@@ -44,27 +48,29 @@ def required_interval(record: dict[str, Any]) -> tuple[float, float] | None:
     return None
 
 
-def requirement_level(record: dict[str, Any]) -> float | None:
+def requirement_level(rec: AnalysisRecord) -> float | None:
     """L of lim E[tr P] ≤ L (``design.required_arrival_probability.level``, else the
     requirement's ``requirements.max_mean_error_trace``)."""
-    level = finite(section(record, "design", "required_arrival_probability", "level"))
-    return level if level is not None else finite(
-        section(record, "requirements", "max_mean_error_trace"))
+    level = (finite(rec.design.required_arrival_probability.level) if present(rec.design)
+             else None)
+    if level is not None or rec.requirements is None:
+        return level
+    return finite(rec.requirements.max_mean_error_trace)
 
 
-def draw_accuracy(record: dict[str, Any]) -> Figure | None:
+def draw_accuracy(rec: AnalysisRecord) -> Figure | None:
     """tr S̄ and tr V̄ against p with the requirement line L and [p_S, p_V] shaded."""
-    level = requirement_level(record)
-    pt = record.get("phase_transition")
-    if level is None or not isinstance(pt, dict) or not isinstance(record.get("design"), dict):
+    level = requirement_level(rec)
+    pt = rec.phase_transition
+    if level is None or pt is None or not present(rec.design):
         return None
-    p = floats(pt.get("p"))
-    lower, upper = floats(pt.get("trace_lower")), floats(pt.get("trace_upper"))
+    p = floats(pt.p)
+    lower, upper = floats(pt.trace_lower), floats(pt.trace_upper)
     if p is None:
         return None
-    interval = required_interval(record)
-    floor = finite(section(record, "design", "required_arrival_probability", "floor_trace"))
-    operating = finite(section(record, "phase_transition", "markers", "operating"))
+    interval = required_interval(rec)
+    floor = finite(rec.design.required_arrival_probability.floor_trace)
+    operating = finite(pt.markers.operating)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = new_figure(3.1)
         drawn = False
@@ -121,9 +127,15 @@ def mark_operating(ax: Any, operating: float | None) -> None:
             label=f"{label} (off the axis: arrow at its {'left' if left else 'right'} edge)")
 
 
-def _curves(record: dict[str, Any]) -> dict[str, Any]:
-    raw = section(record, "link_budget", "curves")
-    return raw if isinstance(raw, dict) else {}
+def _budget(rec: AnalysisRecord) -> LinkBudgetRecord | None:
+    """The link budget's section (``None`` for no link budget, or a Gilbert–Elliott one)."""
+    lb = rec.link_budget
+    return lb if isinstance(lb, LinkBudgetRecord) else None
+
+
+def _curves(rec: AnalysisRecord) -> LinkCurves | None:
+    lb = _budget(rec)
+    return lb.curves if lb is not None and present(lb.curves) else None
 
 
 def _array(values: Any, ndim: int = 1) -> np.ndarray | None:
@@ -139,83 +151,81 @@ def _array(values: Any, ndim: int = 1) -> np.ndarray | None:
     return arr if arr.ndim == ndim else None
 
 
-def arrival_curve_of(record: dict[str, Any]) -> ArrivalCurve | None:
+def arrival_curve_of(rec: AnalysisRecord) -> ArrivalCurve | None:
     """``link_budget.curves.arrival_vs_distance`` read back (see
     :meth:`kfcrit.link.curves.ArrivalCurve.to_dict`)."""
-    c = _curves(record).get("arrival_vs_distance")
-    if not isinstance(c, dict):
+    curves = _curves(rec)
+    if curves is None:
         return None
-    d, arr = _array(c.get("distance_m")), _array(c.get("arrival"))
-    mean = _array(c.get("mean_arrival")) if c.get("mean_arrival") is not None else None
-    conf = finite(c.get("configured_distance_m"))
+    c = curves.arrival_vs_distance
+    d, arr = _array(c.distance_m), _array(c.arrival)
+    mean = _array(c.mean_arrival) if c.mean_arrival is not None else None
+    conf = finite(c.configured_distance_m)
     if d is None or arr is None or len(d) != len(arr) or conf is None:
         return None
     if mean is not None and len(mean) != len(d):
         mean = None
-    return ArrivalCurve(d, arr, mean, conf, int(c.get("max_retries") or 0),
-                        int(c.get("psdu_bytes") or 0))
+    return ArrivalCurve(d, arr, mean, conf, int(c.max_retries or 0), int(c.psdu_bytes or 0))
 
 
-def design_p_c(record: dict[str, Any]) -> float | None:
+def design_p_c(rec: AnalysisRecord) -> float | None:
     """p_c for the link figures: the critical value, else the link's design requirement."""
-    value = finite(section(record, "critical_value", "value"))
-    return value if value is not None else finite(
-        section(record, "link_budget", "required_arrival_probability", "design_value"))
+    value = finite(rec.critical_value.value) if rec.critical_value is not None else None
+    lb = _budget(rec)
+    if value is not None or lb is None:
+        return value
+    return finite(lb.required_arrival_probability.design_value)
 
 
-def draw_arrival_distance(record: dict[str, Any]) -> Figure | None:
+def draw_arrival_distance(rec: AnalysisRecord) -> Figure | None:
     """p(d) with p_c, the required [p_S, p_V] and the largest distance of the margin policy."""
-    curve = arrival_curve_of(record)
+    curve = arrival_curve_of(rec)
     if curve is None:
         return None
     return arrival_distance_figure(
-        curve, critical_value=design_p_c(record), requirement=required_interval(record),
-        design_distance_m=finite(section(record, "link_budget", "max_distance_m")))
+        curve, critical_value=design_p_c(rec), requirement=required_interval(rec),
+        design_distance_m=finite(_budget(rec).max_distance_m))
 
 
-def draw_per_sinr(record: dict[str, Any]) -> Figure | None:
+def draw_per_sinr(rec: AnalysisRecord) -> Figure | None:
     """PER(SINR) for the record's PSDU lengths, with the configured and required SINR."""
-    c = _curves(record).get("per_vs_sinr")
-    if not isinstance(c, dict):
+    curves = _curves(rec)
+    if curves is None:
         return None
-    s, per = _array(c.get("sinr_db")), _array(c.get("per"), 2)
-    lengths = c.get("psdu_bytes")
+    c = curves.per_vs_sinr
+    s, per = _array(c.sinr_db), _array(c.per, 2)
+    lengths = c.psdu_bytes
     if s is None or per is None or not isinstance(lengths, list) \
             or per.shape != (len(lengths), len(s)):
         return None
-    curve = PerCurve(str(c.get("radio") or "radio"), s, tuple(int(v) for v in lengths), per,
-                     int(c.get("header_bytes") or 0))
+    curve = PerCurve(c.radio or "radio", s, tuple(int(v) for v in lengths), per,
+                     int(c.header_bytes or 0))
+    lb = _budget(rec)
     marks = [(label, v) for label, v in (
-        ("configured SINR", finite(section(record, "link_budget", "link", "sinr_db"))),
-        ("required SINR", finite(section(record, "link_budget", "required_sinr_db"))))
+        ("configured SINR", finite(lb.link.sinr_db)),
+        ("required SINR", finite(lb.required_sinr_db)))
         if v is not None]
-    return per_sinr_figure(curve, marks=marks, title=radio_title(record))
+    return per_sinr_figure(curve, marks=marks, title=radio_title(lb.radio))
 
 
-def radio_title(record: dict[str, Any]) -> str | None:
-    """The radio in words for a figure title: its display name when the record has one
-    (``link_budget.radio.display_name``), else its frame standard (``IEEE 802.15.4 O-QPSK
+def radio_title(radio: RadioRecord) -> str | None:
+    """The radio in words for a figure title: its frame standard (``IEEE 802.15.4 O-QPSK
     2450 MHz radio``), else ``None`` (no title: the model key is a code name)."""
-    radio = section(record, "link_budget", "radio")
-    if not isinstance(radio, dict):
-        return None
-    name = radio.get("display_name")
-    if isinstance(name, str) and name.strip():
-        return name.strip()
-    standard = section(radio, "frame", "standard")
+    standard = radio.frame.standard
     if isinstance(standard, str) and standard.strip():
         return f"{standard.strip()} radio"
     return None
 
 
-def draw_outage_distance(record: dict[str, Any]) -> Figure | None:
+def draw_outage_distance(rec: AnalysisRecord) -> Figure | None:
     """Per-link shadowing outage against distance for each requirement, with ``max_outage``."""
-    c = _curves(record).get("outage_vs_distance")
-    if not isinstance(c, dict):
+    curves = _curves(rec)
+    if curves is None or not present(curves.outage_vs_distance):
         return None
-    d, out = _array(c.get("distance_m")), _array(c.get("outage"), 2)
-    reqs = c.get("requirements")
-    conf, sigma = finite(c.get("configured_distance_m")), finite(c.get("sigma_db"))
+    c = curves.outage_vs_distance
+    d, out = _array(c.distance_m), _array(c.outage, 2)
+    reqs = c.requirements
+    conf, sigma = finite(c.configured_distance_m), finite(c.sigma_db)
     if d is None or out is None or not isinstance(reqs, list) or conf is None \
             or sigma is None or out.shape != (len(reqs), len(d)):
         return None
@@ -223,5 +233,5 @@ def draw_outage_distance(record: dict[str, Any]) -> Figure | None:
                   if isinstance(r, (list, tuple)) and len(r) == 2 and finite(r[1]) is not None)
     if len(pairs) != len(reqs):
         return None
-    curve = OutageCurve(d, pairs, out, sigma, finite(c.get("max_outage")), conf)
+    curve = OutageCurve(d, pairs, out, sigma, finite(c.max_outage), conf)
     return outage_distance_figure(curve)

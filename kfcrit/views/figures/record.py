@@ -1,12 +1,14 @@
 """Report figures: matplotlib drawings of record data (Figure objects, inline SVG or PNG).
 
-Every function here reads only the analysis record (``Analysis.to_dict()``, or the same dict read
-back from ``--json``) and draws; nothing is computed beyond unit conversions. :func:`figure`
-returns one figure as a :class:`matplotlib.figure.Figure` (for notebooks), :func:`figure_names`
-lists those the record has data for, and :func:`build_figures` returns every figure as markup for
-the report. A figure whose data is missing or malformed is ``None`` and the
-report says "not computed" in its place. ``None`` inside a data list is a non-finite value in the
-record (a divergent trace, a bound that does not exist at that p) and is drawn as a gap.
+Every function here reads only the typed analysis record
+(:class:`~kfcrit.analysis.sections.AnalysisRecord`, from :func:`kfcrit.analyze` or read back from
+``--json`` by :func:`~kfcrit.analysis.sections.record_from_json`) and draws; nothing is computed
+beyond unit conversions. :func:`figure` returns one figure as a
+:class:`matplotlib.figure.Figure` (for notebooks), :func:`figure_names` lists those the record has
+data for, and :func:`build_figures` returns every figure as markup for the report. A figure whose
+data is missing or malformed is ``None`` and the report says "not computed" in its place.
+``None`` inside a data list is a non-finite value in the record (a divergent trace, a bound that
+does not exist at that p) and is drawn as a gap.
 
 Figures (names for :func:`figure`, keys of :func:`build_figures`):
 
@@ -41,6 +43,13 @@ matplotlib.use("Agg")
 
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
+from kfcrit.analysis.records.covariance import Invariant  # noqa: E402
+from kfcrit.analysis.records.simulation import (  # noqa: E402
+    MeanTraceStatistics,
+    PhaseDemoCurve,
+    SimulationOperatingPoint,
+)
+from kfcrit.analysis.sections import AnalysisRecord  # noqa: E402
 from kfcrit.views.figures.burst import draw_critical_curve  # noqa: E402
 from kfcrit.views.figures.design import (  # noqa: E402
     draw_accuracy,
@@ -68,7 +77,7 @@ from kfcrit.views.figures.style import (  # noqa: E402,F401
     plain_label,
     plain_log_labels,
     positive,
-    section,
+    present,
 )
 from kfcrit.views.figures.tracefit import draw_burst_histogram, draw_fit_region  # noqa: E402
 from kfcrit.views.mesh.meshfigure import draw_mesh_topology  # noqa: E402
@@ -87,11 +96,14 @@ def _to_svg(fig: Figure, label: str) -> str:
     return clean_svg(buf.getvalue().decode("utf-8"), label=label, css_class="figure-svg")
 
 
-def markers_of(record: dict[str, Any]) -> dict[str, float | None]:
+def markers_of(rec: AnalysisRecord) -> dict[str, float | None]:
     """p_low, p_c, p_up and the operating p (``phase_transition.markers``; ``None`` if absent)."""
-    marks = section(record, "phase_transition", "markers")
-    marks = marks if isinstance(marks, dict) else {}
-    return {k: finite(marks.get(k)) for k in ("p_low", "p_c", "p_up", "operating")}
+    pt = rec.phase_transition
+    if pt is None:
+        return dict.fromkeys(("p_low", "p_c", "p_up", "operating"))
+    m = pt.markers
+    return {"p_low": finite(m.p_low), "p_c": finite(m.p_c), "p_up": finite(m.p_up),
+            "operating": finite(m.operating)}
 
 
 def phase_window(p: Sequence[float], lower: Sequence[float] | None,
@@ -115,17 +127,17 @@ def phase_window(p: Sequence[float], lower: Sequence[float] | None,
     return left, right
 
 
-def draw_phase_transition(record: dict[str, Any]) -> Figure | None:
+def draw_phase_transition(rec: AnalysisRecord) -> Figure | None:
     """tr S̄(p) and tr V̄(p) on a log axis with p_low, p_c, p_up and the operating point."""
-    pt = record.get("phase_transition")
-    if not isinstance(pt, dict):
+    pt = rec.phase_transition
+    if pt is None:
         return None
-    p = floats(pt.get("p"))
-    lower = floats(pt.get("trace_lower"))
-    upper = floats(pt.get("trace_upper"))
+    p = floats(pt.p)
+    lower = floats(pt.trace_lower)
+    upper = floats(pt.trace_upper)
     if p is None or (lower is None and upper is None):
         return None
-    marks = markers_of(record)
+    marks = markers_of(rec)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = new_figure()
         drawn = False
@@ -153,25 +165,25 @@ def draw_phase_transition(record: dict[str, Any]) -> Figure | None:
         return fig
 
 
-def draw_traces(record: dict[str, Any]) -> Figure | None:
+def draw_traces(rec: AnalysisRecord) -> Figure | None:
     """Simulated mean tr P_t for arrival probabilities just below and above the critical value."""
-    demo = section(record, "simulation", "phase_demo", "curves")
-    if not isinstance(demo, list) or not demo:
+    sim = rec.simulation
+    phase_demo = sim.phase_demo if sim is not None else None
+    if not present(phase_demo) or not phase_demo.curves:
         return None
+    demo = phase_demo.curves
     with matplotlib.rc_context(FIG_RC):
         fig, ax = new_figure(HALF_HEIGHT_IN, HALF_WIDTH_IN)
         palette = ["#b91c1c", "#d9730d", "#1f5fa8", "#15803d", "#7c3aed"]
         drawn = 0
         for i, run in enumerate(demo):
-            if not isinstance(run, dict):
-                continue
             t, y, _, _ = series_of(run)
             if t is None or y is None or len(t) != len(y) or not positive(y):
                 continue
-            p = finite(run.get("arrival_probability"))
-            label = str(run.get("side") or "")
+            p = finite(run.arrival_probability)
+            label = run.side or ""
             text = f"p = {p:.4g}" if p is not None else "p = ?"
-            if run.get("mean_is_lower_bound"):
+            if run.mean_is_lower_bound:
                 label = (label + ", " if label else "") + "paths diverged: a lower bound"
             ax.plot(t, y, color=palette[i % len(palette)], linewidth=1.2,
                     label=f"{text} ({label})" if label else text)
@@ -186,59 +198,72 @@ def draw_traces(record: dict[str, Any]) -> Figure | None:
         return fig
 
 
-def series_of(run: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
+SimulatedRun = SimulationOperatingPoint | PhaseDemoCurve
+"""A simulated run with a mean trace over time: the operating point's, or a phase-demo curve."""
+
+
+def series_of(run: SimulatedRun) -> tuple[Any, Any, Any, Any]:
     """(times, mean, band lower end, band upper end) of a simulated run.
 
     The operating-point run has ``times`` and ``mean_trace = {mean, lower, upper}``; a curve of
     ``phase_demo`` has ``times``, ``mean_trace`` (a list) and ``lower``/``upper`` beside it.
     """
-    t = floats(run.get("times"))
-    mt = run.get("mean_trace")
+    t = floats(run.times)
+    mt = run.mean_trace
     if mean_diverges(run):
         # E[tr P_t] does not exist: the record keeps only the sample mean over the paths, which
         # is drawn as what it is (no confidence band: it estimates nothing).
-        return t, floats(as_mapping(run.get("sample_mean_trace")).get("mean")), None, None
-    if isinstance(mt, dict):
-        return t, floats(mt.get("mean")), floats(mt.get("lower")), floats(mt.get("upper"))
-    return t, floats(mt), floats(run.get("lower")), floats(run.get("upper"))
+        smt = run.sample_mean_trace if isinstance(run, SimulationOperatingPoint) else None
+        return t, floats(smt.mean) if present(smt) else None, None, None
+    if isinstance(mt, MeanTraceStatistics):
+        return t, floats(mt.mean), floats(mt.lower), floats(mt.upper)
+    return t, floats(mt), floats(run.lower), floats(run.upper)
 
 
-def mean_diverges(run: dict[str, Any]) -> bool:
-    """Whether the record says E[tr P_t] diverges at this run (``mean_trace.diverges``)."""
-    mt = run.get("mean_trace")
-    return isinstance(mt, dict) and bool(mt.get("diverges"))
+def mean_diverges(run: SimulatedRun | None) -> bool:
+    """Whether the record says E[tr P_t] diverges at this run (``mean_trace.diverges``; False
+    without a run)."""
+    mt = run.mean_trace if run is not None else None
+    return isinstance(mt, MeanTraceStatistics) and bool(mt.diverges)
 
 
-def as_mapping(value: Any) -> dict[str, Any]:
-    """``value`` if it is a dict, else an empty dict (a record section may be absent)."""
-    return value if isinstance(value, dict) else {}
+def operating_of(rec: AnalysisRecord) -> SimulationOperatingPoint | None:
+    """``simulation.operating_point`` (``None`` without a simulation or an operating point)."""
+    sim = rec.simulation
+    op = sim.operating_point if sim is not None else None
+    return op if present(op) else None
 
 
-def cdf_of(record: dict[str, Any]) -> tuple[Any, Any]:
+def cdf_of(rec: AnalysisRecord) -> tuple[Any, Any]:
     """(trace, probability) of the empirical CDF of tr P at the operating point
     (``simulation.operating_point.horizon.cdf``)."""
-    cdf = section(record, "simulation", "operating_point", "horizon", "cdf")
-    if not isinstance(cdf, dict):
+    op = operating_of(rec)
+    if op is None:
         return None, None
-    return floats(cdf.get("trace")), floats(cdf.get("probability"))
+    cdf = op.horizon.cdf
+    return floats(cdf.trace), floats(cdf.probability)
 
 
-def tail_of(record: dict[str, Any]) -> float | None:
+def tail_of(rec: AnalysisRecord) -> float | None:
     """Simulated P(tr P > limit) at the operating point
     (``simulation.operating_point.exceedance.estimate``)."""
-    return finite(section(record, "simulation", "operating_point", "exceedance", "estimate"))
+    op = operating_of(rec)
+    if op is None or op.exceedance is None:
+        return None
+    return finite(op.exceedance.estimate)
 
 
-def draw_operating(record: dict[str, Any]) -> Figure | None:
+def draw_operating(rec: AnalysisRecord) -> Figure | None:
     """Mean tr P_t at the operating point (with its band) against tr S̄ and tr V̄."""
-    op = section(record, "simulation", "operating_point")
-    if not isinstance(op, dict):
+    op = operating_of(rec)
+    if op is None:
         return None
     t, y, lo, hi = series_of(op)
     if t is None or y is None or len(t) != len(y) or not positive(y):
         return None
-    s_tr = finite(section(record, "covariance_bounds", "lower", "trace"))
-    v_tr = finite(section(record, "covariance_bounds", "upper", "trace"))
+    cb = rec.covariance_bounds
+    s_tr = finite(cb.lower.trace) if cb is not None else None
+    v_tr = finite(cb.upper.trace) if cb is not None else None
     shown = [v for v in list(y) + [s_tr or 0.0, v_tr or 0.0] if math.isfinite(v) and v > 0]
     floor = 0.5 * min(shown)
     with matplotlib.rc_context(FIG_RC):
@@ -275,13 +300,13 @@ def cdf_window(x: Sequence[float], limit: float | None) -> tuple[float, float] |
     return min(present) / 1.15, max(present) * 1.6
 
 
-def draw_cdf(record: dict[str, Any]) -> Figure | None:
+def draw_cdf(rec: AnalysisRecord) -> Figure | None:
     """Empirical CDF of tr P at the operating point, with the requirement's limit if given."""
-    x, f = cdf_of(record)
+    x, f = cdf_of(rec)
     if x is None or f is None or len(x) != len(f) or not positive(x):
         return None
-    limit = finite(section(record, "requirements", "max_error_trace"))
-    tail = tail_of(record)
+    limit = finite(rec.requirements.max_error_trace) if rec.requirements is not None else None
+    tail = tail_of(rec)
     with matplotlib.rc_context(FIG_RC):
         fig, ax = new_figure()
         draw_ecdf(ax, x, f)
@@ -305,7 +330,7 @@ def draw_cdf(record: dict[str, Any]) -> Figure | None:
         return fig
 
 
-def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
+def invariant_gaps(inv: Invariant) -> list[list[float]]:
     """Empty intervals of the invariant support: ``holes`` (pairs), ``gap_levels``
     [{lower, upper}] and ``support_points.largest_gaps`` (pairs), sorted.
 
@@ -313,11 +338,9 @@ def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
     points share the upper end) are kept once, as the narrower one: the numerical estimate
     starts at the largest support point found, below the true end of the support piece.
     """
-    raw: list[Any] = list(inv.get("holes") or [])
-    raw += [[_dict_get(g, "lower"), _dict_get(g, "upper")] for g in inv.get("gap_levels") or []]
-    sp = inv.get("support_points")
-    if isinstance(sp, dict):
-        raw += list(sp.get("largest_gaps") or [])
+    raw: list[Any] = list(inv.holes or [])
+    raw += [[g.lower, g.upper] for g in inv.gap_levels or []]
+    raw += list(inv.support_points.largest_gaps or [])
     pairs = sorted({(float(g[0]), float(g[1])) for g in raw
                     if isinstance(g, (list, tuple)) and len(g) == 2
                     and finite(g[0]) is not None and finite(g[1]) is not None
@@ -330,19 +353,14 @@ def invariant_gaps(inv: dict[str, Any]) -> list[list[float]]:
     return [list(g) for g in sorted(by_upper.values())]
 
 
-def _dict_get(d: Any, key: str) -> Any:
-    return d.get(key) if isinstance(d, dict) else None
-
-
-def draw_invariant(record: dict[str, Any]) -> Figure | None:
+def draw_invariant(rec: AnalysisRecord) -> Figure | None:
     """Support of the invariant distribution of a scalar system: the support from P* on, with
     its empty intervals cut out."""
-    inv = record.get("invariant")
-    if not isinstance(inv, dict):
+    inv = rec.invariant
+    if inv is None:
         return None
     gaps = invariant_gaps(inv)
-    fp = inv.get("fixed_point")
-    fixed = finite(fp.get("value") if isinstance(fp, dict) else fp)
+    fixed = finite(inv.fixed_point.value)
     if not gaps:
         return None
     ends = [v for g in gaps for v in g]
@@ -370,14 +388,15 @@ def draw_invariant(record: dict[str, Any]) -> Figure | None:
         return fig
 
 
-def draw_almost_sure(record: dict[str, Any]) -> Figure | None:
+def draw_almost_sure(rec: AnalysisRecord) -> Figure | None:
     """Block maxima and minima of tr P_t over dyadic time blocks of one long path (theory §6)."""
-    blk = section(record, "simulation", "operating_point", "almost_sure")
-    if not isinstance(blk, dict):
+    op = operating_of(rec)
+    if op is None:
         return None
-    start = floats(blk.get("block_start"))
-    bmax = floats(blk.get("block_max"))
-    bmin = floats(blk.get("block_min"))
+    blk = op.almost_sure
+    start = floats(blk.block_start)
+    bmax = floats(blk.block_max)
+    bmin = floats(blk.block_min)
     if start is None or bmax is None or len(start) != len(bmax) or not positive(bmax):
         return None
     with matplotlib.rc_context(FIG_RC):
@@ -396,7 +415,7 @@ def draw_almost_sure(record: dict[str, Any]) -> Figure | None:
         return fig
 
 
-DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
+DRAWERS: dict[str, Callable[[AnalysisRecord], Figure | None]] = {
     "phase_transition": draw_phase_transition, "traces": draw_traces,
     "operating": draw_operating, "cdf": draw_cdf, "almost_sure": draw_almost_sure,
     "invariant": draw_invariant, "network_region": draw_network_region,
@@ -405,7 +424,8 @@ DRAWERS: dict[str, Callable[[dict[str, Any]], Figure | None]] = {
     "per_sinr": draw_per_sinr, "outage_distance": draw_outage_distance,
     "mesh_topology": draw_mesh_topology,
     "loop_plane": draw_loop_plane, "loop_cost": draw_loop_cost,
-    "burst_histogram": draw_burst_histogram, "fit_region": draw_fit_region}
+    "burst_histogram": draw_burst_histogram,
+    "fit_region": draw_fit_region}
 LABELS = {
     "phase_transition": "Phase transition: trace of the lower and upper covariance bounds "
                         "against the arrival probability",
@@ -439,21 +459,21 @@ PRINT_DPI = 170
 MALFORMED = (TypeError, ValueError, KeyError, IndexError, OverflowError)
 
 
-def _draw(record: dict[str, Any], name: str) -> Figure | None:
+def _draw(rec: AnalysisRecord, name: str) -> Figure | None:
     """The drawer's figure, or ``None`` when the record lacks the data or it is malformed."""
     try:
-        return DRAWERS[name](record)
+        return DRAWERS[name](rec)
     except MALFORMED:
         return None
 
 
-def figure(record: dict[str, Any], name: str) -> Figure:
+def figure(rec: AnalysisRecord, name: str) -> Figure:
     """One report figure as a matplotlib :class:`~matplotlib.figure.Figure` (for notebooks).
 
     Parameters
     ----------
-    record : dict
-        ``Analysis.to_dict()``.
+    rec : AnalysisRecord
+        The typed analysis record (:func:`kfcrit.analyze`).
     name : str
         One of :data:`FIGURE_KEYS`; :func:`figure_names` lists those the record has data for.
 
@@ -466,15 +486,15 @@ def figure(record: dict[str, Any], name: str) -> Figure:
     """
     if name not in DRAWERS:
         raise KeyError(f"unknown figure {name!r}; the figures are {', '.join(FIGURE_KEYS)}")
-    fig = _draw(record, name)
+    fig = _draw(rec, name)
     if fig is None:
         raise ValueError(f"figure {name!r}: the record has no data for it")
     return fig
 
 
-def figure_names(record: dict[str, Any]) -> list[str]:
+def figure_names(rec: AnalysisRecord) -> list[str]:
     """Names of the figures that :func:`figure` can draw from this record, in report order."""
-    return [name for name in FIGURE_KEYS if _draw(record, name) is not None]
+    return [name for name in FIGURE_KEYS if _draw(rec, name) is not None]
 
 
 def _to_png_img(fig: Figure, label: str) -> str:
@@ -488,9 +508,9 @@ def _to_png_img(fig: Figure, label: str) -> str:
             f'src="data:image/png;base64,{data}">')
 
 
-def draw_figures(record: dict[str, Any]) -> dict[str, Figure | None]:
+def draw_figures(rec: AnalysisRecord) -> dict[str, Figure | None]:
     """Every report figure as a matplotlib Figure (``None`` where the record lacks the data)."""
-    return {key: _draw(record, key) for key in FIGURE_KEYS}
+    return {key: _draw(rec, key) for key in FIGURE_KEYS}
 
 
 def figure_markup(drawn: dict[str, Figure | None], medium: str = "screen") -> dict[str, str | None]:
@@ -508,11 +528,11 @@ def figure_markup(drawn: dict[str, Figure | None], medium: str = "screen") -> di
     return out
 
 
-def build_figures(record: dict[str, Any], medium: str = "screen") -> dict[str, str | None]:
+def build_figures(rec: AnalysisRecord, medium: str = "screen") -> dict[str, str | None]:
     """Every report figure as HTML markup (``None`` where the record lacks the data).
 
     ``medium`` is ``"screen"`` (inline SVG) or ``"print"`` (see :func:`figure_markup`). A
     malformed section (wrong types or lengths) gives ``None`` rather than an exception: a report
     with one figure missing is more useful to a reviewer than no report.
     """
-    return figure_markup(draw_figures(record), medium)
+    return figure_markup(draw_figures(rec), medium)

@@ -16,7 +16,8 @@ matplotlib.use("Agg")
 
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
-from kfcrit.views import formatting as jinja_filters
+from kfcrit.io.typed import ABSENT  # noqa: E402
+from kfcrit.views import formatting as jinja_filters  # noqa: E402
 
 COLORS = {"lower": "#1f5fa8", "upper": "#d9730d", "p_low": "#6b7280", "p_c": "#b91c1c",
           "p_up": "#7c3aed", "operating": "#15803d", "sim": "#111827", "band": "#9ca3af"}
@@ -83,14 +84,10 @@ def finite(v: Any) -> float | None:
     return None
 
 
-def section(record: dict[str, Any], *keys: str) -> Any:
-    """``record[k1][k2]...`` or ``None`` when any level is missing or not a mapping."""
-    cur: Any = record
-    for k in keys:
-        if not isinstance(cur, dict):
-            return None
-        cur = cur.get(k)
-    return cur
+def present(value: Any) -> bool:
+    """Whether a typed record field holds a value: not ``None`` and not an absent optional key
+    (:data:`kfcrit.io.typed.ABSENT`)."""
+    return value is not None and value is not ABSENT
 
 
 def positive(values: Sequence[float]) -> bool:

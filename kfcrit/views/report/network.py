@@ -9,9 +9,19 @@ from __future__ import annotations
 
 from typing import Any
 
+from kfcrit.analysis.records.network import NetworkBottleneck, NetworkSensor
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.network import margin_bounds, positions_of, sink_of, weakest_pair
-from kfcrit.views.report.parts import as_dict, as_list, closed_form_text, figure_entry, number, prose
+from kfcrit.views.report.parts import (
+    as_dict,
+    as_list,
+    closed_form_text,
+    figure_entry,
+    number,
+    prose,
+    typed_record,
+    typed_section,
+)
 from kfcrit.views.text.netmargin import bottleneck_margin_text, margin_text, margin_value_text
 
 VERDICT_CSS = {"mean-stable": "ok", "mean-unstable": "no", "undetermined": "none"}
@@ -25,15 +35,16 @@ def is_network(rec: dict[str, Any]) -> bool:
 def node_rows(rec: dict[str, Any]) -> list[dict[str, Any]]:
     """One row per sensor: p, critical value, margin, N−1 verdict, position, bottleneck flag."""
     net = as_dict(rec.get("network"))
-    positions = positions_of(rec)
+    positions = positions_of(typed_record(rec))
     bottleneck = as_dict(net.get("bottleneck")).get("name")
     rows = []
     for s in as_list(net.get("sensors")):
         s = as_dict(s)
+        typed_row = typed_section(NetworkSensor, s)
         name = str(s.get("name") or "?")
         cv = as_dict(s.get("critical_value"))
         n1 = as_dict(s.get("n_minus_1"))
-        low, _ = margin_bounds(s)
+        low, _ = margin_bounds(typed_row) if typed_row else (None, None)
         expr = closed_form_text(cv.get("expression"))
         pos = positions.get(name)
         rows.append({
@@ -46,7 +57,8 @@ def node_rows(rec: dict[str, Any]) -> list[dict[str, Any]]:
             # "exact" describes a value: with none (only a bracket, or nothing) it is not said
             "critical_exact": cv.get("exact") if number(cv.get("value")) is not None else None,
             "critical_basis": prose(cv.get("basis")),
-            "margin": margin_text(s), "margin_bad": low is not None and low <= 0,
+            "margin": margin_text(typed_row) if typed_row else "—",
+            "margin_bad": low is not None and low <= 0,
             "n1_verdict": n1.get("verdict"), "n1_css": VERDICT_CSS.get(str(n1.get("verdict")),
                                                                        "none"),
             "n1_reason": prose(n1.get("reason")),
@@ -76,7 +88,7 @@ def region_caption(rec: dict[str, Any]) -> str:
     """What the region figure draws: which links, which surfaces, and what is not in it."""
     net = as_dict(rec.get("network"))
     sensors = as_list(net.get("sensors"))
-    pair = weakest_pair(rec)
+    pair = weakest_pair(typed_record(rec))
     if len(pair) < 2:
         return ""
     names = [str(as_dict(sensors[i]).get("name")) for i in pair]
@@ -106,7 +118,7 @@ def map_caption(rec: dict[str, Any]) -> str:
     text = ("Each node at its position, coloured by its certain margin p_i − p_c,i (the "
             "conservative end when p_c,i is an interval; red: the link is at or below its "
             "critical value with the others at their operating values).")
-    if sink_of(rec) is None:
+    if sink_of(typed_record(rec)) is None:
         text += " The record gives no sink position, so the sink is not drawn."
     return text
 
@@ -122,7 +134,8 @@ def network_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]
     bn = as_dict(netd.get("bottleneck"))
     ex = as_dict(netd.get("exact_region"))
     figs = as_dict(figures)
-    has_positions = bool(positions_of(rec))
+    has_positions = bool(positions_of(typed_record(rec)))
+    typed_bn = typed_section(NetworkBottleneck, bn)
     return {
         "available": True, "size": len(as_list(netd.get("sensors"))),
         "verdict": netd.get("verdict"), "verdict_css": VERDICT_CSS.get(str(netd.get("verdict")),
@@ -133,7 +146,7 @@ def network_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]
         if not um.get("unbounded") else "unbounded",
         "uniform_reason": prose(um.get("reason")), "uniform_rule": prose(um.get("rule")),
         "bottleneck": bn.get("name"),
-        "bottleneck_margin": bottleneck_margin_text(bn),
+        "bottleneck_margin": bottleneck_margin_text(typed_bn) if typed_bn else "—",
         "bottleneck_rule": prose(bn.get("rule")),
         "constraints": constraint_lines(rec),
         "exact_region": None if not ex else

@@ -6,18 +6,56 @@ empty mapping, an empty list or ``None`` so that the section views never raise a
 """
 from __future__ import annotations
 
+import dataclasses
 import re
+import typing
 from collections.abc import Iterable
 from typing import Any
 
 from markupsafe import Markup
 
+from kfcrit.analysis.sections import AnalysisRecord, record_from_json
 from kfcrit.errors import ExpressionError
+from kfcrit.io.typed import ABSENT, RecordError, from_json
 from kfcrit.model.exprparse import parse_with_float
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures import mathsvg
 
 NOT_COMPUTED = "not computed"
+
+
+def typed_section(cls: type, value: Any) -> Any:
+    """``value`` (a section's JSON form) read as ``cls``, or ``None`` when it is missing or does
+    not fit (the report renders what it can of a malformed record)."""
+    if value is None:
+        return None
+    try:
+        return from_json(cls, value, cls.__name__)
+    except RecordError:
+        return None
+
+
+def typed_record(data: Any) -> AnalysisRecord:
+    """The typed record of a report's JSON-form input, for the views that take the typed
+    record: read strictly, else section by section, a missing or misfit section being left out
+    (``None``, an absent optional key, or an empty list)."""
+    try:
+        return record_from_json(data)
+    except RecordError:
+        pass
+    d = as_dict(data)
+    hints = typing.get_type_hints(AnalysisRecord)
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(AnalysisRecord):
+        if f.metadata.get("internal"):
+            continue
+        empty = ABSENT if f.default is ABSENT else [] if f.name in ("warnings",
+                                                                    "verification") else None
+        try:
+            values[f.name] = from_json(hints[f.name], d[f.name], f.name) if f.name in d else empty
+        except RecordError:
+            values[f.name] = empty
+    return AnalysisRecord(**values)
 
 
 def as_dict(value: Any) -> dict[str, Any]:

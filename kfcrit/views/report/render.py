@@ -25,6 +25,7 @@ import jinja2
 from kfcrit.errors import InputError
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.record import draw_figures, figure_markup
+from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.viewmodel import view_model
 
 TEMPLATE = "report.html.j2"
@@ -111,7 +112,7 @@ def render_documents(record: dict[str, Any], kinds: Iterable[str], *,
     bad = [k for k in wanted if k not in KINDS]
     if bad:
         raise InputError(f"unknown report format {bad[0]!r} (html or pdf)", field="format")
-    drawn = draw_figures(record)
+    drawn = draw_figures(typed_record(record))
     out: dict[str, bytes] = {}
     if "html" in wanted:
         out["html"] = render_html(record, figure_markup(drawn), today=today).encode("utf-8")

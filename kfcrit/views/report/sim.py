@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from kfcrit.analysis.records.simulation import SimulationOperatingPoint
 from kfcrit.version import __version__
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.record import mean_diverges, series_of, tail_of
@@ -18,6 +19,8 @@ from kfcrit.views.report.parts import (
     prose,
     row,
     safe_svg,
+    typed_record,
+    typed_section,
 )
 
 FIGURE_CAPTIONS = {
@@ -162,6 +165,11 @@ DIVERGENT_OPERATING_CAPTION = (
     "they exist.")
 
 
+def typed_run(op: dict[str, Any]) -> SimulationOperatingPoint | None:
+    """The typed operating-point run of its JSON form (``None`` when empty)."""
+    return typed_section(SimulationOperatingPoint, op) if op else None
+
+
 def operating_run(rec: Any) -> dict[str, Any]:
     """``simulation.operating_point`` of the record (empty if absent)."""
     return as_dict(as_dict(as_dict(rec).get("simulation")).get("operating_point"))
@@ -178,7 +186,7 @@ def figures_view(figures: dict[str, str | None],
         svg = figures.get(key) if isinstance(figures, dict) else None
         if key == "almost_sure":
             caption += block_maxima_text(as_dict(rec))
-        if key == "operating" and mean_diverges(operating_run(rec)):
+        if key == "operating" and mean_diverges(typed_run(operating_run(rec))):
             caption = DIVERGENT_OPERATING_CAPTION
         scope = scopes.get(key) if not safe_svg(svg) else None
         out[key] = {"svg": safe_svg(svg), "title": title, "caption": caption,
@@ -244,7 +252,8 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
                         + (f", seed {seed}" if seed is not None else "")))
     if "iid" in op:
         rows.append(row("i.i.d. losses", op.get("iid"), "yesno"))
-    _, mean, lo, hi = series_of(op) if op else (None, None, None, None)
+    run = typed_run(op)
+    _, mean, lo, hi = series_of(run) if run else (None, None, None, None)
     cb = as_dict(rec.get("covariance_bounds"))
     s_tr = number(as_dict(cb.get("lower")).get("trace"))
     v_tr = number(as_dict(cb.get("upper")).get("trace"))
@@ -256,7 +265,7 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
             (f", tr V̄ = {filters.num(v_tr, 5)}" if v_tr is not None else
              (", V̄ does not exist at this p" if s_tr is not None else ""))
         when = f" t = {horizon['time']}" if horizon.get("time") else ""
-        if mean_diverges(op):
+        if mean_diverges(run):
             rows.append(row("sample mean of tr P_t at the horizon" + when, _last(mean), "num",
                             note="; ".join(x for x in (
                                 "E[tr P_t] diverges at this p: the sample mean over finitely "
@@ -306,7 +315,7 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
     if d.get("quick") is not None:
         rows.append(row("draft (--quick)", d.get("quick"), "yesno"))
     return {"available": isinstance(sim, dict), "missing": missing("simulation"),
-            "tail_probability": tail_of(rec), "rows": rows}
+            "tail_probability": tail_of(typed_record(rec)), "rows": rows}
 
 
 def divergence_text(div: dict[str, Any]) -> str:

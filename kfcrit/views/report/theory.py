@@ -7,6 +7,7 @@ from typing import Any
 
 from markupsafe import Markup
 
+from kfcrit.analysis.records.covariance import Invariant
 from kfcrit.errors import ExpressionError
 from kfcrit.model.exprparse import parse_with_float
 from kfcrit.theory.critical.numtext import modulus_from_p_low
@@ -35,6 +36,7 @@ from kfcrit.views.report.parts import (
     row,
     safe_svg,
     sentence,
+    typed_section,
 )
 from kfcrit.views.text.netmargin import NETWORK_P_MEANING
 
@@ -473,7 +475,9 @@ def invariant_view(rec: dict[str, Any], figure: str | None) -> dict[str, Any]:
     exact = [{**g, "pair": [g["lower"], g["upper"]]} for g in exact
              if g["lower"] is not None and g["upper"] is not None]
     known = {(round(g["lower"], 9), round(g["upper"], 9)) for g in exact}
-    gaps = [g for g in invariant_gaps(d) if (round(g[0], 9), round(g[1], 9)) not in known]
+    typed_inv = typed_section(Invariant, d)
+    found = invariant_gaps(typed_inv) if typed_inv else []
+    gaps = [g for g in found if (round(g[0], 9), round(g[1], 9)) not in known]
     rows = []
     pstar, pstar_expr = _value_expr(d.get("fixed_point"))
     if pstar is not None:

@@ -18,6 +18,7 @@ from kfcrit.views.report.parts import (
     number,
     prose,
     sentence,
+    typed_record,
 )
 
 DECISIONS = ("pass", "fail", "undetermined")
@@ -183,7 +184,7 @@ def requirement_view(rec: dict[str, Any]) -> dict[str, Any]:
     limit = number(req.get("max_error_trace"))
     max_tail = number(req.get("max_tail_probability"))
 
-    tail = tail_of(rec)
+    tail = tail_of(typed_record(rec))
     exc = as_dict(as_dict(as_dict(rec.get("simulation")).get("operating_point")).get("exceedance"))
     lo, hi = number(exc.get("lower")), number(exc.get("upper"))
     status = as_dict(req.get("assessment")).get("status")

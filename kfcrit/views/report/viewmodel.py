@@ -14,7 +14,7 @@ from kfcrit.views.mesh.meshreport import mesh_view
 from kfcrit.views.report.design import design_view, link_figures
 from kfcrit.views.report.link import channel_view
 from kfcrit.views.report.network import network_view
-from kfcrit.views.report.parts import as_dict, as_list, figure_entry, prose
+from kfcrit.views.report.parts import as_dict, as_list, figure_entry, prose, typed_record
 from kfcrit.views.report.sim import appendix_view, figures_view, simulation_view
 from kfcrit.views.report.theory import (
     bounds_view,
@@ -110,6 +110,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         The rendering date for the footer when the record carries none (default: today).
     """
     rec = as_dict(record)
+    typed = typed_record(rec)
     bursty = as_dict(rec.get("operating_point")).get("iid") is False
     caveat = IID_CAVEAT if bursty else NETWORK_CAVEAT if \
         len(as_list(as_dict(rec.get("network")).get("sensors"))) > 1 else ""
@@ -143,8 +144,8 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
         "channel": channel,
         "network": network_view(rec, figures),
-        "mesh": mesh_view(rec, figures),
-        "loop": loop_figures(loop_view(rec), figures),
+        "mesh": mesh_view(typed, figures),
+        "loop": loop_figures(loop_view(typed), figures),
         "channel_fit": measured_view(rec, figures),
         "design": design_view(rec, figures),
         "appendix": appendix_view(rec),

@@ -1,13 +1,15 @@
 """Text of a sensor network's margins and bracketed values (theory §9), shared by the terminal
 view and the report so that both render the record's numbers the same way.
 
-Pure functions of record entries; no plotting imports (the terminal view uses them).
+Pure functions of the typed ``network`` section's rows; no plotting imports (the terminal view
+uses them).
 """
 from __future__ import annotations
 
 import math
 from typing import Any
 
+from kfcrit.analysis.records.network import NetworkBottleneck, NetworkSensor
 from kfcrit.views import formatting as filters
 
 NETWORK_P_MEANING = ("1 − Π(1 − p_i), the probability that at least one sensor's packet "
@@ -26,34 +28,42 @@ def _finite(v: Any) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def sensor_margin_bounds(sensor: dict[str, Any]) -> tuple[float | None, float | None]:
+def margin_range(value: float | None, interval: list[float | None] | None
+                 ) -> tuple[float | None, float | None]:
+    """(conservative, optimistic) ends of a margin given as a value or an interval: the value
+    (both ends) when it is finite, else the interval's ends (``None`` where unknown)."""
+    v = _finite(value)
+    if v is not None:
+        return v, v
+    if isinstance(interval, (list, tuple)) and len(interval) == 2:
+        return _finite(interval[0]), _finite(interval[1])
+    return None, None
+
+
+def sensor_margin_bounds(sensor: NetworkSensor) -> tuple[float | None, float | None]:
     r"""(conservative, optimistic) ends of a sensor's margin
 
     .. math:: p_i - p_{c,i} \in [p_i - p_{c,i}^{\mathrm{suf}},\; p_i - p_{c,i}^{\mathrm{nec}}]
 
     ``margin.value`` (both ends) when the critical value is known, else ``margin.interval``.
     """
-    m = sensor.get("margin") if isinstance(sensor, dict) else None
-    if not isinstance(m, dict):
-        return None, None
-    value = _finite(m.get("value"))
-    if value is not None:
-        return value, value
-    iv = m.get("interval")
-    if isinstance(iv, (list, tuple)) and len(iv) == 2:
-        return _finite(iv[0]), _finite(iv[1])
-    return None, None
+    return margin_range(sensor.margin.value, sensor.margin.interval)
 
 
-def margin_text(sensor: dict[str, Any]) -> str:
-    """The margin p_i − p_c,i with its sign: one number, or ``[+a, +b]`` when p_c,i is only
-    bracketed (— when the record has neither)."""
-    low, high = sensor_margin_bounds(sensor)
+def signed_range_text(low: float | None, high: float | None) -> str:
+    """A margin with its sign: one number, or ``[+a, +b]`` for two distinct ends (— when the
+    conservative end is unknown)."""
     if low is None:
         return "—"
     if high is None or abs(high - low) < SAME:
         return filters.signed(low, 4)
     return f"[{filters.signed(low, 4)}, {filters.signed(high, 4)}]"
+
+
+def margin_text(sensor: NetworkSensor) -> str:
+    """The margin p_i − p_c,i with its sign: one number, or ``[+a, +b]`` when p_c,i is only
+    bracketed (— when the record has neither)."""
+    return signed_range_text(*sensor_margin_bounds(sensor))
 
 
 def _real(v: Any) -> float | None:
@@ -76,9 +86,8 @@ def margin_value_text(value: Any, interval: Any, digits: int = 6) -> str:
     return "—"
 
 
-def bottleneck_margin_text(bottleneck: dict[str, Any]) -> str:
+def bottleneck_margin_text(bottleneck: NetworkBottleneck) -> str:
     """The bottleneck's margin (``network.bottleneck.margin`` or ``margin_interval``), signed
     like the sensor rows (:func:`margin_text`)."""
-    bn = bottleneck if isinstance(bottleneck, dict) else {}
-    return margin_text({"margin": {"value": bn.get("margin"),
-                                   "interval": bn.get("margin_interval")}})
+    interval = bottleneck.margin_interval or None   # an absent key: no interval
+    return signed_range_text(*margin_range(bottleneck.margin, interval))
