@@ -364,8 +364,10 @@ def _link_lines(rec: AnalysisRecord) -> list[str]:
         out.append(f"  shadowing-averaged p  {_num(shadow.mean_arrival_probability)}"
                    f" (σ = {_num(shadow.sigma_db)} dB, {shadow.mode or '—'})")
     dc = lb.design_check
+    margin = ("unbounded (the requirement p > 0 holds at every SINR)" if dc.margin_unbounded
+              else f"{_num(dc.link_margin_db, 4)} dB")
     out.append(f"  margin policy         {_yes_no(dc.margin_policy_met)}: link margin "
-               f"{_num(dc.link_margin_db, 4)} dB, policy needs "
+               f"{margin}, policy needs "
                f"{_num(dc.required_margin_db, 4)} dB = max(margin_db, "
                "σ·Φ⁻¹(1 − max_outage))")
     if dc.outage_probability is not None:
