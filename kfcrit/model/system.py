@@ -134,6 +134,8 @@ def matrix_and_float(value: Any, name: str, *, allow_scalar_identity: int | None
             if max(value.shape) > max_size:
                 raise InputError(f"has more than {max_size} rows or columns (raise the limit "
                                  "with --max-states)", field=name)
+            if value.dtype.kind == "f" and value.size > 0:
+                return float_array_matrix(value, name)
             rows = value.tolist()
         else:
             raise InputError(f"must be a matrix (2-D), got {value.ndim}-D array", field=name)
@@ -178,6 +180,39 @@ def matrix_and_float(value: Any, name: str, *, allow_scalar_identity: int | None
             new_row.append(entry)
         out.append(new_row)
     return sp.ImmutableMatrix(out), exact_all, floats
+
+
+RANGE_EDGE = (2e-300, 5e299)
+"""Float entries with 0 < |x| < 2e-300 or |x| > 5e299 are range-checked exactly, one by one
+(the rule |x| ∈ [1e-300, 1e300] is on the exact value); every other float is within it."""
+
+
+def float_array_matrix(value: np.ndarray, name: str
+                       ) -> tuple[sp.ImmutableMatrix, bool, np.ndarray]:
+    """:func:`matrix_and_float` for a 2-D float array, without a per-entry parse.
+
+    Each entry x is the exact binary rational it is (``sympy.Rational(x)``, as for a float
+    entry of a list); the checks are vectorised: non-finite entries are refused naming the first
+    one, and only entries near the ends of the range rule are checked exactly. The float view
+    is the array itself, and the matrix is not exact (float input). Distinct values are
+    converted once (an identity costs two conversions).
+    """
+    a = np.array(value, dtype=float)
+    bad = np.argwhere(~np.isfinite(a))
+    if bad.size:
+        i, j = (int(v) for v in bad[0])
+        raise InputError(f"{a[i, j]} is not a finite number", field=f"{name}[{i}][{j}]")
+    mag = np.abs(a)
+    for i, j in np.argwhere((mag > RANGE_EDGE[1]) | ((mag < RANGE_EDGE[0]) & (mag > 0))):
+        _entry_value(float(a[i, j]), f"{name}[{int(i)}][{int(j)}]")
+    exact: dict[float, sp.Rational] = {}
+    flat = []
+    for x in a.ravel().tolist():
+        r = exact.get(x)
+        if r is None:
+            r = exact[x] = sp.Rational(x)
+        flat.append(r)
+    return sp.ImmutableMatrix(a.shape[0], a.shape[1], flat), False, a
 
 
 MAX_EXPRESSION_TEXT = 500_000
