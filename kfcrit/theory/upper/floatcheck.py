@@ -195,8 +195,102 @@ def transpose(a: Interval) -> Interval:
     return a[0].T, a[1].T
 
 
+SPLITTER = 134217729.0
+"""2²⁷ + 1: Dekker's splitting constant for float64."""
+
+
+def _two_product(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x = fl(a b) and y with x + y = a b exactly (Dekker; barring underflow, handled by the
+    caller's η terms, and overflow, excluded by the caller)."""
+    x = a * b
+    c = SPLITTER * a
+    ah = c - (c - a)
+    al = a - ah
+    c = SPLITTER * b
+    bh = c - (c - b)
+    bl = b - bh
+    return x, al * bl - (((x - ah * bh) - al * bh) - ah * bl)
+
+
+def accurate_product(Lm: np.ndarray, Rm: np.ndarray) -> Interval:
+    """Enclosure of Lm Rm for float Lm (q × n) and a few float columns Rm (n × d) by compensated
+    dot products (Dot2 of Ogita, Rump and Oishi 2005, Prop. 5.5), vectorised over the outputs.
+
+    .. math::
+
+        |\mathrm{res} - U V| \le \frac{u |\mathrm{res}| + \gamma_n^2 |U||V|}{1 - u}
+        + \text{underflow}
+
+    Radius about u·|L_m R_m| instead of γ_n·|L_m||R_m|: needed for the basis columns that carry the
+    huge dominant block of a face-root certificate (each of their rounding errors is multiplied
+    by that block).
+    """
+    q, n = Lm.shape
+    d = Rm.shape[1]
+    big = max(float(np.abs(Lm).max(initial=0.0)), float(np.abs(Rm).max(initial=0.0)))
+    if not big < 1e150:
+        raise ValueError("accurate_product: entries too large for error-free splitting")
+    s = np.zeros((q, d))
+    err = np.zeros((q, d))
+    for j in range(n):
+        h, r = _two_product(Lm[:, j:j + 1], Rm[j:j + 1, :])
+        t = s + h
+        z = t - s
+        err += ((s - (t - z)) + (h - z)) + r          # TwoSum error plus the product's error
+        s = t
+    res = s + err
+    bound = (np.abs(Lm) @ np.abs(Rm)) * (1.0 + gamma(n + 2))   # ≥ the exact |Lm||Rm|
+    rad = (U_ROUND_SAFE * np.abs(res) + gamma(n + 2) ** 2 * bound) / (1.0 - U)
+    return res, _up(rad, n) + 8 * (n + 2) * ETA
+
+
+U_ROUND_SAFE = 2.0 * U
+"""u|res| of the Dot2 bound taken twice (covers the final rounding of res itself)."""
+
+
+def sharpen_columns(a_int: Interval, Z: np.ndarray, d: int,
+                    B: Interval, G: Interval) -> tuple[Interval, Interval]:
+    """B = Z'AZ and G = Z'Z with their first d columns (and G's first d rows) recomputed by
+    :func:`accurate_product`: (Z'(A Z₁), Z'Z₁) with Z₁ = Z[:, :d]."""
+    a, ra = a_int
+    Z1 = Z[:, :d]
+    y, ry = accurate_product(a, Z1)
+    # the exact A is within ra of a: add |ra||Z₁| (a float product, made an upper bound)
+    ry = ry + _up((ra @ np.abs(Z1)) * (1.0 + gamma(Z.shape[0] + 2)), Z.shape[0])
+    b1, rb1 = accurate_product(Z.T, y)
+    rb1 = rb1 + _up((np.abs(Z.T) @ ry) * (1.0 + gamma(Z.shape[0] + 2)), Z.shape[0])
+    g1, rg1 = accurate_product(Z.T, Z1)
+    Bm, Br = B[0].copy(), B[1].copy()
+    Bm[:, :d], Br[:, :d] = b1, rb1
+    Gm, Gr = G[0].copy(), G[1].copy()
+    Gm[:, :d], Gr[:, :d] = g1, rg1
+    Gm[:d, :], Gr[:d, :] = g1.T, rg1.T
+    return (Bm, Br), (Gm, Gr)
+
+
+def _columns(a: Interval, cols: slice) -> Interval:
+    return a[0][:, cols], a[1][:, cols]
+
+
+def congruence(P: Interval, X: np.ndarray, sharp: int = 0) -> Interval:
+    """Enclosure of P X P' for the float matrix X (exact).
+
+    With ``sharp`` = d > 0 the leading d × d block of X (the huge dominant block of a face-root
+    certificate) is taken apart: P X P' = P₁ X₁₁ P₁' + P X_r P' with X_r = X minus that block,
+    so its products have inner dimension d and rounding γ_{d+2}, not γ_n, times X₁₁.
+    """
+    if sharp <= 0:
+        return mul(mul(P, point(X)), transpose(P))
+    d = sharp
+    rest = X.copy()
+    rest[:d, :d] = 0.0
+    P1 = _columns(P, slice(0, d))
+    top = mul(mul(P1, point(X[:d, :d])), transpose(P1))
+    return add(top, mul(mul(P, point(rest)), transpose(P)))
+
+
 def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np.ndarray,
-                   Kz: np.ndarray, output_map: np.ndarray | None = None
+                   Kz: np.ndarray, output_map: np.ndarray | None = None, sharp: int = 0
                    ) -> tuple[Interval, Interval, Interval]:
     r"""Enclosures of G = Z'Z, Z'XZ and Z'(X − L_{K,p}(X))Z for X = Z X_z Z', K = Z K_z (M).
 
@@ -207,30 +301,33 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
 
     (exact identities; X and K are never rounded). For invertible Z (G ≻ 0) the congruence
     preserves definiteness, so G X_z G ≻ 0 and the last matrix ≻ 0 prove X ≻ 0 and
-    X ≻ L_{K,p}(X).
+    X ≻ L_{K,p}(X). With ``sharp`` = d > 0 the first d columns of B and G are enclosed by
+    compensated products (:func:`sharpen_columns`).
     """
     A, C, Zi = from_exact(a), from_exact(c), point(Z)
     Zt = transpose(Zi)
     G = mul(Zt, Zi)
     B = mul(Zt, mul(A, Zi))
+    if sharp > 0:
+        B, G = sharpen_columns(A, Z, sharp, B, G)
     CZ = mul(C, Zi)
     if output_map is not None:
         CZ = mul(point(output_map), CZ)
     F = add(B, mul(mul(G, point(Kz)), CZ))
-    Xi = point(Xz)
-    GXG = mul(mul(G, Xi), G)
-    BXB = mul(mul(B, Xi), transpose(B))
-    FXF = mul(mul(F, Xi), transpose(F))
+    GXG = congruence(G, Xz, sharp)
+    BXB = congruence(B, Xz, sharp)
+    FXF = congruence(F, Xz, sharp)
     LX = add(scale((1.0 - p, 2 * U), BXB), scale((p, 0.0), FXF))
     return G, GXG, add(GXG, LX, -1.0)
 
 
 def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray,
                              Xz: np.ndarray, Kz: np.ndarray,
-                             output_map: np.ndarray | None = None
+                             output_map: np.ndarray | None = None, sharp: int = 0
                              ) -> tuple[bool, float | None, float | None, str]:
     """:func:`verify_upper_float` for the certificate X = Z X_z Z', K = Z K_z (M) given in the
-    basis Z (:func:`basis_operands`); X_z must be exactly symmetric."""
+    basis Z (:func:`basis_operands`, ``sharp`` leading columns by compensated products); X_z
+    must be exactly symmetric."""
     n = a.shape[0]
     Xz = np.asarray(Xz, dtype=float)
     if not (0 <= p <= 1) or Z.shape != (n, n) or Xz.shape != (n, n):
@@ -239,8 +336,11 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
         return False, None, None, "X_z is not exactly symmetric"
     if not all(np.all(np.isfinite(M)) for M in (Z, Xz, Kz)):
         return False, None, None, "non-finite certificate entry"
+    if not 0 <= sharp <= n:
+        return False, None, None, "bad number of sharpened columns"
     G, GXG, M = basis_operands(np.asarray(a, float), np.asarray(c, float), float(p),
-                               np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map)
+                               np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map,
+                               int(sharp))
     if verified_definite_margin(G) is None:
         return False, None, None, "the basis Z is not proven invertible (Z'Z > 0)"
     mx = verified_definite_margin(GXG)

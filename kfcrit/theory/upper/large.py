@@ -25,7 +25,7 @@ import numpy as np
 
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.upper import certify, floatcheck, krylov
+from kfcrit.theory.upper import certify, floatcheck, krylov, stein
 from kfcrit.theory.upper.certs import lower_end
 from kfcrit.theory.upper.cone import Reduced, full_gain, lift_certificate, stable_gramian
 from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
@@ -87,10 +87,63 @@ def float_certificate(system: System, red: Reduced, hi: float, X_start: np.ndarr
     return None
 
 
+FACE_OFFSET = 0.5
+"""The face-root certificate is tried at hi = p_low + FACE_OFFSET·tol."""
+FACE_CHECK = FLOAT_CHECK + ("; the leading dominant-block columns of Z'AZ and Z'Z and the "
+                            "products with the dominant block of X_z by compensated dot "
+                            "products (Ogita-Rump-Oishi Dot2)")
+
+
+def face_root_certificate(system: System, red: Reduced, p_low: float, tol: float,
+                          stats: dict[str, Any]):
+    """p_up ≤ hi = p_low + FACE_OFFSET·tol by the face-root certificate of
+    :mod:`kfcrit.theory.upper.stein` (the gain kills the modes of modulus ρ(A); the rest of the
+    unstable block is stabilised by its own MARE gain), checked by the verified float64 check.
+    Returns (hi, basis triple, X, K, CheckResult) or None (not a face root, or not proven)."""
+    split = stein.dominant_split(red)
+    if split is None:
+        return None
+    red_d, d = split
+    hi = float(min(p_low + FACE_OFFSET * tol, 1.0))
+    mats = stein.face_certificate_matrices(red_d, d, hi)
+    if mats is None:
+        return None
+    Xz, Kz = mats
+    ok, mx, mm, why = floatcheck.verify_upper_float_basis(system.a, system.c, hi, red_d.Z, Xz,
+                                                          Kz, red.M, sharp=d)
+    stats["certificate_checks"] += 1
+    if not ok:
+        return None
+    stats["certificate_from"] = (f"face root: gain killing the {d} dominant modes (|λ| = ρ(A)), "
+                                 "MARE gain on the rest of the unstable block, block-triangular "
+                                 "Stein solution on the full state")
+    check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
+                                FACE_CHECK)
+    Z = red_d.Z
+    return hi, (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
+
+
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
                  stats: dict[str, Any], warnings: list[str], done):
     """The bracket for a large unstable block (module docstring); ``done`` builds the result."""
     stats.setdefault("operator_applications", 0)
+    face = face_root_certificate(system, red, p_low, tol, stats)
+    if face is not None:
+        hi, _basis, X, K, check = face
+        origin = ("face root p_up = p_low: the gain sends the modes of modulus rho(A) to 0 "
+                  "(K_1 = -T_11 C_1^+) and stabilises the rest of the unstable block with its "
+                  "own MARE gain (Q = I, R = I); X solves X - L_{K,hi}(X) = W (W > 0 block "
+                  "diagonal) block by block in the float Schur basis Z, checked as "
+                  "X = Z X_z Z', K = Z K_z" + (" M" if red.M is not None else "")
+                  + " (X, K in the record are rounded copies)")
+        cert = certificate_summary(system, check, X, K, origin, None, None)
+        lower = evidence_p_low(p_low)
+        lower["statement"] += ("; the upper end is certified at p_low + tol/2 (face root: "
+                               "p_up = p_low)")
+        status = "determined" if hi - p_low <= tol else "undetermined"
+        return done(hi, (p_low, hi), True, status, cert, lower,
+                    {"X": X, "K": K, "p_star": None, "face_root": True,
+                     "output_map": red.M})
     start = _start(red, p_low, stats)
     if start is None:
         warnings.append("upper bound undetermined: the MARE iteration (Q = I, R = I) did not "
