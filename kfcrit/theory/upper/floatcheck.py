@@ -30,6 +30,7 @@ power-of-two diagonal (exact scaling), L a float Cholesky factor, and ‖E‖₂
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -350,3 +351,75 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
     if mm is None:
         return False, mx, None, "X - L_{K,p}(X) is not proven positive definite"
     return True, mx, mm, "proven"
+
+
+def _frob_up(M: np.ndarray) -> float:
+    """An upper bound on the Frobenius norm of the float matrix M (relative error ≤ γ_{N+2})."""
+    return float(np.sqrt(np.sum(M * M))) * (1.0 + 1e-9) + 1e-300
+
+
+def dominant_radius_lower(a: np.ndarray, Z: np.ndarray, d: int) -> float | None:
+    r"""Rigorous lower bound on ρ(A)² from an exactly A-invariant subspace near the first d
+    (1 or 2) columns of the float basis Z, for the exact A within one ulp of ``a``.
+
+    With B = Z⁻¹AZ = G⁻¹ B̃ (B̃ ∋ Z'AZ, G ∋ Z'Z enclosed as in :func:`basis_operands`, the
+    first d columns by compensated products) split after d rows and columns, every block of B
+    is within δ_B of the midpoint of B̃ in the Frobenius norm, δ_B = ‖rad B̃‖_F
+    + ‖G⁻¹ − I‖₂ (‖mid B̃‖_F + ‖rad B̃‖_F). With s ≤ σ_min(I ⊗ B₂₂ − B₁₁' ⊗ I) (proven: a
+    Cholesky definiteness check of S'S − τI for the midpoint Kronecker matrix S, less 2δ_B)
+    and 4‖B₂₁‖_F‖B₁₂‖_F < s², Stewart's theorem gives an exactly invariant subspace
+    span Z[I; P], ‖P‖_F ≤ 2‖B₂₁‖_F/s, on which A acts as M = B₁₁ + B₁₂P. Its eigenvalues are
+    eigenvalues of A, so
+
+    .. math::
+
+        \rho(A)^2 \ge \rho(M)^2 \ge |\det M| \ (d = 2), \qquad \rho(A)^2 \ge M^2 \ (d = 1),
+
+    with |det M − det M₀| ≤ ‖M₀‖_F η + η²/2 for ‖M − M₀‖_F ≤ η (2 × 2: adj M₀ has the norm of
+    M₀). Returns None when a step cannot be proven.
+    """
+    n = a.shape[0]
+    if d not in (1, 2) or Z.shape != (n, n) or n <= d:
+        return None
+    A, Zi = from_exact(a), point(Z)
+    Zt = transpose(Zi)
+    G = mul(Zt, Zi)
+    B = mul(Zt, mul(A, Zi))
+    B, G = sharpen_columns(A, Z, d, B, G)
+    gdev = _frob_up(np.abs(G[0] - np.eye(n)) + G[1])          # ≥ ‖G − I‖₂
+    if not gdev < 0.5:
+        return None
+    e_inv = gdev / (1.0 - gdev) * (1.0 + 1e-12)                # ≥ ‖G⁻¹ − I‖₂
+    Bm, Br = B
+    delta = _frob_up(Br) + e_inv * (_frob_up(Bm) + _frob_up(Br))
+    B11, B12, B21, B22 = Bm[:d, :d], Bm[:d, d:], Bm[d:, :d], Bm[d:, d:]
+    b21 = _frob_up(B21) + delta
+    b12 = _frob_up(B12) + delta
+    # S = I ⊗ B22 − B11' ⊗ I (vec of P, column-major): entries are differences of floats
+    s_mid = np.kron(np.eye(d), B22) - np.kron(B11.T, np.eye(n - d))
+    s_rad = _up(2 * U * np.abs(s_mid), 2)
+    S = (s_mid, s_rad)
+    StS = mul(transpose(S), S)
+    lam = float(np.linalg.eigvalsh(0.5 * (StS[0] + StS[0].T))[0])
+    if not lam > 0:
+        return None
+    tau = 0.5 * lam
+    N = StS[0].shape[0]
+    shifted = add(StS, (tau * np.eye(N), np.zeros((N, N))), -1.0)
+    if verified_definite_margin(shifted) is None:
+        return None
+    sep = math.sqrt(tau) * (1.0 - 1e-12) - 2.0 * delta
+    if not (sep > 0 and 4.0 * b21 * b12 * (1.0 + 1e-12) < sep * sep):
+        return None
+    rho_p = 2.0 * b21 / sep * (1.0 + 1e-12)
+    eta = (delta + b12 * rho_p) * (1.0 + 1e-12)
+    if d == 1:
+        m0 = abs(Fraction(float(B11[0, 0])))
+        low = m0 - Fraction(eta)
+        return float(low * low) * (1.0 - 1e-15) if low > 0 else None
+    det0 = Fraction(float(B11[0, 0])) * Fraction(float(B11[1, 1])) \
+        - Fraction(float(B11[0, 1])) * Fraction(float(B11[1, 0]))
+    m0f = Fraction(_frob_up(B11))
+    e = Fraction(eta)
+    low = abs(det0) - m0f * e - e * e / 2
+    return float(low) * (1.0 - 1e-15) if low > 0 else None

@@ -19,6 +19,7 @@ with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not certi
 """
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -99,7 +100,8 @@ def face_root_certificate(system: System, red: Reduced, p_low: float, tol: float
     """p_up ≤ hi = p_low + FACE_OFFSET·tol by the face-root certificate of
     :mod:`kfcrit.theory.upper.stein` (the gain kills the modes of modulus ρ(A); the rest of the
     unstable block is stabilised by its own MARE gain), checked by the verified float64 check.
-    Returns (hi, basis triple, X, K, CheckResult) or None (not a face root, or not proven)."""
+    Returns (hi, basis triple, X, K, CheckResult, verified lower bound on p_low or None) or None
+    (not a face root, or not proven)."""
     split = stein.dominant_split(red)
     if split is None:
         return None
@@ -120,7 +122,18 @@ def face_root_certificate(system: System, red: Reduced, p_low: float, tol: float
     check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
                                 FACE_CHECK)
     Z = red_d.Z
-    return hi, (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
+    rho2 = floatcheck.dominant_radius_lower(system.a, Z, d)
+    verified = None
+    if rho2 is not None and rho2 > 1.0:
+        verified = certify.float_down(1 - 1 / Fraction(rho2))
+    return hi, (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check, verified
+
+
+P_LOW_VERIFIED = ("p_low >= 1 - 1/rho2 with rho(A)^2 >= rho2 proven in verified float64 "
+                  "(Stewart's theorem on the dominant Schur block: an exactly A-invariant "
+                  "subspace whose 2x2 or 1x1 restriction M has |det M| >= rho2, the separation "
+                  "proven by a Cholesky residual bound; docs/theory.md §3, Verified float64 "
+                  "check)")
 
 
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
@@ -129,7 +142,7 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
     stats.setdefault("operator_applications", 0)
     face = face_root_certificate(system, red, p_low, tol, stats)
     if face is not None:
-        hi, _basis, X, K, check = face
+        hi, _basis, X, K, check, verified = face
         origin = ("face root p_up = p_low: the gain sends the modes of modulus rho(A) to 0 "
                   "(K_1 = -T_11 C_1^+) and stabilises the rest of the unstable block with its "
                   "own MARE gain (Q = I, R = I); X solves X - L_{K,hi}(X) = W (W > 0 block "
@@ -143,7 +156,7 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         status = "determined" if hi - p_low <= tol else "undetermined"
         return done(hi, (p_low, hi), True, status, cert, lower,
                     {"X": X, "K": K, "p_star": None, "face_root": True,
-                     "output_map": red.M})
+                     "output_map": red.M, "p_low_verified": verified})
     start = _start(red, p_low, stats)
     if start is None:
         warnings.append("upper bound undetermined: the MARE iteration (Q = I, R = I) did not "
