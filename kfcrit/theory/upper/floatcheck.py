@@ -219,8 +219,8 @@ def accurate_product(Lm: np.ndarray, Rm: np.ndarray) -> Interval:
 
     .. math::
 
-        |\mathrm{res} - U V| \le \frac{u |\mathrm{res}| + \gamma_n^2 |U||V|}{1 - u}
-        + \text{underflow}
+        |\\mathrm{res} - L_m R_m| \\le \\frac{u |\\mathrm{res}| + \\gamma_n^2 |L_m||R_m|}{1 - u}
+        + \\text{underflow}
 
     Radius about u·|L_m R_m| instead of γ_n·|L_m||R_m|: needed for the basis columns that carry the
     huge dominant block of a face-root certificate (each of their rounding errors is multiplied
