@@ -134,7 +134,22 @@ def verified_definite_margin(M: Interval) -> float | None:
     lam = float(np.linalg.eigvalsh(sym)[0])
     if not lam > 0:
         return None
-    sigma = 0.5 * lam
+    for frac in SHIFT_FRACTIONS:
+        low = _shifted_cholesky_bound(sym, rad, frac * lam)
+        if low is not None:
+            return low
+    return None
+
+
+SHIFT_FRACTIONS = (0.5, 0.9)
+"""Shifts σ = frac·λ_min(mid) tried in turn by :func:`verified_definite_margin` (a larger σ
+leaves more room for the radius when the Cholesky factor of mid − σI stays accurate)."""
+
+
+def _shifted_cholesky_bound(sym: np.ndarray, rad: np.ndarray, sigma: float) -> float | None:
+    """σ − ‖E‖₂ for sym = L L' + σI + E (L a float Cholesky factor), if positive (rad: the
+    radius of the interval around sym)."""
+    n = sym.shape[0]
     shifted = sym - sigma * np.eye(n)
     try:
         L = np.linalg.cholesky(shifted)

@@ -28,7 +28,13 @@ from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.upper import certify, floatcheck, krylov, stein
 from kfcrit.theory.upper.certs import lower_end
-from kfcrit.theory.upper.cone import Reduced, full_gain, lift_certificate, stable_gramian
+from kfcrit.theory.upper.cone import (
+    Reduced,
+    full_gain,
+    lift_certificate,
+    reduce_system,
+    stable_gramian,
+)
 from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
 
 START_OFFSETS = (0.02, 0.1, 0.3, 1.0)
@@ -127,6 +133,19 @@ def face_root_certificate(system: System, red: Reduced, p_low: float, tol: float
     if rho2 is not None and rho2 > 1.0:
         verified = certify.float_down(1 - 1 / Fraction(rho2))
     return hi, (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check, verified
+
+
+def verified_p_low(system: System, red: Reduced | None = None) -> float | None:
+    """A rigorous lower bound on p_low = 1 − 1/ρ(A)² from the dominant Schur block
+    (:func:`kfcrit.theory.upper.floatcheck.dominant_radius_lower`), or None."""
+    red = reduce_system(system) if red is None else red
+    split = stein.dominant_split(red)
+    if split is None:
+        return None
+    rho2 = floatcheck.dominant_radius_lower(system.a, split[0].Z, split[1])
+    if rho2 is None or not rho2 > 1.0:
+        return None
+    return certify.float_down(1 - 1 / Fraction(rho2))
 
 
 P_LOW_VERIFIED = ("p_low >= 1 - 1/rho2 with rho(A)^2 >= rho2 proven in verified float64 "

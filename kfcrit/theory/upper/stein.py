@@ -195,3 +195,4 @@ def face_certificate_matrices(red: Reduced, d: int, p: float
     if not np.all(np.isfinite(X)):
         return None
     return X, Kz
+
