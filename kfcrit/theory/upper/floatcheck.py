@@ -120,7 +120,6 @@ def verified_definite_margin(M: Interval) -> float | None:
         \\;\\Rightarrow\\; \\lambda_{\\min}(S M S) \\ge \\sigma - \\|E\\|_2 > 0 .
     """
     mid, rad = M
-    n = mid.shape[0]
     if not (np.all(np.isfinite(mid)) and np.all(np.isfinite(rad))):
         return None
     sym = 0.5 * (mid + mid.T)

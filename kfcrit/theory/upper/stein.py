@@ -79,7 +79,7 @@ def _kronecker_pair(Ti, Tj, Fi, Fj, p, R) -> np.ndarray:
     return np.linalg.solve(S, R.reshape(-1, order="F")).reshape(R.shape, order="F")
 
 
-def second_moment(T: np.ndarray, F: np.ndarray, X: np.ndarray, p: float) -> np.ndarray:
+def jump_second_moment(T: np.ndarray, F: np.ndarray, X: np.ndarray, p: float) -> np.ndarray:
     """L_{K,p}(X) = (1−p) T X T' + p F X F' (any basis)."""
     return (1 - p) * (T @ X @ T.T) + p * (F @ X @ F.T)
 
@@ -173,20 +173,20 @@ def face_certificate_matrices(red: Reduced, d: int, p: float
     if k < n:
         X[s, s] = symmetrize(sla.solve_discrete_lyapunov(T[s, s], np.eye(n - k)))
         Mu = (1 - p) * T[u, u] + p * F[u, u]
-        R = second_moment(T, F, X, p)[u, s]
+        R = jump_second_moment(T, F, X, p)[u, s]
         X[u, s] = stein_sylvester(Mu, T[s, s], R)
         X[s, u] = X[u, s].T
     x2 = slice(d, k)
-    c22 = symmetrize(second_moment(T, F, X, p)[x2, x2])
+    c22 = symmetrize(jump_second_moment(T, F, X, p)[x2, x2])
     M22 = np.eye(k - d) + p * Ku[d:] @ Ku[d:].T          # = P₂ − L₂₂(P₂)
     ev = np.linalg.eigvalsh(symmetrize(M22))
     beta = 1.0 + 2.0 * max(float(np.linalg.eigvalsh(c22).max()), 0.0) / float(ev.min())
     X[x2, x2] = beta * P2
     x1 = slice(0, d)
-    R12 = second_moment(T, F, X, p)[x1, x2]
+    R12 = jump_second_moment(T, F, X, p)[x1, x2]
     X[x1, x2] = _kronecker_pair(T[x1, x1], T[x2, x2], F[x1, x1], F[x2, x2], p, R12)
     X[x2, x1] = X[x1, x2].T
-    c11 = symmetrize(second_moment(T, F, X, p)[x1, x1])
+    c11 = symmetrize(jump_second_moment(T, F, X, p)[x1, x1])
     # margin w·I with w = ‖c₁₁‖: X₁₁ ≈ (w + c₁₁)/δ against √w in the equilibrated check
     w = max(1.0, float(np.linalg.norm(c11, 2)))
     R11 = w * np.eye(d) + c11
