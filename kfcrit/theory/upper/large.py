@@ -7,7 +7,11 @@ threshold, a Stein certificate at hi, and the verified float64 check (docs/theor
     X_u - L_{K,hi}(X_u) = I \\;\\Rightarrow\\; X_u \\succ L_{K,hi}(X_u)
     \\;\\Rightarrow\\; p_{up} \\le hi \\quad(\\text{after lifting, checked on the exact } A, C)
 
-Steps: (1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
+Steps: (0) the face-root certificate of :mod:`kfcrit.theory.upper.stein` at p_low + tol/2 (a
+gain that cancels the modes of modulus ρ(A), the MARE gain on the rest of the unstable block,
+a block-triangular Stein solution on the full state), with the lower end p_low proven by
+:func:`verified_p_low` when no ball enclosure of ρ(A) is available; otherwise
+(1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
 (2) damped threshold Newton (:func:`kfcrit.theory.upper.krylov.threshold_newton_krylov`), which
 either converges to p* > p_low or runs into the floor p_low (a face root: p_up = p_low);
 (3) at hi = base + tol/2 (base = p* or p_low) the cone eigenpair of G_hi, its gain K and the
