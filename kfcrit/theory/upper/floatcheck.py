@@ -299,14 +299,47 @@ def congruence(P: Interval, X: np.ndarray, sharp: int = 0) -> Interval:
     d = sharp
     rest = X.copy()
     rest[:d, :d] = 0.0
-    P1 = _columns(P, slice(0, d))
-    top = mul(mul(P1, point(X[:d, :d])), transpose(P1))
+    P1m, P1r = _columns(P, slice(0, d))
+    X11 = X[:d, :d]
+    q = P1m.shape[0]
+    # Y = P₁ X₁₁ by compensated products, plus the radius of P₁ times |X₁₁|
+    Ym, Yr = accurate_product(P1m, X11)
+    Yr = Yr + _up((P1r @ np.abs(X11)) * (1.0 + gamma(d + 2)), d)
+    # top = Y P₁' likewise, plus |Y| rad(P₁)' + rad(Y)(|P₁| + rad(P₁))'
+    Tm, Tr = accurate_product(Ym, P1m.T)
+    Tr = Tr + _up((np.abs(Ym) @ P1r.T + Yr @ (np.abs(P1m) + P1r).T) * (1.0 + gamma(d + 2)), d)
+    top = (Tm, Tr) if Tm.shape == (q, q) else mul(mul((P1m, P1r), point(X11)),
+                                                   transpose((P1m, P1r)))
     return add(top, mul(mul(P, point(rest)), transpose(P)))
 
 
+def _sharp_gain_columns(A: Interval, C: Interval, Z: np.ndarray, G: Interval, B: Interval,
+                        Kz: np.ndarray, output_map: np.ndarray | None, d: int,
+                        F: Interval) -> Interval:
+    """F̂ = B + G K_z (M C Z) with its first d columns recomputed sharply: C Z₁ by compensated
+    products, G K_z as K_z + (G − I) K_z (G − I is tiny; the diagonal subtraction is exact by
+    Sterbenz's lemma when G_ii ∈ [1/2, 2]), the product with inner dimension m."""
+    n = Z.shape[0]
+    gd = np.diag(G[0])
+    if not (np.all(gd >= 0.5) and np.all(gd <= 2.0)):
+        return F
+    Z1 = Z[:, :d]
+    cz, rcz = accurate_product(C[0], Z1)
+    rcz = rcz + _up((C[1] @ np.abs(Z1)) * (1.0 + gamma(n + 2)), n)
+    CZ1 = (cz, rcz)
+    if output_map is not None:
+        CZ1 = mul(point(output_map), CZ1)
+    GmI = (G[0] - np.eye(n), G[1])
+    GK = add(point(Kz), mul(GmI, point(Kz)))
+    F1 = add(_columns(B, slice(0, d)), mul(GK, CZ1))
+    Fm, Fr = F[0].copy(), F[1].copy()
+    Fm[:, :d], Fr[:, :d] = F1
+    return Fm, Fr
+
+
 def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np.ndarray,
-                   Kz: np.ndarray, output_map: np.ndarray | None = None, sharp: int = 0
-                   ) -> tuple[Interval, Interval, Interval]:
+                   Kz: np.ndarray, output_map: np.ndarray | None = None, sharp: int = 0,
+                   exact_views: bool = False) -> tuple[Interval, Interval, Interval]:
     r"""Enclosures of G = Z'Z, Z'XZ and Z'(X − L_{K,p}(X))Z for X = Z X_z Z', K = Z K_z (M).
 
     .. math::
@@ -317,9 +350,11 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
     (exact identities; X and K are never rounded). For invertible Z (G ≻ 0) the congruence
     preserves definiteness, so G X_z G ≻ 0 and the last matrix ≻ 0 prove X ≻ 0 and
     X ≻ L_{K,p}(X). With ``sharp`` = d > 0 the first d columns of B and G are enclosed by
-    compensated products (:func:`sharpen_columns`).
+    compensated products (:func:`sharpen_columns`). ``exact_views``: a and c are the exact
+    matrices themselves (every entry a binary float, checked by the caller), radius 0.
     """
-    A, C, Zi = from_exact(a), from_exact(c), point(Z)
+    A, C = (point(a), point(c)) if exact_views else (from_exact(a), from_exact(c))
+    Zi = point(Z)
     Zt = transpose(Zi)
     G = mul(Zt, Zi)
     B = mul(Zt, mul(A, Zi))
@@ -329,6 +364,8 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
     if output_map is not None:
         CZ = mul(point(output_map), CZ)
     F = add(B, mul(mul(G, point(Kz)), CZ))
+    if sharp > 0:
+        F = _sharp_gain_columns(A, C, Z, G, B, Kz, output_map, sharp, F)
     GXG = congruence(G, Xz, sharp)
     BXB = congruence(B, Xz, sharp)
     FXF = congruence(F, Xz, sharp)
@@ -338,7 +375,8 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
 
 def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray,
                              Xz: np.ndarray, Kz: np.ndarray,
-                             output_map: np.ndarray | None = None, sharp: int = 0
+                             output_map: np.ndarray | None = None, sharp: int = 0,
+                             exact_views: bool = False
                              ) -> tuple[bool, float | None, float | None, str]:
     """:func:`verify_upper_float` for the certificate X = Z X_z Z', K = Z K_z (M) given in the
     basis Z (:func:`basis_operands`, ``sharp`` leading columns by compensated products); X_z
@@ -355,7 +393,7 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
         return False, None, None, "bad number of sharpened columns"
     G, GXG, M = basis_operands(np.asarray(a, float), np.asarray(c, float), float(p),
                                np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map,
-                               int(sharp))
+                               int(sharp), bool(exact_views))
     if verified_definite_margin(G) is None:
         return False, None, None, "the basis Z is not proven invertible (Z'Z > 0)"
     mx = verified_definite_margin(GXG)

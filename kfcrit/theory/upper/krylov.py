@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg import lapack
 
 from kfcrit.theory.covariance.riccati import symmetrize
 
@@ -279,3 +280,42 @@ def _positive_definite(X: np.ndarray) -> bool:
     except np.linalg.LinAlgError:
         return False
     return True
+
+
+def stein_solve_preconditioned(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: float,
+                               W: np.ndarray, rtol: float = 1e-7
+                               ) -> tuple[np.ndarray | None, int]:
+    """X with X − L_{K,p}(X) = W by GMRES right-preconditioned with the one-term Stein solve
+    S(X) = X − (1−p) A X A' (Bartels–Stewart on the Cayley transform, its real Schur form
+    computed once); None when √(1−p) ρ(A) ≥ 1 or GMRES fails. Returns (X, matvecs).
+
+    .. math::
+
+        (I - p\\,F \\cdot F' \\circ S^{-1})(Y) = W, \\qquad X = S^{-1}(Y)
+    """
+    k = A.shape[0]
+    M = np.sqrt(1.0 - p) * A
+    if not float(np.max(np.abs(np.linalg.eigvals(M)))) < 1.0:
+        return None, 0
+    eye = np.eye(k)
+    Ac = np.linalg.solve(M + eye, M - eye)      # Cayley: M = (I + Ac)(I − Ac)⁻¹
+    S, U = sla.schur(Ac, output="real")
+    ImA = eye - Ac
+    F = A + K @ C
+
+    def s_inv(Y):
+        # X − M X M' = Y  ⇔  Ac X + X Ac' = −½ (I − Ac) Y (I − Ac)'
+        R = -0.5 * U.T @ (ImA @ Y @ ImA.T) @ U
+        Z, scale, info = lapack.dtrsyl(S, S, R, trana="N", tranb="T", isgn=1)
+        if info < 0:
+            raise np.linalg.LinAlgError("trsyl failed")
+        return U @ (Z / scale) @ U.T
+
+    def apply(v):
+        Y = v.reshape(k, k)
+        return (Y - p * F @ s_inv(Y) @ F.T).ravel()
+
+    y, count, ok = gmres_solve(apply, W.ravel(), rtol, 120, 20)
+    if not ok:
+        return None, count
+    return symmetrize(s_inv(y.reshape(k, k))), count

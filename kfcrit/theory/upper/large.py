@@ -159,6 +159,56 @@ P_LOW_VERIFIED = ("p_low >= 1 - 1/rho2 with rho(A)^2 >= rho2 proven in verified 
                   "check)")
 
 
+STEIN_OFFSETS = (0.9, 0.5)
+"""hi = base + offset·tol tried first with the preconditioned Stein certificate (the lower end
+hi − tol stays at or below the Newton root)."""
+
+
+def float_views_exact(system: System) -> bool:
+    """True when every entry of the exact A and C is the binary float of its view (NumPy input):
+    the verified check may then take a and c with radius 0."""
+    for M, view in ((system.A, system.a), (system.C, system.c)):
+        for e, f in zip(M, view.ravel()):
+            if not (e.is_Rational and Fraction(int(e.p), int(e.q)) == Fraction(float(f))):
+                return False
+    return True
+
+
+def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: float,
+                            stats: dict[str, Any], exact_views: bool):
+    """The certificate at hi from the gain K alone: X_u − L_{K,hi}(X_u) = I by preconditioned
+    GMRES (:func:`kfcrit.theory.upper.krylov.stein_solve_preconditioned`), the exact block
+    lift (:func:`kfcrit.theory.upper.stein.block_lift`), the verified float64 check with the
+    unstable columns sharpened. Returns (basis triple, X, K, CheckResult) or None."""
+    k = red.k
+    Xu, mv = krylov.stein_solve_preconditioned(red.Au, red.Cu, K, hi, np.eye(k))
+    stats["operator_applications"] += mv
+    if Xu is None or not krylov._positive_definite(Xu):
+        return None
+    F = red.Au + K @ red.Cu
+    Mu = symmetrize(Xu - stein.jump_second_moment(red.Au, F, Xu, hi))
+    if not krylov._positive_definite(Mu):
+        return None
+    lifted = stein.block_lift(red, K, Xu, Mu, hi)
+    if lifted is None:
+        return None
+    Xz, Kz = lifted
+    ok, mx, mm, why = floatcheck.verify_upper_float_basis(
+        system.a, system.c, hi, red.Z, Xz, Kz, red.M, sharp=k, exact_views=exact_views)
+    stats["certificate_checks"] += 1
+    if not ok:
+        return None
+    stats["certificate_from"] = ("stein: X_u = L_{K,hi}(X_u) + I (GMRES preconditioned by the "
+                                 "one-term Stein solve), K the gain of the threshold "
+                                 "eigenvector, exact block lift")
+    how = FACE_CHECK.replace("dominant-block columns", "unstable-block columns") + (
+        "; A and C are binary floats taken exactly" if exact_views else "")
+    check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
+                                how)
+    Z = red.Z
+    return (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
+
+
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
                  stats: dict[str, Any], warnings: list[str], done):
     """The bracket for a large unstable block (module docstring); ``done`` builds the result."""
@@ -195,9 +245,15 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
                         f"(stopped at p = {thr.value:.12g})")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
     base = p_low if face else thr.value
-    Ys = stable_gramian(red) if red.k < system.n else None
     found, hi = None, None
-    for off in CERTIFICATE_OFFSETS:
+    exact_views = float_views_exact(system)
+    for off in STEIN_OFFSETS:
+        hi = float(min(base + off * tol, 1.0))
+        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views)
+        if found is not None:
+            break
+    Ys = stable_gramian(red) if red.k < system.n and found is None else None
+    for off in CERTIFICATE_OFFSETS if found is None else ():
         hi = float(min(base + off * tol, 1.0))
         found = float_certificate(system, red, hi, thr.X, stats, Ys)
         if found is not None:

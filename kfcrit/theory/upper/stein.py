@@ -196,3 +196,39 @@ def face_certificate_matrices(red: Reduced, d: int, p: float
         return None
     return X, Kz
 
+
+
+def block_lift(red: Reduced, Ku: np.ndarray, Xu: np.ndarray, Mu: np.ndarray, p: float
+               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Full-state (X_z, K_z) in the basis ``red.Z`` from an unstable-block certificate
+    X_u − L_u(X_u) = M_u ≻ 0 with gain K_u (K zero on the stable block).
+
+    Block back-substitution as in :func:`face_certificate_matrices`: X_ss − T_ss X_ss T_ss' = I,
+    the coupling X_us − M X_us T_ss' = R_us exactly (:func:`stein_sylvester`,
+    M = (1−p) T_uu + p F_uu), and X_uu = β X_u with β M_u ⪰ 1.5 (c_uu + I), c_uu the coupling
+    term; then X_z − L(X_z) = diag(β M_u − c_uu, I) ≻ 0 without a Schur-complement scaling.
+    """
+    n, k = red.T.shape[0], red.k
+    Kz = np.zeros((n, Ku.shape[1]))
+    Kz[:k] = Ku
+    T = red.T
+    F = T + Kz @ (red.Cw @ red.Z)
+    X = np.zeros((n, n))
+    u, s = slice(0, k), slice(k, n)
+    if k < n:
+        X[s, s] = symmetrize(stein_sylvester(T[s, s], T[s, s], np.eye(n - k)))
+        Mt = (1 - p) * T[u, u] + p * F[u, u]
+        X[u, s] = stein_sylvester(Mt, T[s, s], jump_second_moment(T, F, X, p)[u, s])
+        X[s, u] = X[u, s].T
+    cuu = symmetrize(jump_second_moment(T, F, X, p)[u, u])
+    try:
+        Lc = np.linalg.cholesky(symmetrize(Mu))
+        Li = sla.solve_triangular(Lc, np.eye(k), lower=True)
+        top = float(np.linalg.eigvalsh(symmetrize(Li @ (cuu + np.eye(k)) @ Li.T)).max())
+    except np.linalg.LinAlgError:
+        return None
+    X[u, u] = max(1.0, 1.5 * top) * Xu
+    X = np.triu(X) + np.triu(X, 1).T
+    if not np.all(np.isfinite(X)):
+        return None
+    return X, Kz
