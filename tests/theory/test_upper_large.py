@@ -227,3 +227,26 @@ def test_own_gmres_solves_a_nonsymmetric_system():
     x, count, ok = gmres_solve(lambda v: M @ v, b, 1e-12, 20, 30)
     assert ok and count > 0
     assert np.linalg.norm(M @ x - b) <= 1e-11 * np.linalg.norm(b)
+
+
+def _system_seeded(n: int, m: int, seed: int) -> System:
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    A *= 1.3 / max(abs(np.linalg.eigvals(A)))
+    return System(A, rng.normal(size=(m, n)), np.eye(n), np.eye(m))
+
+
+def test_interior_root_upper_end_is_certified_and_matches_an_independent_mare(large_path):
+    """A root p* > p_low (three outputs for 19 unstable states): the preconditioned Stein
+    certificate proves the upper end; the lower end is the numerical Newton root."""
+    s = _system_seeded(40, 3, 2)
+    tol = 1e-6
+    ub = bracket.upper_bound(s, tol=tol, method="newton")
+    assert ub.solver["certificate_from"].startswith("stein")
+    assert ub.certified and ub.status == "determined"
+    assert not ub.lower_evidence["certified"]
+    lo, hi = ub.interval
+    assert hi - lo <= tol * (1 + 1e-9)
+    assert lo > 1 - 1 / _spectral_radius2(s.a) + 1e-3        # not a face root
+    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
