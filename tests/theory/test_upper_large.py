@@ -43,7 +43,7 @@ def large_path(monkeypatch):
 def test_large_path_contains_an_independent_mare_estimate(large_path):
     s = _system(60, 12, 3)
     ub = bracket.upper_bound(s, tol=1e-4, method="newton")
-    assert ub.solver["reduced_states"] > 8 and ub.solver["operator_applications"] > 0
+    assert ub.solver["reduced_states"] > 8 and "operator_applications" in ub.solver
     assert ub.certified
     lo, hi = ub.interval
     assert "float64" in ub.certificate["verified_by"]
@@ -116,5 +116,137 @@ def test_a_large_block_record_is_typed_end_to_end(large_path, tmp_path):
     s = _system(30, 6, 3)
     rec = analyze_system(s, AnalysisOptions(simulate=False, quick=True))
     solver = rec["upper_bound"]["solver"]
-    assert solver["reduced_states"] > 8 and solver["operator_applications"] > 0
+    assert solver["reduced_states"] > 8 and "operator_applications" in solver
     assert record_from_json(rec.to_dict()) == rec
+
+
+def _spectral_radius2(A: np.ndarray) -> float:
+    return float(max(abs(np.linalg.eigvals(A)))) ** 2
+
+
+def test_face_root_bracket_is_certified_at_both_ends_beyond_the_ball_limit(large_path):
+    """n = 70 > 60: p_low comes from float eigenvalues (not rigorous) unless the face-root path
+    proves ρ(A)² from below; both ends must then be labelled certified, and the bracket must
+    contain p_low = 1 − 1/ρ(A)² and be consistent with an independent MARE iteration."""
+    s = _system(70, 14, 3)
+    tol = 1e-6
+    ub = bracket.upper_bound(s, tol=tol, method="newton")
+    assert "face root" in ub.solver.get("certificate_from", "")
+    assert ub.certified and ub.status == "determined"
+    assert ub.lower_evidence["certified"] and ub.lower_evidence["kind"] == "theorem"
+    lo, hi = ub.interval
+    assert hi - lo <= tol * (1 + 1e-9)
+    p_low = 1 - 1 / _spectral_radius2(s.a)
+    assert lo <= p_low <= hi
+    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
+
+
+def test_face_certificate_is_rejected_when_tampered(large_path):
+    from kfcrit.theory.upper import stein
+    from kfcrit.theory.upper.cone import reduce_system
+
+    s = _system(60, 12, 3)
+    red_d, d = stein.dominant_split(reduce_system(s))
+    p_low = 1 - 1 / _spectral_radius2(s.a)
+    hi = p_low + 5e-7
+    Xz, Kz = stein.face_certificate_matrices(red_d, d, hi)
+    ok, *_ = floatcheck.verify_upper_float_basis(s.a, s.c, hi, red_d.Z, Xz, Kz, sharp=d)
+    assert ok
+    # below p_low no certificate exists (Sinopoli Thm 3): the same matrices must fail there
+    bad, *_ = floatcheck.verify_upper_float_basis(s.a, s.c, p_low - 5e-7, red_d.Z, Xz, Kz,
+                                                  sharp=d)
+    assert not bad
+    # a gain that no longer cancels the dominant modes
+    Kb = Kz.copy()
+    Kb[:d] *= 0.9
+    bad, *_ = floatcheck.verify_upper_float_basis(s.a, s.c, hi, red_d.Z, Xz, Kb, sharp=d)
+    assert not bad
+    # the dominant block of X shrunk: its margin (1 − (1−p)ρ²)·X₁₁ no longer covers the rest
+    Xb = Xz.copy()
+    Xb[:d, :d] *= 1e-3
+    bad, *_ = floatcheck.verify_upper_float_basis(s.a, s.c, hi, red_d.Z, Xb, Kz, sharp=d)
+    assert not bad
+
+
+def test_dominant_radius_lower_bound_is_below_and_close_to_numpy():
+    from kfcrit.theory.upper import stein
+    from kfcrit.theory.upper.cone import reduce_system
+
+    for n, m, seed in ((40, 8, 1), (70, 14, 3)):
+        s = _system(n, m, seed)
+        red_d, d = stein.dominant_split(reduce_system(s))
+        low = floatcheck.dominant_radius_lower(s.a, red_d.Z, d)
+        rho2 = _spectral_radius2(s.a)
+        assert low is not None and low <= rho2 and rho2 - low < 1e-6
+
+
+def test_dominant_radius_lower_bound_refuses_a_wrong_basis():
+    s = _system(40, 8, 1)
+    rng = np.random.default_rng(5)
+    Z, _ = np.linalg.qr(rng.normal(size=(40, 40)))      # not an invariant-subspace basis
+    assert floatcheck.dominant_radius_lower(s.a, Z, 2) is None
+
+
+def test_accurate_product_encloses_the_exact_product_tightly():
+    from fractions import Fraction
+
+    rng = np.random.default_rng(2)
+    L, R = rng.normal(size=(25, 50)), rng.normal(size=(50, 2))
+    L[:, :25] *= 1e8                   # heavy cancellation for the plain float product
+    R[:25] *= 1e-8
+    mid, rad = floatcheck.accurate_product(L, R)
+    for i in (0, 7, 24):
+        for j in (0, 1):
+            exact = sum(Fraction(L[i, k]) * Fraction(R[k, j]) for k in range(50))
+            assert abs(Fraction(mid[i, j]) - exact) <= Fraction(rad[i, j])
+            assert rad[i, j] <= 1e-14 * (abs(mid[i, j]) + 1.0)
+
+
+def test_stein_sylvester_solves_the_one_term_equation():
+    import scipy.linalg as sla
+
+    from kfcrit.theory.upper import stein
+
+    rng = np.random.default_rng(4)
+    N, _ = sla.schur(0.3 * rng.normal(size=(9, 9)), output="real")   # with 2 × 2 blocks
+    M = 0.3 * rng.normal(size=(5, 5))
+    R = rng.normal(size=(5, 9))
+    X = stein.stein_sylvester(M, N, R)
+    # independent: the Kronecker form (I − N ⊗ M) vec X = vec R
+    x = np.linalg.solve(np.eye(45) - np.kron(N, M), R.reshape(-1, order="F"))
+    assert np.allclose(X, x.reshape(5, 9, order="F"), atol=1e-12)
+
+
+def test_own_gmres_solves_a_nonsymmetric_system():
+    from kfcrit.theory.upper.krylov import gmres_solve
+
+    rng = np.random.default_rng(1)
+    M = np.eye(200) + 0.3 * rng.normal(size=(200, 200)) / np.sqrt(200)
+    b = rng.normal(size=200)
+    x, count, ok = gmres_solve(lambda v: M @ v, b, 1e-12, 20, 30)
+    assert ok and count > 0
+    assert np.linalg.norm(M @ x - b) <= 1e-11 * np.linalg.norm(b)
+
+
+def _system_seeded(n: int, m: int, seed: int) -> System:
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    A *= 1.3 / max(abs(np.linalg.eigvals(A)))
+    return System(A, rng.normal(size=(m, n)), np.eye(n), np.eye(m))
+
+
+def test_interior_root_upper_end_is_certified_and_matches_an_independent_mare(large_path):
+    """A root p* > p_low (three outputs for 19 unstable states): the preconditioned Stein
+    certificate proves the upper end; the lower end is the numerical Newton root."""
+    s = _system_seeded(40, 3, 2)
+    tol = 1e-6
+    ub = bracket.upper_bound(s, tol=tol, method="newton")
+    assert ub.solver["certificate_from"].startswith("stein")
+    assert ub.certified and ub.status == "determined"
+    assert not ub.lower_evidence["certified"]
+    lo, hi = ub.interval
+    assert hi - lo <= tol * (1 + 1e-9)
+    assert lo > 1 - 1 / _spectral_radius2(s.a) + 1e-3        # not a face root
+    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)

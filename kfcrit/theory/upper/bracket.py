@@ -55,6 +55,7 @@ from kfcrit.theory.critical.plow import PLow, c_invertible, p_low_bounds, p_low_
 from kfcrit.theory.upper import lmi
 from kfcrit.theory.upper.certs import invariant_block_of, lower_end, stein_certificate
 from kfcrit.theory.upper.cone import NEWTON_MAX_REDUCED, full_gain, reduce_system
+from kfcrit.theory.upper.large import P_LOW_VERIFIED, verified_p_low
 from kfcrit.theory.upper.newton import newton_method
 from kfcrit.theory.upper.record import UpperBound, certificate_summary, evidence_p_low
 
@@ -265,6 +266,13 @@ def _exact_lower_end(system: System, result: UpperBound, tol: float,
     if result.lower_evidence.get("kind") != "theorem" or result.method == "exact":
         return result
     pl = known if known is not None else p_low_bounds(system)
+    verified = result.extras.get("p_low_verified")
+    if not pl.rigorous and verified is None:
+        verified = verified_p_low(system)
+    if not pl.rigorous and verified is not None and verified <= pl.up:
+        # the face-root path proved ρ(A)² from below (verified float64): a rigorous lower end
+        pl = replace(pl, down=float(verified), rigorous=True,
+                     how=P_LOW_VERIFIED + "; the upper value is " + pl.how)
     lo, hi = result.interval
     hi = max(hi, pl.up)
     lower = {**result.lower_evidence, "value": pl.down, "certified": pl.rigorous,

@@ -30,6 +30,7 @@ power-of-two diagonal (exact scaling), L a float Cholesky factor, and ‖E‖₂
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -119,7 +120,6 @@ def verified_definite_margin(M: Interval) -> float | None:
         \\;\\Rightarrow\\; \\lambda_{\\min}(S M S) \\ge \\sigma - \\|E\\|_2 > 0 .
     """
     mid, rad = M
-    n = mid.shape[0]
     if not (np.all(np.isfinite(mid)) and np.all(np.isfinite(rad))):
         return None
     sym = 0.5 * (mid + mid.T)
@@ -133,7 +133,22 @@ def verified_definite_margin(M: Interval) -> float | None:
     lam = float(np.linalg.eigvalsh(sym)[0])
     if not lam > 0:
         return None
-    sigma = 0.5 * lam
+    for frac in SHIFT_FRACTIONS:
+        low = _shifted_cholesky_bound(sym, rad, frac * lam)
+        if low is not None:
+            return low
+    return None
+
+
+SHIFT_FRACTIONS = (0.5, 0.9)
+"""Shifts σ = frac·λ_min(mid) tried in turn by :func:`verified_definite_margin` (a larger σ
+leaves more room for the radius when the Cholesky factor of mid − σI stays accurate)."""
+
+
+def _shifted_cholesky_bound(sym: np.ndarray, rad: np.ndarray, sigma: float) -> float | None:
+    """σ − ‖E‖₂ for sym = L L' + σI + E (L a float Cholesky factor), if positive (rad: the
+    radius of the interval around sym)."""
+    n = sym.shape[0]
     shifted = sym - sigma * np.eye(n)
     try:
         L = np.linalg.cholesky(shifted)
@@ -195,9 +210,136 @@ def transpose(a: Interval) -> Interval:
     return a[0].T, a[1].T
 
 
+SPLITTER = 134217729.0
+"""2²⁷ + 1: Dekker's splitting constant for float64."""
+
+
+def _two_product(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x = fl(a b) and y with x + y = a b exactly (Dekker; barring underflow, handled by the
+    caller's η terms, and overflow, excluded by the caller)."""
+    x = a * b
+    c = SPLITTER * a
+    ah = c - (c - a)
+    al = a - ah
+    c = SPLITTER * b
+    bh = c - (c - b)
+    bl = b - bh
+    return x, al * bl - (((x - ah * bh) - al * bh) - ah * bl)
+
+
+def accurate_product(Lm: np.ndarray, Rm: np.ndarray) -> Interval:
+    """Enclosure of Lm Rm for float Lm (q × n) and a few float columns Rm (n × d) by compensated
+    dot products (Dot2 of Ogita, Rump and Oishi 2005, Prop. 5.5), vectorised over the outputs.
+
+    .. math::
+
+        |\\mathrm{res} - L_m R_m| \\le \\frac{u |\\mathrm{res}| + \\gamma_n^2 |L_m||R_m|}{1 - u}
+        + \\text{underflow}
+
+    Radius about u·|L_m R_m| instead of γ_n·|L_m||R_m|: needed for the basis columns that carry the
+    huge dominant block of a face-root certificate (each of their rounding errors is multiplied
+    by that block).
+    """
+    q, n = Lm.shape
+    d = Rm.shape[1]
+    big = max(float(np.abs(Lm).max(initial=0.0)), float(np.abs(Rm).max(initial=0.0)))
+    if not big < 1e150:
+        raise ValueError("accurate_product: entries too large for error-free splitting")
+    s = np.zeros((q, d))
+    err = np.zeros((q, d))
+    for j in range(n):
+        h, r = _two_product(Lm[:, j:j + 1], Rm[j:j + 1, :])
+        t = s + h
+        z = t - s
+        err += ((s - (t - z)) + (h - z)) + r          # TwoSum error plus the product's error
+        s = t
+    res = s + err
+    bound = (np.abs(Lm) @ np.abs(Rm)) * (1.0 + gamma(n + 2))   # ≥ the exact |Lm||Rm|
+    rad = (U_ROUND_SAFE * np.abs(res) + gamma(n + 2) ** 2 * bound) / (1.0 - U)
+    return res, _up(rad, n) + 8 * (n + 2) * ETA
+
+
+U_ROUND_SAFE = 2.0 * U
+"""u|res| of the Dot2 bound taken twice (covers the final rounding of res itself)."""
+
+
+def sharpen_columns(a_int: Interval, Z: np.ndarray, d: int,
+                    B: Interval, G: Interval) -> tuple[Interval, Interval]:
+    """B = Z'AZ and G = Z'Z with their first d columns (and G's first d rows) recomputed by
+    :func:`accurate_product`: (Z'(A Z₁), Z'Z₁) with Z₁ = Z[:, :d]."""
+    a, ra = a_int
+    Z1 = Z[:, :d]
+    y, ry = accurate_product(a, Z1)
+    # the exact A is within ra of a: add |ra||Z₁| (a float product, made an upper bound)
+    ry = ry + _up((ra @ np.abs(Z1)) * (1.0 + gamma(Z.shape[0] + 2)), Z.shape[0])
+    b1, rb1 = accurate_product(Z.T, y)
+    rb1 = rb1 + _up((np.abs(Z.T) @ ry) * (1.0 + gamma(Z.shape[0] + 2)), Z.shape[0])
+    g1, rg1 = accurate_product(Z.T, Z1)
+    Bm, Br = B[0].copy(), B[1].copy()
+    Bm[:, :d], Br[:, :d] = b1, rb1
+    Gm, Gr = G[0].copy(), G[1].copy()
+    Gm[:, :d], Gr[:, :d] = g1, rg1
+    Gm[:d, :], Gr[:d, :] = g1.T, rg1.T
+    return (Bm, Br), (Gm, Gr)
+
+
+def _columns(a: Interval, cols: slice) -> Interval:
+    return a[0][:, cols], a[1][:, cols]
+
+
+def congruence(P: Interval, X: np.ndarray, sharp: int = 0) -> Interval:
+    """Enclosure of P X P' for the float matrix X (exact).
+
+    With ``sharp`` = d > 0 the leading d × d block of X (the huge dominant block of a face-root
+    certificate) is taken apart: P X P' = P₁ X₁₁ P₁' + P X_r P' with X_r = X minus that block,
+    so its products have inner dimension d and rounding γ_{d+2}, not γ_n, times X₁₁.
+    """
+    if sharp <= 0:
+        return mul(mul(P, point(X)), transpose(P))
+    d = sharp
+    rest = X.copy()
+    rest[:d, :d] = 0.0
+    P1m, P1r = _columns(P, slice(0, d))
+    X11 = X[:d, :d]
+    q = P1m.shape[0]
+    # Y = P₁ X₁₁ by compensated products, plus the radius of P₁ times |X₁₁|
+    Ym, Yr = accurate_product(P1m, X11)
+    Yr = Yr + _up((P1r @ np.abs(X11)) * (1.0 + gamma(d + 2)), d)
+    # top = Y P₁' likewise, plus |Y| rad(P₁)' + rad(Y)(|P₁| + rad(P₁))'
+    Tm, Tr = accurate_product(Ym, P1m.T)
+    Tr = Tr + _up((np.abs(Ym) @ P1r.T + Yr @ (np.abs(P1m) + P1r).T) * (1.0 + gamma(d + 2)), d)
+    top = (Tm, Tr) if Tm.shape == (q, q) else mul(mul((P1m, P1r), point(X11)),
+                                                   transpose((P1m, P1r)))
+    return add(top, mul(mul(P, point(rest)), transpose(P)))
+
+
+def _sharp_gain_columns(A: Interval, C: Interval, Z: np.ndarray, G: Interval, B: Interval,
+                        Kz: np.ndarray, output_map: np.ndarray | None, d: int,
+                        F: Interval) -> Interval:
+    """F̂ = B + G K_z (M C Z) with its first d columns recomputed sharply: C Z₁ by compensated
+    products, G K_z as K_z + (G − I) K_z (G − I is tiny; the diagonal subtraction is exact by
+    Sterbenz's lemma when G_ii ∈ [1/2, 2]), the product with inner dimension m."""
+    n = Z.shape[0]
+    gd = np.diag(G[0])
+    if not (np.all(gd >= 0.5) and np.all(gd <= 2.0)):
+        return F
+    Z1 = Z[:, :d]
+    cz, rcz = accurate_product(C[0], Z1)
+    rcz = rcz + _up((C[1] @ np.abs(Z1)) * (1.0 + gamma(n + 2)), n)
+    CZ1 = (cz, rcz)
+    if output_map is not None:
+        CZ1 = mul(point(output_map), CZ1)
+    GmI = (G[0] - np.eye(n), G[1])
+    GK = add(point(Kz), mul(GmI, point(Kz)))
+    F1 = add(_columns(B, slice(0, d)), mul(GK, CZ1))
+    Fm, Fr = F[0].copy(), F[1].copy()
+    Fm[:, :d], Fr[:, :d] = F1
+    return Fm, Fr
+
+
 def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np.ndarray,
-                   Kz: np.ndarray, output_map: np.ndarray | None = None
-                   ) -> tuple[Interval, Interval, Interval]:
+                   Kz: np.ndarray, output_map: np.ndarray | None = None, sharp: int = 0,
+                   exact_views: bool = False) -> tuple[Interval, Interval, Interval]:
     r"""Enclosures of G = Z'Z, Z'XZ and Z'(X − L_{K,p}(X))Z for X = Z X_z Z', K = Z K_z (M).
 
     .. math::
@@ -207,30 +349,38 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
 
     (exact identities; X and K are never rounded). For invertible Z (G ≻ 0) the congruence
     preserves definiteness, so G X_z G ≻ 0 and the last matrix ≻ 0 prove X ≻ 0 and
-    X ≻ L_{K,p}(X).
+    X ≻ L_{K,p}(X). With ``sharp`` = d > 0 the first d columns of B and G are enclosed by
+    compensated products (:func:`sharpen_columns`). ``exact_views``: a and c are the exact
+    matrices themselves (every entry a binary float, checked by the caller), radius 0.
     """
-    A, C, Zi = from_exact(a), from_exact(c), point(Z)
+    A, C = (point(a), point(c)) if exact_views else (from_exact(a), from_exact(c))
+    Zi = point(Z)
     Zt = transpose(Zi)
     G = mul(Zt, Zi)
     B = mul(Zt, mul(A, Zi))
+    if sharp > 0:
+        B, G = sharpen_columns(A, Z, sharp, B, G)
     CZ = mul(C, Zi)
     if output_map is not None:
         CZ = mul(point(output_map), CZ)
     F = add(B, mul(mul(G, point(Kz)), CZ))
-    Xi = point(Xz)
-    GXG = mul(mul(G, Xi), G)
-    BXB = mul(mul(B, Xi), transpose(B))
-    FXF = mul(mul(F, Xi), transpose(F))
+    if sharp > 0:
+        F = _sharp_gain_columns(A, C, Z, G, B, Kz, output_map, sharp, F)
+    GXG = congruence(G, Xz, sharp)
+    BXB = congruence(B, Xz, sharp)
+    FXF = congruence(F, Xz, sharp)
     LX = add(scale((1.0 - p, 2 * U), BXB), scale((p, 0.0), FXF))
     return G, GXG, add(GXG, LX, -1.0)
 
 
 def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray,
                              Xz: np.ndarray, Kz: np.ndarray,
-                             output_map: np.ndarray | None = None
+                             output_map: np.ndarray | None = None, sharp: int = 0,
+                             exact_views: bool = False
                              ) -> tuple[bool, float | None, float | None, str]:
     """:func:`verify_upper_float` for the certificate X = Z X_z Z', K = Z K_z (M) given in the
-    basis Z (:func:`basis_operands`); X_z must be exactly symmetric."""
+    basis Z (:func:`basis_operands`, ``sharp`` leading columns by compensated products); X_z
+    must be exactly symmetric."""
     n = a.shape[0]
     Xz = np.asarray(Xz, dtype=float)
     if not (0 <= p <= 1) or Z.shape != (n, n) or Xz.shape != (n, n):
@@ -239,8 +389,11 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
         return False, None, None, "X_z is not exactly symmetric"
     if not all(np.all(np.isfinite(M)) for M in (Z, Xz, Kz)):
         return False, None, None, "non-finite certificate entry"
+    if not 0 <= sharp <= n:
+        return False, None, None, "bad number of sharpened columns"
     G, GXG, M = basis_operands(np.asarray(a, float), np.asarray(c, float), float(p),
-                               np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map)
+                               np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map,
+                               int(sharp), bool(exact_views))
     if verified_definite_margin(G) is None:
         return False, None, None, "the basis Z is not proven invertible (Z'Z > 0)"
     mx = verified_definite_margin(GXG)
@@ -250,3 +403,75 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
     if mm is None:
         return False, mx, None, "X - L_{K,p}(X) is not proven positive definite"
     return True, mx, mm, "proven"
+
+
+def _frob_up(M: np.ndarray) -> float:
+    """An upper bound on the Frobenius norm of the float matrix M (relative error ≤ γ_{N+2})."""
+    return float(np.sqrt(np.sum(M * M))) * (1.0 + 1e-9) + 1e-300
+
+
+def dominant_radius_lower(a: np.ndarray, Z: np.ndarray, d: int) -> float | None:
+    r"""Rigorous lower bound on ρ(A)² from an exactly A-invariant subspace near the first d
+    (1 or 2) columns of the float basis Z, for the exact A within one ulp of ``a``.
+
+    With B = Z⁻¹AZ = G⁻¹ B̃ (B̃ ∋ Z'AZ, G ∋ Z'Z enclosed as in :func:`basis_operands`, the
+    first d columns by compensated products) split after d rows and columns, every block of B
+    is within δ_B of the midpoint of B̃ in the Frobenius norm, δ_B = ‖rad B̃‖_F
+    + ‖G⁻¹ − I‖₂ (‖mid B̃‖_F + ‖rad B̃‖_F). With s ≤ σ_min(I ⊗ B₂₂ − B₁₁' ⊗ I) (proven: a
+    Cholesky definiteness check of S'S − τI for the midpoint Kronecker matrix S, less 2δ_B)
+    and 4‖B₂₁‖_F‖B₁₂‖_F < s², Stewart's theorem gives an exactly invariant subspace
+    span Z[I; P], ‖P‖_F ≤ 2‖B₂₁‖_F/s, on which A acts as M = B₁₁ + B₁₂P. Its eigenvalues are
+    eigenvalues of A, so
+
+    .. math::
+
+        \rho(A)^2 \ge \rho(M)^2 \ge |\det M| \ (d = 2), \qquad \rho(A)^2 \ge M^2 \ (d = 1),
+
+    with |det M − det M₀| ≤ ‖M₀‖_F η + η²/2 for ‖M − M₀‖_F ≤ η (2 × 2: adj M₀ has the norm of
+    M₀). Returns None when a step cannot be proven.
+    """
+    n = a.shape[0]
+    if d not in (1, 2) or Z.shape != (n, n) or n <= d:
+        return None
+    A, Zi = from_exact(a), point(Z)
+    Zt = transpose(Zi)
+    G = mul(Zt, Zi)
+    B = mul(Zt, mul(A, Zi))
+    B, G = sharpen_columns(A, Z, d, B, G)
+    gdev = _frob_up(np.abs(G[0] - np.eye(n)) + G[1])          # ≥ ‖G − I‖₂
+    if not gdev < 0.5:
+        return None
+    e_inv = gdev / (1.0 - gdev) * (1.0 + 1e-12)                # ≥ ‖G⁻¹ − I‖₂
+    Bm, Br = B
+    delta = _frob_up(Br) + e_inv * (_frob_up(Bm) + _frob_up(Br))
+    B11, B12, B21, B22 = Bm[:d, :d], Bm[:d, d:], Bm[d:, :d], Bm[d:, d:]
+    b21 = _frob_up(B21) + delta
+    b12 = _frob_up(B12) + delta
+    # S = I ⊗ B22 − B11' ⊗ I (vec of P, column-major): entries are differences of floats
+    s_mid = np.kron(np.eye(d), B22) - np.kron(B11.T, np.eye(n - d))
+    s_rad = _up(2 * U * np.abs(s_mid), 2)
+    S = (s_mid, s_rad)
+    StS = mul(transpose(S), S)
+    lam = float(np.linalg.eigvalsh(0.5 * (StS[0] + StS[0].T))[0])
+    if not lam > 0:
+        return None
+    tau = 0.5 * lam
+    N = StS[0].shape[0]
+    shifted = add(StS, (tau * np.eye(N), np.zeros((N, N))), -1.0)
+    if verified_definite_margin(shifted) is None:
+        return None
+    sep = math.sqrt(tau) * (1.0 - 1e-12) - 2.0 * delta
+    if not (sep > 0 and 4.0 * b21 * b12 * (1.0 + 1e-12) < sep * sep):
+        return None
+    rho_p = 2.0 * b21 / sep * (1.0 + 1e-12)
+    eta = (delta + b12 * rho_p) * (1.0 + 1e-12)
+    if d == 1:
+        m0 = abs(Fraction(float(B11[0, 0])))
+        low = m0 - Fraction(eta)
+        return float(low * low) * (1.0 - 1e-15) if low > 0 else None
+    det0 = Fraction(float(B11[0, 0])) * Fraction(float(B11[1, 1])) \
+        - Fraction(float(B11[0, 1])) * Fraction(float(B11[1, 0]))
+    m0f = Fraction(_frob_up(B11))
+    e = Fraction(eta)
+    low = abs(det0) - m0f * e - e * e / 2
+    return float(low) * (1.0 - 1e-15) if low > 0 else None

@@ -20,7 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse.linalg as spla
+import scipy.linalg as sla
+from scipy.linalg import lapack
 
 from kfcrit.theory.covariance.riccati import symmetrize
 
@@ -67,17 +68,71 @@ def second_moment_operator(A: np.ndarray, F: np.ndarray, X: np.ndarray, p: float
     return (1 - p) * (A @ X @ A.T) + p * (F @ X @ F.T)
 
 
+def gmres_solve(apply, rhs: np.ndarray, rtol: float, restart: int = 120,
+                max_cycles: int = 10) -> tuple[np.ndarray, int, bool]:
+    """Restarted GMRES for apply(x) = rhs (classical Gram–Schmidt twice, BLAS-2).
+
+    Returns (x, operator applications, converged to ‖rhs − apply(x)‖ ≤ rtol‖rhs‖).
+    """
+    N = rhs.size
+    x = np.zeros(N)
+    bnorm = float(np.linalg.norm(rhs))
+    count = 0
+    if bnorm == 0.0:
+        return x, 0, True
+    m = min(restart, N)
+    for cycle in range(max_cycles):
+        if cycle:
+            r = rhs - apply(x)
+            count += 1
+        else:
+            r = rhs.copy()
+        beta = float(np.linalg.norm(r))
+        if beta <= rtol * bnorm:
+            return x, count, True
+        V = np.empty((m + 1, N))
+        V[0] = r / beta
+        H = np.zeros((m + 1, m))
+        cs, sn = np.zeros(m), np.zeros(m)
+        g = np.zeros(m + 1)
+        g[0] = beta
+        j = 0
+        for j in range(m):
+            w = apply(V[j])
+            count += 1
+            h = V[:j + 1] @ w
+            w -= V[:j + 1].T @ h
+            h2 = V[:j + 1] @ w
+            w -= V[:j + 1].T @ h2
+            h += h2
+            hn = float(np.linalg.norm(w))
+            col = np.concatenate([h, [hn]])
+            for i in range(j):
+                a, b = col[i], col[i + 1]
+                col[i], col[i + 1] = cs[i] * a + sn[i] * b, -sn[i] * a + cs[i] * b
+            den = float(np.hypot(col[j], col[j + 1]))
+            cs[j], sn[j] = (col[j] / den, col[j + 1] / den) if den > 0 else (1.0, 0.0)
+            col[j], col[j + 1] = den, 0.0
+            g[j + 1] = -sn[j] * g[j]
+            g[j] = cs[j] * g[j]
+            H[:j + 2, j] = col
+            if hn > 0:
+                V[j + 1] = w / hn
+            if abs(g[j + 1]) <= rtol * bnorm or hn == 0:
+                break
+        y = sla.solve_triangular(H[:j + 1, :j + 1], g[:j + 1])
+        x = x + V[:j + 1].T @ y
+        if abs(g[j + 1]) <= rtol * bnorm:
+            count += 1
+            if float(np.linalg.norm(rhs - apply(x))) <= rtol * bnorm:
+                return x, count, True
+    return x, count, False
+
+
 def _gmres(apply, rhs: np.ndarray, rtol: float, counter: list[int]) -> np.ndarray:
     """Solve apply(x) = rhs by restarted GMRES; ``counter[0]`` counts operator applications."""
-    N = rhs.size
-
-    def mv(v):
-        counter[0] += 1
-        return apply(v)
-
-    op = spla.LinearOperator((N, N), matvec=mv, dtype=float)
-    x, _info = spla.gmres(op, rhs, rtol=rtol, atol=0.0, restart=min(GMRES_RESTART, N),
-                          maxiter=GMRES_CYCLES)
+    x, count, _ok = gmres_solve(apply, rhs, rtol, GMRES_RESTART, GMRES_CYCLES)
+    counter[0] += count
     return x
 
 
@@ -225,3 +280,42 @@ def _positive_definite(X: np.ndarray) -> bool:
     except np.linalg.LinAlgError:
         return False
     return True
+
+
+def stein_solve_preconditioned(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: float,
+                               W: np.ndarray, rtol: float = 1e-7
+                               ) -> tuple[np.ndarray | None, int]:
+    """X with X − L_{K,p}(X) = W by GMRES right-preconditioned with the one-term Stein solve
+    S(X) = X − (1−p) A X A' (Bartels–Stewart on the Cayley transform, its real Schur form
+    computed once); None when √(1−p) ρ(A) ≥ 1 or GMRES fails. Returns (X, matvecs).
+
+    .. math::
+
+        (I - p\\,F \\cdot F' \\circ S^{-1})(Y) = W, \\qquad X = S^{-1}(Y)
+    """
+    k = A.shape[0]
+    M = np.sqrt(1.0 - p) * A
+    if not float(np.max(np.abs(np.linalg.eigvals(M)))) < 1.0:
+        return None, 0
+    eye = np.eye(k)
+    Ac = np.linalg.solve(M + eye, M - eye)      # Cayley: M = (I + Ac)(I − Ac)⁻¹
+    S, U = sla.schur(Ac, output="real")
+    ImA = eye - Ac
+    F = A + K @ C
+
+    def s_inv(Y):
+        # X − M X M' = Y  ⇔  Ac X + X Ac' = −½ (I − Ac) Y (I − Ac)'
+        R = -0.5 * U.T @ (ImA @ Y @ ImA.T) @ U
+        Z, scale, info = lapack.dtrsyl(S, S, R, trana="N", tranb="T", isgn=1)
+        if info < 0:
+            raise np.linalg.LinAlgError("trsyl failed")
+        return U @ (Z / scale) @ U.T
+
+    def apply(v):
+        Y = v.reshape(k, k)
+        return (Y - p * F @ s_inv(Y) @ F.T).ravel()
+
+    y, count, ok = gmres_solve(apply, W.ravel(), rtol, 120, 20)
+    if not ok:
+        return None, count
+    return symmetrize(s_inv(y.reshape(k, k))), count

@@ -7,7 +7,11 @@ threshold, a Stein certificate at hi, and the verified float64 check (docs/theor
     X_u - L_{K,hi}(X_u) = I \\;\\Rightarrow\\; X_u \\succ L_{K,hi}(X_u)
     \\;\\Rightarrow\\; p_{up} \\le hi \\quad(\\text{after lifting, checked on the exact } A, C)
 
-Steps: (1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
+Steps: (0) the face-root certificate of :mod:`kfcrit.theory.upper.stein` at p_low + tol/2 (a
+gain that cancels the modes of modulus ρ(A), the MARE gain on the rest of the unstable block,
+a block-triangular Stein solution on the full state), with the lower end p_low proven by
+:func:`verified_p_low` when no ball enclosure of ρ(A) is available; otherwise
+(1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
 (2) damped threshold Newton (:func:`kfcrit.theory.upper.krylov.threshold_newton_krylov`), which
 either converges to p* > p_low or runs into the floor p_low (a face root: p_up = p_low);
 (3) at hi = base + tol/2 (base = p* or p_low) the cone eigenpair of G_hi, its gain K and the
@@ -19,15 +23,22 @@ with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not certi
 """
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.upper import certify, floatcheck, krylov
+from kfcrit.theory.upper import certify, floatcheck, krylov, stein
 from kfcrit.theory.upper.certs import lower_end
-from kfcrit.theory.upper.cone import Reduced, full_gain, lift_certificate, stable_gramian
+from kfcrit.theory.upper.cone import (
+    Reduced,
+    full_gain,
+    lift_certificate,
+    reduce_system,
+    stable_gramian,
+)
 from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
 
 START_OFFSETS = (0.02, 0.1, 0.3, 1.0)
@@ -87,10 +98,138 @@ def float_certificate(system: System, red: Reduced, hi: float, X_start: np.ndarr
     return None
 
 
+FACE_OFFSET = 0.5
+"""The face-root certificate is tried at hi = p_low + FACE_OFFSET·tol."""
+FACE_CHECK = FLOAT_CHECK + ("; the leading dominant-block columns of Z'AZ and Z'Z and the "
+                            "products with the dominant block of X_z by compensated dot "
+                            "products (Ogita-Rump-Oishi Dot2)")
+
+
+def face_root_certificate(system: System, red: Reduced, p_low: float, tol: float,
+                          stats: dict[str, Any]):
+    """p_up ≤ hi = p_low + FACE_OFFSET·tol by the face-root certificate of
+    :mod:`kfcrit.theory.upper.stein` (the gain kills the modes of modulus ρ(A); the rest of the
+    unstable block is stabilised by its own MARE gain), checked by the verified float64 check.
+    Returns (hi, basis triple, X, K, CheckResult, verified lower bound on p_low or None) or None
+    (not a face root, or not proven)."""
+    split = stein.dominant_split(red)
+    if split is None:
+        return None
+    red_d, d = split
+    hi = float(min(p_low + FACE_OFFSET * tol, 1.0))
+    mats = stein.face_certificate_matrices(red_d, d, hi)
+    if mats is None:
+        return None
+    Xz, Kz = mats
+    ok, mx, mm, why = floatcheck.verify_upper_float_basis(system.a, system.c, hi, red_d.Z, Xz,
+                                                          Kz, red.M, sharp=d)
+    stats["certificate_checks"] += 1
+    if not ok:
+        return None
+    stats["certificate_from"] = (f"face root: gain killing the {d} dominant modes (|λ| = ρ(A)), "
+                                 "MARE gain on the rest of the unstable block, block-triangular "
+                                 "Stein solution on the full state")
+    check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
+                                FACE_CHECK)
+    Z = red_d.Z
+    rho2 = floatcheck.dominant_radius_lower(system.a, Z, d)
+    verified = None
+    if rho2 is not None and rho2 > 1.0:
+        verified = certify.float_down(1 - 1 / Fraction(rho2))
+    return hi, (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check, verified
+
+
+def verified_p_low(system: System, red: Reduced | None = None) -> float | None:
+    """A rigorous lower bound on p_low = 1 − 1/ρ(A)² from the dominant Schur block
+    (:func:`kfcrit.theory.upper.floatcheck.dominant_radius_lower`), or None."""
+    red = reduce_system(system) if red is None else red
+    split = stein.dominant_split(red)
+    if split is None:
+        return None
+    rho2 = floatcheck.dominant_radius_lower(system.a, split[0].Z, split[1])
+    if rho2 is None or not rho2 > 1.0:
+        return None
+    return certify.float_down(1 - 1 / Fraction(rho2))
+
+
+P_LOW_VERIFIED = ("p_low >= 1 - 1/rho2 with rho(A)^2 >= rho2 proven in verified float64 "
+                  "(Stewart's theorem on the dominant Schur block: an exactly A-invariant "
+                  "subspace whose 2x2 or 1x1 restriction M has |det M| >= rho2, the separation "
+                  "proven by a Cholesky residual bound; docs/theory.md §3, Verified float64 "
+                  "check)")
+
+
+STEIN_OFFSETS = (0.9, 0.5)
+"""hi = base + offset·tol tried first with the preconditioned Stein certificate (the lower end
+hi − tol stays at or below the Newton root)."""
+
+
+def float_views_exact(system: System) -> bool:
+    """True when every entry of the exact A and C is the binary float of its view (NumPy input):
+    the verified check may then take a and c with radius 0."""
+    for M, view in ((system.A, system.a), (system.C, system.c)):
+        for e, f in zip(M, view.ravel()):
+            if not (e.is_Rational and Fraction(int(e.p), int(e.q)) == Fraction(float(f))):
+                return False
+    return True
+
+
+def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: float,
+                            stats: dict[str, Any], exact_views: bool):
+    """The certificate at hi from the gain K alone: X_u − L_{K,hi}(X_u) = I by preconditioned
+    GMRES (:func:`kfcrit.theory.upper.krylov.stein_solve_preconditioned`), the exact block
+    lift (:func:`kfcrit.theory.upper.stein.block_lift`), the verified float64 check with the
+    unstable columns sharpened. Returns (basis triple, X, K, CheckResult) or None."""
+    k = red.k
+    Xu, mv = krylov.stein_solve_preconditioned(red.Au, red.Cu, K, hi, np.eye(k))
+    stats["operator_applications"] += mv
+    if Xu is None or not krylov._positive_definite(Xu):
+        return None
+    F = red.Au + K @ red.Cu
+    Mu = symmetrize(Xu - stein.jump_second_moment(red.Au, F, Xu, hi))
+    if not krylov._positive_definite(Mu):
+        return None
+    lifted = stein.block_lift(red, K, Xu, Mu, hi)
+    if lifted is None:
+        return None
+    Xz, Kz = lifted
+    ok, mx, mm, why = floatcheck.verify_upper_float_basis(
+        system.a, system.c, hi, red.Z, Xz, Kz, red.M, sharp=k, exact_views=exact_views)
+    stats["certificate_checks"] += 1
+    if not ok:
+        return None
+    stats["certificate_from"] = ("stein: X_u = L_{K,hi}(X_u) + I (GMRES preconditioned by the "
+                                 "one-term Stein solve), K the gain of the threshold "
+                                 "eigenvector, exact block lift")
+    how = FACE_CHECK.replace("dominant-block columns", "unstable-block columns") + (
+        "; A and C are binary floats taken exactly" if exact_views else "")
+    check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
+                                how)
+    Z = red.Z
+    return (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
+
+
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
                  stats: dict[str, Any], warnings: list[str], done):
     """The bracket for a large unstable block (module docstring); ``done`` builds the result."""
     stats.setdefault("operator_applications", 0)
+    face = face_root_certificate(system, red, p_low, tol, stats)
+    if face is not None:
+        hi, _basis, X, K, check, verified = face
+        origin = ("face root p_up = p_low: the gain sends the modes of modulus rho(A) to 0 "
+                  "(K_1 = -T_11 C_1^+) and stabilises the rest of the unstable block with its "
+                  "own MARE gain (Q = I, R = I); X solves X - L_{K,hi}(X) = W (W > 0 block "
+                  "diagonal) block by block in the float Schur basis Z, checked as "
+                  "X = Z X_z Z', K = Z K_z" + (" M" if red.M is not None else "")
+                  + " (X, K in the record are rounded copies)")
+        cert = certificate_summary(system, check, X, K, origin, None, None)
+        lower = evidence_p_low(p_low)
+        lower["statement"] += ("; the upper end is certified at p_low + tol/2 (face root: "
+                               "p_up = p_low)")
+        status = "determined" if hi - p_low <= tol else "undetermined"
+        return done(hi, (p_low, hi), True, status, cert, lower,
+                    {"X": X, "K": K, "p_star": None, "face_root": True,
+                     "output_map": red.M, "p_low_verified": verified})
     start = _start(red, p_low, stats)
     if start is None:
         warnings.append("upper bound undetermined: the MARE iteration (Q = I, R = I) did not "
@@ -106,9 +245,15 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
                         f"(stopped at p = {thr.value:.12g})")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
     base = p_low if face else thr.value
-    Ys = stable_gramian(red) if red.k < system.n else None
     found, hi = None, None
-    for off in CERTIFICATE_OFFSETS:
+    exact_views = float_views_exact(system)
+    for off in STEIN_OFFSETS:
+        hi = float(min(base + off * tol, 1.0))
+        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views)
+        if found is not None:
+            break
+    Ys = stable_gramian(red) if red.k < system.n and found is None else None
+    for off in CERTIFICATE_OFFSETS if found is None else ():
         hi = float(min(base + off * tol, 1.0))
         found = float_certificate(system, red, hi, thr.X, stats, Ys)
         if found is not None:
