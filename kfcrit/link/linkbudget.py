@@ -50,7 +50,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -76,6 +76,31 @@ __all__ = [
 
 Z_RANGE = 9.0
 """Shadowing averages integrate the standard normal over [−9, 9] (mass outside < 1e-18)."""
+
+
+@lru_cache(maxsize=64)
+def shadowing_grid(step: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""The trapezoid grid of a shadowing average and the normal density on it (read-only).
+
+    .. math:: z_i = -9 + i\,\frac{18}{N - 1},\quad N = 2\lceil 9/h \rceil + 1,\qquad
+              w_i = \frac{e^{-z_i^2/2}}{\sqrt{2\pi}}
+
+    Parameters
+    ----------
+    step : float
+        The largest step h in z.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        z and φ(z); computed once per step (a pure function of it).
+    """
+    count = 2 * math.ceil(Z_RANGE / step) + 1
+    z = np.linspace(-Z_RANGE, Z_RANGE, count)
+    weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+    z.setflags(write=False)
+    weights.setflags(write=False)
+    return z, weights
 
 
 # ---------------------------------------------------------------------------------------------
@@ -283,9 +308,9 @@ class LinkBudget(Channel):
         """Median received power Pr = Pt + G − PL(d)."""
         return self.tx_power_dbm + self.antenna_gain_db - self.path_loss_db
 
-    @property
+    @cached_property
     def sinr_db(self) -> float:
-        """Median SINR = Pr − (N ⊕ I)."""
+        """Median SINR = Pr − (N ⊕ I) (computed once per link)."""
         return self.rx_power_dbm - self.noise.total_dbm
 
     @property
@@ -398,10 +423,7 @@ class LinkBudget(Channel):
         sigma = self.sigma_db
         if sigma == 0:
             return self.nominal_arrival(sinr_db)
-        h = min(0.01, self.fading.shadowing_step_db() / sigma)
-        count = 2 * math.ceil(Z_RANGE / h) + 1
-        z = np.linspace(-Z_RANGE, Z_RANGE, count)
-        weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+        z, weights = shadowing_grid(min(0.01, self.fading.shadowing_step_db() / sigma))
         if self.attempt_correlation is not None:
             fail = correlated_all_fail(lambda x: self.attempt_per(sinr_db + sigma * x), z,
                                        weights, self.attempt_correlation, self.max_retries + 1)
@@ -421,9 +443,16 @@ class LinkBudget(Channel):
             else self.nominal_arrival(sinr_db)
 
     @cached_property
+    def median_mean_arrival(self) -> float:
+        """:meth:`mean_arrival` at the configured median SINR (computed once per link: the
+        record reads it three times, and it is the costly shadowing average)."""
+        return self.mean_arrival(self.sinr_db)
+
+    @cached_property
     def arrival_value(self) -> float:
         """The arrival probability as a float (computed once per link)."""
-        return self.effective_arrival(self.sinr_db)
+        return self.median_mean_arrival if self.per_packet_shadowing \
+            else self.nominal_arrival(self.sinr_db)
 
     @property
     def arrival_probability(self) -> sp.Expr:
@@ -589,7 +618,7 @@ class LinkBudget(Channel):
                 "attempt_arrival_probability": float(
                     np.exp(self.attempt_log_arrival(sinr))),
                 "arrival_probability_nominal": self.nominal_arrival(sinr),
-                "arrival_probability_mean": self.mean_arrival(sinr),
+                "arrival_probability_mean": self.median_mean_arrival,
                 "arrival_probability": self.arrival_value}
 
     def to_dict(self) -> dict[str, Any]:
@@ -734,7 +763,6 @@ def design_section(channel: Channel, *, critical_value: float | None,
         rows.append(_threshold_row(channel, "accuracy_necessary", float(p_s)))
         rows.append(_threshold_row(channel, "accuracy_sufficient", float(p_v)))
     design = _threshold_row(channel, "design", p_design) if p_design is not None else None
-    sinr = channel.sinr_db
     p_link = channel.arrival_value
     notes = []
     if channel.sigma_db > 0 and not channel.per_packet_shadowing:
@@ -780,7 +808,7 @@ def design_section(channel: Channel, *, critical_value: float | None,
         if need.stability_value is not None else None,
         "shadowing": {
             "sigma_db": channel.sigma_db, "mode": channel.path_loss.shadowing,
-            "mean_arrival_probability": channel.mean_arrival(sinr),
+            "mean_arrival_probability": channel.median_mean_arrival,
             "outage_below_critical": (channel.outage_probability(float(critical_value))
                                       if critical_value is not None else None),
             "outage_below_upper": (channel.outage_probability(float(upper_bound))

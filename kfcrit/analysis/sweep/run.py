@@ -55,9 +55,15 @@ class PointJob:
     max_states: int
 
 
+CHUNK_MAX = 256
+"""Most points in one chunk: large enough that sending a chunk, its results and its journal
+write (one fsync) cost little per point, small enough that an interrupted sweep loses little."""
+
+
 def chunks(items: Items, workers: int) -> list[Items]:
-    """Items in chunks (the unit of work sent to a worker): about four per worker, ≤ 64."""
-    size = max(1, min(64, math.ceil(len(items) / (4 * max(1, workers)))))
+    """Items in chunks (the unit of work sent to a worker): about four per worker, at most
+    :data:`CHUNK_MAX` points each."""
+    size = max(1, min(CHUNK_MAX, math.ceil(len(items) / (4 * max(1, workers)))))
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
