@@ -449,10 +449,21 @@ class LinkBudget(Channel):
         return self.mean_arrival(self.sinr_db)
 
     @cached_property
+    def median_log_arrival(self) -> float:
+        """log(1 − PER) of one attempt at the configured median SINR (computed once per link:
+        the PER, the attempt and the nominal arrival probabilities are read from it)."""
+        return self.attempt_log_arrival(self.sinr_db)
+
+    @cached_property
+    def median_nominal_arrival(self) -> float:
+        """:meth:`nominal_arrival` at the configured median SINR (computed once per link)."""
+        return float(arrival_with_retries(self.median_log_arrival, self.max_retries))
+
+    @cached_property
     def arrival_value(self) -> float:
         """The arrival probability as a float (computed once per link)."""
         return self.median_mean_arrival if self.per_packet_shadowing \
-            else self.nominal_arrival(self.sinr_db)
+            else self.median_nominal_arrival
 
     @property
     def arrival_probability(self) -> sp.Expr:
@@ -607,6 +618,11 @@ class LinkBudget(Channel):
         """The configured link, step by step."""
         sinr = self.sinr_db
         ber = float(self.radio.ber(db_to_linear(sinr)))
+        log_arrival = self.median_log_arrival
+        # without fading the PER is −expm1 of the same log(1 − PER) (Radio.per); with fading
+        # it is the averaged PER, which log(1 − PER) was computed from
+        per = (float(self.attempt_per(sinr)) if self.fading.active
+               else float(-np.expm1(log_arrival)))
         return {"tx_power_dbm": self.tx_power_dbm, "antenna_gain_db": self.antenna_gain_db,
                 "distance_m": self.distance_m, "packet_bytes": self.packet_bytes,
                 "psdu_bytes": self.psdu_bytes, "per_bytes": self.per_bytes,
@@ -614,10 +630,9 @@ class LinkBudget(Channel):
                 "path_loss_db": self.path_loss_db, "rx_power_dbm": self.rx_power_dbm,
                 **self.noise.to_dict(), "sinr_db": sinr,
                 "sinr_linear": float(db_to_linear(sinr)), "bit_error_rate": ber,
-                "packet_error_rate": float(self.attempt_per(sinr)),
-                "attempt_arrival_probability": float(
-                    np.exp(self.attempt_log_arrival(sinr))),
-                "arrival_probability_nominal": self.nominal_arrival(sinr),
+                "packet_error_rate": per,
+                "attempt_arrival_probability": float(np.exp(log_arrival)),
+                "arrival_probability_nominal": self.median_nominal_arrival,
                 "arrival_probability_mean": self.median_mean_arrival,
                 "arrival_probability": self.arrival_value}
 
