@@ -62,7 +62,13 @@ from kfcrit.link.fading import NO_FADING, FastFading, correlated_all_fail, fadin
 from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
-from kfcrit.link.radios import CalibratedOqpsk, Radio, db_to_linear, radio_from_mapping
+from kfcrit.link.radios import (
+    CalibratedOqpsk,
+    Radio,
+    certain_arrival_sinr_db,
+    db_to_linear,
+    radio_from_mapping,
+)
 from kfcrit.link.requirement import binding_requirement, stability_requirement
 from kfcrit.link.shadowing import ShadowingCorrelation, ShadowingMarkov, markov_from_mean_arrival
 from kfcrit.link.units import BOLTZMANN, SPEED_OF_LIGHT, thermal_noise_dbm
@@ -434,7 +440,15 @@ class LinkBudget(Channel):
             if a >= 1.0:
                 return 1.0
             return float(-math.expm1((self.max_retries + 1) * math.log1p(-a)))
-        values = self.link_arrival(sinr_db + sigma * z)
+        s = sinr_db + sigma * z
+        if self.fading.active:
+            values = self.link_arrival(s)
+        else:
+            # exactly 0.0 and 1.0 outside the transition: only the SINRs between are computed
+            s0, s1 = certain_arrival_sinr_db(self.radio, self.per_bytes, self.max_retries)
+            values = (s >= s1).astype(float)
+            mid = (s > s0) & (s < s1)
+            values[mid] = self.link_arrival(s[mid])
         return float(min(1.0, np.trapezoid(values * weights, z)))
 
     def effective_arrival(self, sinr_db: float) -> float:

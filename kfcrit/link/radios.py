@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -122,6 +123,58 @@ def required_sinr_db(radio: Radio, arrival_probability: float,
                      packet_bytes: int) -> float | None:
     """:meth:`Radio.solve_required_sinr_db`, memoised (frozen radios are hashable values)."""
     return radio.solve_required_sinr_db(arrival_probability, packet_bytes)
+
+
+CERTAIN_EXPONENT = -40.0
+"""Exponent below which e^x vanishes beside 1 in double precision with room to spare:
+e^{−40} = 4·10^{−18}, under the 2^{−54} = 5.6·10^{−17} that rounds 1 − e^x to 1."""
+CERTAIN_MARGIN_DB = 1.0
+"""Extra SINR (dB) between a computed end of :func:`certain_arrival_sinr_db` and the SINRs it
+is used for (the error rate falls by orders of magnitude per dB, so rounding never crosses it)."""
+
+
+@functools.lru_cache(maxsize=256)
+def certain_arrival_sinr_db(radio: Radio, packet_bytes: int,
+                            retries: int) -> tuple[float, float]:
+    r"""SINRs (dB) below which the arrival probability within a period is exactly 0.0 and
+    above which it is exactly 1.0 in double precision, as :func:`kfcrit.link.frames.
+    arrival_with_retries` computes it from :meth:`Radio.log_arrival`.
+
+    .. math:: p(s) = -\operatorname{expm1}igl((k+1)\log(-\operatorname{expm1}(\ell(s)))igr),
+              \qquad \ell(s) = 8L\log(1 - \mathrm{BER}(s))
+
+    is 0.0 where ℓ(s) < −40 (−expm1(ℓ) rounds to 1, its log to 0) and 1.0 where
+    (k+1)·log(−expm1(ℓ(s))) < −40 (expm1 rounds to −1). BER is non-increasing in s, so both
+    sets are half-lines; their ends are found by bisection and moved outwards by
+    :data:`CERTAIN_MARGIN_DB`. A shadowing average evaluates the radio only between them.
+    Memoised (a pure function of hashable arguments).
+
+    Returns
+    -------
+    (float, float)
+        (s_0, s_1): p is 0.0 for s ≤ s_0 and 1.0 for s ≥ s_1 (−inf or +inf when the set is
+        empty on [−100, 200] dB).
+    """
+    def log_arrival(s: float) -> float:
+        return float(radio.log_arrival(s, packet_bytes))
+
+    def zero(s: float) -> bool:
+        return log_arrival(s) < CERTAIN_EXPONENT
+
+    def one(s: float) -> bool:
+        la = log_arrival(s)
+        return la == 0.0 or (retries + 1) * math.log(-math.expm1(la)) < CERTAIN_EXPONENT
+
+    def edge(pred: Callable[[float], bool], inside: float, outside: float) -> float:
+        for _ in range(60):   # 300 dB / 2^60: far below the margin
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if pred(mid) else (inside, mid)
+        return inside
+
+    lo, hi = -100.0, 200.0
+    s0 = edge(zero, lo, hi) - CERTAIN_MARGIN_DB if zero(lo) else -math.inf
+    s1 = edge(one, hi, lo) + CERTAIN_MARGIN_DB if one(hi) else math.inf
+    return s0, s1
 
 
 @functools.lru_cache(maxsize=1)
