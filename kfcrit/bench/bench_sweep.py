@@ -11,7 +11,9 @@ empty output folder each time:
   existing cluster would be; the time includes connecting the client).
 
 Prints points per second for each, the ratio dask / local and the load average (the machine
-may be shared), and checks that both produced byte-identical tables. Run::
+may be shared), and checks that both produced byte-identical tables. For the local run it also
+prints the CPU time per point (this process and its worker processes, start-up included), which
+a loaded machine does not hide the way it hides wall-clock speed. Run::
 
     python -m kfcrit.bench.bench_sweep [--points 10000] [--workers N] [--dask-workers N]
                                        [--no-dask]
@@ -69,6 +71,12 @@ def sweep_text(points: int) -> str:
             f"  channel.packet_bytes: {packets}\n  channel.distance_m: {dist}\n")
 
 
+def cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process and of its finished child processes."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
 def _load() -> str:
     try:
         return "load average {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
@@ -100,8 +108,8 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
     Returns
     -------
     dict
-        ``points, local {seconds, points_per_second, workers}, dask {...}, ratio,
-        identical, load_before, load_after``.
+        ``points, local {seconds, points_per_second, workers, cpu_seconds,
+        cpu_ms_per_point}, dask {...}, ratio, identical, load_before, load_after``.
     """
     from kfcrit.analysis.sweep.points import load_sweep, run_sweep, table_csv
 
@@ -121,13 +129,16 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
         print(f"sweep: {points} points ({' x '.join(map(str, grid_shape(points)))} packet sizes "
               f"x distances), read and keyed in {load_seconds:.2f} s", file=out)
 
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu_seconds()
         local = run_sweep(spec, folder / "local", workers=workers)
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, cpu_seconds() - c0
         result["local"] = {"seconds": dt, "points_per_second": points / dt, "workers": workers,
-                           "errors": local.errors}
+                           "errors": local.errors, "cpu_seconds": cpu,
+                           "cpu_ms_per_point": 1000 * cpu / points}
         print(f"local processes ({workers}): {dt:8.2f} s  {points / dt:9.1f} points/s; "
-              f"{_load()}", file=out)
+              f"CPU {cpu:.2f} s = {1000 * cpu / points:.3f} ms per point (workers' start-up "
+              f"included; {workers} cores at this CPU cost: "
+              f"{workers * points / cpu:.0f} points/s); {_load()}", file=out)
         if not dask:
             result["identical"] = None
             result["load_after"] = _load()

@@ -52,12 +52,47 @@ def real_field(data: dict, key: str, prefix: str, *, low: float | None = None,
                high: float | None = None, low_open: bool = False) -> float:
     """Read ``data[key]`` exactly; check ``low ≤ x ≤ high`` (``low < x`` if ``low_open``)."""
     where = f"{prefix}.{key}"
-    x = exact_field_number(data[key], where)
+    value = data[key]
+    if isinstance(value, str):
+        try:
+            checked = _checked_text(value, low, high, low_open)
+        except InputError:  # parse again so that the message names the caller's field
+            parse_expression(value, where)
+            raise
+        if isinstance(checked, str):
+            raise InputError(checked, field=where)
+        return checked
+    return _checked(exact_field_number(value, where), where, low, high, low_open)
+
+
+def _range_error(x: sp.Expr, low: float | None, high: float | None,
+                 low_open: bool) -> str | None:
+    """Why ``x`` is outside ``[low, high]`` (``(low, high]`` if ``low_open``), or None."""
     if low is not None and (bool(x <= low) if low_open else bool(x < low)):
-        raise InputError(f"must be {'>' if low_open else '>='} {low:g}, got {sp.sstr(x)[:30]}",
-                         field=where)
+        return f"must be {'>' if low_open else '>='} {low:g}, got {sp.sstr(x)[:30]}"
     if high is not None and bool(x > high):
-        raise InputError(f"must be <= {high:g}, got {sp.sstr(x)[:30]}", field=where)
+        return f"must be <= {high:g}, got {sp.sstr(x)[:30]}"
+    return None
+
+
+def _checked(x: sp.Expr, where: str, low: float | None, high: float | None,
+             low_open: bool) -> float:
+    """``x`` as a float after the range check (a one-line error naming ``where``)."""
+    reason = _range_error(x, low, high, low_open)
+    if reason is not None:
+        raise InputError(reason, field=where)
+    return float(sp.N(x, 20)) if not x.is_Rational else float(x)
+
+
+@functools.lru_cache(maxsize=8192)
+def _checked_text(text: str, low: float | None, high: float | None,
+                  low_open: bool) -> float | str:
+    """The float of a field text inside its range, or the reason it is not (memoised: a pure
+    function of its arguments; a sweep re-reads the same texts at every point)."""
+    x = parsed_text(text)
+    reason = _range_error(x, low, high, low_open)
+    if reason is not None:
+        return reason
     return float(sp.N(x, 20)) if not x.is_Rational else float(x)
 
 

@@ -50,7 +50,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -62,7 +62,13 @@ from kfcrit.link.fading import NO_FADING, FastFading, correlated_all_fail, fadin
 from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
-from kfcrit.link.radios import CalibratedOqpsk, Radio, db_to_linear, radio_from_mapping
+from kfcrit.link.radios import (
+    CalibratedOqpsk,
+    Radio,
+    certain_arrival_sinr_db,
+    db_to_linear,
+    radio_from_mapping,
+)
 from kfcrit.link.requirement import binding_requirement, stability_requirement
 from kfcrit.link.shadowing import ShadowingCorrelation, ShadowingMarkov, markov_from_mean_arrival
 from kfcrit.link.units import BOLTZMANN, SPEED_OF_LIGHT, thermal_noise_dbm
@@ -76,6 +82,31 @@ __all__ = [
 
 Z_RANGE = 9.0
 """Shadowing averages integrate the standard normal over [−9, 9] (mass outside < 1e-18)."""
+
+
+@lru_cache(maxsize=64)
+def shadowing_grid(step: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""The trapezoid grid of a shadowing average and the normal density on it (read-only).
+
+    .. math:: z_i = -9 + i\,\frac{18}{N - 1},\quad N = 2\lceil 9/h \rceil + 1,\qquad
+              w_i = \frac{e^{-z_i^2/2}}{\sqrt{2\pi}}
+
+    Parameters
+    ----------
+    step : float
+        The largest step h in z.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        z and φ(z); computed once per step (a pure function of it).
+    """
+    count = 2 * math.ceil(Z_RANGE / step) + 1
+    z = np.linspace(-Z_RANGE, Z_RANGE, count)
+    weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+    z.setflags(write=False)
+    weights.setflags(write=False)
+    return z, weights
 
 
 # ---------------------------------------------------------------------------------------------
@@ -283,9 +314,9 @@ class LinkBudget(Channel):
         """Median received power Pr = Pt + G − PL(d)."""
         return self.tx_power_dbm + self.antenna_gain_db - self.path_loss_db
 
-    @property
+    @cached_property
     def sinr_db(self) -> float:
-        """Median SINR = Pr − (N ⊕ I)."""
+        """Median SINR = Pr − (N ⊕ I) (computed once per link)."""
         return self.rx_power_dbm - self.noise.total_dbm
 
     @property
@@ -398,10 +429,7 @@ class LinkBudget(Channel):
         sigma = self.sigma_db
         if sigma == 0:
             return self.nominal_arrival(sinr_db)
-        h = min(0.01, self.fading.shadowing_step_db() / sigma)
-        count = 2 * math.ceil(Z_RANGE / h) + 1
-        z = np.linspace(-Z_RANGE, Z_RANGE, count)
-        weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+        z, weights = shadowing_grid(min(0.01, self.fading.shadowing_step_db() / sigma))
         if self.attempt_correlation is not None:
             fail = correlated_all_fail(lambda x: self.attempt_per(sinr_db + sigma * x), z,
                                        weights, self.attempt_correlation, self.max_retries + 1)
@@ -412,7 +440,15 @@ class LinkBudget(Channel):
             if a >= 1.0:
                 return 1.0
             return float(-math.expm1((self.max_retries + 1) * math.log1p(-a)))
-        values = self.link_arrival(sinr_db + sigma * z)
+        s = sinr_db + sigma * z
+        if self.fading.active:
+            values = self.link_arrival(s)
+        else:
+            # exactly 0.0 and 1.0 outside the transition: only the SINRs between are computed
+            s0, s1 = certain_arrival_sinr_db(self.radio, self.per_bytes, self.max_retries)
+            values = (s >= s1).astype(float)
+            mid = (s > s0) & (s < s1)
+            values[mid] = self.link_arrival(s[mid])
         return float(min(1.0, np.trapezoid(values * weights, z)))
 
     def effective_arrival(self, sinr_db: float) -> float:
@@ -421,9 +457,27 @@ class LinkBudget(Channel):
             else self.nominal_arrival(sinr_db)
 
     @cached_property
+    def median_mean_arrival(self) -> float:
+        """:meth:`mean_arrival` at the configured median SINR (computed once per link: the
+        record reads it three times, and it is the costly shadowing average)."""
+        return self.mean_arrival(self.sinr_db)
+
+    @cached_property
+    def median_log_arrival(self) -> float:
+        """log(1 − PER) of one attempt at the configured median SINR (computed once per link:
+        the PER, the attempt and the nominal arrival probabilities are read from it)."""
+        return self.attempt_log_arrival(self.sinr_db)
+
+    @cached_property
+    def median_nominal_arrival(self) -> float:
+        """:meth:`nominal_arrival` at the configured median SINR (computed once per link)."""
+        return float(arrival_with_retries(self.median_log_arrival, self.max_retries))
+
+    @cached_property
     def arrival_value(self) -> float:
         """The arrival probability as a float (computed once per link)."""
-        return self.effective_arrival(self.sinr_db)
+        return self.median_mean_arrival if self.per_packet_shadowing \
+            else self.median_nominal_arrival
 
     @property
     def arrival_probability(self) -> sp.Expr:
@@ -578,6 +632,11 @@ class LinkBudget(Channel):
         """The configured link, step by step."""
         sinr = self.sinr_db
         ber = float(self.radio.ber(db_to_linear(sinr)))
+        log_arrival = self.median_log_arrival
+        # without fading the PER is −expm1 of the same log(1 − PER) (Radio.per); with fading
+        # it is the averaged PER, which log(1 − PER) was computed from
+        per = (float(self.attempt_per(sinr)) if self.fading.active
+               else float(-np.expm1(log_arrival)))
         return {"tx_power_dbm": self.tx_power_dbm, "antenna_gain_db": self.antenna_gain_db,
                 "distance_m": self.distance_m, "packet_bytes": self.packet_bytes,
                 "psdu_bytes": self.psdu_bytes, "per_bytes": self.per_bytes,
@@ -585,11 +644,10 @@ class LinkBudget(Channel):
                 "path_loss_db": self.path_loss_db, "rx_power_dbm": self.rx_power_dbm,
                 **self.noise.to_dict(), "sinr_db": sinr,
                 "sinr_linear": float(db_to_linear(sinr)), "bit_error_rate": ber,
-                "packet_error_rate": float(self.attempt_per(sinr)),
-                "attempt_arrival_probability": float(
-                    np.exp(self.attempt_log_arrival(sinr))),
-                "arrival_probability_nominal": self.nominal_arrival(sinr),
-                "arrival_probability_mean": self.mean_arrival(sinr),
+                "packet_error_rate": per,
+                "attempt_arrival_probability": float(np.exp(log_arrival)),
+                "arrival_probability_nominal": self.median_nominal_arrival,
+                "arrival_probability_mean": self.median_mean_arrival,
                 "arrival_probability": self.arrival_value}
 
     def to_dict(self) -> dict[str, Any]:
@@ -734,7 +792,6 @@ def design_section(channel: Channel, *, critical_value: float | None,
         rows.append(_threshold_row(channel, "accuracy_necessary", float(p_s)))
         rows.append(_threshold_row(channel, "accuracy_sufficient", float(p_v)))
     design = _threshold_row(channel, "design", p_design) if p_design is not None else None
-    sinr = channel.sinr_db
     p_link = channel.arrival_value
     notes = []
     if channel.sigma_db > 0 and not channel.per_packet_shadowing:
@@ -780,7 +837,7 @@ def design_section(channel: Channel, *, critical_value: float | None,
         if need.stability_value is not None else None,
         "shadowing": {
             "sigma_db": channel.sigma_db, "mode": channel.path_loss.shadowing,
-            "mean_arrival_probability": channel.mean_arrival(sinr),
+            "mean_arrival_probability": channel.median_mean_arrival,
             "outage_below_critical": (channel.outage_probability(float(critical_value))
                                       if critical_value is not None else None),
             "outage_below_upper": (channel.outage_probability(float(upper_bound))

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -124,6 +125,58 @@ def required_sinr_db(radio: Radio, arrival_probability: float,
     return radio.solve_required_sinr_db(arrival_probability, packet_bytes)
 
 
+CERTAIN_EXPONENT = -40.0
+"""Exponent below which e^x vanishes beside 1 in double precision with room to spare:
+e^{−40} = 4·10^{−18}, under the 2^{−54} = 5.6·10^{−17} that rounds 1 − e^x to 1."""
+CERTAIN_MARGIN_DB = 1.0
+"""Extra SINR (dB) between a computed end of :func:`certain_arrival_sinr_db` and the SINRs it
+is used for (the error rate falls by orders of magnitude per dB, so rounding never crosses it)."""
+
+
+@functools.lru_cache(maxsize=256)
+def certain_arrival_sinr_db(radio: Radio, packet_bytes: int,
+                            retries: int) -> tuple[float, float]:
+    r"""SINRs (dB) below which the arrival probability within a period is exactly 0.0 and
+    above which it is exactly 1.0 in double precision, as :func:`kfcrit.link.frames.
+    arrival_with_retries` computes it from :meth:`Radio.log_arrival`.
+
+    .. math:: p(s) = -\operatorname{expm1}igl((k+1)\log(-\operatorname{expm1}(\ell(s)))igr),
+              \qquad \ell(s) = 8L\log(1 - \mathrm{BER}(s))
+
+    is 0.0 where ℓ(s) < −40 (−expm1(ℓ) rounds to 1, its log to 0) and 1.0 where
+    (k+1)·log(−expm1(ℓ(s))) < −40 (expm1 rounds to −1). BER is non-increasing in s, so both
+    sets are half-lines; their ends are found by bisection and moved outwards by
+    :data:`CERTAIN_MARGIN_DB`. A shadowing average evaluates the radio only between them.
+    Memoised (a pure function of hashable arguments).
+
+    Returns
+    -------
+    (float, float)
+        (s_0, s_1): p is 0.0 for s ≤ s_0 and 1.0 for s ≥ s_1 (−inf or +inf when the set is
+        empty on [−100, 200] dB).
+    """
+    def log_arrival(s: float) -> float:
+        return float(radio.log_arrival(s, packet_bytes))
+
+    def zero(s: float) -> bool:
+        return log_arrival(s) < CERTAIN_EXPONENT
+
+    def one(s: float) -> bool:
+        la = log_arrival(s)
+        return la == 0.0 or (retries + 1) * math.log(-math.expm1(la)) < CERTAIN_EXPONENT
+
+    def edge(pred: Callable[[float], bool], inside: float, outside: float) -> float:
+        for _ in range(60):   # 300 dB / 2^60: far below the margin
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if pred(mid) else (inside, mid)
+        return inside
+
+    lo, hi = -100.0, 200.0
+    s0 = edge(zero, lo, hi) - CERTAIN_MARGIN_DB if zero(lo) else -math.inf
+    s1 = edge(one, hi, lo) + CERTAIN_MARGIN_DB if one(hi) else math.inf
+    return s0, s1
+
+
 @functools.lru_cache(maxsize=1)
 def _oqpsk_terms() -> tuple[np.ndarray, np.ndarray]:
     """k = 2..16 and (−1)^k C(16, k) of :func:`oqpsk_ber`, computed once (read-only)."""
@@ -144,8 +197,39 @@ def oqpsk_ber(sinr: Any) -> np.ndarray:
     """
     s = np.asarray(sinr, dtype=float)
     k, coeff = _oqpsk_terms()
-    terms = coeff * np.exp(20.0 * s[..., None] * (1.0 / k - 1.0))
-    return np.clip(terms.sum(axis=-1) * (8.0 / 15.0) / 16.0, 0.0, 0.5)
+    if s.ndim == 0:
+        return _oqpsk_sum(s[None], k, coeff)[0]
+    # every term underflows to exactly 0 above OQPSK_ZERO_SINR: BER = 0 there, computed or not
+    live = ~(s > OQPSK_ZERO_SINR)
+    if live.all():
+        return _oqpsk_sum(s, k, coeff)
+    out = np.zeros(s.shape)
+    out[live] = _oqpsk_sum(s[live], k, coeff)
+    return out
+
+
+OQPSK_ZERO_SINR = 75.0
+"""Linear SINR above which every term of :func:`oqpsk_ber` underflows: e^{20·75·(1/2 − 1)} =
+e^{−750} is below the least subnormal float (e^{−745.13}), and the other terms are smaller."""
+
+
+def _oqpsk_sum(s: np.ndarray, k: np.ndarray, coeff: np.ndarray) -> np.ndarray:
+    """The sum of :func:`oqpsk_ber` at every SINR of ``s`` (clipped to [0, 1/2]).
+
+    The fifteen terms are laid out one row per k and added in the order of NumPy's pairwise
+    sum over a row of fifteen (eight in a tree, then the other seven one by one): the same
+    floating-point operations as ``terms.sum(axis=-1)`` on the (SINR, k) array, so the same
+    bits, without NumPy's slow reduction over a short axis.
+    """
+    flat = s.ravel()
+    if flat.size < 16:  # a few SINRs: fewer NumPy calls this way, the same sums
+        terms = coeff * np.exp(20.0 * flat[:, None] * (1.0 / k - 1.0))
+        return np.clip(terms.sum(axis=-1) * (8.0 / 15.0) / 16.0, 0.0, 0.5).reshape(s.shape)
+    e = coeff[:, None] * np.exp((1.0 / k - 1.0)[:, None] * (20.0 * flat)[None, :])
+    total = ((e[0] + e[1]) + (e[2] + e[3])) + ((e[4] + e[5]) + (e[6] + e[7]))
+    for row in e[8:]:
+        total += row
+    return np.clip(total * (8.0 / 15.0) / 16.0, 0.0, 0.5).reshape(s.shape)
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,6 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
-from scipy import stats
 
 from kfcrit.errors import InputError
 
@@ -94,6 +93,8 @@ def clopper_pearson(k: int, n: int, confidence: float) -> tuple[float, float]:
         raise InputError(f"need 0 <= k <= n, got k={k}, n={n}", field="counts")
     if n == 0:
         return 0.0, 1.0
+    from scipy import stats  # imported on use: a sweep worker never needs scipy.stats
+
     alpha = 1.0 - c
     low = 0.0 if k == 0 else float(stats.beta.ppf(alpha / 2, k, n - k + 1))
     high = 1.0 if k == n else float(stats.beta.ppf(1 - alpha / 2, k + 1, n - k))
@@ -133,6 +134,8 @@ def lrt_iid_vs_markov(counts: np.ndarray) -> tuple[float, float]:
     expected = np.outer(rows, cols) / total
     mask = n > 0
     stat = max(0.0, float(2.0 * np.sum(n[mask] * np.log(n[mask] / expected[mask]))))
+    from scipy import stats
+
     return stat, float(stats.chi2.sf(stat, 1))
 
 
@@ -219,6 +222,8 @@ def burst_histogram(arrivals: object, recovery_rate: float | None) -> BurstHisto
     o, e = np.asarray(observed, float), np.asarray(predicted, float)
     stat = float(np.sum((o - e) ** 2 / e))
     dof = len(observed) - 2
+    from scipy import stats
+
     return BurstHistogram(tuple(int(v) for v in values), tuple(int(c) for c in counts),
                           expected, m, censored, mean, stat, dof, float(stats.chi2.sf(stat, dof)))
 

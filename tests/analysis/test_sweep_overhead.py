@@ -8,6 +8,7 @@
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -87,3 +88,35 @@ def test_serial_and_processes_give_identical_tables(tmp_path: Path) -> None:
     assert serial.computed == procs.computed == 60
     assert (tmp_path / "serial").is_dir() and (tmp_path / "procs").is_dir()
     assert sweep_mod.table_csv(spec, serial.rows) == sweep_mod.table_csv(spec, procs.rows)
+
+
+def test_tables_identical_across_runners_and_chunk_sizes(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    # per-packet shadowing (the shadowing average decides p) and 116-byte packets, some of
+    # which exceed the PHY limit: error rows must be as reproducible as the others
+    (tmp_path / "system.yaml").write_text(BASE_SYSTEM.replace(
+        "shadowing_sigma_db: 4}", "shadowing_sigma_db: 4, shadowing: per-packet}"))
+    (tmp_path / "sweep.yaml").write_text(
+        "name: chunks\nsystem: system.yaml\ngrid:\n  channel.packet_bytes: [20, 116, 120]\n"
+        "  channel.distance_m: {start: 10, stop: 200, num: 7}\n")
+    spec = sweep_mod.load_sweep(tmp_path / "sweep.yaml")
+    tables = []
+    for label, chunk_max, workers in (("one", 1, 1), ("five", 5, 1), ("all", 256, 1),
+                                      ("procs", 3, 2)):
+        monkeypatch.setattr(run_mod, "CHUNK_MAX", chunk_max)
+        result = sweep_mod.run_sweep(spec, tmp_path / label, workers=workers)
+        assert result.computed == 21
+        tables.append((sweep_mod.table_csv(spec, result.rows),
+                       json.dumps(result.rows, allow_nan=False)))
+    assert sum(r["status"] == "error" for r in result.rows) == 7    # 120 bytes > 127 - 11
+    assert sum(r["status"] == "ok" for r in result.rows) == 14
+    assert all(t == tables[0] for t in tables[1:])
+
+
+def test_chunks_are_bounded_and_cover_every_point() -> None:
+    items: run_mod.Items = [(i, f"k{i}", []) for i in range(1000)]
+    for workers in (1, 2, 8):
+        parts = run_mod.chunks(items, workers)
+        assert [it for part in parts for it in part] == items
+        assert max(len(p) for p in parts) <= run_mod.CHUNK_MAX
+    assert len(run_mod.chunks(items, 2)) == 8    # ⌈1000 / (4·2)⌉ = 125 points per chunk

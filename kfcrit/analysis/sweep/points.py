@@ -306,9 +306,25 @@ def check_parameter(path: Any, base_doc: dict, where: str) -> str:
                      field=where)
 
 
+_IMMUTABLE = (str, int, float, bool, type(None))
+
+
+def copy_doc(obj: Any) -> Any:
+    """A deep copy of a system document: mappings and lists copied, plain scalars shared (they
+    are immutable), anything else by :func:`copy.deepcopy` (several times faster than
+    ``deepcopy`` of the whole document, which keeps a memo of every node)."""
+    if isinstance(obj, dict):
+        return {k: copy_doc(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [copy_doc(v) for v in obj]
+    if isinstance(obj, _IMMUTABLE):
+        return obj
+    return copy.deepcopy(obj)
+
+
 def apply_point(base_doc: dict, assignments: Iterable[tuple[str, str]]) -> dict:
     """A copy of the base document with the point's values set (as text)."""
-    doc = copy.deepcopy(base_doc)
+    doc = copy_doc(base_doc)
     for path, text in assignments:
         m = _MATRIX_PATH.match(path)
         if m:
@@ -655,14 +671,16 @@ def loop_columns(loop: dict[str, Any] | None) -> dict[str, Any]:
             "loop_cost": _value(loop.get("cost"))}
 
 
-def point_spec(doc: dict, base_dir: Path, max_states: int, memo: dict[str, Any]) -> Any:
+def point_spec(doc: dict, base_dir: Path, max_states: int, memo: dict[str, Any],
+               key: str | None = None) -> Any:
     """The spec of one point's document, re-using the parsed system of an earlier point.
 
     A single-system document whose parts other than ``channel`` equal those of a document
     parsed before (same JSON text) differs from it only in the channel: the earlier spec
     (validated in full) gets this point's channel, parsed by the same parser as
     :func:`kfcrit.analysis.spec.spec_from_mapping`. Anything else is parsed in full. The
-    result never depends on ``memo`` (the reproducibility invariant).
+    result never depends on ``memo`` (the reproducibility invariant). ``key`` is the memo key
+    of ``doc`` (:func:`system_keys`) when the caller has it.
     """
     from dataclasses import replace
 
@@ -671,8 +689,8 @@ def point_spec(doc: dict, base_dir: Path, max_states: int, memo: dict[str, Any])
 
     if "sensors" in doc or doc.get("channel") is None:
         return spec_from_mapping(doc, base_dir=base_dir, max_states=max_states)
-    key = "spec:" + json.dumps([{k: v for k, v in doc.items() if k != "channel"}, max_states],
-                               sort_keys=True, default=str)
+    if key is None:
+        key = system_keys(doc, max_states, 0.0, None)[0]
     base = memo.get(key)
     if base is None:
         spec = spec_from_mapping(doc, base_dir=base_dir, max_states=max_states)
@@ -681,15 +699,38 @@ def point_spec(doc: dict, base_dir: Path, max_states: int, memo: dict[str, Any])
     return replace(base, channel=parse_channel(plain_yaml(doc["channel"]), "channel", base_dir))
 
 
+def system_keys(doc: dict, max_states: int, tolerance: float,
+                upper_tol: float | None) -> tuple[str, str, str]:
+    """The memo keys of a point's document: its parsed system (everything but the channel),
+    its channel-independent theory (matrices, channel model, tolerance) and its p_up (A, C)."""
+    pkey = "spec:" + json.dumps([{k: v for k, v in doc.items() if k != "channel"}, max_states],
+                                sort_keys=True, default=str)
+    skey = json.dumps([{k: doc.get(k) for k in MATRICES}, max_states, tolerance,
+                       (doc.get("channel") or {}).get("model")],
+                      sort_keys=True, default=str)
+    ukey = json.dumps(["upper", doc.get("A"), doc.get("C"), upper_tol],
+                      sort_keys=True, default=str)
+    return pkey, skey, ukey
+
+
+def channel_only(assignments: Iterable[tuple[str, str]]) -> bool:
+    """Whether a point changes only channel fields other than ``channel.model`` (its keys of
+    :func:`system_keys` are then those of the base document)."""
+    return all(path.startswith("channel.") and path != "channel.model"
+               for path, _ in assignments)
+
+
 def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
                    assignments: list[tuple[str, str]],
-                   theories: dict[str, Any] | None = None) -> dict[str, Any]:
+                   theories: dict[str, Any] | None = None,
+                   base_keys: tuple[str, str, str] | None = None) -> dict[str, Any]:
     """The result columns of one point (``status`` ``error`` with a one-line message on error).
 
     The point is analysed by :func:`kfcrit.analysis.record.analyze_system` with
     :func:`point_options`, so its verdict and review decision are those of ``kfcrit analyze``
     on the same file. ``theories`` memoises the channel-independent sections per system within
-    one chunk of work (passed in, never module state).
+    one chunk of work (passed in, never module state); ``base_keys`` are the
+    :func:`system_keys` of ``base_doc`` (read for points that change only channel fields).
     """
     from kfcrit.analysis.record import analysis_data, theory_sections
 
@@ -697,13 +738,10 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
     theories = {} if theories is None else theories
     try:
         doc = apply_point(base_doc, assignments)
-        spec = point_spec(doc, Path(base_dir), max_states, theories)
         opts = point_options(tolerance)
-        skey = json.dumps([{k: doc.get(k) for k in MATRICES}, max_states, tolerance,
-                           (doc.get("channel") or {}).get("model")],
-                          sort_keys=True, default=str)
-        ukey = json.dumps(["upper", doc.get("A"), doc.get("C"), opts.upper_tol],
-                          sort_keys=True, default=str)
+        pkey, skey, ukey = (base_keys if base_keys is not None and channel_only(assignments)
+                            else system_keys(doc, max_states, tolerance, opts.upper_tol))
+        spec = point_spec(doc, Path(base_dir), max_states, theories, pkey)
         if skey not in theories:
             theory = theory_sections(spec.system, opts, channel=spec.channel,
                                      upper_bound=theories.get(ukey))
@@ -731,8 +769,13 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
     per chunk); results never depend on it.
     """
     theories = {} if theories is None else theories
+    try:
+        base_keys: tuple[str, str, str] | None = system_keys(
+            base_doc, max_states, tolerance, point_options(tolerance).upper_tol)
+    except (TypeError, ValueError):  # a malformed document: each point reports its own error
+        base_keys = None
     return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments,
-                                        theories))
+                                        theories, base_keys))
             for index, key, assignments in items]
 
 

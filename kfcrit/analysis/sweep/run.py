@@ -55,9 +55,15 @@ class PointJob:
     max_states: int
 
 
+CHUNK_MAX = 256
+"""Most points in one chunk: large enough that sending a chunk, its results and its journal
+write (one fsync) cost little per point, small enough that an interrupted sweep loses little."""
+
+
 def chunks(items: Items, workers: int) -> list[Items]:
-    """Items in chunks (the unit of work sent to a worker): about four per worker, ≤ 64."""
-    size = max(1, min(64, math.ceil(len(items) / (4 * max(1, workers)))))
+    """Items in chunks (the unit of work sent to a worker): about four per worker, at most
+    :data:`CHUNK_MAX` points each."""
+    size = max(1, min(CHUNK_MAX, math.ceil(len(items) / (4 * max(1, workers)))))
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
@@ -94,8 +100,10 @@ WORKER_MEMO_MAX = 256
 """Most memoised entries (theory sections, parsed systems) a worker process keeps; beyond, the
 memo starts afresh (memory stays bounded when every point changes the system)."""
 _worker_memo: dict[str, Any] = {}
-"""The memo of this worker process: chunks evaluated by one process share the theory computed
-once per system. Results never depend on it (the reproducibility invariant)."""
+"""The memo of this worker process (a local worker or a Dask worker): chunks evaluated by one
+process share the theory computed once per system. Results never depend on it (the
+reproducibility invariant); Dask worker threads may share it (each entry is a pure function
+of its key, so two threads that compute one entry store the same value)."""
 
 
 def evaluate_in_worker(evaluate: Callable[..., list], base_doc: dict[str, Any], base_dir: str,
@@ -438,8 +446,10 @@ def run_dask(job: PointJob, items: Items, client: Any, scheduler: str = "the sch
                                   timeout=DASK_CONNECT_SECONDS)[0]
         except lost_types:
             raise _lost(scheduler, "the scheduler stopped answering") from None
-        futures = [client.submit(job.evaluate, base, job.base_dir, job.tolerance,
-                                 job.max_states, chunk, pure=False)
+        # through evaluate_in_worker: the chunks one worker evaluates share its memo, so the
+        # theory of the system is computed once per worker, not once per chunk
+        futures = [client.submit(evaluate_in_worker, job.evaluate, base, job.base_dir,
+                                 job.tolerance, job.max_states, chunk, pure=False)
                    for chunk in chunks(items, workers)]
         # the client is not the default one (set_as_default=False): name its loop
         pending = as_completed(futures, loop=client.loop)
