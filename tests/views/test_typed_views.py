@@ -1,7 +1,9 @@
 """The views read the typed record: the same record built by the analysis and read back from its
 JSON form (``--json``, :func:`record_from_json`) renders the same terminal summary and figures,
-and a JSON null inside an optional section is shown as missing, never as a word like ``ABSENT``."""
+and an absent optional key is never printed (no ``ABSENT`` in the text)."""
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
@@ -10,7 +12,8 @@ from kfcrit.analysis.sections import record_from_json
 from kfcrit.analysis.spec import load_spec
 from kfcrit.views.figures import record as figures
 from kfcrit.views.text import terminal
-from tests.views.test_report import REPORTS
+
+REPORTS = Path(__file__).resolve().parents[2] / "reports"
 
 STEMS = ("sinopoli-scalar", "network-redundant-gauges", "mesh-pipeline-relaying",
          "loop-tcp-vs-udp", "trace-bursty-link", "link-oqpsk-sensor")
