@@ -380,3 +380,21 @@ def test_network_simulation_summary_is_shown() -> None:
     rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
     assert "each sensor over its own link" in rows["operating-point runs"]["note"]
     assert rows["simulated E[tr P_t] at the horizon"]["value"] == 8.0
+
+
+def test_absent_keys_read_as_none_and_are_not_listed():
+    """An opt_key field the record lacks reads as None (the JSON form has no such key); the
+    fields listed for a generic table are the JSON form's keys, in its order."""
+    from kfcrit.analysis.records.simulation import OperatingPointSeeds, SimulationSeeds
+    from kfcrit.views.report.parts import stated, stated_fields
+
+    seeds = SimulationSeeds(phase_demo=[4, 5])
+    assert seeds.operating_point is ABSENT and stated(seeds.operating_point) is None
+    assert stated(0) == 0 and stated(None) is None and stated("") == ""
+    assert stated_fields(seeds) == [("phase_demo", [4, 5])]
+    full = SimulationSeeds(operating_point=OperatingPointSeeds(seed=1, paths="a", ergodic="b"),
+                           phase_demo=[])
+    assert [k for k, _ in stated_fields(full)] == list(
+        {"operating_point": 0, "phase_demo": 0})      # declaration order, empty list kept
+    rec = record("sinopoli-scalar")
+    assert [k for k, _ in stated_fields(rec)] == list(rec.to_dict())   # timings is internal
