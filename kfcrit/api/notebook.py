@@ -60,12 +60,12 @@ class Analysis(sections.AnalysisRecord):
     def _repr_html_(self) -> str:
         from kfcrit.views.report.summary import html_summary
 
-        return html_summary(self.to_dict())
+        return html_summary(self)
 
     def _repr_markdown_(self) -> str:
         from kfcrit.views.report.summary import markdown_summary
 
-        return markdown_summary(self.to_dict())
+        return markdown_summary(self)
 
     def figure_names(self) -> list[str]:
         """The figures this record has data for (the report's figures, in report order)."""

@@ -16,12 +16,15 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from kfcrit.defaults import DEFAULT_TOLERANCE, MAX_STATES_DEFAULT
 from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
 from kfcrit.io.safeio import read_text
+
+if TYPE_CHECKING:
+    from kfcrit.analysis.sections import AnalysisRecord
 
 FORMATS = {".html": "html", ".htm": "html", ".pdf": "pdf"}
 MAX_RECORD_BYTES = 200_000_000
@@ -91,7 +94,7 @@ def is_record_file(path: str | Path, text: str | None = None) -> bool:
     return text is not None and text.lstrip("\ufeff \t\r\n")[:1] == "{"
 
 
-def load_record(path: str | Path) -> dict[str, Any]:
+def load_record(path: str | Path) -> AnalysisRecord:
     """A record saved by ``kfcrit analyze --json`` (InputError naming ``record`` otherwise)."""
     text, _ = read_text(path, field="record", max_bytes=MAX_RECORD_BYTES, what="record file")
     try:
@@ -105,7 +108,7 @@ def load_record(path: str | Path) -> dict[str, Any]:
     from kfcrit.analysis.sections import SCHEMA_VERSION, record_from_json
     from kfcrit.io.typed import RecordError
 
-    version = record.get("schema_version")
+    version = record["schema_version"] if "schema_version" in record else None
     if version is not None:
         major = str(version).split(".")[0] if isinstance(version, str) else None
         if major != SCHEMA_VERSION.split(".")[0]:
@@ -115,7 +118,7 @@ def load_record(path: str | Path) -> dict[str, Any]:
                              field="schema_version")
 
     try:  # the typed record's strict reader: every view then reads a well-formed record
-        return record_from_json(record).to_dict()
+        return record_from_json(record)
     except RecordError as exc:
         raise InputError(f"not a record of this kfcrit version ({exc})", field="record") from None
 
@@ -139,16 +142,15 @@ def source_kind(source: str | Path) -> str:
 
 
 def analysed_record(source: str | Path, *, quick: bool, seed: int, tolerance: float,
-                    max_states: int) -> dict[str, Any]:
-    """Analyse the system file ``source`` once and return its record as a dict."""
+                    max_states: int) -> AnalysisRecord:
+    """Analyse the system file ``source`` once and return its typed record."""
     from kfcrit.analysis.record import AnalysisOptions, analyze_system
     from kfcrit.analysis.spec import load_spec
 
     progress(f"reading {source}")
     spec = load_spec(source, max_states=max_states)
     progress("analysing" + (" (quick draft)" if quick else ""))
-    return analyze_system(spec, AnalysisOptions(quick=quick, seed=seed,
-                                         tolerance=tolerance)).to_dict()
+    return analyze_system(spec, AnalysisOptions(quick=quick, seed=seed, tolerance=tolerance))
 
 
 def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None = None,
@@ -203,4 +205,4 @@ def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None
     for path, kind in plan:
         write_atomic(path, documents[kind])
         progress(f"wrote {path} ({len(documents[kind])} bytes)")
-    return exit_code(record)
+    return exit_code(record.to_dict())   # the analysis layer's exit code reads the JSON form

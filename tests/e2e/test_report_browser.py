@@ -15,7 +15,6 @@ import pytest
 
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
-from kfcrit.views.report.parts import typed_record
 
 CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium"
                                         if Path("/usr/bin/chromium").exists() else None)
@@ -46,9 +45,9 @@ def test_report_in_chromium(tmp_path):
     from kfcrit.analysis.spec import load_spec
 
     spec = load_spec(ROOT / "reports" / "rotation-third-turn.yaml")
-    rec = analyze_system(spec, AnalysisOptions(quick=True)).to_dict()
+    rec = analyze_system(spec, AnalysisOptions(quick=True))
     page = tmp_path / "rotation.html"
-    page.write_text(report.render_html(rec, figures.build_figures(typed_record(rec))), encoding="utf-8")
+    page.write_text(report.render_html(rec, figures.build_figures(rec)), encoding="utf-8")
     run = chromium(page.as_uri(), "--dump-dom")
     assert run.returncode == 0, run.stderr[-2000:]
     dom = run.stdout

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 
 from kfcrit.analysis.records.bursty import RatesPoint
 from kfcrit.analysis.records.network import SensorMargin
-from kfcrit.analysis.sections import AnalysisRecord, record_from_json
+from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.views.figures.burst import draw_critical_curve
 from kfcrit.views.figures.network import draw_network_region
 from kfcrit.views.figures.style import HEIGHT_IN, MIN_PRINT_PT, WIDTH_IN, print_scale
@@ -83,7 +83,7 @@ def test_sweep_legend_and_every_point_visible(distances: list) -> None:
 def critical_curve_record(gap: float) -> AnalysisRecord:
     """The bursty scalar link's record with its critical curve replaced: r_nec = 9/25 at every
     f, r_suf = 9/25 + gap, the operating point (0.05, 0.1)."""
-    rec = record_from_json(record("ge-bursty-scalar"))
+    rec = record("ge-bursty-scalar")
     f = np.linspace(0.0, 1.0, 11).tolist()
     curve = rec.link_budget.critical_curve
     curve = replace(curve, failure_rates=f, necessary_recovery=[0.36] * 11,
@@ -111,7 +111,7 @@ def test_coinciding_critical_curves_are_distinguishable() -> None:
 def region_record() -> AnalysisRecord:
     """Two sensors a, b with |λ|² = 36/25 unobservable without both: the necessary
     constraint 1.44·(1 − p_a)(1 − p_b) < 1 (the planar tracker's record, edited)."""
-    rec = record_from_json(record("network-planar-tracker"))
+    rec = record("network-planar-tracker")
     one, two = rec.network.sensors[:2]
     a = replace(one, name="a", arrival_probability=0.9,
                 critical_value=replace(one.critical_value, value=0.2, interval=[0.2, 0.2]),

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from kfcrit.analysis.sections import AnalysisRecord, record_from_json
+from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve
 from kfcrit.views import formatting as jinja_filters
 from kfcrit.views.figures.design import draw_accuracy, radio_title
@@ -105,7 +105,7 @@ def test_per_legend_uses_the_typographic_minus_and_two_decimals() -> None:
 
 
 def test_radio_title_from_the_record() -> None:
-    radio = record_from_json(record("link-oqpsk-sensor")).link_budget.radio
+    radio = record("link-oqpsk-sensor").link_budget.radio
     frame = replace(radio.frame, standard="IEEE 802.15.4 O-QPSK 2450 MHz")
     assert radio_title(replace(radio, model="cc2420", frame=frame)) \
         == "IEEE 802.15.4 O-QPSK 2450 MHz radio"
@@ -128,7 +128,7 @@ def accuracy_record(operating: float) -> AnalysisRecord:
     """tr S̄(p) = 1 / (1 − (1 − p)·25/16) and tr V̄ = 2·tr S̄ on p ∈ [0.4, 1] (a scalar-like
     shape; only the drawing is under test), requirement L = 10, no floor: a scalar design's
     record with these curves put in."""
-    rec = record_from_json(record_of(SCALAR_DESIGN, "scalar-design"))
+    rec = record_of(SCALAR_DESIGN, "scalar-design")
     p = np.linspace(0.4, 1.0, 61)
     lower = 1.0 / (1.0 - (1.0 - p) * 25 / 16)
     pt = replace(rec.phase_transition, p=p.tolist(), trace_lower=lower.tolist(),

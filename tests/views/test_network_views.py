@@ -17,14 +17,13 @@ import re
 import pytest
 
 from kfcrit.analysis.records.network import SensorMargin
-from kfcrit.analysis.sections import record_from_json
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
 from kfcrit.views.report.theory import covariance_view, static_gain_view
 from kfcrit.views.report.viewmodel import view_model
 from kfcrit.views.text import netmargin
 from kfcrit.views.text import terminal as text
-from tests.views.test_report import visible_text
+from tests.views.test_report import edited, visible_text
 from tests.views.test_report_sections import record
 
 GAUGES_P = (0.6, 0.5, 0.75)
@@ -35,7 +34,7 @@ GAUGES_S_BAR = 1.0 / (1.0 - 9.0 * GAUGES_LOST)   # 20/11
 @pytest.fixture(scope="module")
 def gauges():
     rec = record("network-redundant-gauges")
-    html = report.render_html(rec, figures.build_figures(record_from_json(rec)))
+    html = report.render_html(rec, figures.build_figures(rec))
     return rec, html, visible_text(html)
 
 
@@ -67,9 +66,14 @@ def test_uncomputed_upper_bound_is_grey_not_a_red_no(gauges):
 
 def test_a_bound_that_does_not_exist_stays_a_red_no():
     # a single link below p_up: V̄ does not exist (Sinopoli Thm 3), which is a computed "no"
-    rec = {"operating_point": {"arrival_probability": 0.5},
-           "covariance_bounds": {"p": 0.5, "lower": {"exists": True, "trace": 1.0},
-                                 "upper": {"exists": False, "method": "none: p <= p_up (Thm 3)"}}}
+    def below_p_up(data: dict) -> None:
+        cb = data["covariance_bounds"]
+        cb["p"] = 0.5
+        cb["lower"].update(exists=True, trace=1.0)
+        cb["upper"].update(exists=False, method="none: p <= p_up (Thm 3)")
+        cb["upper"].pop("computed", None)
+
+    rec = edited(record("sinopoli-scalar"), below_p_up)
     view = covariance_view(rec)
     assert view["upper"]["exists"] is False and view["upper"]["computed"] is True
     assert view["p_meaning"] is None
@@ -109,12 +113,14 @@ def test_fixed_gain_reason_is_the_network_not_a_missing_channel(gauges):
     assert "single-link systems only" in why and "channel" not in why
     assert why in words.replace("\n", " ")
     # a single link without a channel keeps its own reason
-    assert "no channel" in static_gain_view({"operating_point": None})["missing"]
+    no_channel = dataclasses.replace(record("sinopoli-scalar"), operating_point=None,
+                                     static_gain=None)
+    assert "no channel" in static_gain_view(no_channel)["missing"]
 
 
 def test_terminal_view_of_the_bounds_agrees_with_the_report(gauges):
     rec, _, words = gauges
-    lines = text.summary(record_from_json(rec))
+    lines = text.summary(rec)
     assert "tr V̄ = ∞" not in lines and "tr V̄ not computed" in lines
     assert "at p = 0.95;" in lines
     assert "the probability that at least one sensor's packet arrives" in lines
@@ -127,14 +133,14 @@ def test_terminal_view_of_the_bounds_agrees_with_the_report(gauges):
     (SensorMargin(value=None, interval=[None, None]), "—"),
 ])
 def test_margin_text_by_hand(margin, expected):
-    row = record_from_json(record("network-planar-tracker")).network.sensors[0]
+    row = record("network-planar-tracker").network.sensors[0]
     assert netmargin.margin_text(dataclasses.replace(row, margin=margin)) == expected
 
 
 def test_cli_and_report_show_the_same_margins():
     rec = record("network-planar-tracker")
     model = view_model(rec, {})
-    cli = text.summary(record_from_json(rec))
+    cli = text.summary(rec)
     rows = {n["name"]: n for n in model["network"]["nodes"]}
     for s in rec["network"]["sensors"]:
         shown = rows[s["name"]]["margin"]

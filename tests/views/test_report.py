@@ -1,9 +1,10 @@
 """Tests of the design-review report: filters, formulas, figures, view model, HTML, PDF, command.
 
-Records are real analyses (``kfcrit.analyze(...).to_dict()`` of example systems in ``reports/``,
-``--quick``), made once per test session; a test that needs a variant changes a copy of one
-(for instance adds a ``review`` section). Expected values are the papers' closed forms, derived
-by hand in the tests that use them (MATH §3–§5):
+Records are real analyses (typed :class:`~kfcrit.analysis.sections.AnalysisRecord` of example
+systems in ``reports/``, ``--quick``), made once per test session; a test that needs a variant
+replaces a section (:func:`dataclasses.replace`) or edits the record's JSON form and reads it back
+with :func:`~kfcrit.analysis.sections.record_from_json` (:func:`edited`). Expected values are the
+papers' closed forms, derived by hand in the tests that use them (MATH §3–§5):
 
 * rotation-third-turn: A = [[1, −√3], [√3, 1]], eigenvalues 1 ± j√3 of modulus 2, one output,
   degenerate with q = 3: p_c = 1 − 2^(−2q/(q−1)) = 1 − 2^(−3) = 7/8, p_low = 1 − 1/4 = 3/4;
@@ -14,28 +15,31 @@ by hand in the tests that use them (MATH §3–§5):
 """
 from __future__ import annotations
 
-import copy
 import dataclasses
 import io
 import json
 import os
 import re
+from collections.abc import Callable
 from html.parser import HTMLParser
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from kfcrit.analysis.record import AnalysisOptions, analyze_system
+from kfcrit.analysis.sections import AnalysisRecord, record_from_json
 from kfcrit.analysis.spec import load_spec
+from kfcrit.analysis.verdict import CheckStatus, Decision, Reason, Review
 from kfcrit.cli import report as command
 from kfcrit.errors import InputError
 from kfcrit.io.atomic import write_atomic
+from kfcrit.io.typed import RecordError
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures import mathsvg
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
 from kfcrit.views.report import summary
-from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.sim import appendix_view, seeds_text, simulation_view
 from kfcrit.views.report.theory import bounds_view
 
@@ -46,17 +50,49 @@ SECTION_ORDER = ["verdict", "channel", "distribution", "system", "bounds", "phas
 
 
 class Records:
-    """Quick analyses of example systems, each made once per session (records are copied out,
-    so a test may change its copy)."""
+    """Quick analyses of example systems, each made once per session (typed records are
+    frozen: a test makes its variant with :func:`dataclasses.replace` or :func:`edited`)."""
 
     def __init__(self) -> None:
-        self._done: dict[str, dict] = {}
+        self._done: dict[str, AnalysisRecord] = {}
 
-    def __call__(self, stem: str) -> dict:
+    def __call__(self, stem: str) -> AnalysisRecord:
         if stem not in self._done:
             spec = load_spec(REPORTS / f"{stem}.yaml")
-            self._done[stem] = analyze_system(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
-        return copy.deepcopy(self._done[stem])
+            self._done[stem] = analyze_system(spec, AnalysisOptions(quick=True, seed=0))
+        return self._done[stem]
+
+
+def edited(rec: AnalysisRecord, change: Callable[[dict[str, Any]], Any]) -> AnalysisRecord:
+    """``rec`` with its JSON form changed in place by ``change``, read back strictly (a
+    corner case the typed record can hold)."""
+    data = rec.to_dict()
+    change(data)
+    return record_from_json(data)
+
+
+def without(data: dict[str, Any], key: str, missing: Any) -> AnalysisRecord | None:
+    """The record ``data`` with top-level ``key`` set to ``missing`` (``...``: the key
+    removed), or ``None`` when the record's schema requires that section."""
+    changed = {k: v for k, v in data.items() if k != key}
+    if missing is not ...:
+        changed[key] = missing
+    try:
+        return record_from_json(changed)
+    except RecordError:
+        return None
+
+
+def bare(rec: AnalysisRecord, name: str = "bare") -> AnalysisRecord:
+    """``rec`` with every section the schema lets a record lack set to ``None`` or removed."""
+    data = {**rec.to_dict(), "name": name}
+    for key in list(data):
+        for missing in (None, ...):
+            smaller = without(data, key, missing)
+            if smaller is not None:
+                data = smaller.to_dict()
+                break
+    return record_from_json(data)
 
 
 @pytest.fixture(scope="session")
@@ -67,7 +103,7 @@ def records() -> Records:
 @pytest.fixture(scope="session")
 def rotation_html(records) -> str:
     rec = records("rotation-third-turn")
-    return report.render_html(rec, figures.build_figures(typed_record(rec)))
+    return report.render_html(rec, figures.build_figures(rec))
 
 
 class _Tags(HTMLParser):
@@ -152,44 +188,46 @@ def test_expression_latex_uses_safe_parser():
 
 def test_figures_read_the_production_record(records):
     rec = records("kar-scalar-fractal")
-    figs = figures.build_figures(typed_record(rec))
+    figs = figures.build_figures(rec)
     assert set(figs) == set(figures.FIGURE_KEYS)
     single_link = ("phase_transition", "traces", "operating", "cdf", "almost_sure", "invariant")
     for key in single_link:
         assert figs[key] is not None and figs[key].startswith("<svg"), key
     # one i.i.d. link, no requirement on the mean, no link budget: none of the others
     assert all(figs[key] is None for key in set(figures.FIGURE_KEYS) - set(single_link))
-    assert figures.figure_names(typed_record(rec)) == list(single_link)
+    assert figures.figure_names(rec) == list(single_link)
     # the CDF ends at probability 1 and the tail estimate is the record's own
-    x, f = figures.cdf_of(typed_record(rec))
+    x, f = figures.cdf_of(rec)
     assert x == sorted(x) and f[-1] == pytest.approx(1.0)
-    exc = rec["simulation"]["operating_point"]["exceedance"]
-    assert figures.tail_of(typed_record(rec)) == (exc or {}).get("estimate")
+    exc = rec.simulation.operating_point.exceedance
+    assert figures.tail_of(rec) == (exc.estimate if exc is not None else None)
 
 
 def test_figure_objects_for_notebooks(records):
     from matplotlib.figure import Figure
 
     rec = records("rotation-third-turn")
-    names = figures.figure_names(typed_record(rec))
+    names = figures.figure_names(rec)
     assert "invariant" not in names                     # n = 2: no invariant-support figure
     for name in names:
-        fig = figures.figure(typed_record(rec), name)
+        fig = figures.figure(rec, name)
         assert isinstance(fig, Figure) and fig.axes
     # the phase-transition axes carry p_c = 7/8 as a vertical line
-    ax = figures.figure(typed_record(rec), "phase_transition").axes[0]
+    ax = figures.figure(rec, "phase_transition").axes[0]
     xs = [line.get_xdata()[0] for line in ax.get_lines() if len(set(line.get_xdata())) == 1]
     assert any(abs(x - 7 / 8) < 1e-12 for x in xs)
     with pytest.raises(ValueError, match="no data"):
-        figures.figure(typed_record(rec), "invariant")
+        figures.figure(rec, "invariant")
     with pytest.raises(KeyError):
-        figures.figure(typed_record(rec), "no_such_figure")
+        figures.figure(rec, "no_such_figure")
 
 
 def test_figures_missing_or_malformed_data_give_none(records):
-    full = typed_record(records("rotation-third-turn"))
-    assert all(v is None for v in figures.build_figures(typed_record({})).values())
+    assert all(v is None for v in figures.build_figures(bare(records("rotation-third-turn")))
+               .values())
+
     # malformed values (the typed record does not check types at run time)
+    full = records("rotation-third-turn")
     pt = dataclasses.replace(full.phase_transition, trace_lower="oops",
                              trace_upper=[1.0])   # wrong length
     demo = full.simulation.phase_demo
@@ -197,21 +235,22 @@ def test_figures_missing_or_malformed_data_give_none(records):
                                 mean_trace=["x", 1])
     sim = dataclasses.replace(full.simulation,
                               phase_demo=dataclasses.replace(demo, curves=[curve]))
-    figs = figures.build_figures(dataclasses.replace(full, phase_transition=pt, simulation=sim))
+    rec = dataclasses.replace(full, phase_transition=pt, simulation=sim)
+    figs = figures.build_figures(rec)
     assert figs["phase_transition"] is None and figs["traces"] is None
     assert figs["operating"] is not None
 
 
 def test_print_figures_are_png_data_uris(records):
     rec = records("rotation-third-turn")
-    figs = figures.build_figures(typed_record(rec), medium="print")
+    figs = figures.build_figures(rec, medium="print")
     assert figs["invariant"] is None                   # n = 2: no invariant-support figure
     drawn = [key for key in figures.DENSE if figs[key] is not None]
     assert set(drawn) == {"phase_transition", "traces", "operating", "cdf", "almost_sure"}
     for key in drawn:
         assert figs[key].startswith('<img class="figure-img"'), key
         assert 'src="data:image/png;base64,' in figs[key]
-    assert figures.build_figures(typed_record(rec))["almost_sure"].startswith("<svg")
+    assert figures.build_figures(rec)["almost_sure"].startswith("<svg")
 
 
 def test_phase_window_starts_where_the_bounds_exist() -> None:
@@ -280,13 +319,15 @@ def test_footer_has_system_name_date_and_version(records):
     html = report.render_html(rec, {}, today=datetime.date(2031, 5, 17))
     assert f"2031-05-17 · kfcrit {__version__}" in html
     assert "string-set: sysname" in html and "string(docmeta)" in html
-    rec["provenance"]["created"] = "2030-01-02T10:00:00Z"
-    assert "2030-01-02 · kfcrit" in report.render_html(rec, {})
+    # a record carries no creation date (the footer's date is the rendering date)
+    with pytest.raises(RecordError, match="created"):
+        edited(rec, lambda d: d["provenance"].update(created="2030-01-02T10:00:00Z"))
 
 
-def test_missing_sections_say_not_computed():
-    rec = {"name": "bare", "critical_value": None}
-    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
+def test_missing_sections_say_not_computed(records):
+    rec = bare(records("rotation-third-turn"))
+    assert rec.name == "bare" and rec.critical_value is None
+    html = report.render_html(rec, figures.build_figures(rec))
     ids = parse(html).ids
     for s in SECTION_ORDER:
         assert s in ids, s
@@ -299,29 +340,43 @@ def test_missing_sections_say_not_computed():
 
 def test_every_single_section_missing_renders(records):
     full = records("rotation-third-turn")
-    figs = figures.build_figures(typed_record(full))
-    for key in full:
-        rec = copy.deepcopy(full)
-        rec[key] = None
-        assert 'id="verdict"' in report.render_html(rec, figs), key
-        rec.pop(key)
-        report.render_html(rec, {})
+    figs = figures.build_figures(full)
+    data = full.to_dict()
+    rendered = []
+    for key in data:
+        rec = without(data, key, None)
+        if rec is not None:
+            assert 'id="verdict"' in report.render_html(rec, figs), key
+            rendered.append(key)
+        rec = without(data, key, ...)
+        if rec is not None:
+            report.render_html(rec, {})
+            rendered.append(key)
+    # every section but the name, the warnings, the schema version, the review, the system,
+    # the verification and the provenance may be missing
+    assert {"structure", "simulation", "critical_value", "operating_point"} <= set(rendered)
 
 
-def test_malformed_sections_do_not_crash(records):
+def test_malformed_sections_are_refused_before_any_view(records, tmp_path):
     rec = records("rotation-third-turn")
-    rec["structure"] = {"eigenvalues": "not a list", "equi_blocks": [None, 3]}
-    rec["theory"] = {"moment_thresholds": [None], "almost_sure": "one sentence"}
-    rec["upper_bound"] = {"interval": "x"}
-    rec["review"] = {"decision": "maybe", "reasons": "x"}
-    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
-    assert "one sentence" in html and "NO REVIEW DECISION" in html
+    for key, value in (("structure", {"eigenvalues": "not a list", "equi_blocks": [None, 3]}),
+                       ("theory", {"moment_thresholds": [None], "almost_sure": "one sentence"}),
+                       ("upper_bound", {"interval": "x"}),
+                       ("review", {"decision": "maybe", "reasons": "x"})):
+        data = rec.to_dict()
+        data[key] = value
+        with pytest.raises(RecordError, match=key):
+            record_from_json(data)
+        saved = tmp_path / f"{key}.json"
+        saved.write_text(json.dumps(data), encoding="utf-8")
+        with pytest.raises(InputError, match="not a record of this kfcrit version") as exc:
+            command.report_command(str(saved), str(tmp_path / "r.html"))
+        assert exc.value.exit_code == 2 and not (tmp_path / "r.html").exists()
 
 
 def test_autoescape_of_record_text(records):
-    rec = records("rotation-third-turn")
-    rec["name"] = "<script>alert(1)</script>"
-    rec["warnings"] = ["<b>bold</b>", "<b>bold</b>"]
+    rec = dataclasses.replace(records("rotation-third-turn"), name="<script>alert(1)</script>",
+                              warnings=["<b>bold</b>", "<b>bold</b>"])
     html = report.render_html(rec, {})
     assert "<script>alert" not in html and "&lt;script&gt;alert(1)" in html
     assert "<b>bold</b>" not in html
@@ -330,7 +385,7 @@ def test_autoescape_of_record_text(records):
 
 def test_scalar_system_shows_invariant_support(records):
     rec = records("kar-scalar-fractal")
-    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
+    html = report.render_html(rec, figures.build_figures(rec))
     assert "Support of the invariant distribution" in html
     assert "[3, 5.8284271]" in html     # (f₁(∞), f₀(P*)) = (3, 3 + 2√2) (module docstring)
     assert "Support of the invariant" not in report.render_html(records("rotation-third-turn"),
@@ -338,19 +393,19 @@ def test_scalar_system_shows_invariant_support(records):
 
 
 def test_undetermined_and_unstable_stability_lines(records):
-    rec = records("rotation-third-turn")
-    rec["operating_point"].update(verdict="undetermined", margin=None, margin_robust=None,
-                                  bracket=[0.875, 0.9375], margin_to_bracket=[0.025, -0.0375])
+    rec = edited(records("rotation-third-turn"), lambda d: d["operating_point"].update(
+        verdict="undetermined", margin=None, margin_robust=None, bracket=[0.875, 0.9375],
+        margin_to_bracket=[0.025, -0.0375]))
     html = report.render_html(rec, {})
     assert "stability-undetermined" in html and "[0.875, 0.9375]" in html
-    rec["operating_point"].update(verdict="mean-unstable")
+    rec = edited(rec, lambda d: d["operating_point"].update(verdict="mean-unstable"))
     assert "stability-unstable" in report.render_html(rec, {})
 
 
 def test_quick_draft_banner(records):
     rec = records("rotation-third-turn")
     assert 'id="draft"' in report.render_html(rec, {})      # the session records are --quick
-    rec["provenance"]["options"]["quick"] = False
+    rec = edited(rec, lambda d: d["provenance"]["options"].update(quick=False))
     assert 'id="draft"' not in report.render_html(rec, {})
 
 
@@ -370,14 +425,13 @@ def test_template_dir_is_repository_templates_in_a_checkout():
 
 # ----------------------------------------------------------------------------- review decision
 
-def with_review(rec: dict, decision: str, *statuses: str) -> dict:
+def with_review(rec: AnalysisRecord, decision: str, *statuses: str) -> AnalysisRecord:
     """``rec`` with a ``review`` of the documented shape: one reason per status."""
     checks = ["stability at the operating point", "requirement P(tr P > 20) ≤ 0.01",
               "link margin policy"]
-    rec["review"] = {"decision": decision, "reasons": [
-        {"check": checks[i], "status": s, "detail": f"detail {i} of the check ({s})"}
-        for i, s in enumerate(statuses)]}
-    return rec
+    return dataclasses.replace(rec, review=Review(decision=Decision(decision), reasons=tuple(
+        Reason(check=checks[i], status=CheckStatus(s), detail=f"detail {i} of the check ({s})")
+        for i, s in enumerate(statuses))))
 
 
 def verdict_box(html: str) -> str:
@@ -409,13 +463,16 @@ def test_pass_and_undetermined_reviews(records, decision, css, word):
     assert "badge-none" in verdict_box(html)       # "not applicable" is neither red nor green
 
 
-def test_record_without_review_gets_a_neutral_box(records):
-    rec = records("rotation-third-turn")
-    rec.pop("review", None)
-    html = report.render_html(rec, {})
-    assert "verdict-neutral" in html and "NO REVIEW DECISION" in html
-    assert not re.search(r'class="verdict verdict-(pass|fail)', html)
-    assert "MEAN STABLE" in verdict_box(html)
+def test_record_without_review_is_refused(records, tmp_path):
+    data = records("rotation-third-turn").to_dict()
+    data.pop("review")
+    with pytest.raises(RecordError, match="review"):
+        record_from_json(data)
+    saved = tmp_path / "no-review.json"
+    saved.write_text(json.dumps(data), encoding="utf-8")
+    with pytest.raises(InputError, match="missing key 'review'") as exc:
+        command.report_command(str(saved), str(tmp_path / "r.html"))
+    assert exc.value.exit_code == 2 and not (tmp_path / "r.html").exists()
 
 
 def test_notebook_summaries(records):
@@ -434,7 +491,7 @@ def test_notebook_summaries(records):
 
 def test_no_internal_names_in_the_page(records):
     rec = records("link-oqpsk-sensor")
-    text = visible_text(report.render_html(rec, figures.build_figures(typed_record(rec))))
+    text = visible_text(report.render_html(rec, figures.build_figures(rec)))
     for leak in ("SeedSequence", "spawn_key", "^", "output compression output"):
         assert leak not in text, leak
     # full float precision never shows (a p_up bracket closed to 1e-9 needs 10 decimals)
@@ -443,20 +500,27 @@ def test_no_internal_names_in_the_page(records):
 
 
 def test_seed_rules_in_words():
-    text = seeds_text({"operating_point": {"seed": 0, "paths": "SeedSequence(seed, "
-                                           "spawn_key=(0, i))"}})
-    assert text == "operating point (seed: 0, paths: stream (0, i) of the base seed for path i)"
+    from kfcrit.analysis.records.simulation import OperatingPointSeeds, SimulationSeeds
+
+    text = seeds_text(SimulationSeeds(operating_point=OperatingPointSeeds(
+        seed=0, paths="SeedSequence(seed, spawn_key=(0, i))",
+        ergodic="SeedSequence(seed, spawn_key=(1, j))")))
+    assert text == ("operating point (seed: 0, paths: stream (0, i) of the base seed for path i, "
+                    "ergodic: stream (1, j) of the base seed for replica j)")
+    assert seeds_text(7) == "7"
 
 
 def test_passed_checks_are_never_red(records):
     rec = records("requirements-tail")
     checks = appendix_view(rec)["checks"]
-    recorded = rec["verification"]
+    recorded = rec.verification
     assert len(checks) == len(recorded) + 1
     for c, r in zip(checks, recorded):
-        assert (c["css"] == "pass") == (r["passed"] is True), (c, r)
-        assert (c["css"] == "fail") == (r["passed"] is False), (c, r)
-    rec["critical_value"]["exact"] = False          # numerical p_c is information, not failure
+        assert (c["css"] == "pass") == (r.passed is True), (c, r)
+        assert (c["css"] == "fail") == (r.passed is False), (c, r)
+    # numerical p_c is information, not failure
+    rec = dataclasses.replace(rec, critical_value=dataclasses.replace(rec.critical_value,
+                                                                      exact=False))
     assert appendix_view(rec)["checks"][-1]["css"] == "none"
 
 
@@ -464,39 +528,44 @@ def test_exact_forms_only_where_exact(records):
     rec = records("rotation-third-turn")
     rows = {r["symbol"]: r for r in bounds_view(rec)["rows"]}
     assert rows["p_c"]["expression"] == "7/8" and rows["p_low"]["expression"] == "3/4"
-    rec["critical_value"].update(exact=False, expression="0.87500000000000011")
+    rec = dataclasses.replace(rec, critical_value=dataclasses.replace(
+        rec.critical_value, exact=False, expression="0.87500000000000011"))
     rows = {r["symbol"]: r for r in bounds_view(rec)["rows"]}
     assert rows["p_c"]["expression"] is None
 
 
 def test_block_maxima_caption_states_the_data_not_a_limit(records):
     rec = records("rotation-third-turn")
-    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
+    html = report.render_html(rec, figures.build_figures(rec))
     cap = html.split('id="fig-almost-sure"')[1].split("</figcaption>")[0]
     assert "= ∞" not in cap and "limsup tr P" not in cap
-    top = rec["simulation"]["operating_point"]["almost_sure"]["block_max"]
+    top = rec.simulation.operating_point.almost_sure.block_max
     assert filters.num(top[-1], 4) in cap
 
 
 def test_diverged_paths_are_described_as_they_were_handled(records):
-    rec = records("rotation-third-turn")
-    div = rec["simulation"]["operating_point"]["divergence"]
-    div.update(diverged_paths=3, continued=False, mean_is_lower_bound=True, threshold=1e10)
+    def divergence(**changes: Any) -> Callable[[dict], None]:
+        return lambda d: d["simulation"]["operating_point"]["divergence"].update(changes)
+
+    rec = edited(records("rotation-third-turn"), divergence(
+        diverged_paths=3, continued=False, mean_is_lower_bound=True, threshold=1e10))
     rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
     assert "censored at the threshold; means are lower bounds" in rows["diverged paths"]["note"]
-    div.update(continued=True, mean_is_lower_bound=False)
+    rec = edited(rec, divergence(continued=True, mean_is_lower_bound=False))
     rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
     assert "true values" in rows["diverged paths"]["note"]
     assert "lower bounds" not in rows["diverged paths"]["note"]
 
 
 def test_time_average_interval_clamped_and_flagged(records):
-    rec = records("rotation-third-turn")
-    erg = {"replicas": 4, "steps": 10_000, "burn_in": 1_000,
-           "time_averages": {"pooled_mean_trace": {"mean": 17643.0, "lower": -4760.7,
-                                                   "upper": 40048.0},
-                             "replica_mean_trace": [210.0, 1248.0, 196.0, 68000.0]}}
-    rec["simulation"]["operating_point"]["ergodic"] = erg
+    def ergodic(data: dict) -> None:
+        erg = data["simulation"]["operating_point"]["ergodic"]
+        erg.update(replicas=4, steps=10_000, burn_in=1_000)
+        erg["time_averages"]["pooled_mean_trace"].update(mean=17643.0, lower=-4760.7,
+                                                         upper=40048.0)
+        erg["time_averages"]["replica_mean_trace"] = [210.0, 1248.0, 196.0, 68000.0]
+
+    rec = edited(records("rotation-third-turn"), ergodic)
     rows = {r["label"]: r for r in simulation_view(rec)["rows"]}
     note = rows["time average of tr P_t (one long path per replica)"]["note"]
     assert "95 % interval 0 – 40048" in note and "−4760" not in note and "-4760" not in note
@@ -532,7 +601,7 @@ def test_link_review_pdf_layout(link_documents, records):
     pages = pdf_pages(link_documents["pdf"])
     flat = [" ".join(p.split()) for p in pages]
     assert "Review: FAIL" in flat[0] and "MEAN STABLE" in flat[0]
-    name = records("link-oqpsk-sensor")["name"]
+    name = records("link-oqpsk-sensor").name
     for i, page in enumerate(flat, 1):
         assert name in page and f"kfcrit {__version__}" in page and f"page {i} of" in page
     before_appendix = next(i for i, p in enumerate(flat) if "Appendix: details" in p)
@@ -624,7 +693,7 @@ def test_saved_record_renders_without_analysing(tmp_path, records, monkeypatch, 
 
     rec = records("sinopoli-scalar")
     saved = tmp_path / "record.txt"            # no .json extension: detected by content
-    saved.write_text(dumps(rec), encoding="utf-8")
+    saved.write_text(dumps(rec.to_dict()), encoding="utf-8")
 
     def refuse(*args, **kwargs):
         raise AssertionError("the saved record was analysed again")
@@ -632,7 +701,7 @@ def test_saved_record_renders_without_analysing(tmp_path, records, monkeypatch, 
     monkeypatch.setattr(analysis, "analyze_system", refuse)
     code = command.report_command(str(saved), [str(tmp_path / "r.html"),
                                                 str(tmp_path / "r.pdf")])
-    assert code == analysis.exit_code(rec)
+    assert code == analysis.exit_code(rec.to_dict())
     html = (tmp_path / "r.html").read_text(encoding="utf-8")
     assert "9/25" in html and "<svg" in html.split('id="fig-phase-transition"')[1]
     assert (tmp_path / "r.pdf").read_bytes().startswith(b"%PDF")
@@ -681,7 +750,7 @@ def example_files() -> list[Path]:
 @pytest.mark.parametrize("path", example_files(), ids=lambda p: p.stem)
 def test_render_every_example_html(path, records, capsys):
     rec = records(path.stem)
-    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
+    html = report.render_html(rec, figures.build_figures(rec))
     ids = parse(html).ids
     assert [s for s in SECTION_ORDER if s in ids] == SECTION_ORDER
     assert len(ids) == len(set(ids))
@@ -704,11 +773,11 @@ def test_render_every_example_html(path, records, capsys):
 
 def test_gilbert_elliott_report_has_bursty_section(records):
     rec = records("ge-bursty-scalar")
-    html = report.render_html(rec, figures.build_figures(typed_record(rec)))
+    html = report.render_html(rec, figures.build_figures(rec))
     assert 'id="bursty-link"' in html and "verdict basis" in html
     rows = qty_rows(html, "channel")
-    r = rec["link_budget"]["recovery_rate"]
-    a2 = rec["link_budget"]["spectral_radius"] ** 2
+    r = rec.link_budget.recovery_rate
+    a2 = rec.link_budget.spectral_radius ** 2
     assert rows["recovery rate r"] == filters.num(r)
     assert rows["required recovery rate 1 − 1/a²"] == filters.num(1 - 1 / a2, 6)   # MATH §7
     assert 'id="fig-invariant"' in html                                 # scalar: support drawn

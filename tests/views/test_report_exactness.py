@@ -12,7 +12,6 @@ Expected values come from closed forms worked by hand, not from the code under t
 """
 from __future__ import annotations
 
-import copy
 import math
 import re
 
@@ -21,12 +20,12 @@ import pytest
 import scipy.linalg as sla
 
 from kfcrit.analysis.record import AnalysisOptions, analyze_system
+from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.analysis.spec import load_spec, spec_from_mapping
 from kfcrit.theory.critical.numtext import approx_text, complex_text, modulus_from_p_low, value_text
 from kfcrit.views.figures import record as figures
 from kfcrit.views.formatting import sig
 from kfcrit.views.report import render as report
-from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.theory import bounds_view, structure_view
 from kfcrit.views.report.verdict import verdict_view
 from tests.views.test_report import REPORTS, visible_text
@@ -44,25 +43,24 @@ OMEGA = math.sqrt(3.9975)
 ROT_PC = 1 - math.exp(-0.025)
 UNST_PC = 1 - math.exp(-0.4)
 
-_CACHE: dict[str, dict] = {}
+_CACHE: dict[str, AnalysisRecord] = {}
 
 
-def record_of(doc: dict, key: str) -> dict:
+def record_of(doc: dict, key: str) -> AnalysisRecord:
     if key not in _CACHE:
-        _CACHE[key] = analyze_system(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0)
-                              ).to_dict()
-    return copy.deepcopy(_CACHE[key])
+        _CACHE[key] = analyze_system(spec_from_mapping(doc), AnalysisOptions(quick=True, seed=0))
+    return _CACHE[key]
 
 
-def tracker() -> dict:
+def tracker() -> AnalysisRecord:
     if "tracker" not in _CACHE:
         spec = load_spec(REPORTS / "continuous-cv-tracker.yaml")
-        _CACHE["tracker"] = analyze_system(spec, AnalysisOptions(quick=True, seed=0)).to_dict()
-    return copy.deepcopy(_CACHE["tracker"])
+        _CACHE["tracker"] = analyze_system(spec, AnalysisOptions(quick=True, seed=0))
+    return _CACHE["tracker"]
 
 
-def page_text(rec: dict) -> str:
-    return visible_text(report.render_html(rec, figures.build_figures(typed_record(rec))))
+def page_text(rec: AnalysisRecord) -> str:
+    return visible_text(report.render_html(rec, figures.build_figures(rec)))
 
 
 def between(text: str, start: str, end: str) -> str:
@@ -83,10 +81,10 @@ def long_decimals(text: str) -> list[str]:
 PY_COMPLEX = re.compile(r"\d[+-]\d[\d.e+-]*j|\dj\)|\dj\|")
 
 
-def reason_texts(rec: dict) -> list[str]:
-    th = rec.get("theory") or {}
-    return [t for t in [(rec.get("critical_value") or {}).get("reason"),
-                        th.get("stochastic_boundedness"), *(th.get("almost_sure") or [])]
+def reason_texts(rec: AnalysisRecord) -> list[str]:
+    th, cv = rec.theory, rec.critical_value
+    return [t for t in [cv.reason if cv is not None else None,
+                        *([th.stochastic_boundedness, *th.almost_sure] if th is not None else [])]
             if isinstance(t, str)]
 
 
@@ -94,10 +92,10 @@ def reason_texts(rec: dict) -> list[str]:
 
 def test_the_records_hold_the_hand_derived_values():
     rot, unst = record_of(ROT, "rot"), record_of(UNST, "unst")
-    assert rot["system"]["exact_input"] is False
-    assert rot["critical_value"]["value"] == pytest.approx(ROT_PC, rel=1e-12)
-    assert unst["system"]["exact_input"] is True
-    assert unst["critical_value"]["value"] == pytest.approx(UNST_PC, rel=1e-12)
+    assert rot.system.exact_input is False
+    assert rot.critical_value.value == pytest.approx(ROT_PC, rel=1e-12)
+    assert unst.system.exact_input is True
+    assert unst.critical_value.value == pytest.approx(UNST_PC, rel=1e-12)
 
 
 # ----------------------------------------------------------------------------- floating-point input
@@ -138,13 +136,13 @@ def test_complex_numbers_read_a_plus_bj_and_moduli_as_decimals():
     re_, im = r * math.cos(OMEGA / 4), r * math.sin(OMEGA / 4)
     assert f"{re_:#.6g} + {im:#.6g}j (numerical)" in text
     assert f"{re_:#.6g} − {im:#.6g}j (numerical)" in text
-    reason = rec["critical_value"]["reason"]
+    reason = rec.critical_value.reason
     assert f"|λ| ≈ {r:.12g}" in reason
     assert "|0." not in reason
 
 
 def test_float_input_statement_gives_p_c_as_a_decimal():
-    sb = record_of(ROT, "rot")["theory"]["stochastic_boundedness"]
+    sb = record_of(ROT, "rot").theory.stochastic_boundedness
     assert f"finite mean iff p > p_c ≈ {ROT_PC:.12g}." in sb
     assert not re.search(r"\d{10,}/\d", sb) and not long_decimals(sb)
 
@@ -155,8 +153,8 @@ def test_transcendental_plant_prose_numbers_are_short():
     rec = record_of(UNST, "unst")
     for reason in reason_texts(rec):
         assert not long_decimals(reason), (long_decimals(reason), reason)
-    assert f"|λ₁| = {math.exp(0.2):.12g}" in rec["critical_value"]["reason"]
-    assert f"p > p_c ≈ {UNST_PC:.12g}." in rec["theory"]["stochastic_boundedness"]
+    assert f"|λ₁| = {math.exp(0.2):.12g}" in rec.critical_value.reason
+    assert f"p > p_c ≈ {UNST_PC:.12g}." in rec.theory.stochastic_boundedness
     text = page_text(rec)
     assert not long_decimals(text), long_decimals(text)
     assert "an algebraic number (no short closed form)" not in text   # entries involve exp
@@ -182,7 +180,7 @@ def test_transcendental_plant_shows_its_exact_modulus_and_p_low():
 
 def test_an_exact_unit_modulus_reads_1():
     rec = tracker()
-    assert rec["system"]["exact_input"] is True
+    assert rec.system.exact_input is True
     for e in structure_view(rec)["eigenvalues"]:
         assert e["modulus_expression"] == "1" and e["value"] == "1"
     text = page_text(rec)
@@ -192,7 +190,7 @@ def test_an_exact_unit_modulus_reads_1():
 
 
 def test_marginal_mode_reason_has_no_caret_and_no_file_path():
-    reason = tracker()["critical_value"]["reason"]
+    reason = tracker().critical_value.reason
     assert "^" not in reason and "proofs_checks/" not in reason and ".py" not in reason
     assert "θᵏ with θ = 1 − pᴵᵒ and k = ⌊w/Iₒ⌋" in reason
     assert "proof checks (check_marginal_modes)" in reason

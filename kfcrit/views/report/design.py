@@ -6,40 +6,45 @@ assessment in ``requirements.assessments``, ``tail.exponent`` and the figures dr
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from kfcrit.views import formatting as filters
 from kfcrit.views.report.parts import (
-    as_dict,
-    as_list,
     figure_entry,
     number,
     prose,
     row,
     short_closed_form,
+    stated,
 )
 
-RADIO_ITEMS = (("max_distance_m", "maximum distance"),
-               ("min_tx_power_dbm", "minimum transmit power"),
-               ("max_payload_bytes", "maximum payload"),
-               ("retries_needed", "MAC retries needed"))
+if TYPE_CHECKING:
+    from kfcrit.analysis.records.covariance import RequiredArrivalEnd
+    from kfcrit.analysis.records.link import (
+        LinkDesignBound,
+        LinkDesignDistance,
+        LinkDesignPayload,
+        LinkDesignPayloadBound,
+        LinkDesignRecord,
+    )
+    from kfcrit.analysis.sections import AnalysisRecord
+
 UNITS = {"m": "m", "dBm": "dBm", "bytes": "bytes", "retries": ""}
 
 
-def end_text(end: Any) -> str:
+def end_text(end: RequiredArrivalEnd) -> str:
     """One end of [p_S, p_V]: its value and whether it is certified."""
-    e = as_dict(end)
-    v = number(e.get("value"))
+    v = number(end.value)
     if v is None:
         return "not computed"
-    return f"{filters.num(v, 6)} ({'certified' if e.get('certified') else 'numerical'})"
+    return f"{filters.num(v, 6)} ({'certified' if end.certified else 'numerical'})"
 
 
-def end_value(end: dict[str, Any], unit: str) -> str:
+def end_value(end: LinkDesignBound | LinkDesignPayloadBound, unit: str) -> str:
     """One end of a radio quantity's interval with its unit, or its status (``unreachable``)."""
-    v = number(end.get("value"))
+    v = number(end.value)
     if v is None:
-        return str(end.get("status") or "—")
+        return end.status or "—"
     return filters.unit(v, unit) if UNITS.get(unit) else filters.num(v, 6)
 
 
@@ -48,30 +53,29 @@ FAILING_SIDE = {"at least": ("or more", "below"), "at most": ("or less", "above"
 fails it (a power must be at least its bound, so it fails below; a distance above)."""
 
 
-def bound_text(item: dict[str, Any]) -> str:
+def bound_text(item: LinkDesignDistance | LinkDesignPayload) -> str:
     """A radio bound [sufficient, necessary] in words, by its sense and its ends' statuses.
 
     ``at least`` quantities (power, retries) fail below the necessary end, ``at most``
     quantities (distance, payload) above it; between the ends the requirement is not decided.
     """
-    unit = str(item.get("unit") or "")
-    quantity = str(item.get("quantity") or "value")
-    suf_d, nec_d = as_dict(item.get("sufficient")), as_dict(item.get("necessary"))
-    suf, nec = end_value(suf_d, unit), end_value(nec_d, unit)
-    keep, fail = FAILING_SIDE.get(str(item.get("sense") or ""), ("", "beyond"))
-    status = str(suf_d.get("status") or "")
+    unit = item.unit
+    quantity = item.quantity or "value"
+    suf, nec = end_value(item.sufficient, unit), end_value(item.necessary, unit)
+    keep, fail = FAILING_SIDE.get(item.sense, ("", "beyond"))
+    status = item.sufficient.status
     if status == "phy-limit":
         return f"every {quantity} the PHY allows meets it (up to {suf})"
     if status == "unbounded":
         return f"any {quantity} meets it"
     if status == "unreachable":
-        if str(nec_d.get("status") or "") == "unreachable" or number(nec_d.get("value")) is None:
+        if item.necessary.status == "unreachable" or number(item.necessary.value) is None:
             return f"no {quantity} meets it"
         return f"no {quantity} guarantees it; it fails {fail} {nec}"
-    if number(suf_d.get("value")) is None:
+    if number(item.sufficient.value) is None:
         return filters.DASH
     if unit == "retries" and suf == nec:
-        v = number(suf_d.get("value"))
+        v = number(item.sufficient.value)
         return ("needed: 0 (the requirement holds without retries)" if v == 0 else
                 f"needed: {suf} (with fewer it fails)")
     if suf == nec:
@@ -80,44 +84,44 @@ def bound_text(item: dict[str, Any]) -> str:
             f"is not decided)").replace("  ", " ")
 
 
-def radio_rows(radio: dict[str, Any]) -> list[dict[str, Any]]:
+def radio_rows(radio: LinkDesignRecord) -> list[dict[str, Any]]:
     """What the accuracy requirement asks of the radio: each quantity as [guaranteed, limit]."""
     rows = []
-    for key, label in RADIO_ITEMS:
-        item = as_dict(radio.get(key))
-        if not item:
-            continue
-        sense = str(item.get("sense") or "")
+    for item, label in ((radio.max_distance_m, "maximum distance"),
+                        (radio.min_tx_power_dbm, "minimum transmit power"),
+                        (radio.max_payload_bytes, "maximum payload"),
+                        (radio.retries_needed, "MAC retries needed")):
+        sense = item.sense
         rows.append(row(f"{label} ({sense})" if sense else label, None,
                         note=bound_text(item)
-                        + (f" — {prose(item.get('method'))}" if item.get("method") else "")))
-    if number(radio.get("margin_db")) is not None:
-        rows.append(row("SINR kept in reserve", radio.get("margin_db"), "dB",
+                        + (f" — {prose(item.method)}" if item.method else "")))
+    if number(radio.margin_db) is not None:
+        rows.append(row("SINR kept in reserve", radio.margin_db, "dB",
                         note="the link's margin policy, kept while each quantity is varied"))
     return rows
 
 
-def mean_assessment_rows(rec: dict[str, Any]) -> dict[str, Any] | None:
+def mean_assessment_rows(rec: AnalysisRecord) -> dict[str, Any] | None:
     """The assessment of lim E[tr P] ≤ L in ``requirements.assessments`` (``None``: absent)."""
-    for a in as_list(as_dict(rec.get("requirements")).get("assessments")):
-        a = as_dict(a)
-        if "E[tr P]" in str(a.get("requirement") or ""):
-            status = str(a.get("status") or "")
-            return {"requirement": prose(a.get("requirement")), "status": status,
+    for a in rec.requirements.assessments if rec.requirements is not None else []:
+        if "E[tr P]" in a.requirement:
+            status = a.status or ""
+            return {"requirement": prose(a.requirement), "status": status,
                     "met": {"met": True, "not met": False}.get(status),
-                    "basis": prose(a.get("basis")),
-                    "interval": a.get("interval")}
+                    "basis": prose(a.basis),
+                    "interval": stated(a.interval)}
     return None
 
 
-def tail_view(rec: dict[str, Any]) -> dict[str, Any] | None:
+def tail_view(rec: AnalysisRecord) -> dict[str, Any] | None:
     """The power-law tail exponent of tr P (a labelled claim), or ``None``."""
-    ex = as_dict(as_dict(rec.get("tail")).get("exponent"))
-    if not ex or not ex.get("applicable", True) or number(ex.get("value")) is None:
+    tail = stated(rec.tail)
+    ex = tail.exponent if tail is not None else None
+    if ex is None or not ex.applicable or number(ex.value) is None:
         return None
-    return {"value": ex.get("value"), "expression": short_closed_form(ex.get("expression")),
-            "formula": prose(ex.get("formula")), "statement": prose(ex.get("statement")),
-            "label": prose(ex.get("label")), "source": str(ex.get("source") or "")}
+    return {"value": ex.value, "expression": short_closed_form(ex.expression),
+            "formula": prose(ex.formula), "statement": prose(ex.statement),
+            "label": prose(ex.label), "source": ex.source}
 
 
 LINK_FIGURES = {
@@ -139,41 +143,38 @@ LINK_FIGURES = {
 }
 
 
-def link_figures(rec: dict[str, Any], figures: dict[str, Any]) -> list[dict[str, Any]]:
+def link_figures(rec: AnalysisRecord, figures: dict[str, str | None]) -> list[dict[str, Any]]:
     """The link-curve figures the record has data for (``link_budget.curves``)."""
-    figs = as_dict(figures)
-    return [figure_entry(figs.get(key), title, caption, "")
-            for key, (title, caption) in LINK_FIGURES.items() if figs.get(key)]
+    return [figure_entry(figures.get(key), title, caption, "")
+            for key, (title, caption) in LINK_FIGURES.items() if figures.get(key)]
 
 
-def design_view(rec: dict[str, Any], figures: dict[str, Any]) -> dict[str, Any]:
+def design_view(rec: AnalysisRecord, figures: dict[str, str | None]) -> dict[str, Any]:
     """The accuracy-requirement design: [p_S, p_V], what it means for the radio, the figure."""
-    design = as_dict(rec.get("design"))
-    req = as_dict(design.get("required_arrival_probability"))
-    figs = as_dict(figures)
-    if not design:
+    design = stated(rec.design)
+    if design is None:
         return {"available": False, "tail": tail_view(rec)}
-    level = number(req.get("level"))
-    floor = number(req.get("floor_trace"))
-    rows = [row("requirement", None, note=prose(design.get("requirement"))),
-            row("status", req.get("status")),
+    req = design.required_arrival_probability
+    radio = stated(design.radio)
+    rows = [row("requirement", None, note=prose(design.requirement)),
+            row("status", req.status),
             row("required arrival probability [p_S, p_V]", filters.interval(
-                req.get("interval"), 6) if as_list(req.get("interval")) else "—",
-                note=prose(req.get("meaning"))),
-            row("p_S: below it the requirement fails", None, note=end_text(req.get("p_S"))
+                req.interval, 6) if req.interval else "—",
+                note=prose(req.meaning)),
+            row("p_S: below it the requirement fails", None, note=end_text(req.p_S)
                 + " — tr S̄(p_S) = L"),
-            row("p_V: from it on the requirement is met", None, note=end_text(req.get("p_V"))
+            row("p_V: from it on the requirement is met", None, note=end_text(req.p_V)
                 + " — tr V̄(p_V) = L"),
-            row("floor tr P∞ (every packet arrives)", floor, "num",
-                note="certified" if req.get("floor_certified") else "numerical"),
-            row("reason", None, note=prose(req.get("reason")))]
+            row("floor tr P∞ (every packet arrives)", number(req.floor_trace), "num",
+                note="certified" if req.floor_certified else "numerical"),
+            row("reason", None, note=prose(req.reason))]
     return {
-        "available": True, "level": level, "rows": rows,
+        "available": True, "level": number(req.level), "rows": rows,
         "assessment": mean_assessment_rows(rec),
-        "radio": radio_rows(as_dict(design.get("radio"))) if design.get("radio") else [],
-        "radio_notes": [prose(n) for n in as_list(as_dict(design.get("radio")).get("notes"))],
+        "radio": radio_rows(radio) if radio is not None else [],
+        "radio_notes": [prose(n) for n in radio.notes] if radio is not None else [],
         "accuracy": figure_entry(
-            figs.get("accuracy"), "Accuracy requirement against the covariance bounds",
+            figures.get("accuracy"), "Accuracy requirement against the covariance bounds",
             "tr S̄(p) and tr V̄(p) against the arrival probability (log scale), with the "
             "requirement lim E[tr P] ≤ L and the interval [p_S, p_V] shaded: below p_S "
             "the lower bound already exceeds L (fails), from p_V on the upper bound meets it; "

@@ -1,69 +1,42 @@
-"""Building blocks of the report's view model: safe readers of record values and table rows.
+"""Building blocks of the report's view model: readers of typed record values and table rows.
 
-A record section may be missing, ``None`` or malformed; these readers turn any of that into an
-empty mapping, an empty list or ``None`` so that the section views never raise and the templates
-(``StrictUndefined``) always find every key.
+The section views read the typed record (:class:`~kfcrit.analysis.sections.AnalysisRecord`) by
+attribute; an optional section is ``None`` and a key that some records lack
+(:func:`~kfcrit.io.typed.opt_key`) is :data:`~kfcrit.io.typed.ABSENT`, which :func:`stated`
+reads as ``None``, so that the templates (``StrictUndefined``) always find every key.
 """
 from __future__ import annotations
 
 import dataclasses
 import re
-import typing
-from collections.abc import Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from markupsafe import Markup
 
-from kfcrit.analysis.sections import AnalysisRecord, record_from_json
 from kfcrit.errors import ExpressionError
-from kfcrit.io.typed import ABSENT, RecordError, from_json
+from kfcrit.io.typed import ABSENT
 from kfcrit.model.exprparse import parse_with_float
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures import mathsvg
 
+if TYPE_CHECKING:
+    from kfcrit.analysis.sections import AnalysisRecord, CriticalValueRecord
+
 NOT_COMPUTED = "not computed"
+T = TypeVar("T")
 
 
-def typed_section(cls: type, value: Any) -> Any:
-    """``value`` (a section's JSON form) read as ``cls``, or ``None`` when it is missing or does
-    not fit (the report renders what it can of a malformed record)."""
-    if value is None:
-        return None
-    try:
-        return from_json(cls, value, cls.__name__)
-    except RecordError:
-        return None
+def stated(value: T) -> T | None:
+    """The value of a key that some records lack (:func:`~kfcrit.io.typed.opt_key`), ``None``
+    when this record lacks it (:data:`~kfcrit.io.typed.ABSENT`)."""
+    return None if value is ABSENT else value
 
 
-def typed_record(data: Any) -> AnalysisRecord:
-    """The typed record of a report's JSON-form input, for the views that take the typed
-    record: read strictly, else section by section, a missing or misfit section being left out
-    (``None``, an absent optional key, or an empty list)."""
-    try:
-        return record_from_json(data)
-    except RecordError:
-        pass
-    d = as_dict(data)
-    hints = typing.get_type_hints(AnalysisRecord)
-    values: dict[str, Any] = {}
-    for f in dataclasses.fields(AnalysisRecord):
-        if f.metadata.get("internal"):
-            continue
-        empty = ABSENT if f.default is ABSENT else [] if f.name in ("warnings",
-                                                                    "verification") else None
-        try:
-            values[f.name] = from_json(hints[f.name], d[f.name], f.name) if f.name in d else empty
-        except RecordError:
-            values[f.name] = empty
-    return AnalysisRecord(**values)
-
-
-def as_dict(value: Any) -> dict[str, Any]:
-    return value if isinstance(value, dict) else {}
-
-
-def as_list(value: Any) -> list[Any]:
-    return value if isinstance(value, list) else []
+def stated_fields(obj: Any) -> list[tuple[str, Any]]:
+    """``(name, value)`` of the fields of a typed record value that it states, in declaration
+    order (the keys of its JSON form: absent keys and fields kept out of the JSON are skipped)."""
+    return [(f.name, getattr(obj, f.name)) for f in dataclasses.fields(obj)
+            if not f.metadata.get("internal") and getattr(obj, f.name) is not ABSENT]
 
 
 def number(value: Any) -> float | None:
@@ -80,8 +53,8 @@ def safe_svg(svg: str | None) -> Markup | None:
 
 def prose(value: Any) -> str:
     """Record prose with its ASCII mathematics in Unicode (``sqrt(3)`` → √3, ``<=`` → ≤ ...);
-    ``None`` → empty string. See :func:`kfcrit.views.formatting.pretty_text`."""
-    return filters.pretty_text(value) if value is not None else ""
+    ``None`` or an absent key → empty string. See :func:`kfcrit.views.formatting.pretty_text`."""
+    return filters.pretty_text(value) if stated(value) is not None else ""
 
 
 def sentence(value: Any) -> str:
@@ -94,12 +67,6 @@ def sentence(value: Any) -> str:
 
 def missing(section: str, reason: str | None = None) -> str:
     return f"{section}: {NOT_COMPUTED}" + (f" ({reason})" if reason else "")
-
-
-def kv_rows(data: Any, skip: Iterable[str] = ()) -> list[dict[str, Any]]:
-    """Rows ``{key, value}`` of a mapping's entries, for generic tables (nothing disappears)."""
-    skipped = set(skip)
-    return [{"key": str(k), "value": v} for k, v in as_dict(data).items() if k not in skipped]
 
 
 def formula(latex: str | None, expression: str | None, *, fontsize: float = 11.0,
@@ -161,18 +128,19 @@ def exact_plain(text: Any) -> str | None:
     return None
 
 
-def exact_p_low(rec: dict[str, Any]) -> str | None:
+def exact_p_low(rec: AnalysisRecord) -> str | None:
     """The short exact form of p_low: the lower bound's own expression (exact input, exact
     structure), else the upper bound's exact lower evidence (eigenvalues by exact arithmetic)."""
     if not input_exact(rec):
         return None
-    if as_dict(rec.get("structure")).get("path") == "exact":
-        own = closed_form_text(as_dict(rec.get("lower_bound")).get("expression"))
+    if rec.structure is not None and rec.structure.path == "exact" \
+            and rec.lower_bound is not None:
+        own = closed_form_text(rec.lower_bound.expression)
         if own:
             return own
-    ev = as_dict(as_dict(rec.get("upper_bound")).get("lower_evidence"))
-    if str(ev.get("p_low_how", "")).startswith("exact"):
-        return closed_form_text(ev.get("expression"))
+    ev = stated(rec.upper_bound.lower_evidence) if rec.upper_bound is not None else None
+    if ev is not None and str(stated(ev.p_low_how) or "").startswith("exact"):
+        return closed_form_text(stated(ev.expression))
     return None
 
 
@@ -198,17 +166,17 @@ def complex_html(re_: Any, im: Any, digits: int = 6) -> str:
     return f"{real} {sign} {filters.sig(abs(float(b)), digits)}j"
 
 
-def input_exact(rec: dict[str, Any]) -> bool:
+def input_exact(rec: AnalysisRecord) -> bool:
     """Whether the record's input was read as exact numbers (``system.exact_input``); a
     floating-point input's values are numerical even where they were decided exactly on the
     rationals its binary floats represent."""
-    return as_dict(rec.get("system")).get("exact_input") is not False
+    return rec.system.exact_input is not False
 
 
-def exact_claim(rec: dict[str, Any], quantity: Any) -> bool | None:
-    """Whether the report may call ``quantity`` exact: its own ``exact`` flag and an exact
-    input (``None`` when the quantity carries no flag)."""
-    flag = as_dict(quantity).get("exact")
+def exact_claim(rec: AnalysisRecord, cv: CriticalValueRecord | None) -> bool | None:
+    """Whether the report may call the critical value ``cv`` exact: its own ``exact`` flag and
+    an exact input (``None`` when there is no value or it carries no flag)."""
+    flag = cv.exact if cv is not None else None
     if flag is None:
         return None
     return bool(flag) and input_exact(rec)

@@ -1,7 +1,8 @@
 """Design-review reports: one Jinja template set, two outputs (self-contained HTML and PDF).
 
-The analysis record (``Analysis.to_dict()``, or the same dict read back from ``--json``) is the
-only input: :func:`kfcrit.views.figures.record.build_figures` draws its figures and
+The typed analysis record (:class:`~kfcrit.analysis.sections.AnalysisRecord`, from an analysis or
+read back from ``--json`` with :func:`~kfcrit.analysis.sections.record_from_json`) is the only
+input: :func:`kfcrit.views.figures.record.build_figures` draws its figures and
 :func:`kfcrit.views.report.viewmodel.view_model` turns record and figures into the plain dict the
 templates read. Templates only lay the view model out; numbers are formatted by the registered
 filters of :mod:`kfcrit.views.formatting`; formulas are SVG from :mod:`kfcrit.views.figures.mathsvg`.
@@ -18,15 +19,17 @@ import datetime
 import functools
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jinja2
 
 from kfcrit.errors import InputError
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.record import draw_figures, figure_markup
-from kfcrit.views.report.parts import typed_record
 from kfcrit.views.report.viewmodel import view_model
+
+if TYPE_CHECKING:
+    from kfcrit.analysis.sections import AnalysisRecord
 
 TEMPLATE = "report.html.j2"
 KINDS = ("html", "pdf")
@@ -67,11 +70,11 @@ def environment_for(folder: str) -> jinja2.Environment:
     return filters.register(env)
 
 
-def render_html(record: dict[str, Any], figures: dict[str, str | None], *,
+def render_html(rec: AnalysisRecord, figures: dict[str, str | None], *,
                 today: datetime.date | None = None) -> str:
     """The self-contained HTML report (inline CSS and figures, no scripts, no external URLs)."""
     template = environment().get_template(TEMPLATE)
-    return template.render(**view_model(record, figures, today=today))
+    return template.render(**view_model(rec, figures, today=today))
 
 
 def refusing_fetcher() -> Any:
@@ -100,7 +103,7 @@ def render_pdf(html: str) -> bytes:
     return doc.write_pdf()
 
 
-def render_documents(record: dict[str, Any], kinds: Iterable[str], *,
+def render_documents(rec: AnalysisRecord, kinds: Iterable[str], *,
                      today: datetime.date | None = None) -> dict[str, bytes]:
     """Every requested format (``html``, ``pdf``) of one record, as bytes, from one drawing.
 
@@ -112,11 +115,11 @@ def render_documents(record: dict[str, Any], kinds: Iterable[str], *,
     bad = [k for k in wanted if k not in KINDS]
     if bad:
         raise InputError(f"unknown report format {bad[0]!r} (html or pdf)", field="format")
-    drawn = draw_figures(typed_record(record))
+    drawn = draw_figures(rec)
     out: dict[str, bytes] = {}
     if "html" in wanted:
-        out["html"] = render_html(record, figure_markup(drawn), today=today).encode("utf-8")
+        out["html"] = render_html(rec, figure_markup(drawn), today=today).encode("utf-8")
     if "pdf" in wanted:
-        html = render_html(record, figure_markup(drawn, "print"), today=today)
+        html = render_html(rec, figure_markup(drawn, "print"), today=today)
         out["pdf"] = render_pdf(html)
     return out

@@ -2,26 +2,36 @@
 simulation summary, the checks, tolerances, seeds and versions."""
 from __future__ import annotations
 
+import dataclasses
 import re
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from kfcrit.analysis.records.simulation import SimulationOperatingPoint
 from kfcrit.version import __version__
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.record import mean_diverges, series_of, tail_of
 from kfcrit.views.report.network import is_network
 from kfcrit.views.report.parts import (
-    as_dict,
-    as_list,
     exact_claim,
     missing,
     number,
     prose,
     row,
     safe_svg,
-    typed_record,
-    typed_section,
+    stated,
+    stated_fields,
 )
+
+if TYPE_CHECKING:
+    from kfcrit.analysis.records.simulation import (
+        ErgodicAverages,
+        NetworkSimulation,
+        PooledMeanTrace,
+        SimulationDivergence,
+        SimulationOperatingPoint,
+        SimulationSeeds,
+        UpperSolver,
+    )
+    from kfcrit.analysis.sections import AnalysisRecord, VerificationCheck
 
 FIGURE_CAPTIONS = {
     "phase_transition": ("Phase transition",
@@ -57,14 +67,14 @@ FIGURE_CAPTIONS = {
 }
 
 
-def figure_reasons(rec: dict[str, Any]) -> dict[str, str]:
+def figure_reasons(rec: AnalysisRecord) -> dict[str, str]:
     """Why a figure may be missing, from what the record lacks (shown instead of the figure)."""
-    no_channel = rec.get("operating_point") is None
-    sim = as_dict(rec.get("simulation"))
-    if rec.get("simulation") is None:
+    no_channel = rec.operating_point is None
+    sim = rec.simulation
+    if sim is None:
         sim_why = "no simulation in the record"
-    elif sim.get("skipped"):
-        sim_why = prose(sim.get("reason") or "simulation skipped")
+    elif stated(sim.skipped):
+        sim_why = prose(stated(sim.reason) or "simulation skipped")
     else:
         sim_why = ""
     op_why = ("the system file has no channel section, so there is no operating point"
@@ -79,15 +89,16 @@ SINGLE_LINK_ONLY = "computed for single-link systems only"
 HORIZON_LEVELS = (0.5, 0.9, 0.99)
 
 
-def network_run(rec: Any) -> dict[str, Any]:
+def network_run(rec: AnalysisRecord) -> NetworkSimulation | None:
     """``simulation.network`` of the record: the per-sensor-arrival Monte Carlo of a sensor
-    network (empty if absent)."""
-    return as_dict(as_dict(as_dict(rec).get("simulation")).get("network"))
+    network (``None`` if absent)."""
+    return stated(rec.simulation.network) if rec.simulation is not None else None
 
 
-def horizon_quantiles_text(levels: Any, quants: Any) -> str:
+def horizon_quantiles_text(levels: list[float | None] | None,
+                           quants: list[float | None] | None) -> str:
     """Quantiles of tr P at the horizon at the levels 50 %, 90 %, 99 % ("" when absent)."""
-    levels, quants = as_list(levels), as_list(quants)
+    levels, quants = levels or [], quants or []
     if not levels or len(levels) != len(quants):
         return ""
     return ", ".join(f"{filters.pct(lv, 3)}: {filters.num(number(qv), 5)}"
@@ -95,40 +106,45 @@ def horizon_quantiles_text(levels: Any, quants: Any) -> str:
                      if lv in HORIZON_LEVELS and number(qv) is not None)
 
 
-def network_mean_text(rec: dict[str, Any]) -> str:
+def network_quantiles_text(net: NetworkSimulation) -> str:
+    """The network simulation's quantiles of tr P at the horizon (:func:`horizon_quantiles_text`)."""
+    return horizon_quantiles_text(stated(net.horizon_levels), stated(net.horizon_quantiles))
+
+
+def network_mean_text(rec: AnalysisRecord) -> str:
     """What the network's simulation found at the horizon, in one sentence ("" without one).
 
     The record keeps E[tr P_t] at the last step t = steps with its 95 % band (or, when the
     network is mean-unstable, that the mean does not exist) and quantiles of tr P there.
     """
     net = network_run(rec)
-    if not net:
+    if net is None:
         return ""
-    head = (f"Simulated with each sensor over its own link ({filters.count(net.get('paths'))} "
-            f"paths × {filters.count(net.get('steps'))} steps"
-            + (f", seed {net.get('seed')}" if net.get("seed") is not None else "") + "): ")
-    mt = as_dict(net.get("mean_trace"))
-    if net.get("mean_exists") is False:
+    head = (f"Simulated with each sensor over its own link ({filters.count(net.paths)} "
+            f"paths × {filters.count(net.steps)} steps"
+            + (f", seed {net.seed}" if net.seed is not None else "") + "): ")
+    mt = stated(net.mean_trace)
+    if net.mean_exists is False:
         body = ("E[tr P_t] diverges (the network is mean-unstable), so the sample mean "
-                f"{filters.num(number(net.get('sample_mean_trace')), 5)} at t = "
-                f"{filters.count(net.get('steps'))} estimates nothing")
-    elif number(mt.get("mean")) is not None:
-        body = (f"E[tr P_t] at t = {filters.count(net.get('steps'))} is "
-                f"{filters.num(number(mt.get('mean')), 6)}, 95 % band "
-                f"{filters.span(number(mt.get('lower')), number(mt.get('upper')), 5)}")
+                f"{filters.num(number(stated(net.sample_mean_trace)), 5)} at t = "
+                f"{filters.count(net.steps)} estimates nothing")
+    elif mt is not None and number(mt.mean) is not None:
+        body = (f"E[tr P_t] at t = {filters.count(net.steps)} is "
+                f"{filters.num(number(mt.mean), 6)}, 95 % band "
+                f"{filters.span(number(mt.lower), number(mt.upper), 5)}")
     else:
         body = "the record has no mean at the horizon"
-    quant = horizon_quantiles_text(net.get("horizon_levels"), net.get("horizon_quantiles"))
+    quant = network_quantiles_text(net)
     return head + body + (f"; quantiles of tr P there: {quant}" if quant else "") + "."
 
 
-def network_scopes(rec: dict[str, Any]) -> dict[str, str]:
+def network_scopes(rec: AnalysisRecord) -> dict[str, str]:
     """For a sensor network, why each single-link figure is absent, in one sentence each: the
     network record keeps its simulation's values at the horizon only (``simulation.network``),
     and the sweeps over one arrival probability p do not apply to per-sensor arrivals."""
     net = network_run(rec)
     kept = (network_mean_text(rec) + " The record keeps the network simulation's values at "
-            "the horizon only, so no curve over time is drawn.") if net else \
+            "the horizon only, so no curve over time is drawn.") if net is not None else \
         "The record has no simulation of the network."
     return {
         "phase_transition": "The phase transition (S̄ and V̄ against one arrival probability p) "
@@ -140,18 +156,17 @@ def network_scopes(rec: dict[str, Any]) -> dict[str, str]:
         "operating": kept,
         "cdf": ("The empirical distribution of tr P is kept for single-link systems only; the "
                 "network record keeps its quantiles at the horizon: "
-                + (horizon_quantiles_text(net.get("horizon_levels"),
-                                          net.get("horizon_quantiles")) or "none") + ".")
-        if net else "The record has no simulation of the network.",
+                + (network_quantiles_text(net) or "none") + ".")
+        if net is not None else "The record has no simulation of the network.",
         "almost_sure": f"The block maxima along one long path are {SINGLE_LINK_ONLY}.",
     }
 
 
-def block_maxima_text(rec: dict[str, Any]) -> str:
+def block_maxima_text(rec: AnalysisRecord) -> str:
     """What the plotted block maxima did, in numbers (no claim about the infinite path)."""
-    blk = as_dict(as_dict(as_dict(rec.get("simulation")).get("operating_point"))
-                  .get("almost_sure"))
-    top = [v for v in as_list(blk.get("block_max")) if number(v) is not None]
+    run = operating_run(rec)
+    top = [v for v in (run.almost_sure.block_max if run is not None else [])
+           if number(v) is not None]
     if len(top) < 2:
         return ""
     return (f" On this path the block maximum goes from {filters.num(top[0], 4)} in the first "
@@ -165,28 +180,23 @@ DIVERGENT_OPERATING_CAPTION = (
     "they exist.")
 
 
-def typed_run(op: dict[str, Any]) -> SimulationOperatingPoint | None:
-    """The typed operating-point run of its JSON form (``None`` when empty)."""
-    return typed_section(SimulationOperatingPoint, op) if op else None
-
-
-def operating_run(rec: Any) -> dict[str, Any]:
-    """``simulation.operating_point`` of the record (empty if absent)."""
-    return as_dict(as_dict(as_dict(rec).get("simulation")).get("operating_point"))
+def operating_run(rec: AnalysisRecord) -> SimulationOperatingPoint | None:
+    """``simulation.operating_point`` of the record (``None`` if absent)."""
+    return stated(rec.simulation.operating_point) if rec.simulation is not None else None
 
 
 def figures_view(figures: dict[str, str | None],
-                 rec: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
+                 rec: AnalysisRecord) -> dict[str, dict[str, Any]]:
     """Each figure with its title, caption and "not computed" message (with the reason)."""
-    reasons = figure_reasons(as_dict(rec))
+    reasons = figure_reasons(rec)
     # a network's absent figure is replaced by one sentence (``scope``), not an empty figure
-    scopes = network_scopes(as_dict(rec)) if is_network(as_dict(rec)) else {}
+    scopes = network_scopes(rec) if is_network(rec) else {}
     out = {}
     for key, (title, caption) in FIGURE_CAPTIONS.items():
-        svg = figures.get(key) if isinstance(figures, dict) else None
+        svg = figures.get(key)
         if key == "almost_sure":
-            caption += block_maxima_text(as_dict(rec))
-        if key == "operating" and mean_diverges(typed_run(operating_run(rec))):
+            caption += block_maxima_text(rec)
+        if key == "operating" and mean_diverges(operating_run(rec)):
             caption = DIVERGENT_OPERATING_CAPTION
         scope = scopes.get(key) if not safe_svg(svg) else None
         out[key] = {"svg": safe_svg(svg), "title": title, "caption": caption,
@@ -205,66 +215,45 @@ def _last(values: Any) -> float | None:
     return None
 
 
-def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
-    """Settings and summary numbers of the simulation as labelled rows (arrays are drawn)."""
-    sim = rec.get("simulation")
-    d = as_dict(sim)
+def network_run_rows(net: NetworkSimulation, seed: int | None) -> list[dict[str, Any]]:
+    """The simulation rows of a sensor network (its Monte Carlo keeps values at the horizon)."""
+    rows = [row("operating-point runs", None, note=f"{filters.count(net.paths)} "
+                f"paths × {filters.count(net.steps)} steps, each sensor over its "
+                f"own link" + (f", seed {seed}" if seed is not None else ""))]
+    mt = stated(net.mean_trace)
+    if net.mean_exists is False:
+        rows.append(row("simulated E[tr P_t]", None, note="diverges (the network is "
+                        "mean-unstable); the sample mean estimates nothing"))
+    elif mt is not None and number(mt.mean) is not None:
+        band = filters.span(number(mt.lower), number(mt.upper), 5)
+        rows.append(row("simulated E[tr P_t] at the horizon", number(mt.mean), "num",
+                        note=f"t = {filters.count(net.steps)}; 95 % band {band}"))
+    quant = network_quantiles_text(net)
+    if quant:
+        rows.append(row("quantiles of tr P at the horizon", None, note=quant))
+    if stated(net.diverged_paths) is not None:
+        rows.append(row("diverged paths", net.diverged_paths, "count",
+                        note=f"of {filters.count(net.paths)}"))
+    return rows
 
-    op = as_dict(d.get("operating_point"))
-    budget = as_dict(d.get("budget"))
-    rows: list[dict[str, Any]] = []
-    if d.get("skipped"):
-        return {"available": False, "tail_probability": None, "rows": [],
-                "missing": missing("simulation", prose(d.get("reason") or "skipped"))}
-    seed = d.get("seed") if d.get("seed") is not None else op.get("seed")
-    paths = op.get("paths") if op.get("paths") is not None else \
-        budget.get("paths", d.get("paths"))
-    steps = op.get("steps") if op.get("steps") is not None else \
-        budget.get("steps", d.get("steps"))
-    net = as_dict(d.get("network"))
-    if not op and net:
-        rows.append(row("operating-point runs", None, note=f"{filters.count(net.get('paths'))} "
-                        f"paths × {filters.count(net.get('steps'))} steps, each sensor over its "
-                        f"own link" + (f", seed {seed}" if seed is not None else "")))
-        mt = as_dict(net.get("mean_trace"))
-        if net.get("mean_exists") is False:
-            rows.append(row("simulated E[tr P_t]", None, note="diverges (the network is "
-                            "mean-unstable); the sample mean estimates nothing"))
-        elif number(mt.get("mean")) is not None:
-            band = filters.span(number(mt.get("lower")), number(mt.get("upper")), 5)
-            rows.append(row("simulated E[tr P_t] at the horizon", number(mt.get("mean")), "num",
-                            note=f"t = {filters.count(net.get('steps'))}; 95 % band {band}"))
-        quant = horizon_quantiles_text(net.get("horizon_levels"), net.get("horizon_quantiles"))
-        if quant:
-            rows.append(row("quantiles of tr P at the horizon", None, note=quant))
-        if net.get("diverged_paths") is not None:
-            rows.append(row("diverged paths", net.get("diverged_paths"), "count",
-                            note=f"of {filters.count(net.get('paths'))}"))
-    elif not op:
-        rows.append(row("operating-point runs", None, note="none: the record has no operating "
-                        "point (no channel in the system file)"
-                        if rec.get("operating_point") is None else
-                        "none: the simulation produced no data at the operating point"))
-    elif paths is not None or steps is not None:
-        p_op = filters.num(number(op.get("arrival_probability")), 6)
-        rows.append(row("operating-point runs", None, note=f"{filters.count(paths)} paths × "
-                        f"{filters.count(steps)} steps at p = {p_op}"
-                        + (f", seed {seed}" if seed is not None else "")))
-    if "iid" in op:
-        rows.append(row("i.i.d. losses", op.get("iid"), "yesno"))
-    run = typed_run(op)
-    _, mean, lo, hi = series_of(run) if run else (None, None, None, None)
-    cb = as_dict(rec.get("covariance_bounds"))
-    s_tr = number(as_dict(cb.get("lower")).get("trace"))
-    v_tr = number(as_dict(cb.get("upper")).get("trace"))
-    horizon = as_dict(op.get("horizon"))
+
+def operating_rows(rec: AnalysisRecord, run: SimulationOperatingPoint,
+                   paths: int | None) -> list[dict[str, Any]]:
+    """The rows of the operating point's runs: the mean at the horizon against tr S̄ and tr V̄,
+    its quantiles, the time average, the diverged paths and the loss bursts."""
+    rows = [row("i.i.d. losses", run.iid, "yesno")]
+    _, mean, lo, hi = series_of(run)
+    cb = rec.covariance_bounds
+    s_tr = number(cb.lower.trace) if cb is not None else None
+    v_tr = number(cb.upper.trace) if cb is not None else None
+    horizon = run.horizon
     if _last(mean) is not None:
         band = (f"95 % band {filters.span(_last(lo), _last(hi), 5)}"
                 if _last(lo) is not None and _last(hi) is not None else "")
         bounds = (f"tr S̄ = {filters.num(s_tr, 5)}" if s_tr is not None else "") + \
             (f", tr V̄ = {filters.num(v_tr, 5)}" if v_tr is not None else
              (", V̄ does not exist at this p" if s_tr is not None else ""))
-        when = f" t = {horizon['time']}" if horizon.get("time") else ""
+        when = f" t = {horizon.time}" if horizon.time else ""
         if mean_diverges(run):
             rows.append(row("sample mean of tr P_t at the horizon" + when, _last(mean), "num",
                             note="; ".join(x for x in (
@@ -273,52 +262,81 @@ def simulation_view(rec: dict[str, Any]) -> dict[str, Any]:
         else:
             rows.append(row("mean tr P_t at the horizon" + when, _last(mean), "num",
                             note="; ".join(x for x in (band, bounds) if x)))
-    levels, quants = as_list(horizon.get("levels")), as_list(horizon.get("quantiles"))
+    levels, quants = horizon.levels, horizon.quantiles
     if levels and len(levels) == len(quants):
         wanted = [(lv, qv) for lv, qv in zip(levels, quants) if lv in (0.5, 0.9, 0.99)]
         if wanted:
             rows.append(row("quantiles of tr P at the horizon", None, note=", ".join(
                 f"{filters.pct(lv, 3)}: {filters.num(number(qv), 5)}" for lv, qv in wanted)))
-    erg = as_dict(op.get("ergodic"))
-    pooled = as_dict(as_dict(erg.get("time_averages")).get("pooled_mean_trace"))
-    if number(pooled.get("mean")) is not None:
-        rows.append(row("time average of tr P_t (one long path per replica)", pooled.get("mean"),
+    erg = run.ergodic
+    pooled = erg.time_averages.pooled_mean_trace
+    if number(pooled.mean) is not None:
+        rows.append(row("time average of tr P_t (one long path per replica)", pooled.mean,
                         "num", note=ergodic_note(erg, pooled)))
-    div = as_dict(op.get("divergence"))
-    if div.get("diverged_paths") is not None:
-        rows.append(row("diverged paths", div.get("diverged_paths"), "count",
-                        note=f"of {filters.count(paths)} (tr P above "
-                        f"{filters.sci(number(div.get('threshold')), 3)}; "
-                        f"{divergence_text(div)})"))
-    bursts = as_dict(op.get("bursts"))
-    if number(bursts.get("mean_length")) is not None:
-        rows.append(row("loss bursts", bursts.get("mean_length"), "num",
+    div = run.divergence
+    rows.append(row("diverged paths", div.diverged_paths, "count",
+                    note=f"of {filters.count(paths)} (tr P above "
+                    f"{filters.sci(number(div.threshold), 3)}; "
+                    f"{divergence_text(div)})"))
+    bursts = run.bursts
+    if number(bursts.mean_length) is not None:
+        rows.append(row("loss bursts", bursts.mean_length, "num",
                         note=f"mean length (channel: "
-                        f"{filters.num(number(bursts.get('expected_mean_length')), 4)}); "
-                        f"{filters.count(bursts.get('bursts'))} bursts, longest "
-                        f"{filters.num(bursts.get('longest'))}, loss fraction "
-                        f"{filters.pct(number(bursts.get('loss_fraction')))}"))
-    demo = d.get("phase_demo")
-    curves = as_list(as_dict(demo).get("curves")) if isinstance(demo, dict) else as_list(demo)
-    if curves:
-        ps = [number(as_dict(c).get("arrival_probability", as_dict(c).get("p"))) for c in curves]
-        ref = as_dict(demo).get("reference_value") if isinstance(demo, dict) else None
+                        f"{filters.num(number(bursts.expected_mean_length), 4)}); "
+                        f"{filters.count(bursts.bursts)} bursts, longest "
+                        f"{filters.num(bursts.longest)}, loss fraction "
+                        f"{filters.pct(number(bursts.loss_fraction))}"))
+    return rows
+
+
+def simulation_view(rec: AnalysisRecord) -> dict[str, Any]:
+    """Settings and summary numbers of the simulation as labelled rows (arrays are drawn)."""
+    sim = rec.simulation
+    if sim is not None and stated(sim.skipped):
+        return {"available": False, "tail_probability": None, "rows": [],
+                "missing": missing("simulation", prose(stated(sim.reason) or "skipped"))}
+    run = operating_run(rec)
+    budget = stated(sim.budget) if sim is not None else None
+    seed = stated(sim.seed) if sim is not None else None
+    if seed is None and run is not None:
+        seed = run.seed
+    paths = run.paths if run is not None else budget.paths if budget is not None else None
+    steps = run.steps if run is not None else budget.steps if budget is not None else None
+    net = network_run(rec)
+    rows: list[dict[str, Any]] = []
+    if run is None and net is not None:
+        rows += network_run_rows(net, seed)
+    elif run is None:
+        rows.append(row("operating-point runs", None, note="none: the record has no operating "
+                        "point (no channel in the system file)"
+                        if rec.operating_point is None else
+                        "none: the simulation produced no data at the operating point"))
+    else:
+        p_op = filters.num(number(run.arrival_probability), 6)
+        rows.append(row("operating-point runs", None, note=f"{filters.count(paths)} paths × "
+                        f"{filters.count(steps)} steps at p = {p_op}"
+                        + (f", seed {seed}" if seed is not None else "")))
+        rows += operating_rows(rec, run, paths)
+    demo = stated(sim.phase_demo) if sim is not None else None
+    if demo is not None and demo.curves:
+        ps = [number(c.arrival_probability) for c in demo.curves]
+        ref = demo.reference_value
         rows.append(row("runs around p_c", None, note=(
             f"p = {', '.join(filters.num(x, 4) for x in ps)}"
             + (f" (reference {filters.num(number(ref), 6)})" if number(ref) is not None else "")
-            + (f"; {filters.count(as_dict(demo).get('paths'))} paths × "
-               f"{filters.count(as_dict(demo).get('steps'))} steps each"
-               if isinstance(demo, dict) and as_dict(demo).get("paths") else ""))))
-    seeds = d.get("seeds")
+            + (f"; {filters.count(demo.paths)} paths × "
+               f"{filters.count(demo.steps)} steps each" if demo.paths else ""))))
+    seeds = stated(sim.seeds) if sim is not None else None
     if seeds is not None:
         rows.append(row("random seeds", None, note=seeds_text(seeds)))
-    if d.get("quick") is not None:
-        rows.append(row("draft (--quick)", d.get("quick"), "yesno"))
-    return {"available": isinstance(sim, dict), "missing": missing("simulation"),
-            "tail_probability": tail_of(typed_record(rec)), "rows": rows}
+    quick = stated(sim.quick) if sim is not None else None
+    if quick is not None:
+        rows.append(row("draft (--quick)", quick, "yesno"))
+    return {"available": sim is not None, "missing": missing("simulation"),
+            "tail_probability": tail_of(rec), "rows": rows}
 
 
-def divergence_text(div: dict[str, Any]) -> str:
+def divergence_text(div: SimulationDivergence) -> str:
     """What happened to the paths that crossed the divergence threshold, as the record says.
 
     Paths continued in scaled form (``continued``) keep true values; censored paths (held at
@@ -326,12 +344,12 @@ def divergence_text(div: dict[str, Any]) -> str:
     bounds; ``mean_is_lower_bound`` (censoring or a path frozen after a numerical failure)
     says so either way.
     """
-    lower = bool(div.get("mean_is_lower_bound"))
-    if div.get("continued"):
+    lower = bool(div.mean_is_lower_bound)
+    if div.continued:
         text = "such paths are continued in scaled form, so the statistics are true values"
         return text + ("; some paths were frozen after a numerical failure, so means are "
                        "lower bounds" if lower else "")
-    if div.get("diverged_paths") or lower:
+    if div.diverged_paths or lower:
         return "censored at the threshold; means are lower bounds"
     return ("a diverged path would be censored at the threshold, making the means lower "
             "bounds; none did")
@@ -341,7 +359,7 @@ ERGODIC_MIN_REPLICAS = 10
 ERGODIC_MAX_SPREAD = 3.0
 
 
-def ergodic_unreliable(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
+def ergodic_unreliable(erg: ErgodicAverages, pooled: PooledMeanTrace) -> str:
     """Why the time-average interval cannot be trusted ("" when nothing is wrong with it).
 
     tr P_t ≥ 0, so a 95 % interval reaching below zero, or replica means that differ by more
@@ -349,12 +367,11 @@ def ergodic_unreliable(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
     replicas, mean the normal approximation behind it does not hold (few replicas, heavy tail).
     """
     reasons = []
-    lower = number(pooled.get("lower"))
+    lower = number(pooled.lower)
     if lower is not None and lower < 0:
         reasons.append("its normal approximation reached below 0 (clamped there: tr P ≥ 0)")
-    means = [v for v in as_list(as_dict(erg.get("time_averages")).get("replica_mean_trace"))
-             if number(v) is not None and v > 0]
-    replicas = number(erg.get("replicas"))
+    means = [v for v in erg.time_averages.replica_mean_trace if number(v) is not None and v > 0]
+    replicas = number(erg.replicas)
     spread = max(means) / min(means) if len(means) >= 2 else None
     if spread is not None and spread > ERGODIC_MAX_SPREAD and \
             (replicas is None or replicas < ERGODIC_MIN_REPLICAS):
@@ -364,16 +381,16 @@ def ergodic_unreliable(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
     return "; ".join(reasons)
 
 
-def ergodic_note(erg: dict[str, Any], pooled: dict[str, Any]) -> str:
+def ergodic_note(erg: ErgodicAverages, pooled: PooledMeanTrace) -> str:
     """The time-average row's note: its 95 % interval clamped at 0, the replicas, and a caution
     when the interval is unreliable (:func:`ergodic_unreliable`)."""
-    lower, upper = number(pooled.get("lower")), number(pooled.get("upper"))
+    lower, upper = number(pooled.lower), number(pooled.upper)
     if lower is not None:
         lower = max(lower, 0.0)
     note = (f"95 % interval {filters.span(lower, upper, 5)}; "
-            f"{filters.count(erg.get('replicas'))} replicas × "
-            f"{filters.count(erg.get('steps'))} steps, burn-in "
-            f"{filters.count(erg.get('burn_in'))}")
+            f"{filters.count(erg.replicas)} replicas × "
+            f"{filters.count(erg.steps)} steps, burn-in "
+            f"{filters.count(erg.burn_in)}")
     why = ergodic_unreliable(erg, pooled)
     if why:
         note += f". Interval unreliable: {why}; run more replicas (full mode) before using it"
@@ -394,21 +411,21 @@ def seed_rule_text(rule: Any) -> str:
     return _SPAWN_RULE.sub(words, filters.text(rule))
 
 
-def seeds_text(seeds: Any) -> str:
-    """The simulation's seeds in words (a mapping of stream names to seeds or seed rules)."""
-    if isinstance(seeds, dict):
-        parts = []
-        for k, v in seeds.items():
-            label = filters.key_label(k)
-            if isinstance(v, dict):
-                inner = ", ".join(f"{filters.key_label(a)}: {seed_rule_text(b)}"
-                                  for a, b in v.items())
-                parts.append(f"{label} ({inner})")
-            else:
-                parts.append(f"{label}: {seed_rule_text(v)}")
-        return "; ".join(parts) if parts else filters.DASH
-    return seed_rule_text(seeds)
-
+def seeds_text(seeds: SimulationSeeds | int) -> str:
+    """The simulation's seeds in words (its streams, each a seed or a seed rule), or the base
+    seed alone."""
+    if not dataclasses.is_dataclass(seeds):
+        return seed_rule_text(seeds)
+    parts = []
+    for k, v in stated_fields(seeds):
+        label = filters.key_label(k)
+        if dataclasses.is_dataclass(v):
+            inner = ", ".join(f"{filters.key_label(a)}: {seed_rule_text(b)}"
+                              for a, b in stated_fields(v))
+            parts.append(f"{label} ({inner})")
+        else:
+            parts.append(f"{label}: {seed_rule_text(v)}")
+    return "; ".join(parts) if parts else filters.DASH
 
 
 OPTION_LABELS = {"tolerance": ("decision tolerance (floating-point input)", "sci"),
@@ -419,12 +436,12 @@ OPTION_LABELS = {"tolerance": ("decision tolerance (floating-point input)", "sci
                  "steps": ("simulated steps", "count")}
 
 
-def _solver_text(solver: Any) -> str:
-    """Upper-bound solver statistics in words (a mapping of counters), or its name."""
-    if not isinstance(solver, dict):
+def _solver_text(solver: UpperSolver | None) -> str:
+    """Upper-bound solver statistics in words (its counters and notes), or a dash."""
+    if solver is None:
         return filters.text(solver)
     parts = []
-    for k, v in solver.items():
+    for k, v in stated_fields(solver):
         if isinstance(v, str) and " " in v:   # a sentence of its own ("output compressed: …")
             parts.append(prose(v))
             continue
@@ -466,59 +483,69 @@ CHECK_STATUS = {"passed": ("pass", "passed"), "failed": ("fail", "failed"),
                 "not applicable": ("none", "not applicable")}
 
 
-def check_view(check: Any) -> dict[str, Any]:
+def check_view(check: VerificationCheck) -> dict[str, Any]:
     """One verification check of the record as a table row: name, badge and detail.
 
     The badge follows ``passed`` (True: passed, False: failed) and, when that is ``None``, the
     check's ``status`` word (inconclusive, not applicable); a passed check is never red.
     """
-    c = as_dict(check)
-    passed = c.get("passed")
+    passed = check.passed
     if passed is True:
         css, label = CHECK_STATUS["passed"]
     elif passed is False:
         css, label = CHECK_STATUS["failed"]
     else:
-        word = str(c.get("status") or "not applicable")
+        word = check.status or "not applicable"
         css, label = CHECK_STATUS.get(word, ("none", word))
-    return {"name": check_name(c.get("check")), "css": css, "label": label,
-            "detail": _detail_text(c.get("detail"))}
+    return {"name": check_name(check.check), "css": css, "label": label,
+            "detail": _detail_text(stated(check.detail))}
 
 
-def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
+def structure_tolerance_text(rec: AnalysisRecord) -> str | None:
+    """The structure analysis's arithmetic, time budget and state limit in words (``None``
+    when the record states none of them)."""
+    stol = rec.structure.tolerances if rec.structure is not None else None
+    if stol is None or not stated_fields(stol):
+        return None
+    exact = stated(stol.exact)
+    budget, states = stated(stol.time_budget_seconds), stated(stol.max_states)
+    return ", ".join(
+        x for x in (("exact arithmetic" if exact else "floating point")
+                    if exact is not None else "",
+                    f"time budget {filters.num(budget)} s" if budget is not None else "",
+                    f"at most {filters.num(states)} states for exact work"
+                    if states is not None else "") if x)
+
+
+def appendix_view(rec: AnalysisRecord) -> dict[str, Any]:
     """Verification appendix: certificates and cross-checks, tolerances, versions, seeds, hash."""
-    ub = as_dict(rec.get("upper_bound"))
-    cv = as_dict(rec.get("critical_value"))
-    rob = as_dict(rec.get("robust_critical_value"))
-    prov = as_dict(rec.get("provenance"))
-    sim = as_dict(rec.get("simulation"))
-    st = as_dict(rec.get("structure"))
-    checks = [check_view(c) for c in as_list(rec.get("verification"))]
+    ub = rec.upper_bound
+    cv = rec.critical_value
+    rob = rec.robust_critical_value
+    prov = rec.provenance
+    sim = rec.simulation
+    checks = [check_view(c) for c in rec.verification]
     # how p_c was decided is information, not a check: "numerical" is never shown as a failure
     claim = exact_claim(rec, cv)
     checks.append({"name": "critical value decided exactly",
                    "css": "pass" if claim else "none",
                    "label": {True: "exact", False: "numerical"}.get(claim, "not computed"),
-                   "detail": prose(cv.get("reason"))})
-    opts = as_dict(prov.get("options"))
-    stol = as_dict(st.get("tolerances"))
+                   "detail": prose(cv.reason if cv is not None else None)})
+    opts = prov.options
     tolerances = [
-        row("robust-value tolerance (relative)", rob.get("tolerance", opts.get("tolerance")),
-            "sci"),
-        row("upper-bound tolerance", ub.get("tolerance", opts.get("upper_tol")), "sci"),
-        row("upper-bound method", ub.get("method")),
-        row("upper-bound solver", None, note=_solver_text(ub.get("solver"))),
+        row("robust-value tolerance (relative)",
+            rob.tolerance if rob is not None else opts.tolerance, "sci"),
+        row("upper-bound tolerance", ub.tolerance if ub is not None else opts.upper_tol, "sci"),
+        row("upper-bound method", ub.method if ub is not None else None),
+        row("upper-bound solver", None,
+            note=_solver_text(stated(ub.solver) if ub is not None else None)),
     ]
-    if stol:
-        tolerances.append(row("structure analysis", None, note=", ".join(
-            x for x in (("exact arithmetic" if stol.get("exact") else "floating point")
-                        if "exact" in stol else "",
-                        f"time budget {filters.num(stol.get('time_budget_seconds'))} s"
-                        if stol.get("time_budget_seconds") is not None else "",
-                        f"at most {filters.num(stol.get('max_states'))} states for exact work"
-                        if stol.get("max_states") is not None else "") if x)))
-    seeds = sim.get("seeds") if sim.get("seeds") is not None else prov.get("seed")
-    versions = dict(as_dict(prov.get("versions")))
+    structure = structure_tolerance_text(rec)
+    if structure is not None:
+        tolerances.append(row("structure analysis", None, note=structure))
+    sim_seeds = stated(sim.seeds) if sim is not None else None
+    seeds = sim_seeds if sim_seeds is not None else prov.seed
+    versions = dict(prov.versions)
     if versions.get("kfcrit") != __version__:
         versions["kfcrit (report)"] = __version__
     versions.update({name: v for name, v in report_versions().items()
@@ -526,13 +553,13 @@ def appendix_view(rec: dict[str, Any]) -> dict[str, Any]:
     options = [row(OPTION_LABELS.get(k, (filters.key_label(k), "text"))[0], v,
                    OPTION_LABELS.get(k, ("", "text"))[1],
                    note="default for the mode" if v is None and k in ("paths", "steps") else "")
-               for k, v in opts.items()]
+               for k, v in stated_fields(opts)]
     return {"checks": checks, "tolerances": tolerances,
-            "upper_warnings": [prose(w) for w in as_list(ub.get("warnings"))],
+            "upper_warnings": [prose(w) for w in (ub.warnings if ub is not None else [])],
             "versions": [row(str(k), v if v is not None else "not installed")
                          for k, v in versions.items()],
             "seeds": seeds_text(seeds),
-            "sha256": prov.get("input_sha256"), "input_path": prov.get("input_path"),
+            "sha256": prov.input_sha256, "input_path": prov.input_path,
             "options": options}
 
 

@@ -7,24 +7,25 @@ Markdown.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from kfcrit.views import formatting as filters
-from kfcrit.views.report.parts import as_dict
 from kfcrit.views.report.render import environment
 from kfcrit.views.report.theory import bounds_view
 from kfcrit.views.report.verdict import verdict_view
 
+if TYPE_CHECKING:
+    from kfcrit.analysis.sections import AnalysisRecord
+
 FRAGMENT = "_summary.html.j2"
 
 
-def html_summary(record: dict[str, Any]) -> str:
+def html_summary(rec: AnalysisRecord) -> str:
     """The verdict box (review decision, reasons, stability verdict) and the bounds table of
-    ``record`` as an HTML fragment (for ``_repr_html_``)."""
-    rec = as_dict(record)
+    ``rec`` as an HTML fragment (for ``_repr_html_``)."""
     template = environment().get_template(FRAGMENT)
     return template.render(verdict=verdict_view(rec), bounds=bounds_view(rec),
-                           name=rec.get("name") or "unnamed system")
+                           name=rec.name or "unnamed system")
 
 
 def _cell(text: Any) -> str:
@@ -32,13 +33,12 @@ def _cell(text: Any) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
-def markdown_summary(record: dict[str, Any]) -> str:
+def markdown_summary(rec: AnalysisRecord) -> str:
     """The review decision with its reasons, the stability verdict and the bounds as Markdown
     (for ``_repr_markdown_``)."""
-    rec = as_dict(record)
     verdict = verdict_view(rec)
     review = verdict["review"]
-    lines = [f"### {_cell(rec.get('name') or 'unnamed system')}: review {review['word']}", ""]
+    lines = [f"### {_cell(rec.name or 'unnamed system')}: review {review['word']}", ""]
     if review["available"]:
         lines += ["| check | status | detail |", "|---|---|---|"]
         lines += [f"| {_cell(r['check'])} | {_cell(r['status'])} | {_cell(r['detail'])} |"
@@ -57,8 +57,8 @@ def markdown_summary(record: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _margin_label(verdict: dict) -> str:
+def _margin_label(verdict: dict[str, Any]) -> str:
     """What the operating point's margin measures (uniform δ, r − r_nec or p − p_c)."""
     if verdict["network"]:
         return "uniform margin δ"
-    return "r − r_nec" if verdict.get("burst_margin") else "p − p_c"
+    return "r − r_nec" if verdict["burst_margin"] else "p − p_c"

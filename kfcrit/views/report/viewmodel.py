@@ -7,14 +7,15 @@ a missing key: the template environment uses ``StrictUndefined``.
 from __future__ import annotations
 
 import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from kfcrit.analysis.records.bursty import GilbertElliottSection
 from kfcrit.version import __version__
 from kfcrit.views.mesh.meshreport import mesh_view
 from kfcrit.views.report.design import design_view, link_figures
 from kfcrit.views.report.link import channel_view
-from kfcrit.views.report.network import network_view
-from kfcrit.views.report.parts import as_dict, as_list, figure_entry, prose, typed_record
+from kfcrit.views.report.network import is_network, network_view
+from kfcrit.views.report.parts import figure_entry, prose, stated
 from kfcrit.views.report.sim import appendix_view, figures_view, simulation_view
 from kfcrit.views.report.theory import (
     bounds_view,
@@ -29,6 +30,9 @@ from kfcrit.views.report.tracefit import measured_view
 from kfcrit.views.report.verdict import requirement_view, verdict_view
 from kfcrit.views.text.looptext import loop_view
 
+if TYPE_CHECKING:
+    from kfcrit.analysis.sections import AnalysisRecord
+
 IID_CAVEAT = ("The channel is bursty (Gilbert–Elliott): p_c, p_up, S̄ and V̄ assume i.i.d. "
               "losses, so they do not decide stability at the operating point; the burst "
               "analysis and the critical curve in section 1 do.")
@@ -38,34 +42,36 @@ NETWORK_CAVEAT = ("Sensor network: p_c, p_up, S̄, V̄ and the bounds here treat
 IID_FIGURES = ("phase_transition", "traces", "operating")
 
 
-def report_date(record: dict[str, Any], today: datetime.date | None = None) -> str:
-    """The date printed in the footer: the record's ``provenance.created`` (its first ten
-    characters, an ISO date) when the record has one, else the rendering date."""
-    created = as_dict(record.get("provenance")).get("created")
-    if isinstance(created, str) and len(created) >= 10:
-        return created[:10]
+def report_date(today: datetime.date | None = None) -> str:
+    """The date printed in the footer: the rendering date (``today``, default today's)."""
     return (today or datetime.date.today()).isoformat()
 
 
-def meta_view(rec: dict[str, Any], today: datetime.date | None = None) -> dict[str, Any]:
+def meta_view(rec: AnalysisRecord, today: datetime.date | None = None) -> dict[str, Any]:
     """Title, description, draft flag and the footer's system name, date and version."""
-    prov = as_dict(rec.get("provenance"))
-    name = rec.get("name") or "unnamed system"
+    prov = rec.provenance
+    name = rec.name or "unnamed system"
     return {"title": f"Design review: {name}", "name": name,
-            "description": rec.get("description") or "",
-            "quick": bool(as_dict(prov.get("options")).get("quick")),
-            "input_path": prov.get("input_path"), "version": __version__,
-            "date": report_date(rec, today),
-            "link_review": as_dict(rec.get("link_budget")).get("applicable") is True}
+            "description": rec.description or "",
+            "quick": bool(prov.options.quick),
+            "input_path": prov.input_path, "version": __version__,
+            "date": report_date(today),
+            "link_review": rec.link_budget is not None and rec.link_budget.applicable is True}
 
 
-def critical_curve_figure(rec: dict[str, Any], figures: dict[str, str | None],
+def has_critical_curve(rec: AnalysisRecord) -> bool:
+    """Whether the record's Gilbert–Elliott section carries a critical curve."""
+    lb = rec.link_budget
+    return isinstance(lb, GilbertElliottSection) and stated(lb.critical_curve) is not None
+
+
+def critical_curve_figure(rec: AnalysisRecord, figures: dict[str, str | None],
                           bursty: bool) -> dict[str, Any] | None:
     """The critical-curve figure of a Gilbert–Elliott link (``None`` for i.i.d. channels)."""
-    if not bursty and as_dict(rec.get("link_budget")).get("critical_curve") is None:
+    if not bursty and not has_critical_curve(rec):
         return None
     return figure_entry(
-        as_dict(figures).get("critical_curve"), "Critical curve of the bursty link",
+        figures.get("critical_curve"), "Critical curve of the bursty link",
         "The (failure rate f, recovery rate r) plane of the Gilbert–Elliott channel (docs/theory.md §10): "
         "at or below the necessary recovery rate r_nec(f) E[P_t] diverges (proven); at or above "
         "the sufficient one r_suf(f) the coupled fixed-gain certificate proves it bounded "
@@ -77,18 +83,17 @@ def critical_curve_figure(rec: dict[str, Any], figures: dict[str, str | None],
 
 def loop_figures(view: dict[str, Any], figures: dict[str, str | None]) -> dict[str, Any]:
     """The closed loop's section view with its two figures (theory §12)."""
-    if not view.get("available"):
+    if not view["available"]:
         return view
-    figs = as_dict(figures)
     view["plane"] = figure_entry(
-        figs.get("loop_plane"), "Stable region in the (γ̄, ν̄) plane",
+        figures.get("loop_plane"), "Stable region in the (γ̄, ν̄) plane",
         "Sensing arrival probability γ̄ against actuation arrival probability ν̄ (i.i.d. links). "
         "Solid: the judged design's boundary; dashed: the other acknowledgement mode's "
         "(TCP-like optimal: γ̄ > γ_c and ν̄ > ν_c; a fixed design: least ν̄ with "
         "ρ(Σ π_m Φ_m ⊗ Φ_m) < 1 at each γ̄ of the scan). Shaded: ρ ≥ 1 on the scanned grid.",
         "stable-region figure: not computed (an analysis without details)")
     view["cost_figure"] = figure_entry(
-        figs.get("loop_cost"), "Average cost against each link",
+        figures.get("loop_cost"), "Average cost against each link",
         "J against γ̄ with ν̄ at its operating value (left) and against ν̄ with γ̄ at its "
         "operating value (right), one line per design; gaps are infinite costs. TCP-like "
         "values for n > 1 use a seeded Monte Carlo of lim E[P_t|t].",
@@ -96,24 +101,21 @@ def loop_figures(view: dict[str, Any], figures: dict[str, str | None]) -> dict[s
     return view
 
 
-def view_model(record: dict[str, Any], figures: dict[str, str | None],
+def view_model(rec: AnalysisRecord, figures: dict[str, str | None],
                today: datetime.date | None = None) -> dict[str, Any]:
     """Every value the templates read, from the record and the figures (no computation left).
 
     Parameters
     ----------
-    record : dict
-        ``Analysis.to_dict()`` (any section may be ``None`` or absent).
+    rec : AnalysisRecord
+        The typed analysis record (optional sections ``None`` or absent).
     figures : dict
         Figure markup from :func:`kfcrit.views.figures.record.build_figures` (``None`` where missing).
     today : datetime.date, optional
-        The rendering date for the footer when the record carries none (default: today).
+        The rendering date for the footer (default: today).
     """
-    rec = as_dict(record)
-    typed = typed_record(rec)
-    bursty = as_dict(rec.get("operating_point")).get("iid") is False
-    caveat = IID_CAVEAT if bursty else NETWORK_CAVEAT if \
-        len(as_list(as_dict(rec.get("network")).get("sensors"))) > 1 else ""
+    bursty = rec.operating_point is not None and rec.operating_point.iid is False
+    caveat = IID_CAVEAT if bursty else NETWORK_CAVEAT if is_network(rec) else ""
     figs = figures_view(figures, rec)
     if caveat:
         # the caveat in full once (section 4); figures and tables point to it
@@ -127,7 +129,7 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
     return {
         "meta": meta_view(rec, today),
         "verdict": verdict_view(rec),
-        "warnings": list(dict.fromkeys(prose(w) for w in as_list(rec.get("warnings")))),
+        "warnings": list(dict.fromkeys(prose(w) for w in rec.warnings)),
         "system": system_view(rec),
         "structure": structure_view(rec),
         "classification": classification_view(rec),
@@ -141,11 +143,11 @@ def view_model(record: dict[str, Any], figures: dict[str, str | None],
         "simulation": simulation_view(rec),
         "requirement": requirement_view(rec),
         "statements": statements_view(rec),
-        "invariant": invariant_view(rec, as_dict(figures).get("invariant")),
+        "invariant": invariant_view(rec, figures.get("invariant")),
         "channel": channel,
         "network": network_view(rec, figures),
-        "mesh": mesh_view(typed, figures),
-        "loop": loop_figures(loop_view(typed), figures),
+        "mesh": mesh_view(rec, figures),
+        "loop": loop_figures(loop_view(rec), figures),
         "channel_fit": measured_view(rec, figures),
         "design": design_view(rec, figures),
         "appendix": appendix_view(rec),
