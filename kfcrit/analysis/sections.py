@@ -43,7 +43,7 @@ from kfcrit.analysis.records.link import LinkBudgetRecord
 from kfcrit.analysis.records.network import NetworkSection
 from kfcrit.analysis.records.simulation import Simulation
 from kfcrit.analysis.records.structure import StructureRecord, Theory
-from kfcrit.analysis.verdict import Reason, Review
+from kfcrit.analysis.verdict import Reason, Review, exit_code_of
 from kfcrit.io.typed import from_json, internal, json_schema, opt_key, to_json
 
 SCHEMA_VERSION = "2.0"
@@ -116,6 +116,12 @@ class AnalysisRecord:
     def decision(self) -> str:
         """The review decision: ``pass``, ``fail`` or ``undetermined``."""
         return self.review.decision.value
+
+    @property
+    def exit_code(self) -> int:
+        """The documented exit code (:func:`kfcrit.analysis.verdict.exit_code_of`)."""
+        return exit_code_of(any(c.passed is False for c in self.verification),
+                            self.review.decision.value)
 
     @property
     def verdict(self) -> str | None:

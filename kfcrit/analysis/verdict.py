@@ -673,18 +673,20 @@ def review(verdict: Verdict | str | None, basis: str | None,
     return Review(decide(reasons), tuple(reasons))
 
 
-def exit_code(record: Mapping[str, Any]) -> int:
-    """The documented exit code of a record (plain JSON form).
-
-    1 when a verification check failed (``passed`` False); else 5 when the review fails, 3 when
-    it is undetermined (or, with no operating point, when p_up could not be decided), 0 when it
-    passes.
-    """
-    if any(c.get("passed") is False for c in record.get("verification") or []):
+def exit_code_of(verification_failed: bool, decision: str | None) -> int:
+    """The documented exit code: 1 when a verification check failed; else 5 when the review
+    fails, 3 when it is undetermined, 0 when it passes (the one place of this rule)."""
+    if verification_failed:
         return int(ExitCode.VERIFICATION_FAILED)
-    decision = (record.get("review") or {}).get("decision")
     if decision == Decision.FAIL.value:
         return int(ExitCode.REVIEW_FAILED)
     if decision == Decision.UNDETERMINED.value:
         return int(ExitCode.INCONCLUSIVE)
     return int(ExitCode.OK)
+
+
+def exit_code(record: Mapping[str, Any]) -> int:
+    """The documented exit code of a record's plain JSON form (:func:`exit_code_of`; the typed
+    record has :attr:`~kfcrit.analysis.sections.AnalysisRecord.exit_code`)."""
+    return exit_code_of(any(c.get("passed") is False for c in record.get("verification") or []),
+                        (record.get("review") or {}).get("decision"))

@@ -57,7 +57,6 @@ def analyze_cli(system_file: str, as_json: bool, tolerance: float, no_simulate: 
     from kfcrit.analysis.record import AnalysisOptions
     from kfcrit.analysis.record import analyze_system as run
     from kfcrit.analysis.spec import load_spec
-    from kfcrit.analysis.verdict import exit_code
     from kfcrit.io.jsonio import dumps
     from kfcrit.views.text.terminal import summary
 
@@ -67,9 +66,8 @@ def analyze_cli(system_file: str, as_json: bool, tolerance: float, no_simulate: 
         click.echo(hint, err=True)
     record = run(spec, AnalysisOptions(tolerance=tolerance, simulate=not no_simulate,
                                        quick=quick, seed=seed))
-    data = record.to_dict()   # the --json form, and what exit_code reads
-    click.echo(dumps(data) if as_json else summary(record))
-    sys.exit(exit_code(data))
+    click.echo(dumps(record.to_dict()) if as_json else summary(record))
+    sys.exit(record.exit_code)
 
 
 LONG_RUN_STATES = 50

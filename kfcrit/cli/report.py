@@ -172,11 +172,10 @@ def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None
     Returns
     -------
     int
-        The record's exit code, :func:`kfcrit.analysis.record.exit_code`. Bad paths, formats or
-        records raise :class:`~kfcrit.errors.InputError` (exit code 2) before anything is
-        written.
+        The record's exit code (:attr:`kfcrit.analysis.sections.AnalysisRecord.exit_code`).
+        Bad paths, formats or records raise :class:`~kfcrit.errors.InputError` (exit code 2)
+        before anything is written.
     """
-    from kfcrit.analysis.record import exit_code
     from kfcrit.views.report.render import render_documents
 
     plan = plan_outputs(source, [outputs] if isinstance(outputs, (str, Path)) else outputs, fmt)
@@ -205,4 +204,4 @@ def report_command(source: str, outputs: str | Sequence[str], *, fmt: str | None
     for path, kind in plan:
         write_atomic(path, documents[kind])
         progress(f"wrote {path} ({len(documents[kind])} bytes)")
-    return exit_code(record.to_dict())   # the analysis layer's exit code reads the JSON form
+    return record.exit_code

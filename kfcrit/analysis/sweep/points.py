@@ -578,21 +578,18 @@ def point_options(tolerance: float) -> Any:
 
 
 def requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:
-    """The arrival probability a point must exceed, and the basis of that number (from the
-    record: p_c, its robust value, else the ends of the bracket)."""
-    pc = _value(record.get("critical_value"))
-    robust = _value(record.get("robust_critical_value"))
-    if pc is not None:
-        if robust is not None and robust > pc:
-            return robust, "robust critical value"
-        return pc, "critical value"
-    up = _value(record.get("upper_bound"))
-    if up is not None:
-        return up, "upper bound (sufficient)"
-    low = _value(record.get("block_lower_bound")) or _value(record.get("lower_bound"))
-    if low is not None:
-        return low, "lower bound (necessary only)"
-    return None, None
+    """The arrival probability a point must exceed, and the basis of that number: the record's
+    p_c, robust value and bracket read by the one rule of
+    :func:`kfcrit.analysis.verdict.probability_to_beat`."""
+    from kfcrit.analysis.verdict import CriticalInputs, probability_to_beat
+
+    low = _value(record.get("block_lower_bound"))
+    return probability_to_beat(CriticalInputs(
+        classification=record.get("classification"),
+        critical=_value(record.get("critical_value")),
+        robust=_value(record.get("robust_critical_value")),
+        lower=low if low is not None else _value(record.get("lower_bound")),
+        upper=_value(record.get("upper_bound"))))
 
 
 def binding_requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:

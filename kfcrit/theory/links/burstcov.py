@@ -119,7 +119,9 @@ def _affine(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, T: np.nd
 
 
 def previous_arrival_gains(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray,
-                           T: np.ndarray, pi: np.ndarray) -> list[np.ndarray] | None:
+                           T: np.ndarray, pi: np.ndarray,
+                           max_iterations: int = RICCATI_MAX_ITERATIONS
+                           ) -> list[np.ndarray] | None:
     """Gains (K_0, K_1) chosen by the previous arrival, from the coupled Riccati iteration
     (None when it diverges).
 
@@ -132,7 +134,7 @@ def previous_arrival_gains(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.nd
     K = [np.zeros((n, m)), np.zeros((n, m))]
     last = 0.0
     with np.errstate(all="ignore"):
-        for _ in range(RICCATI_MAX_ITERATIONS):
+        for _ in range(max_iterations):
             K = [-A @ X[i] @ C.T @ np.linalg.inv(C @ X[i] @ C.T + pi[i] * R) for i in range(2)]
             X = _affine(A, C, Q, R, T, pi, K, X)
             tr = float(np.trace(X[0] + X[1]))

@@ -471,8 +471,15 @@ PREVIOUS_ARRIVAL_ORIGIN = ("gains chosen by the previous arrival (coupled Riccat
 """``gain_origin`` of a certificate whose gain depends on the previous arrival (theory §10)."""
 
 
+CURVE_RICCATI_ITERATIONS = 300
+"""Riccati steps for the previous-arrival gains tried at each point of the sufficient curve
+(the curve tests hundreds of points; the certificate at the operating point runs to the fixed
+point)."""
+
+
 def previous_arrival_radius(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray,
-                            f: float, r: float) -> tuple[float, list[np.ndarray]] | None:
+                            f: float, r: float, max_iterations: int | None = None
+                            ) -> tuple[float, list[np.ndarray]] | None:
     """Spectral radius of the second-moment map with gains chosen by the previous arrival
     (the coupled Riccati gains of :func:`kfcrit.theory.links.burstcov.previous_arrival_gains`),
     and those gains; None when the Riccati iteration diverges.
@@ -484,7 +491,9 @@ def previous_arrival_radius(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.n
 
     T = np.array([[1.0 - r, r], [f, 1.0 - f]])
     pi = np.array([f, r]) / (f + r)
-    gains = burstcov.previous_arrival_gains(A, C, Q, R, T, pi)
+    gains = burstcov.previous_arrival_gains(
+        A, C, Q, R, T, pi, **({} if max_iterations is None else
+                              {"max_iterations": max_iterations}))
     if gains is None:
         return None
     G = pairgain.transition_maps(A, C, gains)
@@ -692,7 +701,8 @@ def certificate_feasible(A: np.ndarray, C: np.ndarray, f: float, r: float,
         except (np.linalg.LinAlgError, ValueError):
             continue
     if noise is not None:
-        found = previous_arrival_radius(A, C, noise[0], noise[1], f, r)
+        found = previous_arrival_radius(A, C, noise[0], noise[1], f, r,
+                                        max_iterations=CURVE_RICCATI_ITERATIONS)
         return found is not None and found[0] < 1
     return False
 

@@ -116,8 +116,9 @@ def link_design_view(rec: AnalysisRecord) -> dict[str, Any] | None:
                         f"({prose(cond.status) or 'status unknown'})"}
     dc = lb.design_check
     req = lb.required_arrival_probability
-    parts = [f"link margin {filters.unit(stated(lb.link_margin_db), 'dB')} at "
-             f"{filters.unit(dc.distance_m, 'm')}"]
+    margin = ("unbounded" if dc.margin_unbounded
+              else filters.unit(stated(lb.link_margin_db), 'dB'))
+    parts = [f"link margin {margin} at {filters.unit(dc.distance_m, 'm')}"]
     if dc.required_margin_db is not None:
         parts[0] += f" (policy needs {filters.unit(dc.required_margin_db, 'dB')})"
     if stated(req.accuracy) is not None:
@@ -165,6 +166,11 @@ def link_chain(link: LinkState) -> list[tuple[str, Any, str]]:
             ("arrival probability used (operating p)", link.arrival_probability, "prob")]
 
 
+UNBOUNDED_MARGIN = ("the requirement is p > 0 (p_c = 0), which every SINR meets, so any "
+                    "margin policy is met")
+"""Note of the link-margin row when the margin is unbounded (``design_check.margin_unbounded``)."""
+
+
 THRESHOLD_LABELS = {"critical_value": "critical value p_c",
                     "robust_critical_value": "robust critical value",
                     "bracket_low": "lower end of the p_c bracket",
@@ -191,7 +197,9 @@ def link_budget_view(lb: LinkBudgetRecord) -> dict[str, Any]:
         row("link margin at the configured distance", stated(lb.link_margin_db), "dB",
             note=(f"policy needs ≥ {filters.unit(dc.required_margin_db, 'dB')}"
                   if dc.required_margin_db is not None else ""),
-            status=dc.margin_policy_met),
+            status=dc.margin_policy_met) if not dc.margin_unbounded else
+        row("link margin at the configured distance", "unbounded", "text",
+            note=UNBOUNDED_MARGIN, status=True),
         row("effective margin of the policy", policy.effective_margin_db, "dB",
             note=f"max({filters.unit(policy.margin_db, 'dB')}, σ·Φ⁻¹(1 − "
                  f"{filters.pct(policy.max_outage)}))"
