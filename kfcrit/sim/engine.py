@@ -38,6 +38,7 @@ from kfcrit.sim.arrivals import (
     process_arrays,
     trace_offsets,
 )
+from kfcrit.sim.batched import BATCHED_MIN_STATES, arrivals_of, batched_ergodic, batched_paths
 from kfcrit.sim.kernels import LANES, ergodic_paths, rre_paths
 from kfcrit.sim.results import DEFAULT_SAMPLES, ErgodicResult, FullStateResult, SimulationResult
 from kfcrit.sim.stats import LN10, accumulate, accumulate_log, column_stats, quiet_numerics
@@ -294,6 +295,32 @@ def _advance(fixed: tuple, chan_args: tuple, times: np.ndarray, lmax_index: np.n
               part.out_ltr, part.out_lm, part.out_llm, part.out_div, part.out_fail, part.traces)
 
 
+BATCHED_MEMORY = 256 * 2**20
+"""Bytes of path state (about six n×n float64 arrays per path) one batched call may hold."""
+
+
+def batched_width(n: int) -> int:
+    """Paths advanced together by one batched BLAS-3 call at n states (memory-bounded)."""
+    return max(1, int(BATCHED_MEMORY // (48 * n * n)))
+
+
+def _advance_batched(fixed: tuple, process: tuple, times: np.ndarray, lmax_index: np.ndarray,
+                     threshold: float, part: _Part, steps: int) -> None:
+    """The paths of ``part`` over all ``steps`` by :func:`kfcrit.sim.batched.batched_paths`, in
+    groups of :func:`batched_width` paths (a path's values do not depend on its group)."""
+    A, C, Q, R, P0 = fixed
+    kind, p, f, r, seq = process
+    B = part.stop - part.start
+    width = batched_width(A.shape[0])
+    for a in range(0, B, width):
+        b = min(a + width, B)
+        gamma = arrivals_of(part.keys[0, a:b], part.offsets[0, a:b], kind, p, f, r, seq, steps)
+        k_tr = max(0, min(part.traces.shape[0] - a, b - a))
+        batched_paths(A, C, Q, R, P0, gamma, times, lmax_index, threshold, part.out_tr[a:b],
+                      part.out_ltr[a:b], part.out_lm[a:b], part.out_llm[a:b], part.out_div[a:b],
+                      part.out_fail[a:b], part.traces[a:a + k_tr])
+
+
 def check_sizes(paths: int, steps: int, seed: int) -> None:
     for name, v, lo in (("paths", paths, 1), ("steps", steps, 1), ("seed", seed, 0)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
@@ -446,7 +473,9 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     div_times = np.empty(paths, dtype=np.int64)
     fail_times = np.empty(paths, dtype=np.int64)
     batch_size = max(int(batch_size), 1)
-    workers = resolve_threads(threads, float(n * n) * paths * steps)
+    # large n: batched BLAS-3 steps (the BLAS library uses the cores; one worker thread)
+    batched = n >= BATCHED_MIN_STATES and sensors is None and progress is None
+    workers = 1 if batched else resolve_threads(threads, float(n * n) * paths * steps)
     total = paths * steps
     fixed = (A, C, Q, R, P0)
     chan_args = tuple(kernel_array(a) for a in (link.kinds, link.ps, link.fs, link.rs, link.seqs,
@@ -455,14 +484,19 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         for start in range(0, paths, batch_size):
             stop = min(start + batch_size, paths)
             B = stop - start
-            parts = [_Part.new(seed, a, b, link.seq_len, n, S, SL, traces, n_traced)
+            parts = [_Part.new(seed, a, b, link.seq_len, 1 if batched else n, S, SL, traces,
+                               n_traced)
                      for a, b in split_lanes(start, stop, workers)]
             # in time chunks when progress is reported (the chunking does not change the numbers)
             chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
             for t0 in range(0, steps, chunk):
                 t1 = min(t0 + chunk, steps)
                 calls = [(part, t0, t1) for part in parts]
-                if pool is None or len(parts) == 1:
+                if batched:
+                    for part in parts:
+                        _advance_batched(fixed, (kind, p, f, r, kernel_array(seq)), times,
+                                         lmax_index, threshold, part, steps)
+                elif pool is None or len(parts) == 1:
                     for call in calls:
                         _advance(fixed, chan_args, times, lmax_index, threshold, *call)
                 else:
@@ -675,10 +709,16 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     losses = np.zeros(replicas, dtype=np.int64)
     longest = np.zeros(replicas, dtype=np.int64)
     seq = kernel_array(seq)
-    ergodic_paths(A, C, Q, R, P0, keys, trace_offsets(keys, seq.size), kind, p, f, r, seq,
-                   steps, burn, lv, max_burst,
-                   n_batches, threshold, sums, exceed, batch_sums, burst_count, burst_trace,
-                   block_max, block_min, div, losses, longest)
+    if system.n >= BATCHED_MIN_STATES:
+        gamma = arrivals_of(keys, trace_offsets(keys, seq.size), kind, p, f, r, seq, steps)
+        batched_ergodic(A, C, Q, R, P0, gamma, burn, lv, max_burst, n_batches, threshold, sums,
+                        exceed, batch_sums, burst_count, burst_trace, block_max, block_min, div,
+                        losses, longest)
+    else:
+        ergodic_paths(A, C, Q, R, P0, keys, trace_offsets(keys, seq.size), kind, p, f, r, seq,
+                      steps, burn, lv, max_burst, n_batches, threshold, sums, exceed,
+                      batch_sums, burst_count, burst_trace, block_max, block_min, div, losses,
+                      longest)
     end = np.where(div >= 0, div - 1, steps)
     used = np.maximum(end - burn, 0).astype(float)
     expected = None
