@@ -16,7 +16,6 @@ from kfcrit.sim.engine import ergodic, simulate
 from kfcrit.sim.results import DEFAULT_SAMPLES
 from kfcrit.sim.stats import quiet_numerics
 
-
 LARGE_STATES = 40
 """Above this many states the simulation has fixed, smaller sizes (:meth:`Budget.for_system`):
 each path-step costs O(n³) (batched BLAS-3, :mod:`kfcrit.sim.batched`)."""

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.theory.covariance.mare import mare_enclosure
 from kfcrit.theory.covariance.riccati import (
     g,
     optimal_gain,
@@ -34,7 +35,6 @@ from kfcrit.theory.covariance.riccati import (
     stein_matrix,
     symmetrize,
 )
-from kfcrit.theory.covariance.mare import mare_enclosure
 from kfcrit.theory.critical import plow
 from kfcrit.theory.upper import bracket as upper_module
 

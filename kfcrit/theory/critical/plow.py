@@ -23,7 +23,6 @@ import sympy as sp
 from kfcrit.model.system import System
 from kfcrit.theory.upper import certify
 
-
 ENCLOSURE_MAX_STATES = 60
 """Largest n whose p_low is enclosed rigorously (exact characteristic polynomial or balls);
 above it float64 eigenvalues widened by 1e-12 relative, labelled not rigorous."""
