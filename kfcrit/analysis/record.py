@@ -635,37 +635,53 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
             "trace_upper": [None] * len(grid), "markers": markers,
             "warnings": [f"V̄ {NOT_DETECTABLE}"]}
         return
-    try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
-        if markers["operating"] is not None:
-            cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
-            if spec.channel is not None and spec.channel.model == "gilbert-elliott":
-                from kfcrit.theory.links.burstcov import markov_jump_bounds
+    from kfcrit.theory.covariance.riccati import single_blas_thread
 
-                cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
-                                                       float(spec.channel.recovery_rate)
-                                                       ).to_dict()
-            sec["covariance_bounds"] = cb
-            warnings.extend(cb.get("warnings") or [])
-            if curves:
-                sec["static_gain"] = bounds.static_gain(s, markers["operating"], upper=upper)
-        if not curves:
-            return
-        if quick and s.n > bounds.LARGE_STATES:   # iteration budgets, stated in the curve
-            pt = bounds.phase_transition(s, markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
-                                         time_budget=QUICK_PHASE_SECONDS, upper=upper,
-                                         iteration_budget=bounds.LARGE_QUICK_PHASE_ITERATIONS)
-        elif quick and s.n > 20:
-            pt = bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
-                                         upper=upper)
-        else:
-            pt = bounds.phase_transition(s, markers, upper=upper)
+    try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
+        with single_blas_thread():
+            pt = _bounds_and_curves(spec, s, sec, markers, warnings, curves, quick, upper)
     except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
         warnings.append("covariance bounds and phase transition not computed: numerical "
                         f"failure ({type(exc).__name__}: {str(exc)[:120]})")
         return
+    if pt is None:
+        return
     sec["phase_transition"] = pt
     if (pt.get("limits") or {}).get("stopped"):
         warnings.append(f"phase-transition curve incomplete: {pt['limits']['stopped']}")
+
+
+def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
+                       markers: dict[str, Any], warnings: list[str], curves: bool, quick: bool,
+                       upper: Any) -> dict[str, Any] | None:
+    """Covariance bounds at the operating point (and static gains) into ``sec``; the
+    phase-transition curve returned (None without ``curves``)."""
+    from kfcrit.theory.covariance import bounds
+
+    if markers["operating"] is not None:
+        cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
+        if spec.channel is not None and spec.channel.model == "gilbert-elliott":
+            from kfcrit.theory.links.burstcov import markov_jump_bounds
+
+            cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
+                                                   float(spec.channel.recovery_rate)
+                                                   ).to_dict()
+        sec["covariance_bounds"] = cb
+        warnings.extend(cb.get("warnings") or [])
+        if curves:
+            sec["static_gain"] = bounds.static_gain(s, markers["operating"], upper=upper)
+    if not curves:
+        return None
+    if quick and s.n > bounds.LARGE_STATES:   # iteration budgets, stated in the curve
+        pt = bounds.phase_transition(s, markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
+                                     time_budget=QUICK_PHASE_SECONDS, upper=upper,
+                                     iteration_budget=bounds.LARGE_QUICK_PHASE_ITERATIONS)
+    elif quick and s.n > 20:
+        pt = bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
+                                     upper=upper)
+    else:
+        pt = bounds.phase_transition(s, markers, upper=upper)
+    return pt
 
 
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],

@@ -38,10 +38,16 @@ from kfcrit.sim.arrivals import (
     process_arrays,
     trace_offsets,
 )
-from kfcrit.sim.batched import BATCHED_MIN_STATES, arrivals_of, batched_ergodic, batched_paths
+from kfcrit.sim.batched import (
+    BATCHED_MIN_STATES,
+    arrivals_of,
+    batched_ergodic,
+    batched_paths,
+)
 from kfcrit.sim.kernels import LANES, ergodic_paths, rre_paths
 from kfcrit.sim.results import DEFAULT_SAMPLES, ErgodicResult, FullStateResult, SimulationResult
 from kfcrit.sim.stats import LN10, accumulate, accumulate_log, column_stats, quiet_numerics
+from kfcrit.theory.covariance.riccati import single_blas_thread
 
 THRESHOLD_FACTOR = 1e10
 MAX_THRESHOLD = 1e300
@@ -170,6 +176,13 @@ def split_lanes(start: int, stop: int, parts: int) -> list[tuple[int, int]]:
     blocks = -(-(stop - start) // LANES)
     per = -(-blocks // max(1, min(parts, blocks)))
     edges = list(range(start, stop, per * LANES)) + [stop]
+    return list(zip(edges[:-1], edges[1:], strict=True))
+
+
+def split_paths(start: int, stop: int, parts: int) -> list[tuple[int, int]]:
+    """Cut paths ``start … stop−1`` into ≤ ``parts`` consecutive ranges of nearly equal size."""
+    parts = max(1, min(parts, stop - start))
+    edges = [start + (stop - start) * k // parts for k in range(parts + 1)]
     return list(zip(edges[:-1], edges[1:], strict=True))
 
 
@@ -473,9 +486,9 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     div_times = np.empty(paths, dtype=np.int64)
     fail_times = np.empty(paths, dtype=np.int64)
     batch_size = max(int(batch_size), 1)
-    # large n: batched BLAS-3 steps (the BLAS library uses the cores; one worker thread)
+    # large n: batched BLAS-3 steps, the paths shared between the workers (one BLAS thread each)
     batched = n >= BATCHED_MIN_STATES and sensors is None and progress is None
-    workers = 1 if batched else resolve_threads(threads, float(n * n) * paths * steps)
+    workers = resolve_threads(threads, float(n * n) * paths * steps)
     total = paths * steps
     fixed = (A, C, Q, R, P0)
     chan_args = tuple(kernel_array(a) for a in (link.kinds, link.ps, link.fs, link.rs, link.seqs,
@@ -484,18 +497,25 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         for start in range(0, paths, batch_size):
             stop = min(start + batch_size, paths)
             B = stop - start
+            ranges = (split_paths(start, stop, workers) if batched
+                      else split_lanes(start, stop, workers))
             parts = [_Part.new(seed, a, b, link.seq_len, 1 if batched else n, S, SL, traces,
-                               n_traced)
-                     for a, b in split_lanes(start, stop, workers)]
+                               n_traced) for a, b in ranges]
             # in time chunks when progress is reported (the chunking does not change the numbers)
             chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
             for t0 in range(0, steps, chunk):
                 t1 = min(t0 + chunk, steps)
                 calls = [(part, t0, t1) for part in parts]
                 if batched:
-                    for part in parts:
-                        _advance_batched(fixed, (kind, p, f, r, kernel_array(seq)), times,
-                                         lmax_index, threshold, part, steps)
+                    run = [(fixed, (kind, p, f, r, kernel_array(seq)), times, lmax_index,
+                            threshold, part, steps) for part in parts]
+                    with single_blas_thread():
+                        if pool is None or len(parts) == 1:
+                            for call in run:
+                                _advance_batched(*call)
+                        else:
+                            for fut in [pool.submit(_advance_batched, *call) for call in run]:
+                                fut.result()
                 elif pool is None or len(parts) == 1:
                     for call in calls:
                         _advance(fixed, chan_args, times, lmax_index, threshold, *call)
@@ -711,9 +731,17 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     seq = kernel_array(seq)
     if system.n >= BATCHED_MIN_STATES:
         gamma = arrivals_of(keys, trace_offsets(keys, seq.size), kind, p, f, r, seq, steps)
-        batched_ergodic(A, C, Q, R, P0, gamma, burn, lv, max_burst, n_batches, threshold, sums,
-                        exceed, batch_sums, burst_count, burst_trace, block_max, block_min, div,
-                        losses, longest)
+        outs = (sums, exceed, batch_sums, burst_count, burst_trace, block_max, block_min, div,
+                losses, longest)
+        ranges = split_paths(0, replicas, resolve_threads(None, float(system.n) ** 2 * steps
+                                                          * replicas))
+
+        def run(a: int, b: int) -> None:
+            batched_ergodic(A, C, Q, R, P0, gamma[a:b], burn, lv, max_burst, n_batches,
+                            threshold, *(o[a:b] for o in outs))
+        with single_blas_thread(), ThreadPoolExecutor(len(ranges)) as pool:
+            for fut in [pool.submit(run, a, b) for a, b in ranges]:
+                fut.result()
     else:
         ergodic_paths(A, C, Q, R, P0, keys, trace_offsets(keys, seq.size), kind, p, f, r, seq,
                       steps, burn, lv, max_burst, n_batches, threshold, sums, exceed,

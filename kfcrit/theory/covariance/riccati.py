@@ -12,6 +12,11 @@ Invariant: every map returns an exactly symmetric matrix (we symmetrise what we 
 """
 from __future__ import annotations
 
+import ctypes
+import functools
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import numpy as np
 
 
@@ -128,3 +133,50 @@ def solve_generalized_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: floa
     L = stein_matrix(A, C, K, p)
     x = np.linalg.solve(np.eye(L.shape[0]) - L, vech(symmetrize(W)))
     return unvech(x, n)
+
+
+# ---------------------------------------------------------------------------------------------
+# BLAS threads
+# ---------------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=1)
+def _openblas() -> tuple[object, object] | None:
+    """(get, set) of the thread count of the OpenBLAS that NumPy loaded, or None (another BLAS,
+    or not found): read once per process from the shared objects mapped into it."""
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = sorted({line.split()[-1] for line in fh if "openblas" in line.lower()
+                            and line.split()[-1].startswith("/")})
+    except OSError:
+        return None
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for get, put in (("scipy_openblas_get_num_threads64_", "scipy_openblas_set_num_threads64_"),
+                         ("openblas_get_num_threads64_", "openblas_set_num_threads64_"),
+                         ("openblas_get_num_threads", "openblas_set_num_threads")):
+            if hasattr(lib, get) and hasattr(lib, put):
+                return getattr(lib, get), getattr(lib, put)
+    return None
+
+
+@contextmanager
+def single_blas_thread() -> Iterator[None]:
+    """NumPy's OpenBLAS on one thread inside the block (restored after; a no-op when it cannot be
+    found). For products of a few hundred rows (large-system Riccati steps, Stein solves):
+    OpenBLAS threads waiting for a busy core (a loaded machine) cost more CPU time than they
+    save there; parallel work is shared between worker threads instead."""
+    fns = _openblas()
+    if fns is None:
+        yield
+        return
+    get, put = fns
+    before = int(get())
+    put(1)
+    try:
+        yield
+    finally:
+        put(before)
