@@ -618,6 +618,10 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
             gains.append(optimal_gain(A, C, R, V))
     if stopped:
         warnings.append(stopped)
+    if ub.value is None:
+        warnings.append("V̄ curve not computed: p_up has no value (its bracket "
+                        f"[{ub.interval[0]:.12g}, {ub.interval[1]:.12g}] was not narrowed), so "
+                        "where V̄ exists is not known")
     return {"p": [float(v) for v in grid], "trace_lower": trace_lower,
             "trace_upper": trace_upper, "markers": {**markers, "p_low": p_low, "p_up": p_up},
             "warnings": warnings,
