@@ -339,14 +339,17 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
     enter Ψ_p, theory §3), so a sweep over noise parameters computes it once.
     """
+    from kfcrit.theory.covariance.riccati import single_blas_thread
     from kfcrit.theory.critical import section as critical
     from kfcrit.theory.structure.eigen import structure_of
     from kfcrit.theory.upper import bracket as upper
 
     opts = options or AnalysisOptions()
-    structure = structure_of(system, opts.tolerance)
-    crit = critical.critical_value(system, opts.tolerance, channel=channel, structure=structure,
-                                   robust=not (opts.quick and system.n > QUICK_ROBUST_MAX_STATES))
+    with single_blas_thread():   # many small dense problems: BLAS threads only wait
+        structure = structure_of(system, opts.tolerance)
+        crit = critical.critical_value(system, opts.tolerance, channel=channel,
+                                       structure=structure, robust=not (
+                                           opts.quick and system.n > QUICK_ROBUST_MAX_STATES))
     d = crit.to_dict()
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])

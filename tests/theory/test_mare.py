@@ -115,3 +115,12 @@ def test_large_operating_point_vbar_is_certified(n):
     ref = _plain_vbar(s.a, s.c, s.q, s.r, 0.95)
     lo, hi = up["certificate"]["trace_interval"]
     assert lo <= np.trace(ref) <= hi
+
+
+def test_single_blas_thread_restores_the_thread_counts():
+    from kfcrit.theory.covariance.riccati import _openblas, single_blas_thread
+
+    before = [int(get()) for get, _ in _openblas()]
+    with single_blas_thread():
+        assert all(int(get()) == 1 for get, _ in _openblas())
+    assert [int(get()) for get, _ in _openblas()] == before
