@@ -118,9 +118,9 @@ def test_large_operating_point_vbar_is_certified(n):
 
 
 def test_single_blas_thread_restores_the_thread_counts():
-    from kfcrit.theory.covariance.riccati import _openblas, single_blas_thread
+    from kfcrit.theory.covariance.riccati import openblas_thread_controls, single_blas_thread
 
-    before = [int(get()) for get, _ in _openblas()]
+    before = [int(get()) for get, _ in openblas_thread_controls()]
     with single_blas_thread():
-        assert all(int(get()) == 1 for get, _ in _openblas())
-    assert [int(get()) for get, _ in _openblas()] == before
+        assert all(int(get()) == 1 for get, _ in openblas_thread_controls())
+    assert [int(get()) for get, _ in openblas_thread_controls()] == before

@@ -141,7 +141,7 @@ def solve_generalized_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: floa
 # ---------------------------------------------------------------------------------------------
 
 
-def _openblas() -> tuple[tuple[Any, Any], ...]:
+def openblas_thread_controls() -> tuple[tuple[Any, Any], ...]:
     """(get, set) of the thread count of every OpenBLAS mapped into this process (NumPy's and
     SciPy's each bring one); empty when none is found."""
     try:
@@ -175,7 +175,7 @@ def single_blas_thread() -> Iterator[None]:
     when none is found). For products of a few hundred rows (large-system Riccati steps, Stein solves):
     OpenBLAS threads waiting for a busy core (a loaded machine) cost more CPU time than they
     save there; parallel work is shared between worker threads instead."""
-    fns = _openblas()
+    fns = openblas_thread_controls()
     before = [int(get()) for get, _ in fns]
     for _, put in fns:
         put(1)
