@@ -339,14 +339,17 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
     enter Ψ_p, theory §3), so a sweep over noise parameters computes it once.
     """
+    from kfcrit.theory.covariance.riccati import single_blas_thread
     from kfcrit.theory.critical import section as critical
     from kfcrit.theory.structure.eigen import structure_of
     from kfcrit.theory.upper import bracket as upper
 
     opts = options or AnalysisOptions()
-    structure = structure_of(system, opts.tolerance)
-    crit = critical.critical_value(system, opts.tolerance, channel=channel, structure=structure,
-                                   robust=not (opts.quick and system.n > QUICK_ROBUST_MAX_STATES))
+    with single_blas_thread():   # many small dense problems: BLAS threads only wait
+        structure = structure_of(system, opts.tolerance)
+        crit = critical.critical_value(system, opts.tolerance, channel=channel,
+                                       structure=structure, robust=not (
+                                           opts.quick and system.n > QUICK_ROBUST_MAX_STATES))
     d = crit.to_dict()
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])
@@ -635,31 +638,53 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
             "trace_upper": [None] * len(grid), "markers": markers,
             "warnings": [f"V̄ {NOT_DETECTABLE}"]}
         return
-    try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
-        if markers["operating"] is not None:
-            cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
-            if spec.channel is not None and spec.channel.model == "gilbert-elliott":
-                from kfcrit.theory.links.burstcov import markov_jump_bounds
+    from kfcrit.theory.covariance.riccati import single_blas_thread
 
-                cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
-                                                       float(spec.channel.recovery_rate)
-                                                       ).to_dict()
-            sec["covariance_bounds"] = cb
-            warnings.extend(cb.get("warnings") or [])
-            if curves:
-                sec["static_gain"] = bounds.static_gain(s, markers["operating"], upper=upper)
-        if not curves:
-            return
-        pt = (bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
-                                      upper=upper)
-              if quick and s.n > 20 else bounds.phase_transition(s, markers, upper=upper))
+    try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
+        with single_blas_thread():
+            pt = _bounds_and_curves(spec, s, sec, markers, warnings, curves, quick, upper)
     except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
         warnings.append("covariance bounds and phase transition not computed: numerical "
                         f"failure ({type(exc).__name__}: {str(exc)[:120]})")
         return
+    if pt is None:
+        return
     sec["phase_transition"] = pt
     if (pt.get("limits") or {}).get("stopped"):
         warnings.append(f"phase-transition curve incomplete: {pt['limits']['stopped']}")
+
+
+def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
+                       markers: dict[str, Any], warnings: list[str], curves: bool, quick: bool,
+                       upper: Any) -> dict[str, Any] | None:
+    """Covariance bounds at the operating point (and static gains) into ``sec``; the
+    phase-transition curve returned (None without ``curves``)."""
+    from kfcrit.theory.covariance import bounds
+
+    if markers["operating"] is not None:
+        cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
+        if spec.channel is not None and spec.channel.model == "gilbert-elliott":
+            from kfcrit.theory.links.burstcov import markov_jump_bounds
+
+            cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
+                                                   float(spec.channel.recovery_rate)
+                                                   ).to_dict()
+        sec["covariance_bounds"] = cb
+        warnings.extend(cb.get("warnings") or [])
+        if curves:
+            sec["static_gain"] = bounds.static_gain(s, markers["operating"], upper=upper)
+    if not curves:
+        return None
+    if quick and s.n > bounds.LARGE_STATES:   # iteration budgets, stated in the curve
+        pt = bounds.phase_transition(s, markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
+                                     time_budget=QUICK_PHASE_SECONDS, upper=upper,
+                                     iteration_budget=bounds.LARGE_QUICK_PHASE_ITERATIONS)
+    elif quick and s.n > 20:
+        pt = bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
+                                     upper=upper)
+    else:
+        pt = bounds.phase_transition(s, markers, upper=upper)
+    return pt
 
 
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
@@ -850,6 +875,19 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
         checks.append({"check": "covariance bounds ordered: S̄ ⪯ V̄",
                        "passed": cb.get("ordered"),
                        "detail": f"MARE residual {((cb.get('upper') or {}).get('residual'))}"})
+        cup = cb.get("upper") or {}
+        if "certified" in cup:
+            enc = cup.get("certificate") or {}
+            checks.append({
+                "check": "V̄ enclosed: (1 − ε)V ⪯ V̄ ⪯ (1 + ε)V (verified float64, theory §3)",
+                "passed": True if cup["certified"] else None,
+                "status": "passed" if cup["certified"] else "inconclusive",
+                "detail": (f"ε = {enc['relative_width']:g}, tr V̄ in "
+                           f"[{enc['trace_interval'][0]:.10g}, {enc['trace_interval'][1]:.10g}]"
+                           if cup["certified"] else "no enclosure proven"),
+                **({} if cup["certified"] else
+                   {"reason": "the solver's V̄ could not be enclosed (Q singular, or V̄ not "
+                              "converged); it rests on its residual"})})
     sim = sec.get("simulation") or {}
     for c in sim.get("checks") or []:
         checks.append(c)

@@ -38,9 +38,16 @@ from kfcrit.sim.arrivals import (
     process_arrays,
     trace_offsets,
 )
+from kfcrit.sim.batched import (
+    BATCHED_MIN_STATES,
+    arrivals_of,
+    batched_ergodic,
+    batched_paths,
+)
 from kfcrit.sim.kernels import LANES, ergodic_paths, rre_paths
 from kfcrit.sim.results import DEFAULT_SAMPLES, ErgodicResult, FullStateResult, SimulationResult
 from kfcrit.sim.stats import LN10, accumulate, accumulate_log, column_stats, quiet_numerics
+from kfcrit.theory.covariance.riccati import single_blas_thread
 
 THRESHOLD_FACTOR = 1e10
 MAX_THRESHOLD = 1e300
@@ -172,6 +179,13 @@ def split_lanes(start: int, stop: int, parts: int) -> list[tuple[int, int]]:
     return list(zip(edges[:-1], edges[1:], strict=True))
 
 
+def split_paths(start: int, stop: int, parts: int) -> list[tuple[int, int]]:
+    """Cut paths ``start … stop−1`` into ≤ ``parts`` consecutive ranges of nearly equal size."""
+    parts = max(1, min(parts, stop - start))
+    edges = [start + (stop - start) * k // parts for k in range(parts + 1)]
+    return list(zip(edges[:-1], edges[1:], strict=True))
+
+
 def lambda_max_schedule(times: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
     """Sample columns where λ_max is computed: (index per column or −1, the chosen times).
 
@@ -292,6 +306,32 @@ def _advance(fixed: tuple, chan_args: tuple, times: np.ndarray, lmax_index: np.n
     rre_paths(*fixed, part.keys, part.offsets, *chan_args, t0, t1, times, lmax_index, threshold,
               part.Xall, part.lg_all, part.sc_all, part.st_all, part.ch_all, part.out_tr,
               part.out_ltr, part.out_lm, part.out_llm, part.out_div, part.out_fail, part.traces)
+
+
+BATCHED_MEMORY = 256 * 2**20
+"""Bytes of path state (about six n×n float64 arrays per path) one batched call may hold."""
+
+
+def batched_width(n: int) -> int:
+    """Paths advanced together by one batched BLAS-3 call at n states (memory-bounded)."""
+    return max(1, int(BATCHED_MEMORY // (48 * n * n)))
+
+
+def _advance_batched(fixed: tuple, process: tuple, times: np.ndarray, lmax_index: np.ndarray,
+                     threshold: float, part: _Part, steps: int) -> None:
+    """The paths of ``part`` over all ``steps`` by :func:`kfcrit.sim.batched.batched_paths`, in
+    groups of :func:`batched_width` paths (a path's values do not depend on its group)."""
+    A, C, Q, R, P0 = fixed
+    kind, p, f, r, seq = process
+    B = part.stop - part.start
+    width = batched_width(A.shape[0])
+    for a in range(0, B, width):
+        b = min(a + width, B)
+        gamma = arrivals_of(part.keys[0, a:b], part.offsets[0, a:b], kind, p, f, r, seq, steps)
+        k_tr = max(0, min(part.traces.shape[0] - a, b - a))
+        batched_paths(A, C, Q, R, P0, gamma, times, lmax_index, threshold, part.out_tr[a:b],
+                      part.out_ltr[a:b], part.out_lm[a:b], part.out_llm[a:b], part.out_div[a:b],
+                      part.out_fail[a:b], part.traces[a:a + k_tr])
 
 
 def check_sizes(paths: int, steps: int, seed: int) -> None:
@@ -446,6 +486,8 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
     div_times = np.empty(paths, dtype=np.int64)
     fail_times = np.empty(paths, dtype=np.int64)
     batch_size = max(int(batch_size), 1)
+    # large n: batched BLAS-3 steps, the paths shared between the workers (one BLAS thread each)
+    batched = n >= BATCHED_MIN_STATES and sensors is None and progress is None
     workers = resolve_threads(threads, float(n * n) * paths * steps)
     total = paths * steps
     fixed = (A, C, Q, R, P0)
@@ -455,14 +497,26 @@ def simulate(system: Any, paths: int, steps: int, seed: int, channel: Channel | 
         for start in range(0, paths, batch_size):
             stop = min(start + batch_size, paths)
             B = stop - start
-            parts = [_Part.new(seed, a, b, link.seq_len, n, S, SL, traces, n_traced)
-                     for a, b in split_lanes(start, stop, workers)]
+            ranges = (split_paths(start, stop, workers) if batched
+                      else split_lanes(start, stop, workers))
+            parts = [_Part.new(seed, a, b, link.seq_len, 1 if batched else n, S, SL, traces,
+                               n_traced) for a, b in ranges]
             # in time chunks when progress is reported (the chunking does not change the numbers)
             chunk = steps if progress is None else max(1, int(PROGRESS_WORK // max(B * n * n, 1)))
             for t0 in range(0, steps, chunk):
                 t1 = min(t0 + chunk, steps)
                 calls = [(part, t0, t1) for part in parts]
-                if pool is None or len(parts) == 1:
+                if batched:
+                    run = [(fixed, (kind, p, f, r, kernel_array(seq)), times, lmax_index,
+                            threshold, part, steps) for part in parts]
+                    with single_blas_thread():
+                        if pool is None or len(parts) == 1:
+                            for call in run:
+                                _advance_batched(*call)
+                        else:
+                            for fut in [pool.submit(_advance_batched, *call) for call in run]:
+                                fut.result()
+                elif pool is None or len(parts) == 1:
                     for call in calls:
                         _advance(fixed, chan_args, times, lmax_index, threshold, *call)
                 else:
@@ -675,10 +729,24 @@ def ergodic(system: Any, steps: int, seed: int, channel: Channel | None = None,
     losses = np.zeros(replicas, dtype=np.int64)
     longest = np.zeros(replicas, dtype=np.int64)
     seq = kernel_array(seq)
-    ergodic_paths(A, C, Q, R, P0, keys, trace_offsets(keys, seq.size), kind, p, f, r, seq,
-                   steps, burn, lv, max_burst,
-                   n_batches, threshold, sums, exceed, batch_sums, burst_count, burst_trace,
-                   block_max, block_min, div, losses, longest)
+    if system.n >= BATCHED_MIN_STATES:
+        gamma = arrivals_of(keys, trace_offsets(keys, seq.size), kind, p, f, r, seq, steps)
+        outs = (sums, exceed, batch_sums, burst_count, burst_trace, block_max, block_min, div,
+                losses, longest)
+        ranges = split_paths(0, replicas, resolve_threads(None, float(system.n) ** 2 * steps
+                                                          * replicas))
+
+        def run(a: int, b: int) -> None:
+            batched_ergodic(A, C, Q, R, P0, gamma[a:b], burn, lv, max_burst, n_batches,
+                            threshold, *(o[a:b] for o in outs))
+        with single_blas_thread(), ThreadPoolExecutor(len(ranges)) as pool:
+            for fut in [pool.submit(run, a, b) for a, b in ranges]:
+                fut.result()
+    else:
+        ergodic_paths(A, C, Q, R, P0, keys, trace_offsets(keys, seq.size), kind, p, f, r, seq,
+                      steps, burn, lv, max_burst, n_batches, threshold, sums, exceed,
+                      batch_sums, burst_count, burst_trace, block_max, block_min, div, losses,
+                      longest)
     end = np.where(div >= 0, div - 1, steps)
     used = np.maximum(end - burn, 0).astype(float)
     expected = None

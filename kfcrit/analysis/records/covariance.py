@@ -11,6 +11,17 @@ from kfcrit.io.typed import opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
+class MareEnclosure:
+    """`covariance_bounds.upper.certificate`: a verified enclosure (1 − ε)V ⪯ V̄ ⪯ (1 + ε)V."""
+
+    relative_width: float
+    trace_interval: list[float]
+    proves_p_above_p_up: bool
+    margins: list[float | None]
+    method: str
+
+
+@dataclass(frozen=True, kw_only=True)
 class CovarianceSummary:
     """`@CovarianceSummary`"""
 
@@ -24,6 +35,8 @@ class CovarianceSummary:
     computed: bool = opt_key()
     not_reached: bool = opt_key()
     beyond_float64: bool = opt_key()
+    certified: bool = opt_key()
+    certificate: MareEnclosure | None = opt_key()
 
 
 @dataclass(frozen=True, kw_only=True)

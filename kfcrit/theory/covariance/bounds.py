@@ -27,6 +27,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.theory.covariance.mare import mare_enclosure
 from kfcrit.theory.covariance.riccati import (
     g,
     optimal_gain,
@@ -50,6 +51,15 @@ PHASE_TIME_BUDGET = float(os.environ.get("KFCRIT_PHASE_TIME_BUDGET", "20"))
 ``warnings`` say where the curve stopped."""
 PHASE_ITERATION_CAP = 5000
 """Fixed-point iterations per grid point above :data:`PHASE_NEWTON_MAX_STATES`."""
+LARGE_STATES = 40
+"""Above this n the V̄ computations have iteration budgets (each MARE step costs O(n³)):
+:data:`LARGE_MARE_ITERATIONS` at the operating point, :data:`LARGE_PHASE_ITERATIONS` for the
+whole V̄ curve (``quick``: :data:`LARGE_QUICK_PHASE_ITERATIONS` over
+:data:`LARGE_QUICK_PHASE_POINTS` points); what they leave out is stated in the record."""
+LARGE_MARE_ITERATIONS = 5000
+LARGE_PHASE_ITERATIONS = 1200
+LARGE_QUICK_PHASE_ITERATIONS = 300
+LARGE_QUICK_PHASE_POINTS = 12
 
 
 def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
@@ -93,7 +103,8 @@ def _scaled_norm_ratio(D: np.ndarray, V: np.ndarray) -> float | None:
 # ---------------------------------------------------------------------------------------------
 
 
-def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | None:
+def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float,
+                     rho: float | None = None) -> np.ndarray | None:
     r"""S̄ = (1−p) A S̄ A' + Q, or None when (1−p) ρ(A)² ≥ 1 (no bounded solution).
 
     .. math::
@@ -110,6 +121,8 @@ def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | Non
         Plant matrix and process-noise covariance (float64).
     p : float
         Arrival probability.
+    rho : float, optional
+        ρ(A) when the caller has it (a curve over p computes it once: O(n³) per call).
 
     Returns
     -------
@@ -134,7 +147,8 @@ def lower_covariance(A: np.ndarray, Q: np.ndarray, p: float) -> np.ndarray | Non
     >>> lower_covariance(np.array([[2.0]]), np.array([[1.0]]), 0.5) is None
     True
     """
-    rho = float(max(abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    if rho is None:
+        rho = float(max(abs(np.linalg.eigvals(A)))) if A.size else 0.0
     if (1.0 - p) * rho**2 >= 1.0:
         return None
     M = np.sqrt(1.0 - p) * A
@@ -340,8 +354,11 @@ def upper_covariance(system: System, p: float, gains: list[np.ndarray] | None = 
             if V is not None:
                 return {"V": V, "method": "newton-kleinman (gain from the MARE iteration)",
                         "iterations": its_i + its, "residual": mare_residual(A, C, Q, R, V, p)}
-    V, its = mare_iteration(A, C, Q, R, p)
-    return {"V": V, "method": "mare-iteration", "iterations": its,
+    cap = LARGE_MARE_ITERATIONS if n > LARGE_STATES else 200_000
+    V, its = mare_iteration(A, C, Q, R, p, max_iterations=cap)
+    return {"V": V, "method": "mare-iteration" if V is not None or n <= LARGE_STATES else
+            f"mare-iteration (at most {cap} iterations for n = {n} > {LARGE_STATES})",
+            "iterations": its,
             "residual": None if V is None else mare_residual(A, C, Q, R, V, p)}
 
 
@@ -421,6 +438,9 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
                   "iterations": res["iterations"]}
         if V is None:
             out_up["not_reached"] = True
+        else:
+            enc = mare_enclosure(system.a, system.c, system.q, system.r, p, V)
+            out_up["certified"], out_up["certificate"] = enc is not None, enc
     ordered = None
     warnings: list[str] = []
     if S is not None and V is not None:
@@ -459,26 +479,27 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
 
 def _warm_fixed_point(A, C, Q, R, p: float, V0: np.ndarray | None, deadline: float,
                       rtol: float = 1e-9, blowup: float = 1e14,
-                      clock: Callable[[], float] = time.perf_counter) -> np.ndarray | None:
-    """V̄(p) by V_{t+1} = g_p(V_t) from V0 (0 if None), at most :data:`PHASE_ITERATION_CAP`
-    iterations and never past ``deadline`` on ``clock``; None if not reached.
+                      clock: Callable[[], float] = time.perf_counter,
+                      cap: int = PHASE_ITERATION_CAP) -> tuple[np.ndarray | None, int]:
+    """(V̄(p), iterations) by V_{t+1} = g_p(V_t) from V0 (0 if None), at most ``cap``
+    iterations and never past ``deadline`` on ``clock``; V̄ None if not reached.
 
     From V0 = V̄(p') with p' > p the iterates increase monotonically to V̄(p) (Lemma 1(c), (d)).
     """
     V = np.zeros_like(Q, dtype=float) if V0 is None else np.array(V0, dtype=float)
     with np.errstate(all="ignore"):
         scale = 1.0 + float(np.linalg.norm(g(A, C, Q, R, V, p)))
-        for t in range(PHASE_ITERATION_CAP):
+        for t in range(cap):
             Vn = g(A, C, Q, R, V, p)
             nv = float(np.linalg.norm(Vn))
             if not np.isfinite(nv) or nv > blowup * scale:
-                return None
+                return None, t + 1
             if float(np.linalg.norm(Vn - V)) <= rtol * nv:
-                return Vn
+                return Vn, t + 1
             V = Vn
             if t % 25 == 24 and clock() > deadline:
-                return None
-    return None
+                return None, t + 1
+    return None, cap
 
 
 def phase_points(n: int, points: int = 120) -> int:
@@ -502,8 +523,13 @@ def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarra
 def phase_transition(system: System, markers: dict[str, float | None] | None = None,
                      points: int = 120, time_budget: float | None = None,
                      clock: Callable[[], float] = time.perf_counter,
-                     upper: Any = None) -> dict[str, Any]:
+                     upper: Any = None, iteration_budget: int | None = None) -> dict[str, Any]:
     """tr S̄(p) and tr V̄(p) on a grid resolving the blow-ups at p_low and p_up.
+
+    ``iteration_budget`` bounds the fixed-point iterations of the whole V̄ curve (n above
+    :data:`PHASE_NEWTON_MAX_STATES`; default :data:`LARGE_PHASE_ITERATIONS` for n >
+    :data:`LARGE_STATES`, else unbounded): a count, so the curve does not depend on the
+    machine's speed; the points it leaves out are stated in ``warnings`` and ``limits``.
 
     ``clock`` measures the time budget (injectable, so that tests count work instead of
     reading the wall clock).
@@ -530,14 +556,18 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     n_points = phase_points(system.n, points)
     grid = phase_grid(p_low, p_up, n_points)
     trace_lower = []
+    rho = float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
     for p in grid:
-        S = lower_covariance(system.a, system.q, float(p))
+        S = lower_covariance(system.a, system.q, float(p), rho)
         trace_lower.append(None if S is None else float(np.trace(S)))
     trace_upper: list[float | None] = [None] * len(grid)
     gains = [ub.extras["K"]] if "K" in ub.extras else []
     warnings: list[str] = []
     A, C, Q, R = system.a, system.c, system.q, system.r
     newton = system.n <= PHASE_NEWTON_MAX_STATES
+    if iteration_budget is None and system.n > LARGE_STATES:
+        iteration_budget = LARGE_PHASE_ITERATIONS
+    left = iteration_budget
     t0 = clock()
     V_prev: np.ndarray | None = None
     stopped = None
@@ -545,6 +575,13 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
         p = float(grid[i])
         if p <= lo_up:
             continue
+        if left is not None and left <= 0 and not newton:
+            stopped = (f"the V̄ curve stopped at p = {p:.6g} after its budget of "
+                       f"{iteration_budget} fixed-point iterations (n = {system.n} > "
+                       f"{LARGE_STATES}: each costs O(n³)); "
+                       f"{sum(1 for v in grid[:i + 1] if v > lo_up)} points closer to p_up "
+                       "were not computed")
+            break
         if clock() - t0 > budget:
             stopped = (f"the V̄ curve stopped at p = {p:.6g} after the time budget of "
                        f"{budget:g} s (KFCRIT_PHASE_TIME_BUDGET); "
@@ -555,11 +592,20 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
             res = upper_covariance(system, p, gains[-1:], rtol=1e-10)   # curves: 1e-10
             V = res["V"]
         else:
-            V = _warm_fixed_point(A, C, Q, R, p, V_prev, t0 + budget, clock=clock)
-            res = {"method": f"fixed-point iteration, cap {PHASE_ITERATION_CAP} iterations "
+            cap = PHASE_ITERATION_CAP if left is None else min(PHASE_ITERATION_CAP, left)
+            V, used = _warm_fixed_point(A, C, Q, R, p, V_prev, t0 + budget, clock=clock, cap=cap)
+            if left is not None:
+                left -= used
+            res = {"method": f"fixed-point iteration, cap {cap} iterations "
                              "or the time budget"}
         if V is None:
             warnings.append(f"V at p = {p:.6g} not reached ({res['method']})")
+            if not newton and left is not None and left <= 0:
+                stopped = (f"the V̄ curve stopped at p = {p:.6g} after its budget of "
+                           f"{iteration_budget} fixed-point iterations (n = {system.n} > "
+                           f"{LARGE_STATES}: each costs O(n³)); points closer to p_up were "
+                           "not computed")
+                break
             if not newton:
                 stopped = (f"the V̄ curve stops at p = {p:.6g}: the warm-started fixed-point "
                            "iteration slows down towards p_up; points closer to p_up were "
@@ -572,6 +618,10 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
             gains.append(optimal_gain(A, C, R, V))
     if stopped:
         warnings.append(stopped)
+    if ub.value is None:
+        warnings.append("V̄ curve not computed: p_up has no value (its bracket "
+                        f"[{ub.interval[0]:.12g}, {ub.interval[1]:.12g}] was not narrowed), so "
+                        "where V̄ exists is not known")
     return {"p": [float(v) for v in grid], "trace_lower": trace_lower,
             "trace_upper": trace_upper, "markers": {**markers, "p_low": p_low, "p_up": p_up},
             "warnings": warnings,

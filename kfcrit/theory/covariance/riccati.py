@@ -12,6 +12,12 @@ Invariant: every map returns an exactly symmetric matrix (we symmetrise what we 
 """
 from __future__ import annotations
 
+import ctypes
+import functools
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
 import numpy as np
 
 
@@ -128,3 +134,53 @@ def solve_generalized_stein(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: floa
     L = stein_matrix(A, C, K, p)
     x = np.linalg.solve(np.eye(L.shape[0]) - L, vech(symmetrize(W)))
     return unvech(x, n)
+
+
+# ---------------------------------------------------------------------------------------------
+# BLAS threads
+# ---------------------------------------------------------------------------------------------
+
+
+def openblas_thread_controls() -> tuple[tuple[Any, Any], ...]:
+    """(get, set) of the thread count of every OpenBLAS mapped into this process (NumPy's and
+    SciPy's each bring one); empty when none is found."""
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = sorted({line.split()[-1] for line in fh if "openblas" in line.lower()
+                            and line.split()[-1].startswith("/")})
+    except OSError:
+        return ()
+    return tuple(fns for fns in map(_thread_functions, paths) if fns is not None)
+
+
+@functools.lru_cache(maxsize=8)
+def _thread_functions(path: str) -> tuple[Any, Any] | None:
+    """(get, set) of the OpenBLAS thread count in the shared object ``path`` (None: not one)."""
+    try:
+        lib = ctypes.CDLL(path)
+    except OSError:
+        return None
+    for get, put in (("scipy_openblas_get_num_threads64_", "scipy_openblas_set_num_threads64_"),
+                     ("scipy_openblas_get_num_threads", "scipy_openblas_set_num_threads"),
+                     ("openblas_get_num_threads64_", "openblas_set_num_threads64_"),
+                     ("openblas_get_num_threads", "openblas_set_num_threads")):
+        if hasattr(lib, get) and hasattr(lib, put):
+            return getattr(lib, get), getattr(lib, put)
+    return None
+
+
+@contextmanager
+def single_blas_thread() -> Iterator[None]:
+    """NumPy's and SciPy's OpenBLAS on one thread inside the block (restored after; a no-op
+    when none is found). For products of a few hundred rows (large-system Riccati steps, Stein solves):
+    OpenBLAS threads waiting for a busy core (a loaded machine) cost more CPU time than they
+    save there; parallel work is shared between worker threads instead."""
+    fns = openblas_thread_controls()
+    before = [int(get()) for get, _ in fns]
+    for _, put in fns:
+        put(1)
+    try:
+        yield
+    finally:
+        for (_, put), k in zip(fns, before):
+            put(k)

@@ -23,6 +23,10 @@ import sympy as sp
 from kfcrit.model.system import System
 from kfcrit.theory.upper import certify
 
+ENCLOSURE_MAX_STATES = 60
+"""Largest n whose p_low is enclosed rigorously (exact characteristic polynomial or balls);
+above it float64 eigenvalues widened by 1e-12 relative, labelled not rigorous."""
+
 
 def p_low_of(A: np.ndarray) -> float:
     """p_low = 1 − 1/ρ(A)² (0 when ρ(A) ≤ 1), Sinopoli Thm 3."""
@@ -67,7 +71,9 @@ def p_low_bounds(system: System, structure: Any | None = None) -> PLow:
     from_structure = p_low_from_structure(structure)
     if from_structure is not None:
         return from_structure
-    key = sp.srepr(system.A) if system.exact else (system.a.tobytes(), system.a.shape)
+    # above ENCLOSURE_MAX_STATES only the float view of A is read: key by it (no O(n²) srepr)
+    key = (sp.srepr(system.A) if system.exact and system.n <= ENCLOSURE_MAX_STATES
+           else (system.a.tobytes(), system.a.shape))
     return _enclosure_memo(_AKey(key, system))
 
 
@@ -123,7 +129,7 @@ def _p_low_enclosure(system: System) -> PLow:
         except (ValueError, TypeError, ArithmeticError):
             pass
     bounds = None
-    if n <= 60:
+    if n <= ENCLOSURE_MAX_STATES:
         if all(e.is_Rational for e in system.A):
             bounds = rational_rho2(system)
         if bounds is None:

@@ -169,6 +169,9 @@ def eigen_structure(system: System, force_numeric: bool = False,
         return numeric_structure(system, start, "numeric float64 path: binary floating-point "
                                   f"input with n > {EXACT_MAX_STATES_BINARY_FLOAT}; decisions use "
                                   "the stated tolerances", tolerance)
+    if system.n > EXACT_MAX_STATES:
+        # every exact stage refuses this size before any algebra: skip the O(n²) sympy scans
+        return numeric_structure(system, time.monotonic(), _size_reason(system), tolerance)
     first = None
     if not all(e.is_Rational for e in system.A):   # rational A: no cyclotomic stage (no fork)
         try:
@@ -201,6 +204,28 @@ def eigen_structure(system: System, force_numeric: bool = False,
     return numeric_structure(system, time.monotonic(),
                               f"numeric float64 path: {reason}; decisions use the stated "
                               "tolerances", tolerance)
+
+
+def _size_reason(system: System) -> str:
+    """The path reason of a system beyond ``EXACT_MAX_STATES``: what the exact stages would
+    report (a refusal of the entries first, then the size of both exact stages)."""
+    size = f"n = {system.n} > {EXACT_MAX_STATES}"
+    prior = None if _all_rational(system) else exact_refusal(
+        list(system.A) + list(system.C), "A and C")
+    return (f"numeric float64 path: {prior or size}; certified enclosures: {size}; "
+            "decisions use the stated tolerances")
+
+
+def _all_rational(system: System) -> bool:
+    """Whether every entry of A and C is rational (read from the matrices' domain when they
+    carry one: no per-entry sympy access)."""
+    for M in (system.A, system.C):
+        dom = getattr(getattr(M, "_rep", None), "domain", None)
+        if dom is not None and (dom.is_QQ or dom.is_ZZ):
+            continue
+        if not all(e.is_Rational for e in M):
+            return False
+    return True
 
 
 def structure_of(system: System, tolerance: float | None = None) -> Structure:
