@@ -175,7 +175,9 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
 def test_sensor_link_design_outputs_in_the_terminal_view(sensor_record: dict) -> None:
     from kfcrit.views.text.terminal import summary
 
-    text = summary(sensor_record)
+    from kfcrit.analysis.sections import record_from_json
+
+    text = summary(record_from_json(sensor_record))
     lb = sensor_record["link_budget"]
     for label, key in (("required SINR", "required_sinr_db"),
                        ("required rx power", "required_rx_power_dbm"),
