@@ -173,9 +173,8 @@ def test_sensor_link_design_outputs(sensor_record: dict) -> None:
 
 
 def test_sensor_link_design_outputs_in_the_terminal_view(sensor_record: dict) -> None:
-    from kfcrit.views.text.terminal import summary
-
     from kfcrit.analysis.sections import record_from_json
+    from kfcrit.views.text.terminal import summary
 
     text = summary(record_from_json(sensor_record))
     lb = sensor_record["link_budget"]
