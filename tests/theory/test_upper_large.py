@@ -250,3 +250,27 @@ def test_interior_root_upper_end_is_certified_and_matches_an_independent_mare(la
     assert lo > 1 - 1 / _spectral_radius2(s.a) + 1e-3        # not a face root
     assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
     assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
+
+
+def test_certificate_widths_start_at_the_request_and_widen():
+    from kfcrit.theory.upper.large import WIDER_WIDTHS, certificate_widths
+
+    assert certificate_widths(1e-9, 0.5) == [5e-10, *WIDER_WIDTHS]
+    assert certificate_widths(1e-6, 0.5) == [5e-7, 1e-6, 1e-5, 1e-4]
+    assert certificate_widths(1e-3, 0.5) == [5e-4]
+
+
+def test_a_too_narrow_request_gives_a_wider_certified_bracket_not_the_trivial_one(large_path):
+    """At a width far below float64's reach near the threshold the verified check fails; the
+    bracket must then be certified at a wider width and say so, never fall back to [p_low, 1]
+    (nor claim the requested width)."""
+    s = _system(70, 14, 3)
+    tol = 1e-13
+    ub = bracket.upper_bound(s, tol=tol, method="newton")
+    lo, hi = ub.interval
+    assert ub.certified and hi < 1.0
+    assert hi - lo > tol and ub.status == "undetermined"
+    assert any("certified to width" in w for w in ub.warnings)
+    p_low = 1 - 1 / _spectral_radius2(s.a)
+    assert lo <= p_low <= hi <= p_low + 1e-4
+    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)

@@ -99,7 +99,29 @@ def float_certificate(system: System, red: Reduced, hi: float, X_start: np.ndarr
 
 
 FACE_OFFSET = 0.5
-"""The face-root certificate is tried at hi = p_low + FACE_OFFSET·tol."""
+"""The face-root certificate is tried first at hi = p_low + FACE_OFFSET·tol."""
+WIDER_WIDTHS = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4)
+"""Widths hi − base tried in turn (those above the first try) when the certificate at the
+requested width fails the verified check: the Stein solution's condition number grows like
+1/(hi − p_up), so a bracket narrower than about 1e-8 can be beyond float64 at a few hundred
+states. A wider certified bracket is reported as such (status "undetermined", with a warning
+naming both widths) rather than the trivial [p_low, 1]."""
+
+
+def certificate_widths(tol: float, first: float) -> list[float]:
+    r"""hi − base to try: ``first·tol``, then each of :data:`WIDER_WIDTHS` above it.
+
+    .. math::  w_0 = c\,\mathrm{tol},\quad w_{k} \in \{10^{-8}, \dots, 10^{-4}\},\ w_k > w_0
+    """
+    w0 = first * tol
+    return [w0] + [w for w in WIDER_WIDTHS if w > w0]
+
+
+def widened_warning(width: float, tol: float) -> str:
+    """The warning of a certified bracket wider than the requested tolerance."""
+    return (f"p_up certified to width {width:.1e} only: the certificate at the requested width "
+            f"{tol:.1e} did not pass the verified float64 check (float64 conditioning near "
+            "the threshold)")
 FACE_CHECK = FLOAT_CHECK + ("; the leading dominant-block columns of Z'AZ and Z'Z and the "
                             "products with the dominant block of X_z by compensated dot "
                             "products (Ogita-Rump-Oishi Dot2)")
@@ -116,15 +138,18 @@ def face_root_certificate(system: System, red: Reduced, p_low: float, tol: float
     if split is None:
         return None
     red_d, d = split
-    hi = float(min(p_low + FACE_OFFSET * tol, 1.0))
-    mats = stein.face_certificate_matrices(red_d, d, hi)
-    if mats is None:
-        return None
-    Xz, Kz = mats
-    ok, mx, mm, why = floatcheck.verify_upper_float_basis(system.a, system.c, hi, red_d.Z, Xz,
-                                                          Kz, red.M, sharp=d)
-    stats["certificate_checks"] += 1
-    if not ok:
+    for width in certificate_widths(tol, FACE_OFFSET):
+        hi = float(min(p_low + width, 1.0))
+        mats = stein.face_certificate_matrices(red_d, d, hi)
+        if mats is None:
+            return None
+        Xz, Kz = mats
+        ok, mx, mm, why = floatcheck.verify_upper_float_basis(system.a, system.c, hi, red_d.Z,
+                                                              Xz, Kz, red.M, sharp=d)
+        stats["certificate_checks"] += 1
+        if ok:
+            break
+    else:
         return None
     stats["certificate_from"] = (f"face root: gain killing the {d} dominant modes (|λ| = ρ(A)), "
                                  "MARE gain on the rest of the unstable block, block-triangular "
@@ -227,6 +252,8 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         lower["statement"] += ("; the upper end is certified at p_low + tol/2 (face root: "
                                "p_up = p_low)")
         status = "determined" if hi - p_low <= tol else "undetermined"
+        if status == "undetermined":
+            warnings.append(widened_warning(hi - p_low, tol))
         return done(hi, (p_low, hi), True, status, cert, lower,
                     {"X": X, "K": K, "p_star": None, "face_root": True,
                      "output_map": red.M, "p_low_verified": verified})
@@ -253,8 +280,10 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         if found is not None:
             break
     Ys = stable_gramian(red) if red.k < system.n and found is None else None
-    for off in CERTIFICATE_OFFSETS if found is None else ():
-        hi = float(min(base + off * tol, 1.0))
+    widths = [off * tol for off in CERTIFICATE_OFFSETS]
+    widths += [w for w in WIDER_WIDTHS if w > widths[-1]]
+    for width in widths if found is None else ():
+        hi = float(min(base + width, 1.0))
         found = float_certificate(system, red, hi, thr.X, stats, Ys)
         if found is not None:
             break
@@ -274,7 +303,9 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         lower["statement"] += ("; the threshold Newton ran into p_low with a singular "
                                "eigenvector (face root), so p_up = p_low within the bracket")
     else:
-        lo = max(lo, p_low)
+        # the evidence G_lo(X*) = X* + (p* − lo)P ⪰ X* needs lo ≤ p*: a widened hi must not
+        # lift lo above the Newton root
+        lo = max(min(lo, thr.value), p_low)
         lower = {"kind": "numerical", "value": lo, "certified": False,
                  "statement": (f"Newton root p* = {thr.value:.15g} of r(p) = 1 (matrix-free "
                                f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
@@ -285,6 +316,8 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
                         "end is certified")
     status = "determined" if hi - lo <= tol else "undetermined"
+    if status == "undetermined":
+        warnings.append(widened_warning(hi - lo, tol))
     return done(hi, (lo, hi), True, status, cert, lower,
                 {"X": X, "K": K, "p_star": None if face else thr.value, "face_root": face,
                  "output_map": red.M})
