@@ -22,8 +22,10 @@ followed by the detail sections ``system``, ``structure``, ``theory``, ``covaria
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import platform
+import typing
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -32,15 +34,18 @@ from kfcrit.analysis.links import bursty_channel, design_check, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
+from kfcrit.analysis.records.contract import Provenance, VerificationCheck
+from kfcrit.analysis.records.system import AnalysisOptionsRecord
 from kfcrit.analysis.requirements import (
     power_law_tail,
     requirement_assessment,
     tail_simulation_check,
 )
-from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord, record_from_json
+from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
 from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
+from kfcrit.io.typed import from_json
 from kfcrit.model.system import System, conditioning_warnings
 from kfcrit.version import __version__
 
@@ -374,14 +379,16 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
 
 
 def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
-            theory: TheorySections | None = None, **kwargs: Any) -> AnalysisRecord:
+                   theory: TheorySections | None = None, **kwargs: Any) -> AnalysisRecord:
     """Analyse a system (or a loaded system file) and return the typed :class:`AnalysisRecord`.
 
-    The record is :func:`analysis_data`'s JSON form checked into the typed record (strict:
-    unknown, missing or mistyped keys fail); see there for the parameters.
+    The record is built from the sections of :func:`analysis_sections` (see there for the
+    parameters); it is never written out and parsed back.
     """
-    data, timings = analysis_data(system, options, theory=theory, **kwargs)
-    return replace(record_from_json(data), timings=timings)
+    opts, theory, spec = _prepared(system, options, theory, kwargs)
+    timings: dict[str, float] = {}
+    record = _typed_record(analysis_sections(spec, opts, theory), theory, timings)
+    return replace(record, timings=timings)
 
 
 ROW_KEYS = ("classification", "critical_value", "robust_critical_value", "upper_bound",
@@ -390,25 +397,69 @@ ROW_KEYS = ("classification", "critical_value", "robust_critical_value", "upper_
 ``review``: all that :func:`analysis_data` returns with ``lean``."""
 
 
-def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
-                  theory: TheorySections | None = None, lean: bool = False, **kwargs: Any
-                  ) -> tuple[dict[str, Any], dict[str, float]]:
-    """Analyse a system (or a loaded system file) and return the typed :class:`Analysis`.
+def _prepared(system: System | SystemSpec, options: AnalysisOptions | None,
+              theory: TheorySections | None, overrides: dict[str, Any]
+              ) -> tuple[AnalysisOptions, TheorySections, SystemSpec]:
+    """The options (``overrides`` applied), the theory sections and the system file of one
+    analysis; a one-sensor network is analysed as its one link (its channel included)."""
+    opts = options or AnalysisOptions()
+    if overrides:
+        opts = replace(opts, **overrides)
+    spec = _as_spec(system)
+    if spec.network is not None and spec.network.size == 1:
+        spec = replace(spec, channel=spec.network.sensors[0].channel)
+    if theory is None:
+        theory = theory_sections(spec.system, opts, channel=spec.channel)
+    return opts, theory, spec
 
-    Returns the record's JSON form (before the typed check; a sweep reads its row from it
-    without the round trip) and the sections' wall-clock seconds. With ``lean`` only the
-    sections of :data:`ROW_KEYS` and the review are returned, and the sections that feed
-    neither (system text, tail exponent without a tail requirement, verification, provenance)
-    are not computed: the values returned are those of the full record.
+
+def _typed_record(sec: dict[str, Any], theory: TheorySections,
+                  timings: dict[str, float]) -> AnalysisRecord:
+    """The :class:`AnalysisRecord` of the sections: typed sections are taken as built; a
+    section a lower layer delivered as plain data is typed here, once, field by field
+    (:func:`~kfcrit.io.typed.from_json`, strict), its wall-clock seconds moved to ``timings``."""
+    fields: dict[str, Any] = {}
+    plain = _json_sections({k: v for k, v in sec.items() if k not in TYPED_KEYS},
+                           theory, timings)
+    hints = record_hints()
+    for f in dataclasses.fields(AnalysisRecord):
+        if f.name == "timings":
+            continue
+        if f.name in TYPED_KEYS:
+            if f.name in sec:
+                fields[f.name] = sec[f.name]
+        elif f.name in plain:
+            fields[f.name] = from_json(hints[f.name], plain[f.name], f"record.{f.name}")
+    return AnalysisRecord(**fields)
+
+
+@functools.cache
+def record_hints() -> dict[str, Any]:
+    """The field types of :class:`AnalysisRecord` (resolved once: the class never changes)."""
+    return typing.get_type_hints(AnalysisRecord)
+
+
+TYPED_KEYS = frozenset({"name", "description", "warnings", "schema_version", "review",
+                        "requirements", "verification", "provenance"})
+"""The record's sections :func:`analysis_sections` builds as typed values."""
+
+
+def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections, *,
+                      lean: bool = False) -> dict[str, Any]:
+    """The sections of one analysis, by record key.
+
+    With ``lean`` only the sections of :data:`ROW_KEYS` and the review are computed (a sweep
+    row), and those that feed neither (system text, tail exponent without a tail requirement,
+    verification, provenance) are skipped: the values returned are those of the full record.
 
     Parameters
     ----------
-    system : System or SystemSpec
-        The system, or a loaded system file (which adds channel and requirements).
-    options : AnalysisOptions, optional
-        Tolerances, simulation size and seed; keyword arguments override its fields.
-    theory : TheorySections, optional
-        The channel-independent sections of this system, when already computed (sweeps).
+    spec : SystemSpec
+        The system file (a bare system has no channel or requirements).
+    opts : AnalysisOptions
+        Tolerances, simulation size and seed.
+    theory : TheorySections
+        The channel-independent sections of this system (computed once per system).
 
     Notes
     -----
@@ -417,16 +468,7 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
     bounds S̄ ⪯ lim E[P_t] ⪯ V̄ (Thm 4, 6), the simulation that cross-checks them, the
     requirements, and finally the review decision.
     """
-    opts = options or AnalysisOptions()
-    if kwargs:
-        opts = replace(opts, **kwargs)
-    spec = _as_spec(system)
-    if spec.network is not None and spec.network.size == 1:
-        # one sensor is one link: every single-link result applies (its channel included)
-        spec = replace(spec, channel=spec.network.sensors[0].channel)
     s = spec.system
-    if theory is None:
-        theory = theory_sections(s, opts, channel=spec.channel)
     sec: dict[str, Any] = {k: None for k in ("name", "operating_point", "warnings")
                            + DETAIL_KEYS}
     sec.update(theory.sections)
@@ -492,47 +534,52 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
     elif opts.details or tail:
         _simulation_sections(spec, opts, sec, warnings)
     tail_simulation_check(sec)
-    sec["requirements"] = requirement_assessment(reqs.to_dict() if reqs else None,
-                                                 sec.get("simulation"),
-                                                 sec.get("covariance_bounds"),
-                                                 sec.get("operating_point"), sec.get("design"))
-    if loop_cost is not None:
-        sec["requirements"]["assessments"].append(loop_cost)
-    power_law_tail(sec)
+    requirements = requirement_assessment(reqs.to_dict() if reqs else None,
+                                          sec.get("simulation"), sec.get("covariance_bounds"),
+                                          sec.get("operating_point"), sec.get("design"))
+    if loop_cost is not None and requirements is not None:
+        requirements = replace(requirements,
+                               assessments=[*requirements.assessments, loop_cost])
+    sec["requirements"] = power_law_tail(requirements, sec.get("tail"), sec.get("simulation"))
     sec["verification"] = [] if lean else verification(sec, warnings)
-    if sec.get("loop") is not None:
-        from kfcrit.analysis.loop.designs import loop_check
-
-        check = loop_check(sec["loop"])
-        if check is not None:
-            sec["verification"].append(check)
-            if check["status"] == "inconclusive":
-                warnings.append(f"Monte Carlo check inconclusive: {check['check']} "
-                                f"({check['reason']})")
     op = sec.get("operating_point") or {}
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
     sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
                     for row in (sec.get("network") or {}).get("sensors") or []]
-    review = vd.review(op.get("verdict"), op.get("basis"), sec["requirements"],
+    review = vd.review(op.get("verdict"), op.get("basis"),
+                       requirements.assessments if requirements is not None else (),
                        lb.get("design_check"),
                        extra=[r for rs in sensor_links for r in rs] + hop_reasons
                        + loop_reasons)
     if not op and (sec.get("upper_bound") or {}).get("status") == "undetermined":
-        review = vd.review(None, None, None, None, extra=[vd.Reason(
+        review = vd.review(None, None, (), None, extra=[vd.Reason(
             "upper bound p_up", vd.CheckStatus.UNDETERMINED,
             "the p_up bracket could not be narrowed to the tolerance")])
     sec["review"] = review
     sec["warnings"] = list(dict.fromkeys(warnings))  # de-duplicated, order kept
     sec["schema_version"] = SCHEMA_VERSION
+    if not lean:
+        sec["provenance"] = provenance(spec, opts)
+    return sec
+
+
+def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
+                  theory: TheorySections | None = None, lean: bool = False, **kwargs: Any
+                  ) -> tuple[dict[str, Any], dict[str, float]]:
+    """The record's plain JSON form and the sections' wall-clock seconds.
+
+    With ``lean`` only the sections of :data:`ROW_KEYS` and the review (what a sweep row reads)
+    are computed and returned; the values are those of the full record. Parameters as for
+    :func:`analysis_sections`.
+    """
+    opts, theory, spec = _prepared(system, options, theory, kwargs)
+    sec = analysis_sections(spec, opts, theory, lean=lean)
     timings: dict[str, float] = {}
     if lean:
         data = _json_sections({k: sec.get(k) for k in ROW_KEYS}, theory, timings)
-        data["review"] = review_json(review)
+        data["review"] = review_json(sec["review"])
         return data, timings
-    sec["provenance"] = provenance(spec, opts)
-    data = _json_sections(sec, theory, timings)
-    data["review"] = review_json(review)
-    return data, timings
+    return _typed_record(sec, theory, timings).to_dict(), timings
 
 
 def _json_sections(sec: dict[str, Any], theory: TheorySections,
@@ -854,7 +901,7 @@ def _simulated_mean_between_bounds(cb: dict[str, Any],
 
 
 def verification(sec: dict[str, Any], warnings: list[str] | None = None
-                 ) -> list[dict[str, Any]]:
+                 ) -> list[VerificationCheck]:
     """The checks the record relies on, each with its outcome (for the report's appendix).
 
     Every entry is ``{check, passed (True/False/None), status, detail}`` with ``status`` one of
@@ -905,8 +952,18 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
                                                                      1e-9))
         checks.append({"check": "ordering p_low ≤ p_c ≤ p_up", "passed": bool(ok),
                        "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
+    if sec.get("loop") is not None:
+        from kfcrit.analysis.loop.designs import loop_check
+
+        check = loop_check(sec["loop"])
+        if check is not None:
+            checks.append(check)
+            if check["status"] == "inconclusive":
+                warnings.append(f"Monte Carlo check inconclusive: {check['check']} "
+                                f"({check['reason']})")
     status = {True: "passed", False: "failed", None: "not applicable"}
-    return [{**c, "status": c.get("status") or status[c.get("passed")]} for c in checks]
+    return [VerificationCheck(**{**c, "status": c.get("status") or status[c.get("passed")]})
+            for c in checks]
 
 
 @functools.lru_cache(maxsize=1)
@@ -926,11 +983,10 @@ def _versions() -> tuple[tuple[str, str | None], ...]:
     return tuple(versions)
 
 
-def provenance(spec: SystemSpec, opts: AnalysisOptions) -> dict[str, Any]:
+def provenance(spec: SystemSpec, opts: AnalysisOptions) -> Provenance:
     """Versions, seed, options and the input file's SHA-256 (for the verification appendix)."""
-    versions = dict(_versions())
-    return {"versions": versions, "seed": opts.seed, "input_path": spec.path,
-            "input_sha256": spec.sha256, "options": dict(opts.__dict__)}
+    return Provenance(versions=dict(_versions()), seed=opts.seed, input_path=spec.path,
+                      input_sha256=spec.sha256, options=AnalysisOptionsRecord(**opts.__dict__))
 
 
 exit_code = vd.exit_code

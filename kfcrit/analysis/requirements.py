@@ -1,10 +1,21 @@
 """The requirements of a system file, assessed: the tail requirement by simulation (with the
-tail exponent beside it) and the accuracy requirement by the covariance bounds and the design."""
+tail exponent beside it) and the accuracy requirement by the covariance bounds and the design.
+
+The assessments are built as the typed record's sections
+(:class:`~kfcrit.analysis.records.contract.RequirementsRecord`), never as dicts read back."""
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.records.contract import (
+    PowerLawEstimate,
+    RequirementAssessment,
+    RequirementsRecord,
+    TailAssessment,
+)
 
 
 def tail_simulation_check(sec: dict[str, Any]) -> None:
@@ -40,39 +51,45 @@ def tail_simulation_check(sec: dict[str, Any]) -> None:
     sec["tail"]["simulation_check"] = check
 
 
-def power_law_tail(sec: dict[str, Any]) -> None:
+def power_law_tail(requirements: RequirementsRecord | None, tail: Mapping[str, Any] | None,
+                   simulation: Mapping[str, Any] | None) -> RequirementsRecord | None:
     r"""The tail requirement read with the tail exponent beside the Monte Carlo (a claim).
 
     .. math:: P(\operatorname{tr} P > M) \approx P(\operatorname{tr} P > m_0)\,(M/m_0)^{-\beta}
 
     from the empirical CCDF at the highest level m_0 ≤ M that at least ten simulated paths
-    exceed; the Wilson interval of the simulation stays the basis of the status.
+    exceed; the Wilson interval of the simulation stays the basis of the status. Returns
+    ``requirements`` with the estimate added to its tail assessment (unchanged when there is
+    nothing to add).
     """
     import numpy as np
 
-    req = sec.get("requirements") or {}
-    tail = (sec.get("tail") or {}).get("exponent") or {}
-    limit, beta = req.get("max_error_trace"), tail.get("value")
-    op = (sec.get("simulation") or {}).get("operating_point") or {}
+    exponent = (tail or {}).get("exponent") or {}
+    beta = exponent.get("value")
+    if requirements is None or not isinstance(requirements.assessment, TailAssessment):
+        return requirements
+    limit = requirements.max_error_trace
+    op = (simulation or {}).get("operating_point") or {}
     cdf = (op.get("horizon") or {}).get("cdf") or {}
     paths = op.get("paths")
-    if not (req.get("assessment") and limit and beta and cdf.get("trace") and paths):
-        return
+    if not (limit and beta and cdf.get("trace") and paths):
+        return requirements
     m = np.asarray(cdf["trace"], dtype=float)
     ccdf = 1.0 - np.asarray(cdf["probability"], dtype=float)
     ok = (ccdf >= 10.0 / paths) & (m <= limit) & (m > 0)
     if not ok.any():
-        return
+        return requirements
     i = int(np.flatnonzero(ok)[np.argmax(m[ok])])
-    estimate = float(ccdf[i] * (limit / m[i]) ** (-beta))
-    req["assessment"]["power_law_estimate"] = {
-        "value": estimate, "anchor_level": float(m[i]), "anchor_probability": float(ccdf[i]),
-        "exponent": beta, "label": tail.get("label"),
-        "formula": "P(tr P > M) ≈ P(tr P > m0) (M/m0)^(-beta)"}
+    estimate = PowerLawEstimate(
+        value=float(ccdf[i] * (limit / m[i]) ** (-beta)), anchor_level=float(m[i]),
+        anchor_probability=float(ccdf[i]), exponent=beta, label=exponent.get("label"),
+        formula="P(tr P > M) ≈ P(tr P > m0) (M/m0)^(-beta)")
+    return replace(requirements,
+                   assessment=replace(requirements.assessment, power_law_estimate=estimate))
 
 
 def tail_assessment(limit: float | None, allowed: float | None,
-                    simulation: dict[str, Any] | None) -> dict[str, Any]:
+                    simulation: Mapping[str, Any] | None) -> TailAssessment:
     """The tail requirement P(tr P > limit) ≤ allowed against the simulated exceedance.
 
     With k of N paths above ``limit`` and the 95 % Wilson interval [lo, hi] of the exceedance:
@@ -92,13 +109,21 @@ def tail_assessment(limit: float | None, allowed: float | None,
         basis = (f"P(tr P > {limit:g}) ≈ {est:.4g} at t = {op.get('steps')} "
                  f"({exc.get('count')} of {exc.get('total')} paths; 95 % interval "
                  f"[{lo:.3g}, {hi:.3g}]) against the allowed {allowed:g}")
-    return {"status": status, "basis": basis, "estimate": exc.get("estimate"),
-            "interval": [exc.get("lower"), exc.get("upper")] if exc else None}
+    return TailAssessment(status=status, basis=basis, estimate=exc.get("estimate"),
+                          interval=[exc.get("lower"), exc.get("upper")] if exc else None)
 
 
-def mean_assessment(limit: float, bounds: dict[str, Any] | None,
-                    op: dict[str, Any] | None,
-                    design: dict[str, Any] | None = None) -> dict[str, Any]:
+def _mean(limit: float, status: str | None, basis: str,
+          interval: list[float | None] | None = None) -> RequirementAssessment:
+    """The assessment of lim E[tr P] ≤ ``limit`` (``interval`` [tr S̄, tr V̄] when known)."""
+    if interval is None:
+        return RequirementAssessment(f"lim E[tr P] ≤ {limit:g}", status, basis)
+    return RequirementAssessment(f"lim E[tr P] ≤ {limit:g}", status, basis, interval=interval)
+
+
+def mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
+                    op: Mapping[str, Any] | None,
+                    design: Mapping[str, Any] | None = None) -> RequirementAssessment:
     """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (theory §11).
 
     ``not met`` when the filter is mean-unstable (E[tr P_t] diverges) or tr S̄ > L (S̄ is a lower
@@ -107,41 +132,41 @@ def mean_assessment(limit: float, bounds: dict[str, Any] | None,
     """
     verdict = (op or {}).get("verdict")
     if verdict is None:
-        return {"status": None, "basis": "no channel: no operating point to assess"}
+        return _mean(limit, None, "no channel: no operating point to assess")
     if verdict == vd.Verdict.MEAN_UNSTABLE.value:
-        return {"status": "not met", "basis": "the filter is mean-unstable at the operating "
-                "point: lim E[tr P_t] is infinite"}
+        return _mean(limit, "not met", "the filter is mean-unstable at the operating "
+                "point: lim E[tr P_t] is infinite")
     req = (design or {}).get("required_arrival_probability") or {}
     if req.get("status") == "impossible":
-        return {"status": "not met", "basis": "no arrival probability meets it: "
-                + str(req.get("reason") or "L is below the no-loss floor")}
+        return _mean(limit, "not met", "no arrival probability meets it: "
+                + str(req.get("reason") or "L is below the no-loss floor"))
     if (op or {}).get("iid") is False:
         return _bursty_mean_assessment(limit, bounds, verdict)
     lower = (bounds or {}).get("lower") or {}
     upper = (bounds or {}).get("upper") or {}
     if bounds and lower.get("exists") is False:
         if verdict == vd.Verdict.MEAN_STABLE.value:
-            return {"status": "not met", "basis": "(1 − p)ρ(A)² rounds to 1 or more in double "
+            return _mean(limit, "not met", "(1 − p)ρ(A)² rounds to 1 or more in double "
                     "precision at this p: the Lyapunov lower bound tr S̄ = Σ_k (1 − p)^k "
-                    "tr(A^k Q A'^k) is beyond float64, far above L"}
-        return {"status": "not met", "basis": "the Lyapunov lower bound S̄ does not exist "
-                "((1 − p)ρ(A)² ≥ 1): lim E[tr P_t] is infinite"}
+                    "tr(A^k Q A'^k) is beyond float64, far above L")
+        return _mean(limit, "not met", "the Lyapunov lower bound S̄ does not exist "
+                "((1 − p)ρ(A)² ≥ 1): lim E[tr P_t] is infinite")
     s_tr, v_tr = lower.get("trace"), upper.get("trace")
     if s_tr is not None and s_tr > limit:
-        return {"status": "not met", "basis": f"tr S̄ = {s_tr:.6g} > L = {limit:g} (S̄ ⪯ lim "
-                "E[P_t], Sinopoli Thm 4)", "interval": [s_tr, v_tr]}
+        return _mean(limit, "not met", f"tr S̄ = {s_tr:.6g} > L = {limit:g} (S̄ ⪯ lim "
+                "E[P_t], Sinopoli Thm 4)", interval=[s_tr, v_tr])
     if v_tr is not None and upper.get("exists") and v_tr <= limit \
             and verdict == vd.Verdict.MEAN_STABLE.value:
-        return {"status": "met", "basis": f"tr V̄ = {v_tr:.6g} ≤ L = {limit:g} (lim E[P_t] ⪯ V̄, "
-                "Sinopoli Thm 6)", "interval": [s_tr, v_tr]}
+        return _mean(limit, "met", f"tr V̄ = {v_tr:.6g} ≤ L = {limit:g} (lim E[P_t] ⪯ V̄, "
+                "Sinopoli Thm 6)", interval=[s_tr, v_tr])
     s_text = "not available" if s_tr is None else f"{s_tr:.6g}"
     v_text = "not available" if v_tr is None or not upper.get("exists") else f"{v_tr:.6g}"
-    return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided by the "
-            f"bounds: tr S̄ = {s_text} ≤ L and tr V̄ = {v_text}", "interval": [s_tr, v_tr]}
+    return _mean(limit, "not demonstrated", f"L = {limit:g} is not decided by the "
+            f"bounds: tr S̄ = {s_text} ≤ L and tr V̄ = {v_text}", interval=[s_tr, v_tr])
 
 
-def _bursty_mean_assessment(limit: float, bounds: dict[str, Any] | None,
-                            verdict: str) -> dict[str, Any]:
+def _bursty_mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
+                            verdict: str) -> RequirementAssessment:
     """The accuracy requirement over a channel that is not i.i.d. (theory §10).
 
     The i.i.d. bounds S̄, V̄ at the stationary arrival probability do not bound E[P_t] there;
@@ -151,47 +176,48 @@ def _bursty_mean_assessment(limit: float, bounds: dict[str, Any] | None,
     ``not demonstrated`` (and always for channels without a chain, e.g. a measured trace)."""
     mj = (bounds or {}).get("markov_jump")
     if not isinstance(mj, dict):
-        return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided: the "
+        return _mean(limit, "not demonstrated", f"L = {limit:g} is not decided: the "
                 "i.i.d. bounds S̄, V̄ do not bound E[P_t] for a channel with memory, and no "
-                "bound valid for this channel is available"}
+                "bound valid for this channel is available")
     lo = (mj.get("lower") or {}).get("trace")
     hi = (mj.get("upper") or {}).get("trace")
     if lo is not None and lo > limit:
-        return {"status": "not met", "basis": f"Markov-jump lower bound lim E[tr P_t] ≥ "
+        return _mean(limit, "not met", f"Markov-jump lower bound lim E[tr P_t] ≥ "
                 f"{lo:.6g} > L = {limit:g} (losses-only recursion over the Gilbert–Elliott "
-                "chain, theory §10)", "interval": [lo, hi]}
+                "chain, theory §10)", interval=[lo, hi])
     if hi is not None and hi <= limit and verdict == vd.Verdict.MEAN_STABLE.value:
-        return {"status": "met", "basis": f"Markov-jump upper bound lim E[tr P_t] ≤ {hi:.6g} "
+        return _mean(limit, "met", f"Markov-jump upper bound lim E[tr P_t] ≤ {hi:.6g} "
                 f"≤ L = {limit:g} (fixed-gain second-moment recursion over the Gilbert–Elliott "
-                "chain, theory §10)", "interval": [lo, hi]}
+                "chain, theory §10)", interval=[lo, hi])
     lo_text = "not available" if lo is None else f"{lo:.6g}"
     hi_text = "not available" if hi is None else f"{hi:.6g}"
-    return {"status": "not demonstrated", "basis": f"L = {limit:g} is not decided by the "
+    return _mean(limit, "not demonstrated", f"L = {limit:g} is not decided by the "
             f"Markov-jump bounds of the Gilbert–Elliott chain: lower {lo_text} ≤ L, upper "
-            f"{hi_text} (theory §10)", "interval": [lo, hi]}
+            f"{hi_text} (theory §10)", interval=[lo, hi])
 
 
-def requirement_assessment(requirements: dict[str, Any] | None,
-                           simulation: dict[str, Any] | None,
-                           bounds: dict[str, Any] | None = None,
-                           op: dict[str, Any] | None = None,
-                           design: dict[str, Any] | None = None) -> dict[str, Any] | None:
-    """The system file's requirements, each assessed (``assessments``, in file order; the tail
-    requirement's assessment also as ``assessment`` for scripts written against schema 1)."""
+def requirement_assessment(requirements: Mapping[str, float | None] | None,
+                           simulation: Mapping[str, Any] | None,
+                           bounds: Mapping[str, Any] | None = None,
+                           op: Mapping[str, Any] | None = None,
+                           design: Mapping[str, Any] | None = None) -> RequirementsRecord | None:
+    """The system file's requirements (their values by key), each assessed (``assessments``, in
+    file order; the tail requirement's assessment also as ``assessment`` for scripts written
+    against schema 1). None without requirements."""
     if not requirements:
-        return requirements
-    out = dict(requirements)
-    items = []
-    limit, allowed = out.get("max_error_trace"), out.get("max_tail_probability")
+        return None
+    items: list[RequirementAssessment] = []
+    limit, allowed = requirements.get("max_error_trace"), requirements.get("max_tail_probability")
+    extra: dict[str, Any] = {k: requirements[k] for k in ("max_mean_error_trace", "max_cost")
+                             if k in requirements}
     if limit is not None or allowed is not None:
         tail = tail_assessment(limit, allowed, simulation)
-        out["assessment"] = tail
+        extra["assessment"] = tail
         name = (f"P(tr P > {limit:g}) ≤ {allowed:g}" if None not in (limit, allowed)
                 else "tail requirement (incomplete)")
-        items.append({"requirement": name, **tail})
-    mean_limit = out.get("max_mean_error_trace")
+        items.append(RequirementAssessment(name, tail.status, tail.basis, estimate=tail.estimate,
+                                           interval=tail.interval))
+    mean_limit = requirements.get("max_mean_error_trace")
     if mean_limit is not None:
-        items.append({"requirement": f"lim E[tr P] ≤ {mean_limit:g}",
-                      **mean_assessment(mean_limit, bounds, op, design)})
-    out["assessments"] = items
-    return out
+        items.append(mean_assessment(mean_limit, bounds, op, design))
+    return RequirementsRecord(limit, allowed, assessments=items, **extra)

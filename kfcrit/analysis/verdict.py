@@ -19,9 +19,9 @@ verification checks) only.
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from kfcrit.errors import ExitCode
 from kfcrit.theory.critical.compare import compare_probability
@@ -601,19 +601,25 @@ def stability_reason(verdict: Verdict | str | None, basis: str | None) -> Reason
     return Reason(STABILITY_CHECK, status, f"{verdict.value}: {basis or ''}".rstrip(": "))
 
 
-def requirement_reasons(requirements: Mapping[str, Any] | None) -> list[Reason]:
+class Assessed(Protocol):
+    """One assessed requirement (the record's ``RequirementAssessment``)."""
+
+    requirement: str
+    status: str | None
+    basis: str
+
+
+def requirement_reasons(assessments: Iterable[Assessed]) -> list[Reason]:
     """One reason per requirement of the system file, from its assessment.
 
     ``met`` → pass, ``not met`` → fail, ``not demonstrated`` (or no assessment) → undetermined.
     """
     out: list[Reason] = []
-    if not requirements:
-        return out
-    for item in requirements.get("assessments") or []:
+    for item in assessments:
         status = {"met": CheckStatus.PASS, "not met": CheckStatus.FAIL}.get(
-            item.get("status"), CheckStatus.UNDETERMINED)
-        out.append(Reason(f"requirement: {item.get('requirement')}", status,
-                          item.get("basis") or "not assessed"))
+            item.status, CheckStatus.UNDETERMINED)
+        out.append(Reason(f"requirement: {item.requirement}", status,
+                          item.basis or "not assessed"))
     return out
 
 
@@ -664,11 +670,11 @@ def decide(reasons: Sequence[Reason]) -> Decision:
 
 
 def review(verdict: Verdict | str | None, basis: str | None,
-           requirements: Mapping[str, Any] | None,
+           assessments: Iterable[Assessed],
            design_check: Mapping[str, Any] | None,
            extra: Sequence[Reason] = ()) -> Review:
     """The review decision: stability, then each requirement, then the link policy."""
-    reasons = [stability_reason(verdict, basis), *requirement_reasons(requirements),
+    reasons = [stability_reason(verdict, basis), *requirement_reasons(assessments),
                *link_reasons(design_check), *extra]
     return Review(decide(reasons), tuple(reasons))
 

@@ -371,11 +371,11 @@ def test_requirement_assessment_reads_the_wilson_interval() -> None:
     zero = proportion(0, 300)
     z2 = 1.959963984540054 ** 2
     assert zero["lower"] == 0.0 and zero["upper"] == pytest.approx(z2 / (300 + z2), rel=1e-9)
-    assert requirement_assessment(req, sim(0, 300))["assessment"]["status"] == "not demonstrated"
-    assert requirement_assessment(req, sim(5, 2000))["assessment"]["status"] == "met"
-    assert requirement_assessment(req, sim(60, 2000))["assessment"]["status"] == "not met"
-    assert requirement_assessment(req, None)["assessment"]["status"] is None
-    assert requirement_assessment({}, None) == {}
+    assert requirement_assessment(req, sim(0, 300)).assessment.status == "not demonstrated"
+    assert requirement_assessment(req, sim(5, 2000)).assessment.status == "met"
+    assert requirement_assessment(req, sim(60, 2000)).assessment.status == "not met"
+    assert requirement_assessment(req, None).assessment.status is None
+    assert requirement_assessment({}, None) is None
 
 
 def test_undetectable_system_text_view(tmp_path: Path) -> None:

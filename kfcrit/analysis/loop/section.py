@@ -32,6 +32,7 @@ from kfcrit.analysis.loop.designs import (
     tcp_cost_at,
     tcp_rectangle,
 )
+from kfcrit.analysis.records.contract import RequirementAssessment
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import to_float
 from kfcrit.theory.facts import StabilityFacts
@@ -371,7 +372,7 @@ def _required_nu(out: dict[str, Any], design: FixedDesign | None
     return None, (None, None), "the design's critical ν̄ (not found)"
 
 
-def cost_assessment(spec: SystemSpec, out: dict[str, Any]) -> dict[str, Any] | None:
+def cost_assessment(spec: SystemSpec, out: dict[str, Any]) -> RequirementAssessment | None:
     r"""The cost requirement J ≤ max_cost: met when the upper bound (or the Monte Carlo value
     plus three standard errors) is within it, not met when the lower bound (or the value minus
     three standard errors) exceeds it or J is infinite, else not demonstrated.
@@ -385,19 +386,22 @@ def cost_assessment(spec: SystemSpec, out: dict[str, Any]) -> dict[str, Any] | N
     c = out.get("cost") or {}
     value, lo, hi, err = c.get("value"), c.get("lower"), c.get("upper"), c.get("error") or 0.0
     name = f"closed-loop cost J ≤ {limit:g}"
-    base = {"requirement": name, "estimate": value,
-            "interval": [lo, hi] if lo is not None or hi is not None else None}
+    interval = [lo, hi] if lo is not None or hi is not None else None
+
+    def assessed(status: str, basis: str) -> RequirementAssessment:
+        return RequirementAssessment(name, status, basis, estimate=value, interval=interval)
+
     if c.get("finite") is False:
-        return {**base, "status": "not met", "basis": "J is infinite (the loop is not "
-                "mean-square stable at the operating point)"}
+        return assessed("not met", "J is infinite (the loop is not "
+                "mean-square stable at the operating point)")
     if hi is not None and hi <= limit:
-        return {**base, "status": "met", "basis": f"upper bound {hi:.6g} ≤ {limit:g}"}
+        return assessed("met", f"upper bound {hi:.6g} ≤ {limit:g}")
     if lo is not None and lo > limit:
-        return {**base, "status": "not met", "basis": f"lower bound {lo:.6g} > {limit:g}"}
+        return assessed("not met", f"lower bound {lo:.6g} > {limit:g}")
     if value is not None and err and value + 3 * err <= limit:
-        return {**base, "status": "met", "basis": f"J = {value:.6g} ± {err:.2g} (3 standard "
-                f"errors within {limit:g})"}
+        return assessed("met", f"J = {value:.6g} ± {err:.2g} (3 standard "
+                f"errors within {limit:g})")
     if value is not None and value - 3 * err > limit:
-        return {**base, "status": "not met", "basis": f"J = {value:.6g} > {limit:g}"}
-    return {**base, "status": "not demonstrated", "basis": "the cost's bounds straddle the "
-            "limit" if value is not None else "the cost is not known"}
+        return assessed("not met", f"J = {value:.6g} > {limit:g}")
+    return assessed("not demonstrated", "the cost's bounds straddle the "
+            "limit" if value is not None else "the cost is not known")
