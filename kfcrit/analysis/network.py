@@ -6,13 +6,15 @@ from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel, design_check
+from kfcrit.analysis.records.channel import NetworkChannel, NetworkChannelSensor, channel_record
+from kfcrit.analysis.records.contract import OperatingPoint
 from kfcrit.io.systemfile import SystemSpec
 
 
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
                      single: tuple[vd.Verdict, str] | None = None,
                      stacked: dict[str, Any] | None = None
-                     ) -> tuple[dict[str, Any], dict[str, Any]]:
+                     ) -> tuple[dict[str, Any], OperatingPoint]:
     """The ``network`` section (theory §9: per-sensor critical values, uniform margin, N − 1
     verdicts, bottleneck) and the operating point of a ``sensors:`` file.
 
@@ -64,22 +66,19 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
     sensors = net.get("sensors") or []
     bottleneck = (net.get("bottleneck") or {}).get("name")
     row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
-    channels = [s.channel.to_dict() if s.channel is not None else None
-                for s in spec.network.sensors]
-    margin = net.get("uniform_margin") or {}
-    op = {"arrival_probability": row.get("arrival_probability"),
-          "channel": {"model": "network", "sensors": [
-              {"name": s.name, "channel": c} for s, c in zip(spec.network.sensors, channels)]},
-          "iid": iid,
-          "margin": margin.get("value"), "margin_robust": None,
-          "bracket": margin.get("interval"),
-          "arrival_probabilities": {s.get("name"): s.get("arrival_probability")
-                                    for s in sensors},
-          "bottleneck": bottleneck,
-          "note": "network: the operating-point arrival probability is the bottleneck "
-                  "sensor's; the margin is the "
-                  "uniform margin δ (every link degraded by δ reaches the stability boundary)",
-          "verdict": verdict.value, "basis": basis}
+    op = OperatingPoint(
+        arrival_probability=row.get("arrival_probability"),
+        channel=NetworkChannel(model="network", sensors=[
+            NetworkChannelSensor(name=s.name, channel=channel_record(s.channel))
+            for s in spec.network.sensors]),
+        iid=iid, margin=(net.get("uniform_margin") or {}).get("value"), margin_robust=None,
+        bracket=(net.get("uniform_margin") or {}).get("interval"),
+        arrival_probabilities={s.get("name"): s.get("arrival_probability") for s in sensors},
+        bottleneck=bottleneck,
+        note="network: the operating-point arrival probability is the bottleneck sensor's; the "
+             "margin is the uniform margin δ (every link degraded by δ reaches the stability "
+             "boundary)",
+        verdict=verdict, basis=basis)
     return net, op
 
 
@@ -168,7 +167,7 @@ def stacked_paths(paths: int, n: int, m: int) -> int:
     return max(min(paths, STACKED_MIN_PATHS), int(paths / factor)) if factor > 1 else paths
 
 
-def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
+def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint
                        ) -> dict[str, Any]:
     """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
     of C that arrived update the filter, theory §9): E[tr P_t] at the horizon, or — when the
@@ -184,7 +183,7 @@ def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
                    track_lambda_max=False).to_dict()
     mt = res.get("mean_trace") or {}
     last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
-    diverges = op.get("verdict") == vd.Verdict.MEAN_UNSTABLE.value
+    diverges = op.verdict is vd.Verdict.MEAN_UNSTABLE
     summary = {"paths": paths, "steps": budget.steps, "seed": opts.seed,
                "sensors": [s.name for s in net.sensors],
                "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
@@ -195,7 +194,7 @@ def network_simulation(spec: SystemSpec, opts: Any, op: dict[str, Any]
                        statement="E[tr P_t] diverges (the network is mean-unstable): the sample "
                                  "mean estimates nothing")
     else:
-        summary.update(mean_exists=None if op.get("verdict") != "mean-stable" else True,
+        summary.update(mean_exists=None if op.verdict is not vd.Verdict.MEAN_STABLE else True,
                        mean_trace=last)
     return {"seed": opts.seed, "quick": opts.quick, "network": summary,
             "reason": "per-sensor arrivals, each sensor over its own link"}

@@ -34,7 +34,8 @@ from kfcrit.analysis.links import bursty_channel, design_check, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
-from kfcrit.analysis.records.contract import Provenance, VerificationCheck
+from kfcrit.analysis.records.channel import channel_record
+from kfcrit.analysis.records.contract import OperatingPoint, Provenance, VerificationCheck
 from kfcrit.analysis.records.system import AnalysisOptionsRecord
 from kfcrit.analysis.requirements import (
     power_law_tail,
@@ -45,7 +46,7 @@ from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
 from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
-from kfcrit.io.typed import from_json
+from kfcrit.io.typed import from_json, to_json
 from kfcrit.model.system import System, conditioning_warnings
 from kfcrit.version import __version__
 
@@ -229,8 +230,8 @@ def joint_verdict(sec: dict[str, Any], joint: vd.JointLawInputs, warnings: list[
     """A network of time-aligned traces: its one verdict is that of the joint law of the
     received set (theory §13, §14), stated in the operating point and the network section."""
     verdict, basis = vd.joint_law_verdict(joint)
-    for holder in (sec["operating_point"], sec["network"]):
-        holder["verdict"], holder["basis"] = verdict.value, basis
+    sec["operating_point"] = replace(sec["operating_point"], verdict=verdict, basis=basis)
+    sec["network"]["verdict"], sec["network"]["basis"] = verdict.value, basis
     warnings.append("network of measured traces: the verdict uses the joint law of the "
                     "received set (`channel_fit.joint_law`); the per-sensor critical values "
                     "and the uniform margin in `network` assume independent links")
@@ -238,7 +239,7 @@ def joint_verdict(sec: dict[str, Any], joint: vd.JointLawInputs, warnings: list[
 
 def operating_point(spec: SystemSpec, theory: TheorySections,
                     link: dict[str, Any] | None = None,
-                    measured: vd.MeasuredInputs | None = None) -> dict[str, Any] | None:
+                    measured: vd.MeasuredInputs | None = None) -> OperatingPoint | None:
     """Arrival probability of the configured channel against p_c, the robust value and bracket,
     with the verdict of :func:`kfcrit.analysis.verdict.operating_verdict`."""
     if spec.channel is None:
@@ -288,9 +289,8 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
         out["note"] = ("the trace is fitted as a Gilbert–Elliott link: its margin is the "
                        "recovery rate against r_nec; p_c, p_up and the i.i.d. bounds S̄, V̄ "
                        "do not apply to it (the i.i.d. comparison p − p_c is kept beside it)")
-    out["verdict"] = verdict.value
-    out["basis"] = basis
-    return out
+    return OperatingPoint(**{**out, "channel": channel_record(ch), "verdict": verdict,
+                             "basis": basis})
 
 
 def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalInputs,
@@ -440,7 +440,8 @@ def record_hints() -> dict[str, Any]:
 
 
 TYPED_KEYS = frozenset({"name", "description", "warnings", "schema_version", "review",
-                        "requirements", "verification", "provenance"})
+                        "requirements", "verification", "provenance", "mesh",
+                        "operating_point"})
 """The record's sections :func:`analysis_sections` builds as typed values."""
 
 
@@ -503,8 +504,8 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     vd.stamp_operating_verdict(sec)
     if spec.network is not None and spec.network.size == 1:
         op1 = sec["operating_point"]
-        sec["network"], _ = network_sections(
-            spec, opts, warnings, single=(vd.Verdict(op1["verdict"]), op1.get("basis") or ""))
+        sec["network"], _ = network_sections(spec, opts, warnings,
+                                             single=(op1.verdict, op1.basis or ""))
     reqs = spec.requirements
     if not lean or getattr(reqs, "max_error_trace", None) is not None:
         _tail_section(spec, theory, sec)
@@ -542,11 +543,11 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
                                assessments=[*requirements.assessments, loop_cost])
     sec["requirements"] = power_law_tail(requirements, sec.get("tail"), sec.get("simulation"))
     sec["verification"] = [] if lean else verification(sec, warnings)
-    op = sec.get("operating_point") or {}
+    op = sec.get("operating_point")
     lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
     sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
                     for row in (sec.get("network") or {}).get("sensors") or []]
-    review = vd.review(op.get("verdict"), op.get("basis"),
+    review = vd.review(op.verdict if op else None, op.basis if op else None,
                        requirements.assessments if requirements is not None else (),
                        lb.get("design_check"),
                        extra=[r for rs in sensor_links for r in rs] + hop_reasons
@@ -598,6 +599,9 @@ def _json_sections(sec: dict[str, Any], theory: TheorySections,
             continue
         if key in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
             timings[key] = v
+            continue
+        if dataclasses.is_dataclass(v):     # a typed section: its JSON form has no timings
+            out[key] = to_json(v)
             continue
         if k in theory.sections and v is theory.sections[k]:
             if key not in memo:
@@ -747,8 +751,8 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
 
     pc = (sec.get("critical_value") or {}).get("value")
     robust = (sec.get("robust_critical_value") or {}).get("value")
-    bracket = None if spec.network is not None else \
-        (sec.get("operating_point") or {}).get("bracket")
+    op = sec.get("operating_point")
+    bracket = None if spec.network is not None or op is None else op.bracket
     if pc is not None and robust is not None and robust > pc:
         # a system within the tolerance is worse: judge the mean's existence conservatively
         pc, bracket = None, [pc, robust]

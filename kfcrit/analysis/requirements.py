@@ -11,6 +11,7 @@ from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.records.contract import (
+    OperatingPoint,
     PowerLawEstimate,
     RequirementAssessment,
     RequirementsRecord,
@@ -122,7 +123,7 @@ def _mean(limit: float, status: str | None, basis: str,
 
 
 def mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
-                    op: Mapping[str, Any] | None,
+                    verdict: vd.Verdict | None, iid: bool = True,
                     design: Mapping[str, Any] | None = None) -> RequirementAssessment:
     """The accuracy requirement lim E[tr P_t] ≤ L at the operating point (theory §11).
 
@@ -130,22 +131,21 @@ def mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
     bound for every p); ``met`` when tr V̄ ≤ L (V̄ an upper bound above p_up); otherwise ``not
     demonstrated`` (L lies between the bounds).
     """
-    verdict = (op or {}).get("verdict")
     if verdict is None:
         return _mean(limit, None, "no channel: no operating point to assess")
-    if verdict == vd.Verdict.MEAN_UNSTABLE.value:
+    if verdict is vd.Verdict.MEAN_UNSTABLE:
         return _mean(limit, "not met", "the filter is mean-unstable at the operating "
                 "point: lim E[tr P_t] is infinite")
     req = (design or {}).get("required_arrival_probability") or {}
     if req.get("status") == "impossible":
         return _mean(limit, "not met", "no arrival probability meets it: "
                 + str(req.get("reason") or "L is below the no-loss floor"))
-    if (op or {}).get("iid") is False:
+    if not iid:
         return _bursty_mean_assessment(limit, bounds, verdict)
     lower = (bounds or {}).get("lower") or {}
     upper = (bounds or {}).get("upper") or {}
     if bounds and lower.get("exists") is False:
-        if verdict == vd.Verdict.MEAN_STABLE.value:
+        if verdict is vd.Verdict.MEAN_STABLE:
             return _mean(limit, "not met", "(1 − p)ρ(A)² rounds to 1 or more in double "
                     "precision at this p: the Lyapunov lower bound tr S̄ = Σ_k (1 − p)^k "
                     "tr(A^k Q A'^k) is beyond float64, far above L")
@@ -156,7 +156,7 @@ def mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
         return _mean(limit, "not met", f"tr S̄ = {s_tr:.6g} > L = {limit:g} (S̄ ⪯ lim "
                 "E[P_t], Sinopoli Thm 4)", interval=[s_tr, v_tr])
     if v_tr is not None and upper.get("exists") and v_tr <= limit \
-            and verdict == vd.Verdict.MEAN_STABLE.value:
+            and verdict is vd.Verdict.MEAN_STABLE:
         return _mean(limit, "met", f"tr V̄ = {v_tr:.6g} ≤ L = {limit:g} (lim E[P_t] ⪯ V̄, "
                 "Sinopoli Thm 6)", interval=[s_tr, v_tr])
     s_text = "not available" if s_tr is None else f"{s_tr:.6g}"
@@ -166,7 +166,7 @@ def mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
 
 
 def _bursty_mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
-                            verdict: str) -> RequirementAssessment:
+                            verdict: vd.Verdict) -> RequirementAssessment:
     """The accuracy requirement over a channel that is not i.i.d. (theory §10).
 
     The i.i.d. bounds S̄, V̄ at the stationary arrival probability do not bound E[P_t] there;
@@ -185,7 +185,7 @@ def _bursty_mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
         return _mean(limit, "not met", f"Markov-jump lower bound lim E[tr P_t] ≥ "
                 f"{lo:.6g} > L = {limit:g} (losses-only recursion over the Gilbert–Elliott "
                 "chain, theory §10)", interval=[lo, hi])
-    if hi is not None and hi <= limit and verdict == vd.Verdict.MEAN_STABLE.value:
+    if hi is not None and hi <= limit and verdict is vd.Verdict.MEAN_STABLE:
         return _mean(limit, "met", f"Markov-jump upper bound lim E[tr P_t] ≤ {hi:.6g} "
                 f"≤ L = {limit:g} (fixed-gain second-moment recursion over the Gilbert–Elliott "
                 "chain, theory §10)", interval=[lo, hi])
@@ -199,7 +199,7 @@ def _bursty_mean_assessment(limit: float, bounds: Mapping[str, Any] | None,
 def requirement_assessment(requirements: Mapping[str, float | None] | None,
                            simulation: Mapping[str, Any] | None,
                            bounds: Mapping[str, Any] | None = None,
-                           op: Mapping[str, Any] | None = None,
+                           op: OperatingPoint | None = None,
                            design: Mapping[str, Any] | None = None) -> RequirementsRecord | None:
     """The system file's requirements (their values by key), each assessed (``assessments``, in
     file order; the tail requirement's assessment also as ``assessment`` for scripts written
@@ -219,5 +219,6 @@ def requirement_assessment(requirements: Mapping[str, float | None] | None,
                                            interval=tail.interval))
     mean_limit = requirements.get("max_mean_error_trace")
     if mean_limit is not None:
-        items.append(mean_assessment(mean_limit, bounds, op, design))
+        items.append(mean_assessment(mean_limit, bounds, op.verdict if op else None,
+                                     op.iid if op else True, design))
     return RequirementsRecord(limit, allowed, assessments=items, **extra)

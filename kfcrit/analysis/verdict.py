@@ -465,8 +465,8 @@ def stamp_operating_verdict(sections: dict[str, Any]) -> None:
     """Give every section that states the stability of the operating point (a bursty link's
     certificate, with or without a link budget) the operating point's one verdict, keeping
     the section's own ``facts`` beside it."""
-    op = sections.get("operating_point") or {}
-    verdict = op.get("verdict")
+    op = sections.get("operating_point")
+    verdict = op.verdict.value if op is not None else None
     link = sections.get("link_budget")
     if verdict is None or not isinstance(link, dict):
         return

@@ -17,6 +17,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from kfcrit.analysis.requirements import mean_assessment
+from kfcrit.analysis.verdict import Verdict
 from kfcrit.cli.main import main
 
 PLANT = ("name: Sinopoli general over a bursty link\nA: [[1.25, 0], [1, 1.1]]\nC: [[1, 1]]\n"
@@ -65,15 +66,15 @@ def test_met_only_above_the_markov_jump_upper_bound(tmp_path):
 def test_between_the_bounds_is_not_demonstrated():
     bounds = {"lower": {"trace": 61.0, "exists": True}, "upper": {"trace": 110.0, "exists": True},
               "markov_jump": {"lower": {"trace": 395.5}, "upper": {"trace": 503.7}}}
-    op = {"verdict": "mean-stable", "iid": False}
-    assert mean_assessment(450, bounds, op).status == "not demonstrated"
-    assert mean_assessment(150, bounds, op).status == "not met"
-    assert mean_assessment(600, bounds, op).status == "met"
+    op = (Verdict.MEAN_STABLE, False)
+    assert mean_assessment(450, bounds, *op).status == "not demonstrated"
+    assert mean_assessment(150, bounds, *op).status == "not met"
+    assert mean_assessment(600, bounds, *op).status == "met"
 
 
 def test_channel_with_memory_without_a_chain_bound_is_never_met():
     # a measured trace: S̄, V̄ at the empirical rate decide nothing, in either direction
     bounds = {"lower": {"trace": 61.0, "exists": True}, "upper": {"trace": 110.0, "exists": True}}
-    op = {"verdict": "mean-stable", "iid": False}
-    assert mean_assessment(150, bounds, op).status == "not demonstrated"
-    assert mean_assessment(50, bounds, op).status == "not demonstrated"
+    op = (Verdict.MEAN_STABLE, False)
+    assert mean_assessment(150, bounds, *op).status == "not demonstrated"
+    assert mean_assessment(50, bounds, *op).status == "not demonstrated"

@@ -17,6 +17,7 @@ The verdict words come from :mod:`kfcrit.analysis.verdict` only.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -253,10 +254,9 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
         _details(spec, opts, out, design, tcp_parts, s_link, a_link, m, warnings)
     out["actuation_link"], check = actuation_link(spec, out, design, warnings)
     out["notes"] = notes
-    op = sec.get("operating_point")
-    joint, why = vd.loop_operating_verdict((op["verdict"], op.get("basis") or ""),
-                                           (verdict, basis))
-    op["verdict"], op["basis"] = joint.value, why
+    op = sec["operating_point"]
+    joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
+    sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
     return out, vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
 
@@ -284,9 +284,8 @@ def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: 
                      "finite": False if unstab else None, "method": "none", "error": None,
                      "reason": str(exc)})
     op = sec["operating_point"]
-    joint, why = vd.loop_operating_verdict((op["verdict"], op.get("basis") or ""),
-                                           (verdict, basis))
-    op["verdict"], op["basis"] = joint.value, why
+    joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
+    sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
     return out, vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
 

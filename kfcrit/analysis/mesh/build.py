@@ -35,8 +35,9 @@ from kfcrit.analysis.mesh.section import (
     MeshSmart,
     MeshSmartRow,
 )
+from kfcrit.analysis.records.channel import MeshChannel
+from kfcrit.analysis.records.contract import OperatingPoint
 from kfcrit.io.jsonio import jsonable
-from kfcrit.io.typed import to_json
 from kfcrit.theory.facts import StabilityFacts
 
 RAW = "raw measurements (store-and-forward)"
@@ -345,21 +346,21 @@ def mesh_section(mfile: Any, opts: Any) -> MeshSection:
         failures=failure_rows(ma), simulation=sim)
 
 
-def mesh_operating_point(section: MeshSection) -> dict[str, Any]:
+def mesh_operating_point(section: MeshSection) -> OperatingPoint:
     """The operating point of a mesh file: the mesh under raw forwarding (its verdict is the
     mesh section's); ``arrival_probability`` is the weakest sensor's."""
     arr = section.arrival_probability
     weakest = min(arr, key=lambda k: arr[k])
-    return {"arrival_probability": arr[weakest],
-            "channel": {"model": "mesh", "relay_mode": section.relay_mode,
-                        "slots_per_period": section.slots_per_period,
-                        "routing": section.routing},
-            "iid": True, "margin": None, "margin_robust": None, "bracket": None,
-            "arrival_probabilities": dict(arr), "bottleneck": section.bottleneck,
-            "note": f"mesh under raw forwarding: the operating-point arrival probability is "
-                    f"the weakest sensor's ({weakest}); the joint law of the received set, the "
-                    "forwarding modes and N − 1 are in the mesh section",
-            "verdict": section.verdict.value, "basis": section.basis}
+    return OperatingPoint(
+        arrival_probability=arr[weakest],
+        channel=MeshChannel(model="mesh", relay_mode=section.relay_mode,
+                            slots_per_period=section.slots_per_period, routing=section.routing),
+        iid=True, margin=None, margin_robust=None, bracket=None,
+        arrival_probabilities=dict(arr), bottleneck=section.bottleneck,
+        note=f"mesh under raw forwarding: the operating-point arrival probability is the "
+             f"weakest sensor's ({weakest}); the joint law of the received set, the forwarding "
+             "modes and N − 1 are in the mesh section",
+        verdict=section.verdict, basis=section.basis)
 
 
 def mesh_lower_bound(mfile: Any, all_lost: float) -> dict[str, Any]:
@@ -408,7 +409,7 @@ def mesh_sections(spec: Any, opts: Any, sec: dict[str, Any], warnings: list[str]
     file's record; return the per-hop link-policy reasons for the review."""
     mfile = spec.mesh
     section = mesh_section(mfile, opts)
-    sec["mesh"] = to_json(section)
+    sec["mesh"] = section
     sec["operating_point"] = mesh_operating_point(section)
     sec["covariance_bounds"] = mesh_lower_bound(mfile, section.all_lost.value)
     if section.simulation is not None:

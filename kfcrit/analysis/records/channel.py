@@ -5,8 +5,10 @@ operating point's per-sensor channels (``NetworkChannel``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from kfcrit.io.typed import opt_key
+from kfcrit.io.jsonio import jsonable
+from kfcrit.io.typed import from_json, opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -189,3 +191,15 @@ class MeshChannel:
     relay_mode: str
     slots_per_period: int | None
     routing: str
+
+
+def channel_record(channel: Any) -> ChannelRecord | None:
+    """The record's typed form of a model channel (``None`` for none).
+
+    The model layer states a channel as plain data (``Channel.to_dict()``, exact numbers as
+    text or floats); it is typed here, once, where it enters the record (strict: a key the
+    record does not declare is an error, not dropped).
+    """
+    if channel is None:
+        return None
+    return from_json(ChannelRecord, jsonable(channel.to_dict()), "channel")
