@@ -75,8 +75,8 @@ def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str
     from kfcrit.link import curves
 
     marks: dict[str, float] = {}
-    pc = (sec.get("critical_value") or {}).get("value")
-    up = (sec.get("upper_bound") or {}).get("value")
+    pc = sec["critical_value"].value if sec.get("critical_value") is not None else None
+    up = sec["upper_bound"].value if sec.get("upper_bound") is not None else None
     if pc is not None:
         marks["p_c"] = float(pc)
     elif up is not None:

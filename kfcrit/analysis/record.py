@@ -23,10 +23,11 @@ followed by the detail sections ``system``, ``structure``, ``theory``, ``covaria
 from __future__ import annotations
 
 import dataclasses
+import enum
 import functools
 import platform
 import typing
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
@@ -127,6 +128,8 @@ class TheorySections:
     """
 
     sections: dict[str, Any]
+    """The typed sections by record key (``classification``, ``critical_value``, …,
+    ``upper_bound``: the classes of :class:`AnalysisRecord`'s fields)."""
     warnings: tuple[str, ...]
     critical_exact: Any = None
     p_low_exact: Any = None
@@ -135,6 +138,19 @@ class TheorySections:
     upper: Any = None
     """The p_up bracket (:class:`kfcrit.theory.upper.record.UpperBound`) behind ``upper_bound``,
     passed to the covariance bounds so that p_up is computed once per system."""
+    timings: dict[str, float] = field(default_factory=dict)
+    """Wall-clock seconds the theory reported (kept out of the sections)."""
+
+    @property
+    def classification(self) -> str | None:
+        """The classification's value (``"non-degenerate"``, …), None if not classified."""
+        cls = self.sections.get("classification")
+        return cls.value if cls is not None else None
+
+    def value(self, key: str) -> float | None:
+        """``value`` of the theory section ``key`` (None when the section is absent)."""
+        section = self.sections.get(key)
+        return section.value if section is not None else None
 
 
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
@@ -161,6 +177,18 @@ def _split_timings(obj: Any, path: str, found: dict[str, float]) -> Any:
     return obj
 
 
+def section_value(sec: dict[str, Any], key: str) -> float | None:
+    """``value`` of the typed section ``key`` of ``sec`` (None when absent)."""
+    section = sec.get(key)
+    return section.value if section is not None else None
+
+
+def classification_of(sec: dict[str, Any]) -> str | None:
+    """The classification's value (``"non-degenerate"``, …) of ``sec``, None if absent."""
+    cls = sec.get("classification")
+    return cls.value if cls is not None else None
+
+
 def _as_spec(system: System | SystemSpec) -> SystemSpec:
     return system if isinstance(system, SystemSpec) else SystemSpec(system=system)
 
@@ -182,18 +210,16 @@ def system_section(spec: SystemSpec) -> dict[str, Any]:
 
 def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
     """What the verdict needs of the theory sections (exact values where known)."""
-    sec = theory.sections
-    cv = sec.get("critical_value") or {}
-    low = (sec.get("block_lower_bound") or {}).get("value")
-    p_low = (sec.get("lower_bound") or {}).get("value")
+    cv = theory.sections.get("critical_value")
+    low = theory.value("block_lower_bound")
+    p_low = theory.value("lower_bound")
     if low is None:
         low = p_low
     return vd.CriticalInputs(
-        classification=sec.get("classification"), critical=cv.get("value"),
-        critical_exact=theory.critical_exact if cv.get("exact") else None,
-        robust=(sec.get("robust_critical_value") or {}).get("value"), lower=low,
-        upper=(sec.get("upper_bound") or {}).get("value"), p_low=p_low,
-        p_low_exact=theory.p_low_exact)
+        classification=theory.classification, critical=theory.value("critical_value"),
+        critical_exact=theory.critical_exact if cv is not None and cv.exact else None,
+        robust=theory.value("robust_critical_value"), lower=low,
+        upper=theory.value("upper_bound"), p_low=p_low, p_low_exact=theory.p_low_exact)
 
 
 def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
@@ -244,7 +270,6 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     with the verdict of :func:`kfcrit.analysis.verdict.operating_verdict`."""
     if spec.channel is None:
         return None
-    sec = theory.sections
     ch = spec.channel
     p_exact = ch.arrival_probability
     p = float(p_exact)
@@ -253,7 +278,7 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
     verdict, basis = vd.operating_verdict(p_exact, crit, iid=bool(ch.iid), burst=burst,
                                           measured_trace=ch.model == "trace", measured=measured)
     out: dict[str, Any] = {"arrival_probability": p, "channel": ch.to_dict(), "iid": ch.iid}
-    cls = sec.get("classification")
+    cls = theory.classification
     pc = crit.critical
     worst = max(pc if pc is not None else 0.0, crit.robust if crit.robust is not None else 0.0)
     if cls == "not-detectable":
@@ -336,7 +361,7 @@ def exact_difference(a: Any, b: Any, fallback: float) -> float:
 
 def theory_sections(system: System, options: AnalysisOptions | None = None,
                     channel: Any = None, *,
-                    upper_bound: dict[str, Any] | None = None) -> TheorySections:
+                    upper_bound: Any = None) -> TheorySections:
     """Critical value, its bounds and robust value, the structure, and p_up of one system.
 
     These depend on the system and the tolerances only; compute them once per system and pass
@@ -364,18 +389,33 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     else:
         if upper_bound is None:
             ub_result = upper.upper_result(system, tol=opts.upper_tol, structure=structure)
-            ub = ub_result.to_dict()
+            sec["upper_bound"] = ub_result.to_dict()
         else:
-            ub = upper_bound
-        sec["upper_bound"] = ub
-        warnings.extend(ub.get("warnings") or [])
-    close_bracket(sec)
+            sec["upper_bound"] = upper_bound
+    timings: dict[str, float] = {}
+    typed = {k: typed_section(k, v, timings) for k, v in sec.items()}
+    if typed["upper_bound"] is not None:
+        warnings.extend(typed["upper_bound"].warnings)
+    close_bracket(typed)
     value = getattr(crit, "value", None)
     lower = getattr(crit, "lower", None)
-    return TheorySections(sections=sec, warnings=tuple(warnings),
+    return TheorySections(sections=typed, warnings=tuple(warnings),
                           critical_exact=getattr(value, "expr", None),
                           p_low_exact=getattr(lower, "expr", None), structure=structure,
-                          upper=ub_result)
+                          upper=ub_result, timings=timings)
+
+
+def typed_section(key: str, value: Any, timings: dict[str, float]) -> Any:
+    """The record section ``key`` as its typed class (:class:`AnalysisRecord`'s field type).
+
+    A lower layer states its result as plain data (``to_dict()``); it is typed here, once,
+    where it enters the record (strict: a key the record does not declare is an error), its
+    wall-clock seconds moved to ``timings``. A value that is already typed is returned as is.
+    """
+    if value is None or dataclasses.is_dataclass(value) or isinstance(value, enum.Enum):
+        return value
+    plain = _split_timings(jsonable(value), f".{key}", timings)
+    return from_json(record_hints()[key], plain, f"record.{key}")
 
 
 def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
@@ -416,20 +456,15 @@ def _prepared(system: System | SystemSpec, options: AnalysisOptions | None,
 def _typed_record(sec: dict[str, Any], theory: TheorySections,
                   timings: dict[str, float]) -> AnalysisRecord:
     """The :class:`AnalysisRecord` of the sections: typed sections are taken as built; a
-    section a lower layer delivered as plain data is typed here, once, field by field
-    (:func:`~kfcrit.io.typed.from_json`, strict), its wall-clock seconds moved to ``timings``."""
+    section a lower layer delivered as plain data is typed by :func:`typed_section`, its
+    wall-clock seconds moved to ``timings`` (with the theory's)."""
+    timings.update(theory.timings)
     fields: dict[str, Any] = {}
-    plain = _json_sections({k: v for k, v in sec.items() if k not in TYPED_KEYS},
-                           theory, timings)
-    hints = record_hints()
     for f in dataclasses.fields(AnalysisRecord):
-        if f.name == "timings":
+        if f.name == "timings" or f.name not in sec:
             continue
-        if f.name in TYPED_KEYS:
-            if f.name in sec:
-                fields[f.name] = sec[f.name]
-        elif f.name in plain:
-            fields[f.name] = from_json(hints[f.name], plain[f.name], f"record.{f.name}")
+        value = sec[f.name]
+        fields[f.name] = value if f.name in TYPED_KEYS else typed_section(f.name, value, timings)
     return AnalysisRecord(**fields)
 
 
@@ -488,8 +523,8 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
         sec["channel_fit"] = measured.section
     if spec.network is not None and spec.network.size > 1:
         sec["network"], sec["operating_point"] = network_sections(
-            spec, opts, warnings, stacked={k: sec.get(k) for k in ("critical_value",
-                                                                   "upper_bound")})
+            spec, opts, warnings, stacked={k: to_json(sec.get(k)) for k in ("critical_value",
+                                                                            "upper_bound")})
         if measured is not None and measured.joint is not None:
             joint_verdict(sec, measured.joint, warnings)
     hop_reasons = mesh_sections(spec, opts, sec, warnings) if spec.mesh is not None else []
@@ -552,7 +587,8 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
                        lb.get("design_check"),
                        extra=[r for rs in sensor_links for r in rs] + hop_reasons
                        + loop_reasons)
-    if not op and (sec.get("upper_bound") or {}).get("status") == "undetermined":
+    ub = sec.get("upper_bound")
+    if not op and ub is not None and ub.status == "undetermined":
         review = vd.review(None, None, (), None, extra=[vd.Reason(
             "upper bound p_up", vd.CheckStatus.UNDETERMINED,
             "the p_up bracket could not be narrowed to the tolerance")])
@@ -585,13 +621,14 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
 
 def _json_sections(sec: dict[str, Any], theory: TheorySections,
                    timings: dict[str, float]) -> dict[str, Any]:
-    """``_split_timings(jsonable(sec without review))``, key by key; the JSON form of a section
-    that is the theory's own object is computed once per :class:`TheorySections` (a sweep
-    shares it across points; the values are shared, so callers must not mutate them)."""
+    """The plain JSON form of the sections (without ``review``), their wall-clock seconds moved
+    to ``timings``; a theory section's JSON form is computed once per :class:`TheorySections`
+    (a sweep shares it across points; callers must not mutate it)."""
     memo: dict[str, Any] | None = theory.__dict__.get("_json_memo")
     if memo is None:
         memo = {}
         object.__setattr__(theory, "_json_memo", memo)
+    timings.update(theory.timings)
     out: dict[str, Any] = {}
     for k, v in sec.items():
         key = str(k)
@@ -599,17 +636,12 @@ def _json_sections(sec: dict[str, Any], theory: TheorySections,
             continue
         if key in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
             timings[key] = v
-            continue
-        if dataclasses.is_dataclass(v):     # a typed section: its JSON form has no timings
-            out[key] = to_json(v)
-            continue
-        if k in theory.sections and v is theory.sections[k]:
+        elif k in theory.sections and v is theory.sections[k]:
             if key not in memo:
-                found: dict[str, float] = {}
-                memo[key] = (_split_timings(jsonable(v), f".{key}", found), found)
-            value, found = memo[key]
-            timings.update(found)
-            out[key] = value
+                memo[key] = to_json(v)
+            out[key] = memo[key]
+        elif dataclasses.is_dataclass(v) or isinstance(v, enum.Enum):
+            out[key] = to_json(v)
         else:
             out[key] = _split_timings(jsonable(v), f".{key}", timings)
     return out
@@ -634,23 +666,25 @@ def not_detectable_upper() -> dict[str, Any]:
             "warnings": []}
 
 
-def close_bracket(sec: dict[str, Any]) -> None:
+def close_bracket(sections: dict[str, Any]) -> None:
     """If p_c has no closed form but the exact block lower bound and the *certified* upper end
     of p_up lie within the upper-bound tolerance, p_c is known to that width (Thm 3: p_c ≥ every
-    block value; Sinopoli Thm 3: p_c ≤ p_up). Fill ``critical_value`` accordingly (not exact)."""
-    cv = sec.get("critical_value") or {}
-    blb = sec.get("block_lower_bound") or {}
-    ub = sec.get("upper_bound") or {}
-    if cv.get("value") is not None or blb.get("value") is None or not ub.get("certified"):
+    block value; Sinopoli Thm 3: p_c ≤ p_up). Replace the typed ``critical_value`` accordingly
+    (not exact)."""
+    cv = sections.get("critical_value")
+    blb = sections.get("block_lower_bound")
+    ub = sections.get("upper_bound")
+    if (cv is None or cv.value is not None or blb is None or blb.value is None or ub is None
+            or not ub.certified):
         return
-    hi = (ub.get("interval") or [None, None])[1]
-    tol = (ub.get("tolerance") or 1e-9)
-    if hi is not None and 0 <= hi - blb["value"] <= max(tol, 1e-12):
-        sec["critical_value"] = {
-            **cv, "value": blb["value"], "exact": False, "expression": blb.get("expression"),
-            "reason": (f"{cv.get('reason', '')} The bracket closes: the block lower bound "
-                       f"{blb.get('expression')} (Mo–Sinopoli Thm 3) and the certified upper end "
-                       f"{hi:.12g} of p_up (Sinopoli Thm 3) differ by at most {tol:g}.").strip()}
+    hi = (ub.interval or [None, None])[1]
+    tol = ub.tolerance or 1e-9
+    if hi is not None and 0 <= hi - blb.value <= max(tol, 1e-12):
+        sections["critical_value"] = replace(
+            cv, value=blb.value, exact=False, expression=blb.expression,
+            reason=(f"{cv.reason} The bracket closes: the block lower bound {blb.expression} "
+                    f"(Mo–Sinopoli Thm 3) and the certified upper end {hi:.12g} of p_up "
+                    f"(Sinopoli Thm 3) differ by at most {tol:g}.").strip())
 
 
 def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str], *,
@@ -662,12 +696,12 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
     from kfcrit.theory.covariance import bounds
 
     s = spec.system
-    markers = {"p_low": (sec.get("lower_bound") or {}).get("value"),
-               "p_c": (sec.get("critical_value") or {}).get("value"),
-               "p_up": (sec.get("upper_bound") or {}).get("value"),
+    markers = {"p_low": section_value(sec, "lower_bound"),
+               "p_c": section_value(sec, "critical_value"),
+               "p_up": section_value(sec, "upper_bound"),
                "operating": (float(spec.channel.arrival_probability)
                              if spec.channel is not None else None)}
-    if sec.get("classification") == "not-detectable":
+    if classification_of(sec) == "not-detectable":
         p = markers["operating"]
         if p is not None:
             S = bounds.lower_covariance(s.a, s.q, p)
@@ -749,15 +783,15 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
         return
     from kfcrit.sim.montecarlo import simulation_section
 
-    pc = (sec.get("critical_value") or {}).get("value")
-    robust = (sec.get("robust_critical_value") or {}).get("value")
+    pc = section_value(sec, "critical_value")
+    robust = section_value(sec, "robust_critical_value")
     op = sec.get("operating_point")
     bracket = None if spec.network is not None or op is None else op.bracket
     if pc is not None and robust is not None and robust > pc:
         # a system within the tolerance is worse: judge the mean's existence conservatively
         pc, bracket = None, [pc, robust]
     sim = simulation_section(
-        spec, critical_value=pc, upper_bound=(sec.get("upper_bound") or {}).get("value"),
+        spec, critical_value=pc, upper_bound=section_value(sec, "upper_bound"),
         seed=opts.seed, quick=opts.quick,
         critical_bracket=tuple(bracket) if bracket and None not in bracket else None)
     sec["simulation"] = sim
@@ -774,7 +808,7 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
     from kfcrit.theory.links import markov
 
     s = spec.system
-    cls = theory.sections.get("classification")
+    cls = theory.classification
     out = gilbert_elliott_section(s, ge, seed=opts.seed, simulate=opts.details,
                                   classification=cls)
     if cls == "not-detectable":
@@ -804,16 +838,15 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
     if ch.model == "gilbert-elliott":
         sec["link_budget"] = bursty_link_section(spec, opts, theory, ch)
         return
-    crit = sec.get("critical_value") or {}
-    blb = (sec.get("block_lower_bound") or {}).get("value")
-    low = blb if blb is not None else (sec.get("lower_bound") or {}).get("value")
-    bracket = (None, None) if crit.get("value") is not None or \
-        sec.get("classification") in ("stable", "not-detectable") else \
-        (low if low is not None else 0.0, (sec.get("upper_bound") or {}).get("value"))
+    blb = section_value(sec, "block_lower_bound")
+    low = blb if blb is not None else section_value(sec, "lower_bound")
+    bracket = (None, None) if section_value(sec, "critical_value") is not None or \
+        classification_of(sec) in ("stable", "not-detectable") else \
+        (low if low is not None else 0.0, section_value(sec, "upper_bound"))
     sec["link_budget"] = linkbudget.design_section(
-        ch, critical_value=crit.get("value"),
-        robust_value=(sec.get("robust_critical_value") or {}).get("value"),
-        bracket=bracket, upper_bound=(sec.get("upper_bound") or {}).get("value"),
+        ch, critical_value=section_value(sec, "critical_value"),
+        robust_value=section_value(sec, "robust_critical_value"),
+        bracket=bracket, upper_bound=section_value(sec, "upper_bound"),
         accuracy=sec.get("design"))
     if isinstance(sec["link_budget"], dict):
         sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
@@ -830,7 +863,7 @@ def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, An
     """The accuracy requirement turned into a required arrival probability [p_S, p_V] (theory
     §11) and, for a link budget, into the radio: distance, transmit power, payload, retries."""
     level = getattr(spec.requirements, "max_mean_error_trace", None)
-    if level is None or sec.get("classification") == "not-detectable":
+    if level is None or classification_of(sec) == "not-detectable":
         return
     from kfcrit.theory.covariance.design import required_arrival
 
@@ -857,7 +890,7 @@ def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any])
 
     sec["tail"] = {"exponent": tail_exponent(
         spec.system, spec.channel.arrival_probability,
-        classification=sec.get("classification"), structure=theory.structure).to_dict()}
+        classification=theory.classification, structure=theory.structure).to_dict()}
 
 
 def _simulated_mean_between_bounds(cb: dict[str, Any],
@@ -915,12 +948,13 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
     """
     warnings = warnings if warnings is not None else []
     checks: list[dict[str, Any]] = []
-    ub = sec.get("upper_bound") or {}
-    if ub and ub.get("status") != "not applicable":
-        cert = ub.get("certificate") or {}
+    ub = sec.get("upper_bound")
+    if ub is not None and ub.status != "not applicable":
+        cert = ub.certificate
+        detail = (cert.verified_by or cert.kind) if cert is not None else None
         checks.append({"check": "upper-bound certificate X ≻ g_p(X), X ≻ 0 (exact re-check)",
-                       "passed": True if ub.get("certified") else None,
-                       "detail": cert.get("verified_by") or cert.get("kind") or ub.get("status")})
+                       "passed": True if ub.certified else None,
+                       "detail": detail or ub.status})
     cb = sec.get("covariance_bounds") or {}
     if cb:
         checks.append({"check": "covariance bounds ordered: S̄ ⪯ V̄",
@@ -948,12 +982,11 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
         if between["status"] == "inconclusive":
             warnings.append(f"Monte Carlo check inconclusive: {between['check']} "
                             f"({between['reason']})")
-    pcv = (sec.get("critical_value") or {}).get("value")
-    lb = (sec.get("lower_bound") or {}).get("value")
-    up = ub.get("value") if ub else None
+    pcv = section_value(sec, "critical_value")
+    lb = section_value(sec, "lower_bound")
+    up = ub.value if ub is not None else None
     if pcv is not None and lb is not None:
-        ok = lb <= pcv + 1e-12 and (up is None or pcv <= up + max(ub.get("tolerance") or 0,
-                                                                     1e-9))
+        ok = lb <= pcv + 1e-12 and (up is None or pcv <= up + max(ub.tolerance or 0, 1e-9))
         checks.append({"check": "ordering p_low ≤ p_c ≤ p_up", "passed": bool(ok),
                        "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
     if sec.get("loop") is not None:

@@ -58,28 +58,29 @@ def sensing_critical(sec: dict[str, Any]) -> dict[str, Any]:
 
     .. math:: \gamma_c = p_c(A, C)
     """
-    cls = sec.get("classification")
-    cv = sec.get("critical_value") or {}
+    cls = sec["classification"].value if sec.get("classification") is not None else None
+    cv = sec.get("critical_value")
     if cls == "not-detectable":
         return {"value": None, "expression": None, "exact": False, "interval": None,
                 "basis": "none", "certified": True, "reason": "(C, A) is not detectable"}
     if cls == "stable":
         return {"value": 0.0, "expression": "0", "exact": True, "interval": [0.0, 0.0],
                 "basis": "theorem", "certified": True, "reason": "ρ(A) < 1"}
-    if cv.get("value") is not None:
-        v = float(cv["value"])
-        return {"value": v, "expression": cv.get("expression") if cv.get("exact") else None,
-                "exact": bool(cv.get("exact")), "interval": [v, v],
-                "basis": "theorem" if cv.get("exact") else "numerical",
-                "certified": bool(cv.get("exact")), "reason": cv.get("reason") or ""}
-    ub = sec.get("upper_bound") or {}
-    lo = (sec.get("block_lower_bound") or {}).get("value")
-    lo = lo if lo is not None else (sec.get("lower_bound") or {}).get("value") or 0.0
-    hi = (ub.get("interval") or [None, ub.get("value")])[1]
+    if cv is not None and cv.value is not None:
+        v = float(cv.value)
+        return {"value": v, "expression": cv.expression if cv.exact else None,
+                "exact": bool(cv.exact), "interval": [v, v],
+                "basis": "theorem" if cv.exact else "numerical",
+                "certified": bool(cv.exact), "reason": cv.reason or ""}
+    ub = sec.get("upper_bound")
+    blb, low = sec.get("block_lower_bound"), sec.get("lower_bound")
+    lo = blb.value if blb is not None else None
+    lo = lo if lo is not None else (low.value if low is not None else None) or 0.0
+    hi = ((ub.interval or [None, ub.value])[1]) if ub is not None else None
     return {"value": None, "expression": None, "exact": False,
             "interval": [float(lo), float(hi)] if hi is not None else None,
-            "basis": "certified-interval" if ub.get("certified") else "numerical",
-            "certified": bool(ub.get("certified")),
+            "basis": "certified-interval" if ub is not None and ub.certified else "numerical",
+            "certified": bool(ub is not None and ub.certified),
             "reason": "no closed form: [block lower bound, p_up(A, C)]"}
 
 
