@@ -36,7 +36,7 @@ from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
 from kfcrit.analysis.records.channel import channel_record
-from kfcrit.analysis.records.contract import OperatingPoint, Provenance, VerificationCheck
+from kfcrit.analysis.records.contract import OperatingPoint, Provenance
 from kfcrit.analysis.records.system import AnalysisOptionsRecord
 from kfcrit.analysis.requirements import (
     power_law_tail,
@@ -44,6 +44,7 @@ from kfcrit.analysis.requirements import (
     tail_simulation_check,
 )
 from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
+from kfcrit.analysis.verification import verification
 from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
@@ -427,7 +428,8 @@ def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None 
     """
     opts, theory, spec = _prepared(system, options, theory, kwargs)
     timings: dict[str, float] = {}
-    record = _typed_record(analysis_sections(spec, opts, theory), theory, timings)
+    record = _typed_record(analysis_sections(spec, opts, theory, timings=timings), theory,
+                           timings)
     return replace(record, timings=timings)
 
 
@@ -480,8 +482,15 @@ TYPED_KEYS = frozenset({"name", "description", "warnings", "schema_version", "re
 """The record's sections :func:`analysis_sections` builds as typed values."""
 
 
+MEASURED_KEYS = ("design", "tail", "covariance_bounds", "static_gain", "phase_transition",
+                 "invariant", "simulation")
+"""The sections the lower layers state as plain data that the requirements and the
+verification read: typed by :func:`analysis_sections` before they are judged."""
+
+
 def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections, *,
-                      lean: bool = False) -> dict[str, Any]:
+                      lean: bool = False, timings: dict[str, float] | None = None
+                      ) -> dict[str, Any]:
     """The sections of one analysis, by record key.
 
     With ``lean`` only the sections of :data:`ROW_KEYS` and the review are computed (a sweep
@@ -496,6 +505,8 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
         Tolerances, simulation size and seed.
     theory : TheorySections
         The channel-independent sections of this system (computed once per system).
+    timings : dict, optional
+        Receives the wall-clock seconds the lower layers reported.
 
     Notes
     -----
@@ -504,6 +515,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     bounds S̄ ⪯ lim E[P_t] ⪯ V̄ (Thm 4, 6), the simulation that cross-checks them, the
     requirements, and finally the review decision.
     """
+    timings = timings if timings is not None else {}
     s = spec.system
     sec: dict[str, Any] = {k: None for k in ("name", "operating_point", "warnings")
                            + DETAIL_KEYS}
@@ -569,7 +581,11 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
                              "rests on the theory"}
     elif opts.details or tail:
         _simulation_sections(spec, opts, sec, warnings)
-    tail_simulation_check(sec)
+    for key in MEASURED_KEYS:     # typed here: what follows judges them
+        if sec.get(key) is not None:
+            sec[key] = typed_section(key, sec[key], timings)
+    if sec.get("tail") is not None:
+        sec["tail"] = tail_simulation_check(sec["tail"], sec.get("simulation"))
     requirements = requirement_assessment(reqs.to_dict() if reqs else None,
                                           sec.get("simulation"), sec.get("covariance_bounds"),
                                           sec.get("operating_point"), sec.get("design"))
@@ -610,8 +626,8 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
     :func:`analysis_sections`.
     """
     opts, theory, spec = _prepared(system, options, theory, kwargs)
-    sec = analysis_sections(spec, opts, theory, lean=lean)
     timings: dict[str, float] = {}
+    sec = analysis_sections(spec, opts, theory, lean=lean, timings=timings)
     if lean:
         data = _json_sections({k: sec.get(k) for k in ROW_KEYS}, theory, timings)
         data["review"] = review_json(sec["review"])
@@ -891,116 +907,6 @@ def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any])
     sec["tail"] = {"exponent": tail_exponent(
         spec.system, spec.channel.arrival_probability,
         classification=theory.classification, structure=theory.structure).to_dict()}
-
-
-def _simulated_mean_between_bounds(cb: dict[str, Any],
-                                   sim_op: dict[str, Any]) -> dict[str, Any] | None:
-    """Sinopoli Thm 4/6 cross-check: the simulated E[tr P_t] at the horizon lies in
-    [tr S̄, tr V̄] up to its confidence band (and a 5 % allowance for the finite horizon).
-
-    A miss is ``inconclusive`` (``passed`` None, with the reason), not a failure, when the
-    simulation section says the comparison is not valid at this operating point
-    (``reliability``): the variance of tr P is infinite (heavy tails, just above p_c) or the
-    Lyapunov lower bound itself has not settled within the horizon (the limit bounds then do
-    not yet apply to E[tr P_T]).
-    """
-    lower, upper = cb.get("lower") or {}, cb.get("upper") or {}
-    mt = sim_op.get("mean_trace") or {}
-    if not (lower.get("exists") and upper.get("exists") and mt.get("mean")):
-        return None
-    if sim_op.get("iid") is False:  # S̄ and V̄ are bounds for i.i.d. losses only
-        return None
-    if (sim_op.get("divergence") or {}).get("diverged_paths"):
-        return None
-    mean, lo, hi = mt["mean"][-1], (mt.get("lower") or mt["mean"])[-1], \
-        (mt.get("upper") or mt["mean"])[-1]
-    if None in (mean, lo, hi):
-        return None
-    ok = hi >= 0.95 * lower["trace"] and lo <= 1.05 * upper["trace"]
-    out = {"check": "simulation: E[tr P_t] at the horizon within [tr S̄, tr V̄] (Thm 4, 6)",
-           "passed": bool(ok), "status": "passed" if ok else "failed",
-           "detail": f"{lower['trace']:.6g} ≤ {mean:.6g} (band {lo:.6g}–{hi:.6g}) ≤ "
-                     f"{upper['trace']:.6g}"}
-    rel = sim_op.get("reliability") or {}
-    if not ok:
-        reasons = []
-        if rel.get("heavy_tailed"):
-            reasons.append(f"{rel.get('variance_condition')} = {rel.get('variance_value'):.4g}"
-                           " >= 1: the variance of tr P diverges (heavy tails just above p_c), "
-                           "so the sample mean is unreliable")
-        if rel.get("settled") is False:
-            reasons.append(f"the Lyapunov bound has not settled within the horizon (tr S_T = "
-                           f"{rel.get('lyapunov_trace_at_horizon'):.4g} < 0.95 tr S̄ = "
-                           f"{0.95 * rel.get('lyapunov_trace_limit'):.4g})")
-        if reasons:
-            out.update(passed=None, status="inconclusive", reason="; ".join(reasons))
-    return out
-
-
-def verification(sec: dict[str, Any], warnings: list[str] | None = None
-                 ) -> list[VerificationCheck]:
-    """The checks the record relies on, each with its outcome (for the report's appendix).
-
-    Every entry is ``{check, passed (True/False/None), status, detail}`` with ``status`` one of
-    passed / failed / inconclusive (a Monte Carlo cross-check whose tolerance is not valid at
-    this operating point; ``reason`` says why and a warning is added) / not applicable; nothing
-    here recomputes a result, it reads what the sections measured.
-    """
-    warnings = warnings if warnings is not None else []
-    checks: list[dict[str, Any]] = []
-    ub = sec.get("upper_bound")
-    if ub is not None and ub.status != "not applicable":
-        cert = ub.certificate
-        detail = (cert.verified_by or cert.kind) if cert is not None else None
-        checks.append({"check": "upper-bound certificate X ≻ g_p(X), X ≻ 0 (exact re-check)",
-                       "passed": True if ub.certified else None,
-                       "detail": detail or ub.status})
-    cb = sec.get("covariance_bounds") or {}
-    if cb:
-        checks.append({"check": "covariance bounds ordered: S̄ ⪯ V̄",
-                       "passed": cb.get("ordered"),
-                       "detail": f"MARE residual {((cb.get('upper') or {}).get('residual'))}"})
-        cup = cb.get("upper") or {}
-        if "certified" in cup:
-            enc = cup.get("certificate") or {}
-            checks.append({
-                "check": "V̄ enclosed: (1 − ε)V ⪯ V̄ ⪯ (1 + ε)V (verified float64, theory §3)",
-                "passed": True if cup["certified"] else None,
-                "status": "passed" if cup["certified"] else "inconclusive",
-                "detail": (f"ε = {enc['relative_width']:g}, tr V̄ in "
-                           f"[{enc['trace_interval'][0]:.10g}, {enc['trace_interval'][1]:.10g}]"
-                           if cup["certified"] else "no enclosure proven"),
-                **({} if cup["certified"] else
-                   {"reason": "the solver's V̄ could not be enclosed (Q singular, or V̄ not "
-                              "converged); it rests on its residual"})})
-    sim = sec.get("simulation") or {}
-    for c in sim.get("checks") or []:
-        checks.append(c)
-    between = _simulated_mean_between_bounds(cb, sim.get("operating_point") or {})
-    if between is not None:
-        checks.append(between)
-        if between["status"] == "inconclusive":
-            warnings.append(f"Monte Carlo check inconclusive: {between['check']} "
-                            f"({between['reason']})")
-    pcv = section_value(sec, "critical_value")
-    lb = section_value(sec, "lower_bound")
-    up = ub.value if ub is not None else None
-    if pcv is not None and lb is not None:
-        ok = lb <= pcv + 1e-12 and (up is None or pcv <= up + max(ub.tolerance or 0, 1e-9))
-        checks.append({"check": "ordering p_low ≤ p_c ≤ p_up", "passed": bool(ok),
-                       "detail": f"{lb:.12g} ≤ {pcv:.12g} ≤ {up if up is None else f'{up:.12g}'}"})
-    if sec.get("loop") is not None:
-        from kfcrit.analysis.loop.designs import loop_check
-
-        check = loop_check(sec["loop"])
-        if check is not None:
-            checks.append(check)
-            if check["status"] == "inconclusive":
-                warnings.append(f"Monte Carlo check inconclusive: {check['check']} "
-                                f"({check['reason']})")
-    status = {True: "passed", False: "failed", None: "not applicable"}
-    return [VerificationCheck(**{**c, "status": c.get("status") or status[c.get("passed")]})
-            for c in checks]
 
 
 @functools.lru_cache(maxsize=1)

@@ -16,9 +16,17 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
+from kfcrit.analysis.records.covariance import (
+    CovarianceBounds,
+    CovarianceSummary,
+    MarkovJumpLower,
+    MarkovJumpRecord,
+    MarkovJumpUpper,
+)
 from kfcrit.analysis.requirements import mean_assessment
 from kfcrit.analysis.verdict import Verdict
 from kfcrit.cli.main import main
+from kfcrit.io.typed import ABSENT
 
 PLANT = ("name: Sinopoli general over a bursty link\nA: [[1.25, 0], [1, 1.1]]\nC: [[1, 1]]\n"
          "Q: 20\nR: 2.5\nchannel: {model: gilbert-elliott, failure_rate: 0.1, "
@@ -63,9 +71,22 @@ def test_met_only_above_the_markov_jump_upper_bound(tmp_path):
     assert _hand_lower() <= item["interval"][1] <= 600
 
 
+def _iid_bounds(markov_jump=ABSENT) -> CovarianceBounds:
+    """The covariance bounds section with tr S̄ = 61, tr V̄ = 110 (i.i.d.) and the given
+    Markov-jump bounds."""
+    def summary(trace):
+        return CovarianceSummary(exists=True, trace=trace, max_eig=None, matrix=None)
+
+    return CovarianceBounds(p=0.6, lower=summary(61.0), upper=summary(110.0),
+                            markov_jump=markov_jump)
+
+
 def test_between_the_bounds_is_not_demonstrated():
-    bounds = {"lower": {"trace": 61.0, "exists": True}, "upper": {"trace": 110.0, "exists": True},
-              "markov_jump": {"lower": {"trace": 395.5}, "upper": {"trace": 503.7}}}
+    bounds = _iid_bounds(MarkovJumpRecord(
+        failure_rate=0.1, recovery_rate=0.4, method="test",
+        lower=MarkovJumpLower(trace=395.5, exists=True, basis="test"),
+        upper=MarkovJumpUpper(trace=503.7, exists=True, basis="test", spectral_radius=None,
+                              gains=None)))
     op = (Verdict.MEAN_STABLE, False)
     assert mean_assessment(450, bounds, *op).status == "not demonstrated"
     assert mean_assessment(150, bounds, *op).status == "not met"
@@ -74,7 +95,7 @@ def test_between_the_bounds_is_not_demonstrated():
 
 def test_channel_with_memory_without_a_chain_bound_is_never_met():
     # a measured trace: S̄, V̄ at the empirical rate decide nothing, in either direction
-    bounds = {"lower": {"trace": 61.0, "exists": True}, "upper": {"trace": 110.0, "exists": True}}
+    bounds = _iid_bounds()
     op = (Verdict.MEAN_STABLE, False)
     assert mean_assessment(150, bounds, *op).status == "not demonstrated"
     assert mean_assessment(50, bounds, *op).status == "not demonstrated"

@@ -359,21 +359,21 @@ def test_undecided_p_up_width_does_not_undo_a_decided_verdict(tmp_path: Path) ->
 def test_requirement_assessment_reads_the_wilson_interval() -> None:
     """met iff the interval's upper end ≤ allowed; not met iff its lower end > allowed; else
     not demonstrated. Wilson interval for 0 of 300 at 95 %: [0, z²/(N + z²)] = [0, 0.01264]."""
-    from kfcrit.analysis.record import requirement_assessment
+    from kfcrit.analysis.records.simulation import Exceedance
+    from kfcrit.analysis.requirements import requirement_assessment, tail_assessment
     from kfcrit.sim.stats import proportion
 
-    req = {"max_error_trace": 20.0, "max_tail_probability": 0.01}
-
-    def sim(k, n):
-        return {"operating_point": {"steps": 200, "exceedance": {"level": 20.0,
-                                                                   **proportion(k, n)}}}
+    def tail(k, n):
+        return tail_assessment(20.0, 0.01, Exceedance(level=20.0, **proportion(k, n)), 200)
 
     zero = proportion(0, 300)
     z2 = 1.959963984540054 ** 2
     assert zero["lower"] == 0.0 and zero["upper"] == pytest.approx(z2 / (300 + z2), rel=1e-9)
-    assert requirement_assessment(req, sim(0, 300)).assessment.status == "not demonstrated"
-    assert requirement_assessment(req, sim(5, 2000)).assessment.status == "met"
-    assert requirement_assessment(req, sim(60, 2000)).assessment.status == "not met"
+    assert tail(0, 300).status == "not demonstrated"
+    assert tail(5, 2000).status == "met"
+    assert tail(60, 2000).status == "not met"
+    assert "5 of 2000 paths" in tail(5, 2000).basis
+    req = {"max_error_trace": 20.0, "max_tail_probability": 0.01}
     assert requirement_assessment(req, None).assessment.status is None
     assert requirement_assessment({}, None) is None
 
