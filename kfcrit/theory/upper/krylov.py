@@ -250,7 +250,7 @@ def stein_solve_krylov(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: float, W:
 
 
 def mare_start(A: np.ndarray, C: np.ndarray, p: float, iterations: int = 3000,
-               rtol: float = 1e-8) -> tuple[np.ndarray, bool]:
+               rtol: float = 1e-8, trace_limit: float = 1e14) -> tuple[np.ndarray, bool]:
     """The MARE solution with Q = I, R = I at p by the fixed-point iteration from 0 (a start for
     Newton: normalised, it approximates the cone eigenvector as p ↓ p_up).
 
@@ -258,7 +258,8 @@ def mare_start(A: np.ndarray, C: np.ndarray, p: float, iterations: int = 3000,
 
         X_{t+1} = A X_t A' + I - p A X_t C' (C X_t C' + I)^{-1} C X_t A'
 
-    Returns (X, converged).
+    Returns (X, converged); the iteration is abandoned as divergent once tr X passes
+    ``trace_limit``.
     """
     k, m = A.shape[0], C.shape[0]
     X = np.zeros((k, k))
@@ -266,7 +267,7 @@ def mare_start(A: np.ndarray, C: np.ndarray, p: float, iterations: int = 3000,
         AXC = A @ X @ C.T
         Xn = symmetrize(A @ X @ A.T + np.eye(k)
                         - p * AXC @ np.linalg.solve(C @ X @ C.T + np.eye(m), AXC.T))
-        if not np.all(np.isfinite(Xn)) or np.trace(Xn) > 1e14:
+        if not np.all(np.isfinite(Xn)) or np.trace(Xn) > trace_limit:
             return X, False
         if np.abs(Xn - X).max() <= rtol * np.abs(Xn).max():
             return Xn, True

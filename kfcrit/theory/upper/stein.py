@@ -31,6 +31,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.theory.covariance.riccati import symmetrize
+from kfcrit.theory.upper import krylov
 from kfcrit.theory.upper.cone import Reduced
 
 KRONECKER_LIMIT = 1600
@@ -93,18 +94,9 @@ def mare_fixed_point(A: np.ndarray, C: np.ndarray, p: float, steps: int = FACE_M
 
         P_{t+1} = A P_t A' + I - p A P_t C' (C P_t C' + I)^{-1} C P_t A'
     """
-    k, m = A.shape[0], C.shape[0]
-    P = np.zeros((k, k))
-    for _ in range(steps):
-        APC = A @ P @ C.T
-        Pn = symmetrize(A @ P @ A.T + np.eye(k)
-                        - p * APC @ np.linalg.solve(C @ P @ C.T + np.eye(m), APC.T))
-        if not np.all(np.isfinite(Pn)) or np.trace(Pn) > 1e10 * k:
-            return None
-        if np.abs(Pn - P).max() <= rtol * np.abs(Pn).max():
-            return Pn
-        P = Pn
-    return None
+    X, converged = krylov.mare_start(A, C, p, iterations=steps, rtol=rtol,
+                                     trace_limit=1e10 * A.shape[0])
+    return X if converged else None
 
 
 def dominant_split(red: Reduced) -> tuple[Reduced, int] | None:
