@@ -120,3 +120,35 @@ def test_chunks_are_bounded_and_cover_every_point() -> None:
         assert [it for part in parts for it in part] == items
         assert max(len(p) for p in parts) <= run_mod.CHUNK_MAX
     assert len(run_mod.chunks(items, 2)) == 8    # ⌈1000 / (4·2)⌉ = 125 points per chunk
+
+
+def test_forked_and_spawned_workers_give_identical_tables(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    spec = _spec(tmp_path, 50)
+    serial = sweep_mod.run_sweep(spec, tmp_path / "serial", workers=1)
+    tables = []
+    for method in ("fork", "spawn"):
+        monkeypatch.setattr(run_mod, "start_method", lambda m=method: m)
+        result = sweep_mod.run_sweep(spec, tmp_path / method, workers=2)
+        assert result.computed == 50
+        tables.append((sweep_mod.table_csv(spec, result.rows), json.dumps(result.rows)))
+    assert tables[0] == tables[1] == (sweep_mod.table_csv(spec, serial.rows),
+                                      json.dumps(serial.rows))
+
+
+def test_workers_are_spawned_while_another_thread_runs() -> None:
+    import sys
+    import threading
+
+    alone = threading.active_count() == 1
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:
+        assert run_mod.start_method() == "spawn"
+    finally:
+        release.set()
+        other.join()
+    if alone and sys.platform.startswith("linux"):
+        assert run_mod.start_method() == "fork"

@@ -915,16 +915,19 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
         batches = run_serial(job, pending)
     else:
         batches = run_processes(job, pending, workers)
-    advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
-                                                                       lambda: None)
     try:
-        for batch in batches:
-            journal.append([(key, res) for _, key, res in batch])
-            for _, key, res in batch:
-                known[key] = res
-            advance(len(batch))
+        # after the runner started its pool (forked workers must not inherit the bar's thread)
+        advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
+                                                                           lambda: None)
+        try:
+            for batch in batches:
+                journal.append([(key, res) for _, key, res in batch])
+                for _, key, res in batch:
+                    known[key] = res
+                advance(len(batch))
+        finally:
+            stop()
     finally:
-        stop()
         batches.close()  # release workers / the Dask client at once, also on an interrupt
     rows = assemble_rows(spec, known)
     errors = [r for r in rows if r["status"] != "ok"]
