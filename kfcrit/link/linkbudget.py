@@ -48,7 +48,7 @@ the outage probabilities. The bursty-loss condition is an analysis section
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -77,7 +77,7 @@ from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check
 __all__ = [
     "BOLTZMANN", "SPEED_OF_LIGHT", "MAX_SIGMA_DB", "SHADOWING_MODES", "Z_RANGE", "LinkBudget",
     "Noise", "PathLoss", "design_section", "exact_field_number", "gilbert_elliott_fit",
-    "integer_field", "real_field", "thermal_noise_dbm",
+    "integer_field", "real_field", "thermal_noise_dbm", "warm_links",
 ]
 
 Z_RANGE = 9.0
@@ -107,6 +107,15 @@ def shadowing_grid(step: float) -> tuple[np.ndarray, np.ndarray]:
     z.setflags(write=False)
     weights.setflags(write=False)
     return z, weights
+
+
+def shadowing_average(values: np.ndarray, weights: np.ndarray, z: np.ndarray) -> float:
+    r"""The trapezoid rule of a shadowing average on the grid of :func:`shadowing_grid`.
+
+    .. math:: \bar p = \min\Bigl(1, \sum_i \frac{z_{i+1} - z_i}{2}
+              \bigl(p_i w_i + p_{i+1} w_{i+1}\bigr)\Bigr)
+    """
+    return float(min(1.0, np.trapezoid(values * weights, z)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -444,12 +453,24 @@ class LinkBudget(Channel):
         if self.fading.active:
             values = self.link_arrival(s)
         else:
-            # exactly 0.0 and 1.0 outside the transition: only the SINRs between are computed
-            s0, s1 = certain_arrival_sinr_db(self.radio, self.per_bytes, self.max_retries)
-            values = (s >= s1).astype(float)
-            mid = (s > s0) & (s < s1)
+            values, mid = self._certain_values(s)
             values[mid] = self.link_arrival(s[mid])
-        return float(min(1.0, np.trapezoid(values * weights, z)))
+        return shadowing_average(values, weights, z)
+
+    def _certain_values(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """p at the SINRs ``s`` where it is exactly 0.0 or 1.0 in double precision
+        (:func:`kfcrit.link.radios.certain_arrival_sinr_db`), and the mask of the others (the
+        transition, where p must be computed; their entries are left 0.0)."""
+        s0, s1 = certain_arrival_sinr_db(self.radio, self.per_bytes, self.max_retries)
+        return (s >= s1).astype(float), (s > s0) & (s < s1)
+
+    @property
+    def shared_shadowing_average(self) -> bool:
+        """:meth:`mean_arrival` is the plain average of p(s + σz) (σ > 0, no fast fading, the
+        attempts of a period share the shadowing value): the case :func:`warm_links`
+        batches."""
+        return (self.sigma_db > 0 and not self.fading.active
+                and self.attempt_correlation is None and not self.independent_attempts)
 
     def effective_arrival(self, sinr_db: float) -> float:
         """The stationary arrival probability at median SINR ``sinr_db`` (mean if redrawn)."""
@@ -467,6 +488,11 @@ class LinkBudget(Channel):
         """log(1 − PER) of one attempt at the configured median SINR (computed once per link:
         the PER, the attempt and the nominal arrival probabilities are read from it)."""
         return self.attempt_log_arrival(self.sinr_db)
+
+    @cached_property
+    def median_ber(self) -> float:
+        """The radio's bit error rate at the configured median SINR (computed once per link)."""
+        return float(self.radio.ber(db_to_linear(self.sinr_db)))
 
     @cached_property
     def median_nominal_arrival(self) -> float:
@@ -516,13 +542,14 @@ class LinkBudget(Channel):
                               recovery_rate=chain.recovery_rate)
 
     # -- design --------------------------------------------------------------------------------
-    @property
+    @cached_property
     def effective_margin_db(self) -> float:
         """max(margin_db, σ·Φ^{-1}(1 − max_outage)) — the SINR reserve the design keeps.
 
         The outage term applies where an outage exists: per-link shadowing (a fraction of
         deployed links) and time-correlated shadowing (a fraction of the time); shadowing redrawn
-        i.i.d. per packet is averaged into the arrival probability instead.
+        i.i.d. per packet is averaged into the arrival probability instead. Computed once per
+        link (the design reads it for every threshold).
         """
         margin = self.margin_db
         if self.max_outage is not None and self.sigma_db > 0 \
@@ -631,7 +658,7 @@ class LinkBudget(Channel):
     def link_dict(self) -> dict[str, Any]:
         """The configured link, step by step."""
         sinr = self.sinr_db
-        ber = float(self.radio.ber(db_to_linear(sinr)))
+        ber = self.median_ber
         log_arrival = self.median_log_arrival
         # without fading the PER is −expm1 of the same log(1 − PER) (Radio.per); with fading
         # it is the averaged PER, which log(1 − PER) was computed from
@@ -673,6 +700,82 @@ class LinkBudget(Channel):
                     else "median link (no shadowing draw)")}
 
 
+def warm_links(links: Iterable[Any]) -> int:
+    r"""Compute the median-SINR values of many links in a few NumPy calls (a sweep's chunk).
+
+    The links are grouped by (radio, PER bytes, retries), the arguments of their arrival
+    probability p(s). For each group of two or more links without fast fading, one call of
+    the radio over all their median SINRs gives :attr:`LinkBudget.median_ber` and
+    :attr:`LinkBudget.median_log_arrival`, and, for shared shadowing
+    (:attr:`LinkBudget.shared_shadowing_average`), one call of
+    :meth:`LinkBudget.link_arrival` over the transition SINRs of all of them gives every
+    link's shadowing average
+
+    .. math:: \bar p(s) = \int p(s + \sigma z)\,\varphi(z)\,dz
+
+    (:meth:`LinkBudget.mean_arrival`; each link's trapezoid sum is its own). The values are
+    stored where the cached properties keep them and are bit for bit those the link computes
+    alone: every step of p(s) is elementwise, the same floating-point operations on each SINR
+    whatever array it is in (:func:`kfcrit.link.radios.oqpsk_ber` sums its terms in one fixed
+    order for any length). A group whose evaluation fails is left to compute lazily, so its
+    error stays that of its own link.
+
+    Parameters
+    ----------
+    links : iterable
+        Channels; anything but a :class:`LinkBudget` is skipped.
+
+    Returns
+    -------
+    int
+        How many links were warmed.
+    """
+    groups: dict[tuple[Any, int, int], list[LinkBudget]] = {}
+    for link in links:
+        if isinstance(link, LinkBudget) and not link.fading.active \
+                and "median_log_arrival" not in link.__dict__:
+            groups.setdefault((link.radio, link.per_bytes, link.max_retries), []).append(link)
+    warmed = 0
+    for group in groups.values():
+        if len(group) < 2:
+            continue
+        try:
+            _warm_group(group)
+        except (ValueError, ArithmeticError, FloatingPointError):
+            continue
+        warmed += len(group)
+    return warmed
+
+
+def _warm_group(group: list[LinkBudget]) -> None:
+    """:func:`warm_links` for links that share (radio, PER bytes, retries)."""
+    head = group[0]
+    sinr = np.array([link.sinr_db for link in group])
+    ber = head.radio.ber(db_to_linear(sinr))
+    log_arrival = head.attempt_log_arrival(sinr)
+    shared = [link for link in group if link.shared_shadowing_average]
+    parts = []
+    for link in shared:
+        sigma = link.sigma_db
+        z, weights = shadowing_grid(min(0.01, link.fading.shadowing_step_db() / sigma))
+        s = link.sinr_db + sigma * z
+        values, mid = link._certain_values(s)
+        parts.append((link, z, weights, values, mid, s[mid]))
+    arrival = head.link_arrival(np.concatenate([part[-1] for part in parts])) if parts \
+        else np.empty(0)
+    means = []
+    start = 0
+    for link, z, weights, values, mid, transition in parts:
+        values[mid] = arrival[start:start + transition.size]
+        start += transition.size
+        means.append((link, shadowing_average(values, weights, z)))
+    for link, b, la in zip(group, ber, log_arrival):
+        link.__dict__["median_ber"] = float(b)
+        link.__dict__["median_log_arrival"] = la
+    for link, mean in means:
+        link.__dict__["median_mean_arrival"] = mean
+
+
 # ---------------------------------------------------------------------------------------------
 # Design outputs for the analysis record
 # ---------------------------------------------------------------------------------------------
@@ -703,9 +806,9 @@ def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
     return row
 
 
-def _frame_notes(channel: LinkBudget) -> list[str]:
-    """What the frame and radio model assume, in words for the record."""
-    frame = channel.frame_dict()
+def _frame_notes(channel: LinkBudget, frame: dict[str, Any]) -> list[str]:
+    """What the frame (``channel.frame_dict()``) and radio model assume, in words for the
+    record."""
     head = frame["phy_header_bytes"]
     if channel.per_over == "ppdu" and head:
         covers = (f"the PPDU of {frame['per_bytes']} bytes (PHY header {head} bytes + PSDU "
@@ -805,7 +908,8 @@ def design_section(channel: Channel, *, critical_value: float | None,
         notes.append("time-correlated shadowing: arrivals are bursty (Gilbert-Elliott "
                      "approximation, see gilbert_elliott); the i.i.d. requirements p_c, p_up "
                      "below do not decide mean stability for this channel")
-    notes.extend(_frame_notes(channel))
+    frame = channel.frame_dict()
+    notes.extend(_frame_notes(channel, frame))
     if channel.path_loss.model == "log-distance" \
             and channel.distance_m < channel.path_loss.reference_distance_m:
         notes.append("the distance is below the reference distance of the log-distance model")
@@ -813,7 +917,7 @@ def design_section(channel: Channel, *, critical_value: float | None,
         "applicable": True,
         "radio": channel.radio.to_dict(),
         "link": channel.link_dict(),
-        "frame": channel.frame_dict(),
+        "frame": frame,
         "gilbert_elliott": (channel.shadowing_markov().to_dict()
                             if channel.time_correlated else None),
         "margin_policy": {"margin_db": channel.margin_db, "max_outage": channel.max_outage,
