@@ -47,6 +47,7 @@ the outage probabilities. The bursty-loss condition is an analysis section
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -767,8 +768,11 @@ def _warm_group(group: list[LinkBudget]) -> None:
 # Design outputs for the analysis record
 # ---------------------------------------------------------------------------------------------
 
-def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
-    """Required SINR / received power / distance and the link margin for one requirement p."""
+def _threshold_row(channel: LinkBudget, label: str, p: float,
+                   outage: Any = None) -> dict[str, Any]:
+    """Required SINR / received power / distance and the link margin for one requirement p
+    (``outage``: the channel's :meth:`LinkBudget.outage_probability`, or a memo of it)."""
+    outage = outage or channel.outage_probability
     row: dict[str, Any] = {"label": label, "arrival_probability": p, "required_sinr_db": None,
                            "required_rx_power_dbm": None, "link_margin_db": None,
                            "max_distance_m": None, "max_distance_unbounded": False,
@@ -782,7 +786,7 @@ def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
     except ValueError:
         row["reachable"] = False
         return row
-    row["outage_probability"] = channel.outage_probability(p)
+    row["outage_probability"] = outage(p)
     if s_req is None:
         row["max_distance_unbounded"] = True
         return row
@@ -869,6 +873,17 @@ def design_section(channel: Channel, *, critical_value: float | None,
     need = binding_requirement(
         stability_requirement(critical_value, robust_value, bracket, upper_bound), accuracy)
     p_design, basis = need.value, need.basis
+    # the design value repeats one of the thresholds, and the shadowing outages two of them:
+    # each requirement p is worked out once
+    outage = functools.lru_cache(maxsize=None)(channel.outage_probability)
+    computed: dict[tuple[float, float], dict[str, Any]] = {}
+
+    def threshold(label: str, p: float) -> dict[str, Any]:
+        key = (p, math.copysign(1.0, p))
+        if key not in computed:
+            computed[key] = _threshold_row(channel, label, p, outage)
+        return {**computed[key], "label": label, "arrival_probability": p}
+
     rows = []
     for label, value in (("critical_value", critical_value), ("robust_critical_value",
                                                               robust_value),
@@ -876,12 +891,12 @@ def design_section(channel: Channel, *, critical_value: float | None,
                          ("bracket_high", bracket[1] if critical_value is None else None),
                          ("upper_bound", upper_bound)):
         if value is not None:
-            rows.append(_threshold_row(channel, label, float(value)))
+            rows.append(threshold(label, float(value)))
     if need.accuracy is not None and need.accuracy.get("interval"):
         p_s, p_v = need.accuracy["interval"]
-        rows.append(_threshold_row(channel, "accuracy_necessary", float(p_s)))
-        rows.append(_threshold_row(channel, "accuracy_sufficient", float(p_v)))
-    design = _threshold_row(channel, "design", p_design) if p_design is not None else None
+        rows.append(threshold("accuracy_necessary", float(p_s)))
+        rows.append(threshold("accuracy_sufficient", float(p_v)))
+    design = threshold("design", p_design) if p_design is not None else None
     p_link = channel.arrival_value
     notes = []
     if channel.sigma_db > 0 and not channel.per_packet_shadowing:
@@ -929,9 +944,9 @@ def design_section(channel: Channel, *, critical_value: float | None,
         "shadowing": {
             "sigma_db": channel.sigma_db, "mode": channel.path_loss.shadowing,
             "mean_arrival_probability": channel.median_mean_arrival,
-            "outage_below_critical": (channel.outage_probability(float(critical_value))
+            "outage_below_critical": (outage(float(critical_value))
                                       if critical_value is not None else None),
-            "outage_below_upper": (channel.outage_probability(float(upper_bound))
+            "outage_below_upper": (outage(float(upper_bound))
                                    if upper_bound is not None else None)},
         "thresholds": rows,
         "notes": notes,

@@ -152,3 +152,29 @@ def test_workers_are_spawned_while_another_thread_runs() -> None:
         other.join()
     if alone and sys.platform.startswith("linux"):
         assert run_mod.start_method() == "fork"
+
+
+def test_journal_lines_encode_each_result_once_with_the_documented_check(tmp_path: Path) -> None:
+    import hashlib
+
+    from kfcrit.analysis.sweep.journal import JOURNAL_FORMAT, Journal, journal_check
+
+    ok = dict.fromkeys(sweep_mod.RESULT_COLUMNS)
+    ok.update(status="ok", margin=-0.0, sinr_db=1e-300, arrival_probability=0.9999999999999999,
+              requirement_basis="critical value")
+    bad = dict.fromkeys(sweep_mod.RESULT_COLUMNS)
+    bad.update(status="error", error="channel.distance_m: must be positive, got −5 (µ)",
+               error_code=2)
+    binding, keys = "f" * 64, ("a" * 64, "b" * 64)
+    journal = Journal(tmp_path / "j.jsonl", binding, sweep_mod.RESULT_COLUMNS)
+    journal.append(list(zip(keys, (ok, bad))))
+    lines = [json.loads(line) for line in (tmp_path / "j.jsonl").read_text().splitlines()]
+    for key, result, line in zip(keys, (ok, bad), lines):
+        # the check as the journal format defines it: one JSON text of all four fields
+        blob = json.dumps({"journal": JOURNAL_FORMAT, "sweep": binding, "key": key,
+                           "result": result}, sort_keys=True, ensure_ascii=True,
+                          separators=(",", ":"), allow_nan=False)
+        expected = hashlib.sha256(blob.encode()).hexdigest()
+        assert line == {"key": key, "check": expected, "result": result}
+        assert journal_check(binding, key, result) == expected
+    assert journal.load() == dict(zip(keys, (ok, bad)))
