@@ -434,11 +434,11 @@ def _base_value(base_doc: dict, path: str) -> Any:
 
 
 def _is_number_text(text: str, cache: dict[str, bool]) -> bool:
-    from kfcrit.model.exprparse import parse_expression
+    from kfcrit.link.fields import parsed_text
 
     if text not in cache:
         try:
-            cache[text] = bool(parse_expression(text, "value").is_number)
+            cache[text] = bool(parsed_text(text).is_number)
         except KfcritError:
             cache[text] = False
     return cache[text]
@@ -716,11 +716,12 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
 
 def _param_value(text: str) -> Any:
     """A parameter's value for the table: an int for an integer (``packet_bytes: 20`` stays
-    20), a float for any other number, else the text."""
-    from kfcrit.model.exprparse import parse_expression
+    20), a float for any other number, else the text (texts parsed once per process:
+    :func:`kfcrit.link.fields.parsed_text`, as when the sweep file was read)."""
+    from kfcrit.link.fields import parsed_text
 
     try:
-        value = parse_expression(text)
+        value = parsed_text(text)
         if value.is_Integer:
             return int(value)
         return float(sp.N(value, 17))
