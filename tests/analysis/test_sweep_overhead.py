@@ -178,3 +178,18 @@ def test_journal_lines_encode_each_result_once_with_the_documented_check(tmp_pat
         assert line == {"key": key, "check": expected, "result": result}
         assert journal_check(binding, key, result) == expected
     assert journal.load() == dict(zip(keys, (ok, bad)))
+
+
+def test_shipped_sweep_is_byte_identical_one_point_at_a_time_and_in_chunks(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # chunks of one point compute every link alone; larger chunks warm their links together
+    # (kfcrit.link.linkbudget.warm_links) and run on forked workers: the same bytes
+    spec = sweep_mod.load_sweep(Path(__file__).parents[2] / "reports" / "sweep-link-distance.yaml")
+    tables = []
+    for label, chunk_max, workers in (("one", 1, 1), ("all", 256, 1), ("procs", 7, 2)):
+        monkeypatch.setattr(run_mod, "CHUNK_MAX", chunk_max)
+        result = sweep_mod.run_sweep(spec, tmp_path / label, workers=workers)
+        assert result.computed == len(spec.points) == 51 and result.errors == 0
+        tables.append((sweep_mod.table_csv(spec, result.rows),
+                       json.dumps(result.rows, allow_nan=False)))
+    assert tables[1] == tables[0] and tables[2] == tables[0]
