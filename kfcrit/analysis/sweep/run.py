@@ -171,6 +171,9 @@ def _worker_init(parent_pid: int | None = None, memo: dict[str, Any] | None = No
 
     * SIGINT is ignored: a Ctrl-C reaches the whole process group, and the parent alone
       decides (it terminates the workers); a worker must not die mid-chunk with a traceback.
+      SIGTERM takes its default action: a forked worker would otherwise keep the sweep's own
+      handler (SIGTERM → ``KeyboardInterrupt``), and the parent's ``terminate`` must end it at
+      once, without a traceback.
     * The worker leaves (``os._exit``) as soon as its parent is gone: a sweep killed with
       SIGKILL runs no cleanup, and its workers (and, once they are gone, multiprocessing's
       resource tracker, which ends when the last holder of its pipe exits) must not keep
@@ -188,6 +191,7 @@ def _worker_init(parent_pid: int | None = None, memo: dict[str, Any] | None = No
     import warnings
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     warnings.simplefilter("ignore")
     if memo:
         _worker_memo.update(memo)
