@@ -5,8 +5,9 @@ The sweep is a distance × packet-size grid over the IEEE 802.15.4 link of a sca
 the required SINR, the outage probability and the shadowing average. It runs twice, from an
 empty output folder each time:
 
-* ``local``: the default local process pool (``--workers``, spawned processes; the time
-  includes starting them);
+* ``local``: the default local process pool (``--workers``; forked or spawned as
+  :func:`kfcrit.analysis.sweep.run.start_method` chooses, and the time includes starting
+  them);
 * ``dask``: a ``distributed.LocalCluster`` on 127.0.0.1 (started before the clock, as an
   existing cluster would be; the time includes connecting the client).
 
@@ -108,10 +109,11 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
     Returns
     -------
     dict
-        ``points, local {seconds, points_per_second, workers, cpu_seconds,
+        ``points, local {seconds, points_per_second, workers, start_method, cpu_seconds,
         cpu_ms_per_point}, dask {...}, ratio, identical, load_before, load_after``.
     """
     from kfcrit.analysis.sweep.points import load_sweep, run_sweep, table_csv
+    from kfcrit.analysis.sweep.run import start_method
 
     out = out or sys.stdout
     workers = workers or os.cpu_count() or 1
@@ -129,13 +131,14 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
         print(f"sweep: {points} points ({' x '.join(map(str, grid_shape(points)))} packet sizes "
               f"x distances), read and keyed in {load_seconds:.2f} s", file=out)
 
+        method = start_method()
         t0, c0 = time.perf_counter(), cpu_seconds()
         local = run_sweep(spec, folder / "local", workers=workers)
         dt, cpu = time.perf_counter() - t0, cpu_seconds() - c0
         result["local"] = {"seconds": dt, "points_per_second": points / dt, "workers": workers,
                            "errors": local.errors, "cpu_seconds": cpu,
-                           "cpu_ms_per_point": 1000 * cpu / points}
-        print(f"local processes ({workers}): {dt:8.2f} s  {points / dt:9.1f} points/s; "
+                           "cpu_ms_per_point": 1000 * cpu / points, "start_method": method}
+        print(f"local processes ({workers}, {method}): {dt:8.2f} s  {points / dt:9.1f} points/s; "
               f"CPU {cpu:.2f} s = {1000 * cpu / points:.3f} ms per point (workers' start-up "
               f"included; {workers} cores at this CPU cost: "
               f"{workers * points / cpu:.0f} points/s); {_load()}", file=out)

@@ -47,10 +47,11 @@ the outage probabilities. The bursty-loss condition is an analysis section
 """
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -70,44 +71,22 @@ from kfcrit.link.radios import (
     radio_from_mapping,
 )
 from kfcrit.link.requirement import binding_requirement, stability_requirement
-from kfcrit.link.shadowing import ShadowingCorrelation, ShadowingMarkov, markov_from_mean_arrival
+from kfcrit.link.shadowing import (
+    Z_RANGE,
+    ShadowingCorrelation,
+    ShadowingMarkov,
+    markov_from_mean_arrival,
+    shadowing_averages,
+    shadowing_grid,
+)
 from kfcrit.link.units import BOLTZMANN, SPEED_OF_LIGHT, thermal_noise_dbm
 from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check_keys
 
 __all__ = [
     "BOLTZMANN", "SPEED_OF_LIGHT", "MAX_SIGMA_DB", "SHADOWING_MODES", "Z_RANGE", "LinkBudget",
     "Noise", "PathLoss", "design_section", "exact_field_number", "gilbert_elliott_fit",
-    "integer_field", "real_field", "thermal_noise_dbm",
+    "integer_field", "real_field", "thermal_noise_dbm", "warm_links",
 ]
-
-Z_RANGE = 9.0
-"""Shadowing averages integrate the standard normal over [−9, 9] (mass outside < 1e-18)."""
-
-
-@lru_cache(maxsize=64)
-def shadowing_grid(step: float) -> tuple[np.ndarray, np.ndarray]:
-    r"""The trapezoid grid of a shadowing average and the normal density on it (read-only).
-
-    .. math:: z_i = -9 + i\,\frac{18}{N - 1},\quad N = 2\lceil 9/h \rceil + 1,\qquad
-              w_i = \frac{e^{-z_i^2/2}}{\sqrt{2\pi}}
-
-    Parameters
-    ----------
-    step : float
-        The largest step h in z.
-
-    Returns
-    -------
-    (numpy.ndarray, numpy.ndarray)
-        z and φ(z); computed once per step (a pure function of it).
-    """
-    count = 2 * math.ceil(Z_RANGE / step) + 1
-    z = np.linspace(-Z_RANGE, Z_RANGE, count)
-    weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
-    z.setflags(write=False)
-    weights.setflags(write=False)
-    return z, weights
-
 
 # ---------------------------------------------------------------------------------------------
 # The channel
@@ -429,7 +408,7 @@ class LinkBudget(Channel):
         sigma = self.sigma_db
         if sigma == 0:
             return self.nominal_arrival(sinr_db)
-        z, weights = shadowing_grid(min(0.01, self.fading.shadowing_step_db() / sigma))
+        z, weights = shadowing_grid(self.shadowing_step)
         if self.attempt_correlation is not None:
             fail = correlated_all_fail(lambda x: self.attempt_per(sinr_db + sigma * x), z,
                                        weights, self.attempt_correlation, self.max_retries + 1)
@@ -444,12 +423,30 @@ class LinkBudget(Channel):
         if self.fading.active:
             values = self.link_arrival(s)
         else:
-            # exactly 0.0 and 1.0 outside the transition: only the SINRs between are computed
-            s0, s1 = certain_arrival_sinr_db(self.radio, self.per_bytes, self.max_retries)
-            values = (s >= s1).astype(float)
-            mid = (s > s0) & (s < s1)
+            values, mid = self._certain_values(s)
             values[mid] = self.link_arrival(s[mid])
-        return float(min(1.0, np.trapezoid(values * weights, z)))
+        return shadowing_averages(values, self.shadowing_step)[0]
+
+    @property
+    def shadowing_step(self) -> float:
+        """The step h in z of :meth:`mean_arrival`'s grid: σ·h ≤ 0.02 dB (with fast fading a
+        twentieth of the fading spread), h ≤ 0.01 (σ > 0)."""
+        return min(0.01, self.fading.shadowing_step_db() / self.sigma_db)
+
+    def _certain_values(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """p at the SINRs ``s`` where it is exactly 0.0 or 1.0 in double precision
+        (:func:`kfcrit.link.radios.certain_arrival_sinr_db`), and the mask of the others (the
+        transition, where p must be computed; their entries are left 0.0)."""
+        s0, s1 = certain_arrival_sinr_db(self.radio, self.per_bytes, self.max_retries)
+        return (s >= s1).astype(float), (s > s0) & (s < s1)
+
+    @property
+    def shared_shadowing_average(self) -> bool:
+        """:meth:`mean_arrival` is the plain average of p(s + σz) (σ > 0, no fast fading, the
+        attempts of a period share the shadowing value): the case :func:`warm_links`
+        batches."""
+        return (self.sigma_db > 0 and not self.fading.active
+                and self.attempt_correlation is None and not self.independent_attempts)
 
     def effective_arrival(self, sinr_db: float) -> float:
         """The stationary arrival probability at median SINR ``sinr_db`` (mean if redrawn)."""
@@ -467,6 +464,11 @@ class LinkBudget(Channel):
         """log(1 − PER) of one attempt at the configured median SINR (computed once per link:
         the PER, the attempt and the nominal arrival probabilities are read from it)."""
         return self.attempt_log_arrival(self.sinr_db)
+
+    @cached_property
+    def median_ber(self) -> float:
+        """The radio's bit error rate at the configured median SINR (computed once per link)."""
+        return float(self.radio.ber(db_to_linear(self.sinr_db)))
 
     @cached_property
     def median_nominal_arrival(self) -> float:
@@ -516,13 +518,14 @@ class LinkBudget(Channel):
                               recovery_rate=chain.recovery_rate)
 
     # -- design --------------------------------------------------------------------------------
-    @property
+    @cached_property
     def effective_margin_db(self) -> float:
         """max(margin_db, σ·Φ^{-1}(1 − max_outage)) — the SINR reserve the design keeps.
 
         The outage term applies where an outage exists: per-link shadowing (a fraction of
         deployed links) and time-correlated shadowing (a fraction of the time); shadowing redrawn
-        i.i.d. per packet is averaged into the arrival probability instead.
+        i.i.d. per packet is averaged into the arrival probability instead. Computed once per
+        link (the design reads it for every threshold).
         """
         margin = self.margin_db
         if self.max_outage is not None and self.sigma_db > 0 \
@@ -631,7 +634,7 @@ class LinkBudget(Channel):
     def link_dict(self) -> dict[str, Any]:
         """The configured link, step by step."""
         sinr = self.sinr_db
-        ber = float(self.radio.ber(db_to_linear(sinr)))
+        ber = self.median_ber
         log_arrival = self.median_log_arrival
         # without fading the PER is −expm1 of the same log(1 − PER) (Radio.per); with fading
         # it is the averaged PER, which log(1 − PER) was computed from
@@ -673,12 +676,103 @@ class LinkBudget(Channel):
                     else "median link (no shadowing draw)")}
 
 
+def warm_links(links: Iterable[Any]) -> int:
+    r"""Compute the median-SINR values of many links in a few NumPy calls (a sweep's chunk).
+
+    The links are grouped by (radio, PER bytes, retries), the arguments of their arrival
+    probability p(s). For each group of two or more links without fast fading, one call of
+    the radio over all their median SINRs gives :attr:`LinkBudget.median_ber` and
+    :attr:`LinkBudget.median_log_arrival`, and, for shared shadowing
+    (:attr:`LinkBudget.shared_shadowing_average`), :meth:`LinkBudget.link_arrival` over the
+    transition SINRs of all of them, in blocks of :data:`WARM_BLOCK`, gives every link's
+    shadowing average
+
+    .. math:: \bar p(s) = \int p(s + \sigma z)\,\varphi(z)\,dz
+
+    (:meth:`LinkBudget.mean_arrival`; each link's trapezoid sum is its own,
+    :func:`shadowing_averages`). The values are
+    stored where the cached properties keep them and are bit for bit those the link computes
+    alone: every step of p(s) is elementwise, the same floating-point operations on each SINR
+    whatever array it is in (:func:`kfcrit.link.radios.oqpsk_ber` sums its terms in one fixed
+    order for any length). A group whose evaluation fails is left to compute lazily, so its
+    error stays that of its own link.
+
+    Parameters
+    ----------
+    links : iterable
+        Channels; anything but a :class:`LinkBudget` is skipped.
+
+    Returns
+    -------
+    int
+        How many links were warmed.
+    """
+    groups: dict[tuple[Any, int, int], list[LinkBudget]] = {}
+    for link in links:
+        if isinstance(link, LinkBudget) and not link.fading.active \
+                and "median_log_arrival" not in link.__dict__:
+            groups.setdefault((link.radio, link.per_bytes, link.max_retries), []).append(link)
+    warmed = 0
+    for group in groups.values():
+        if len(group) < 2:
+            continue
+        try:
+            _warm_group(group)
+        except (ValueError, ArithmeticError, FloatingPointError):
+            continue
+        warmed += len(group)
+    return warmed
+
+
+WARM_BLOCK = 8192
+"""Most SINRs per call of the radio when links are warmed together: a block that stays in
+the CPU cache (several times faster per SINR than one call over a whole chunk; the same
+values, every step being elementwise)."""
+WARM_GRID_VALUES = 32768
+"""Most grid values (links × grid points) of one block of shadowing averages."""
+
+
+def _warm_group(group: list[LinkBudget]) -> None:
+    """:func:`warm_links` for links that share (radio, PER bytes, retries)."""
+    head = group[0]
+    sinr = np.array([link.sinr_db for link in group])
+    ber = head.radio.ber(db_to_linear(sinr))
+    log_arrival = head.attempt_log_arrival(sinr)
+    by_grid: dict[tuple[float, float], list[LinkBudget]] = {}
+    for link in group:
+        if link.shared_shadowing_average:
+            by_grid.setdefault((link.sigma_db, link.shadowing_step), []).append(link)
+    means: list[tuple[LinkBudget, float]] = []
+    for (sigma, step), links in by_grid.items():
+        z, _ = shadowing_grid(step)
+        rows = max(1, WARM_GRID_VALUES // z.size)
+        for start in range(0, len(links), rows):
+            block = links[start:start + rows]
+            # one row per link: s = s_link + σz, as in LinkBudget.mean_arrival
+            s = np.array([link.sinr_db for link in block])[:, None] + sigma * z
+            values, mid = head._certain_values(s)
+            transition = s[mid]
+            for lo in range(0, transition.size, WARM_BLOCK):
+                transition[lo:lo + WARM_BLOCK] = head.link_arrival(
+                    transition[lo:lo + WARM_BLOCK])
+            values[mid] = transition
+            means.extend(zip(block, shadowing_averages(values, step)))
+    for link, b, la in zip(group, ber, log_arrival):
+        link.__dict__["median_ber"] = float(b)
+        link.__dict__["median_log_arrival"] = la
+    for link, mean in means:
+        link.__dict__["median_mean_arrival"] = mean
+
+
 # ---------------------------------------------------------------------------------------------
 # Design outputs for the analysis record
 # ---------------------------------------------------------------------------------------------
 
-def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
-    """Required SINR / received power / distance and the link margin for one requirement p."""
+def _threshold_row(channel: LinkBudget, label: str, p: float,
+                   outage: Any = None) -> dict[str, Any]:
+    """Required SINR / received power / distance and the link margin for one requirement p
+    (``outage``: the channel's :meth:`LinkBudget.outage_probability`, or a memo of it)."""
+    outage = outage or channel.outage_probability
     row: dict[str, Any] = {"label": label, "arrival_probability": p, "required_sinr_db": None,
                            "required_rx_power_dbm": None, "link_margin_db": None,
                            "max_distance_m": None, "max_distance_unbounded": False,
@@ -692,7 +786,7 @@ def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
     except ValueError:
         row["reachable"] = False
         return row
-    row["outage_probability"] = channel.outage_probability(p)
+    row["outage_probability"] = outage(p)
     if s_req is None:
         row["max_distance_unbounded"] = True
         return row
@@ -703,9 +797,9 @@ def _threshold_row(channel: LinkBudget, label: str, p: float) -> dict[str, Any]:
     return row
 
 
-def _frame_notes(channel: LinkBudget) -> list[str]:
-    """What the frame and radio model assume, in words for the record."""
-    frame = channel.frame_dict()
+def _frame_notes(channel: LinkBudget, frame: dict[str, Any]) -> list[str]:
+    """What the frame (``channel.frame_dict()``) and radio model assume, in words for the
+    record."""
     head = frame["phy_header_bytes"]
     if channel.per_over == "ppdu" and head:
         covers = (f"the PPDU of {frame['per_bytes']} bytes (PHY header {head} bytes + PSDU "
@@ -779,6 +873,17 @@ def design_section(channel: Channel, *, critical_value: float | None,
     need = binding_requirement(
         stability_requirement(critical_value, robust_value, bracket, upper_bound), accuracy)
     p_design, basis = need.value, need.basis
+    # the design value repeats one of the thresholds, and the shadowing outages two of them:
+    # each requirement p is worked out once
+    outage = functools.lru_cache(maxsize=None)(channel.outage_probability)
+    computed: dict[tuple[float, float], dict[str, Any]] = {}
+
+    def threshold(label: str, p: float) -> dict[str, Any]:
+        key = (p, math.copysign(1.0, p))
+        if key not in computed:
+            computed[key] = _threshold_row(channel, label, p, outage)
+        return {**computed[key], "label": label, "arrival_probability": p}
+
     rows = []
     for label, value in (("critical_value", critical_value), ("robust_critical_value",
                                                               robust_value),
@@ -786,12 +891,12 @@ def design_section(channel: Channel, *, critical_value: float | None,
                          ("bracket_high", bracket[1] if critical_value is None else None),
                          ("upper_bound", upper_bound)):
         if value is not None:
-            rows.append(_threshold_row(channel, label, float(value)))
+            rows.append(threshold(label, float(value)))
     if need.accuracy is not None and need.accuracy.get("interval"):
         p_s, p_v = need.accuracy["interval"]
-        rows.append(_threshold_row(channel, "accuracy_necessary", float(p_s)))
-        rows.append(_threshold_row(channel, "accuracy_sufficient", float(p_v)))
-    design = _threshold_row(channel, "design", p_design) if p_design is not None else None
+        rows.append(threshold("accuracy_necessary", float(p_s)))
+        rows.append(threshold("accuracy_sufficient", float(p_v)))
+    design = threshold("design", p_design) if p_design is not None else None
     p_link = channel.arrival_value
     notes = []
     if channel.sigma_db > 0 and not channel.per_packet_shadowing:
@@ -805,7 +910,8 @@ def design_section(channel: Channel, *, critical_value: float | None,
         notes.append("time-correlated shadowing: arrivals are bursty (Gilbert-Elliott "
                      "approximation, see gilbert_elliott); the i.i.d. requirements p_c, p_up "
                      "below do not decide mean stability for this channel")
-    notes.extend(_frame_notes(channel))
+    frame = channel.frame_dict()
+    notes.extend(_frame_notes(channel, frame))
     if channel.path_loss.model == "log-distance" \
             and channel.distance_m < channel.path_loss.reference_distance_m:
         notes.append("the distance is below the reference distance of the log-distance model")
@@ -813,7 +919,7 @@ def design_section(channel: Channel, *, critical_value: float | None,
         "applicable": True,
         "radio": channel.radio.to_dict(),
         "link": channel.link_dict(),
-        "frame": channel.frame_dict(),
+        "frame": frame,
         "gilbert_elliott": (channel.shadowing_markov().to_dict()
                             if channel.time_correlated else None),
         "margin_policy": {"margin_db": channel.margin_db, "max_outage": channel.max_outage,
@@ -838,9 +944,9 @@ def design_section(channel: Channel, *, critical_value: float | None,
         "shadowing": {
             "sigma_db": channel.sigma_db, "mode": channel.path_loss.shadowing,
             "mean_arrival_probability": channel.median_mean_arrival,
-            "outage_below_critical": (channel.outage_probability(float(critical_value))
+            "outage_below_critical": (outage(float(critical_value))
                                       if critical_value is not None else None),
-            "outage_below_upper": (channel.outage_probability(float(upper_bound))
+            "outage_below_upper": (outage(float(upper_bound))
                                    if upper_bound is not None else None)},
         "thresholds": rows,
         "notes": notes,

@@ -30,12 +30,18 @@ chain has the right stationary law r/(f + r) = 1 − Φ(a*) = p̄ and the right 
 transition probabilities; it ignores the longer memory of the AR(1) process (the sojourn times
 of a thresholded Gaussian process are not exactly geometric). For ρ = 0, f = Φ(a*) and
 r = 1 − Φ(a*), f + r = 1: i.i.d. arrivals with probability p̄.
+
+The shadowing averages E_X[p(s + X)] themselves are trapezoid sums on a fixed grid in
+z = X/σ (:func:`shadowing_grid`, :func:`shadowing_averages`).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
+
+import numpy as np
 
 from kfcrit.errors import InputError
 from kfcrit.link.fields import mapping_field, real_field
@@ -152,3 +158,61 @@ def markov_from_mean_arrival(correlation: float, mean_arrival: float) -> Shadowi
     from scipy.special import ndtri
 
     return markov_from_threshold(correlation, float(ndtri(1.0 - p)))
+
+
+# ---------------------------------------------------------------------------------------------
+# Shadowing averages E_X[p(s + X)] (the grid of the trapezoid rule)
+# ---------------------------------------------------------------------------------------------
+
+Z_RANGE = 9.0
+"""Shadowing averages integrate the standard normal over [−9, 9] (mass outside < 1e-18)."""
+
+
+@lru_cache(maxsize=64)
+def shadowing_grid(step: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""The trapezoid grid of a shadowing average and the normal density on it (read-only).
+
+    .. math:: z_i = -9 + i\,\frac{18}{N - 1},\quad N = 2\lceil 9/h \rceil + 1,\qquad
+              w_i = \frac{e^{-z_i^2/2}}{\sqrt{2\pi}}
+
+    Parameters
+    ----------
+    step : float
+        The largest step h in z.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        z and φ(z); computed once per step (a pure function of it).
+    """
+    count = 2 * math.ceil(Z_RANGE / step) + 1
+    z = np.linspace(-Z_RANGE, Z_RANGE, count)
+    weights = np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+    z.setflags(write=False)
+    weights.setflags(write=False)
+    return z, weights
+
+
+@lru_cache(maxsize=64)
+def shadowing_steps(step: float) -> np.ndarray:
+    """z_{i+1} − z_i on the grid of :func:`shadowing_grid` (read-only; once per step)."""
+    dz = np.diff(shadowing_grid(step)[0])
+    dz.setflags(write=False)
+    return dz
+
+
+def shadowing_averages(values: np.ndarray, step: float) -> list[float]:
+    r"""The trapezoid rule of shadowing averages on the grid of :func:`shadowing_grid`.
+
+    .. math:: \bar p = \min\Bigl(1, \sum_i \frac{z_{i+1} - z_i}{2}
+              \bigl(p_i w_i + p_{i+1} w_{i+1}\bigr)\Bigr)
+
+    The floating-point operations of ``numpy.trapezoid(values * w, z)``, with the steps of the
+    grid computed once. ``values`` holds p on the grid, one row per average (a single
+    average: a 1-D array); each row's sum is that row's alone, so an average computed with
+    others has the bits it has alone.
+    """
+    _, weights = shadowing_grid(step)
+    y = values * weights
+    terms = shadowing_steps(step) * (y[..., 1:] + y[..., :-1]) / 2.0
+    return [float(min(1.0, row.sum())) for row in np.atleast_2d(terms)]

@@ -120,3 +120,76 @@ def test_chunks_are_bounded_and_cover_every_point() -> None:
         assert [it for part in parts for it in part] == items
         assert max(len(p) for p in parts) <= run_mod.CHUNK_MAX
     assert len(run_mod.chunks(items, 2)) == 8    # ⌈1000 / (4·2)⌉ = 125 points per chunk
+
+
+def test_forked_and_spawned_workers_give_identical_tables(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    spec = _spec(tmp_path, 50)
+    serial = sweep_mod.run_sweep(spec, tmp_path / "serial", workers=1)
+    tables = []
+    for method in ("fork", "spawn"):
+        monkeypatch.setattr(run_mod, "start_method", lambda m=method: m)
+        result = sweep_mod.run_sweep(spec, tmp_path / method, workers=2)
+        assert result.computed == 50
+        tables.append((sweep_mod.table_csv(spec, result.rows), json.dumps(result.rows)))
+    assert tables[0] == tables[1] == (sweep_mod.table_csv(spec, serial.rows),
+                                      json.dumps(serial.rows))
+
+
+def test_workers_are_spawned_while_another_thread_runs() -> None:
+    import sys
+    import threading
+
+    alone = threading.active_count() == 1
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:
+        assert run_mod.start_method() == "spawn"
+    finally:
+        release.set()
+        other.join()
+    if alone and sys.platform.startswith("linux"):
+        assert run_mod.start_method() == "fork"
+
+
+def test_journal_lines_encode_each_result_once_with_the_documented_check(tmp_path: Path) -> None:
+    import hashlib
+
+    from kfcrit.analysis.sweep.journal import JOURNAL_FORMAT, Journal, journal_check
+
+    ok = dict.fromkeys(sweep_mod.RESULT_COLUMNS)
+    ok.update(status="ok", margin=-0.0, sinr_db=1e-300, arrival_probability=0.9999999999999999,
+              requirement_basis="critical value")
+    bad = dict.fromkeys(sweep_mod.RESULT_COLUMNS)
+    bad.update(status="error", error="channel.distance_m: must be positive, got −5 (µ)",
+               error_code=2)
+    binding, keys = "f" * 64, ("a" * 64, "b" * 64)
+    journal = Journal(tmp_path / "j.jsonl", binding, sweep_mod.RESULT_COLUMNS)
+    journal.append(list(zip(keys, (ok, bad))))
+    lines = [json.loads(line) for line in (tmp_path / "j.jsonl").read_text().splitlines()]
+    for key, result, line in zip(keys, (ok, bad), lines):
+        # the check as the journal format defines it: one JSON text of all four fields
+        blob = json.dumps({"journal": JOURNAL_FORMAT, "sweep": binding, "key": key,
+                           "result": result}, sort_keys=True, ensure_ascii=True,
+                          separators=(",", ":"), allow_nan=False)
+        expected = hashlib.sha256(blob.encode()).hexdigest()
+        assert line == {"key": key, "check": expected, "result": result}
+        assert journal_check(binding, key, result) == expected
+    assert journal.load() == dict(zip(keys, (ok, bad)))
+
+
+def test_shipped_sweep_is_byte_identical_one_point_at_a_time_and_in_chunks(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # chunks of one point compute every link alone; larger chunks warm their links together
+    # (kfcrit.link.linkbudget.warm_links) and run on forked workers: the same bytes
+    spec = sweep_mod.load_sweep(Path(__file__).parents[2] / "reports" / "sweep-link-distance.yaml")
+    tables = []
+    for label, chunk_max, workers in (("one", 1, 1), ("all", 256, 1), ("procs", 7, 2)):
+        monkeypatch.setattr(run_mod, "CHUNK_MAX", chunk_max)
+        result = sweep_mod.run_sweep(spec, tmp_path / label, workers=workers)
+        assert result.computed == len(spec.points) == 51 and result.errors == 0
+        tables.append((sweep_mod.table_csv(spec, result.rows),
+                       json.dumps(result.rows, allow_nan=False)))
+    assert tables[1] == tables[0] and tables[2] == tables[0]

@@ -116,6 +116,12 @@ def _children(pid: int) -> dict[int, str]:
     return out
 
 
+def _is_worker(cmd: str, sweep_cmd: str) -> bool:
+    """A worker process of the sweep: spawned (``spawn_main``) or forked (the sweep's own
+    command line)."""
+    return "spawn_main" in cmd or cmd == sweep_cmd
+
+
 def _alive(pid: int, cmd: str) -> bool:
     """The process exists, is not a zombie, and is still the one recorded (no pid reuse)."""
     try:
@@ -138,22 +144,23 @@ def test_interrupted_sweep_leaves_no_worker_processes(sig: signal.Signals,
                      "  channel: {model: bernoulli, arrival_probability: 0.9}\n"
                      "grid:\n  A[0][0]: {start: 1.01, stop: 9.5, num: 3000}\n")
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "kfcrit", "sweep", str(sweep), "--workers",
-                             "2", "-o", str(out)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
+    args = [sys.executable, "-m", "kfcrit", "sweep", str(sweep), "--workers", "2", "-o",
+            str(out)]
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    sweep_cmd = " ".join(args) + " "
     seen: dict[int, str] = {}
     journal = out / "sweep.journal.jsonl"
     deadline = time.monotonic() + 90
     try:
         while time.monotonic() < deadline and proc.poll() is None:
             seen.update(_children(proc.pid))
-            workers = [p for p, c in seen.items() if "spawn_main" in c]
+            workers = [p for p, c in seen.items() if _is_worker(c, sweep_cmd)]
             if len(workers) >= 2 and journal.exists() and journal.stat().st_size > 0:
                 break
             time.sleep(0.05)
         assert proc.poll() is None, "the sweep ended before it could be interrupted"
         seen.update(_children(proc.pid))
-        assert sum("spawn_main" in c for c in seen.values()) >= 2, seen
+        assert sum(_is_worker(c, sweep_cmd) for c in seen.values()) >= 2, seen
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     finally:

@@ -616,16 +616,21 @@ def test_sigkill_of_a_sweep_leaves_no_workers_and_no_resource_tracker(tmp_path: 
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text("system: system.yaml\ngrid:\n  channel.arrival_probability: "
                      "{start: 0.5, stop: 0.999, num: 400}\n  Q[0][0]: [1, 2]\n")
-    proc = subprocess.Popen([sys.executable, "-m", "kfcrit", "sweep", str(sweep), "-o",
-                             str(tmp_path / "out"), "--workers", "2"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    args = [sys.executable, "-m", "kfcrit", "sweep", str(sweep), "-o", str(tmp_path / "out"),
+            "--workers", "2"]
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             env={**os.environ, "PYTHONPATH": str(REPORTS.parent)})
+    sweep_cmd = " ".join(args) + " "
     children: dict[int, str] = {}
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
         children = _children(proc.pid)
-        workers = [c for c in children.values() if "spawn_main" in c]
-        if len(workers) >= 2 and any("resource_tracker" in c for c in children.values()):
+        # spawned workers run spawn_main (with a resource tracker beside them); forked ones
+        # keep the sweep's command line (and need no tracker)
+        spawned = [c for c in children.values() if "spawn_main" in c]
+        forked = [c for c in children.values() if c == sweep_cmd]
+        if (len(spawned) >= 2 and any("resource_tracker" in c for c in children.values())) \
+                or len(forked) >= 2:
             break
         time.sleep(0.05)
     assert proc.poll() is None, "the sweep ended before its workers were seen"

@@ -67,9 +67,22 @@ def journal_check(binding: str, key: str, result: dict[str, Any]) -> str:
     stale and edited lines; it is not a signature (anyone who can run kfcrit can compute it),
     so results are also validated by :func:`valid_result`.
     """
-    blob = json.dumps({"journal": JOURNAL_FORMAT, "sweep": binding, "key": key,
-                       "result": result}, sort_keys=True, ensure_ascii=True,
-                      separators=(",", ":"), allow_nan=False)
+    return _check_of_text(binding, key, result_text(result))
+
+
+def result_text(result: dict[str, Any]) -> str:
+    """The canonical JSON text of a result (sorted keys, ASCII, no spaces, no NaN): what the
+    check hashes and what a journal line holds."""
+    return json.dumps(result, sort_keys=True, ensure_ascii=True, separators=(",", ":"),
+                      allow_nan=False)
+
+
+def _check_of_text(binding: str, key: str, text: str) -> str:
+    """:func:`journal_check` of the result whose :func:`result_text` is ``text``: the blob is
+    ``json.dumps({"journal", "key", "result", "sweep"}, sort_keys=True, …)`` assembled around
+    the already encoded result (the keys in sorted order)."""
+    blob = (f'{{"journal":{JOURNAL_FORMAT},"key":{json.dumps(key)},"result":{text},'
+            f'"sweep":{json.dumps(binding)}}}')
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
@@ -181,9 +194,9 @@ class Journal:
         """Append ``(key, result)`` entries with their checks and fsync."""
         if not entries:
             return
-        lines = "".join(json.dumps({"key": k, "check": journal_check(self.binding, k, r),
-                                    "result": r}, allow_nan=False, ensure_ascii=True,
-                                   separators=(",", ":")) + "\n" for k, r in entries)
+        texts = [(k, result_text(r)) for k, r in entries]   # one encoding per line
+        lines = "".join(f'{{"key":{json.dumps(k)},"check":"{_check_of_text(self.binding, k, t)}",'
+                        f'"result":{t}}}\n' for k, t in texts)
         fd = self._open()
         size = 0
         try:
@@ -220,4 +233,4 @@ class Journal:
 
 
 __all__ = ["JOURNAL_FORMAT", "JOURNAL_NAME", "MAX_JOURNAL_BYTES", "POINT_ERROR_CODES", "Journal",
-           "journal_check", "valid_result"]
+           "journal_check", "result_text", "valid_result"]

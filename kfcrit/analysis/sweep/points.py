@@ -69,6 +69,13 @@ from kfcrit.analysis.sweep.journal import (  # noqa: F401 - re-exported for call
     POINT_ERROR_CODES,
     Journal,
 )
+from kfcrit.analysis.sweep.rows import (  # noqa: F401 - re-exported for callers
+    RESULT_COLUMNS,
+    binding_requirement_of,
+    loop_columns,
+    requirement_of,
+    row_of,
+)
 from kfcrit.analysis.sweep.run import (  # noqa: F401 - re-exported for callers
     ClusterLostError,
     Items,
@@ -99,17 +106,6 @@ _SENSOR_PATH = re.compile(r"^sensors\.([A-Za-z][A-Za-z0-9_-]{0,39})\.channel"
 _LINKS_PATH = re.compile(r"^links(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
 _LOOP_PATH = re.compile(r"^loop\.channel(\.[A-Za-z_][A-Za-z0-9_]{0,63}){1,6}$")
 """``loop.channel.KEY[.KEY…]``: the actuation link of a closed loop (theory §12)."""
-RESULT_COLUMNS = ("status", "error", "classification", "lower_bound", "critical_value",
-                  "critical_expression", "robust_critical_value", "upper_bound", "requirement",
-                  "requirement_basis", "arrival_probability", "iid", "margin", "verdict",
-                  "decision",
-                  "sinr_db", "required_sinr_db", "link_margin_db", "required_margin_db",
-                  "max_distance_m", "outage_probability", "mean_arrival_probability",
-                  "loop_verdict", "actuation_arrival_probability", "actuation_critical",
-                  "loop_spectral_radius", "loop_cost")
-"""Columns of every row after ``index``, ``key`` and the parameters (fixed: a tidy table)."""
-
-
 # ---------------------------------------------------------------------------------------------
 # The sweep file
 # ---------------------------------------------------------------------------------------------
@@ -438,11 +434,11 @@ def _base_value(base_doc: dict, path: str) -> Any:
 
 
 def _is_number_text(text: str, cache: dict[str, bool]) -> bool:
-    from kfcrit.model.exprparse import parse_expression
+    from kfcrit.link.fields import parsed_text
 
     if text not in cache:
         try:
-            cache[text] = bool(parse_expression(text, "value").is_number)
+            cache[text] = bool(parsed_text(text).is_number)
         except KfcritError:
             cache[text] = False
     return cache[text]
@@ -556,116 +552,12 @@ def _points(points: Any, base_doc: dict) -> tuple[list[str], list[tuple[str, ...
 # ---------------------------------------------------------------------------------------------
 
 
-def _value(obj: Any) -> float | None:
-    """``x`` or ``x["value"]`` as a finite float; None when absent."""
-    if isinstance(obj, dict):
-        obj = obj.get("value")
-    if obj is None or isinstance(obj, bool):
-        return None
-    try:
-        v = float(obj)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
 def point_options(tolerance: float) -> Any:
     """The analysis options of a sweep point: those of ``kfcrit analyze`` (same tolerances,
     seed and simulation size), computing only what the verdict and the review need."""
     from kfcrit.analysis.record import AnalysisOptions
 
     return AnalysisOptions(tolerance=tolerance, details=False)
-
-
-def requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:
-    """The arrival probability a point must exceed, and the basis of that number: the record's
-    p_c, robust value and bracket read by the one rule of
-    :func:`kfcrit.analysis.verdict.probability_to_beat`."""
-    from kfcrit.analysis.verdict import CriticalInputs, probability_to_beat
-
-    low = _value(record.get("block_lower_bound"))
-    return probability_to_beat(CriticalInputs(
-        classification=record.get("classification"),
-        critical=_value(record.get("critical_value")),
-        robust=_value(record.get("robust_critical_value")),
-        lower=low if low is not None else _value(record.get("lower_bound")),
-        upper=_value(record.get("upper_bound"))))
-
-
-def binding_requirement_of(record: dict[str, Any]) -> tuple[float | None, str | None]:
-    """The requirement column of a point: the link design's binding requirement when an
-    accuracy requirement binds it (p_V, or none when no arrival probability meets it; the
-    value is the record's ``link_budget.required_arrival_probability.design_value``, computed
-    once by :func:`kfcrit.link.requirement.binding_requirement`), else
-    :func:`requirement_of`."""
-    lb = record.get("link_budget") or {}
-    req = lb.get("required_arrival_probability") if lb.get("applicable") else None
-    if isinstance(req, dict) and req.get("binding") == "accuracy":
-        return _value(req.get("design_value")), req.get("short_basis")
-    return requirement_of(record)
-
-
-def row_of(record: dict[str, Any]) -> dict[str, Any]:
-    """The result columns of one point, read from its analysis record (nothing recomputed:
-    the verdict and the decision are the record's)."""
-    op = record.get("operating_point") or {}
-    lb = record.get("link_budget") or {}
-    req, basis = binding_requirement_of(record)
-    low = _value(record.get("block_lower_bound"))
-    p_low = _value(record.get("lower_bound"))
-    row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
-    row.update(status="ok", classification=record.get("classification"),
-               lower_bound=max(v for v in (low, p_low, -1.0) if v is not None)
-               if (low, p_low) != (None, None) else None,
-               critical_value=_value(record.get("critical_value")),
-               critical_expression=(record.get("critical_value") or {}).get("expression")
-               if _value(record.get("critical_value")) is not None else None,
-               robust_critical_value=_value(record.get("robust_critical_value")),
-               upper_bound=_value(record.get("upper_bound")), requirement=req,
-               requirement_basis=basis, decision=(record.get("review") or {}).get("decision"))
-    if op and record.get("network"):
-        # a network: the margin is the uniform margin δ, p the bottleneck sensor's
-        bracket = op.get("bracket") or [None]
-        margin = op.get("margin") if op.get("margin") is not None else bracket[0]
-        row.update(arrival_probability=op.get("arrival_probability"), iid=op.get("iid"),
-                   margin=margin, verdict=op.get("verdict"), requirement=None,
-                   requirement_basis="uniform margin of the sensor network (the conservative "
-                                     "end of its interval when not exact)")
-    elif op:
-        p = op.get("arrival_probability")
-        # against p_c or its robust value the record's own margin (an exact difference, so
-        # p_c + 10^-40 keeps its sign); against other requirements p − requirement
-        own = {"critical value": op.get("margin"),
-               "robust critical value": op.get("margin_robust")}.get(basis or "")
-        row.update(arrival_probability=p, iid=op.get("iid"),
-                   margin=own if own is not None and op.get("iid") else
-                   (p - req) if None not in (p, req) else None,
-                   verdict=op.get("verdict"))
-    row.update(loop_columns(record.get("loop")))
-    if lb.get("applicable") and "link" in lb:
-        link = lb.get("link") or {}
-        row.update(sinr_db=link.get("sinr_db"), required_sinr_db=lb.get("required_sinr_db"),
-                   link_margin_db=lb.get("link_margin_db"),
-                   required_margin_db=(lb.get("design_check") or {}).get("required_margin_db"),
-                   max_distance_m=lb.get("max_distance_m"),
-                   outage_probability=(lb.get("design_check") or {}).get("outage_probability"),
-                   mean_arrival_probability=(lb.get("shadowing") or {}).get(
-                       "mean_arrival_probability"))
-    return row
-
-
-def loop_columns(loop: dict[str, Any] | None) -> dict[str, Any]:
-    """The closed loop's columns (theory §12): its verdict, the actuation link's arrival
-    probability and threshold (ν_c, or the upper end of its bracket), ρ and the cost J."""
-    if not loop:
-        return {}
-    act = loop.get("actuation_critical") or {}
-    iv = act.get("interval") or [None, None]
-    return {"loop_verdict": loop.get("verdict"),
-            "actuation_arrival_probability": _value(loop.get("actuation_arrival_probability")),
-            "actuation_critical": _value(act.get("value")) if act.get("exact") else _value(iv[1]),
-            "loop_spectral_radius": _value(loop.get("spectral_radius")),
-            "loop_cost": _value(loop.get("cost"))}
 
 
 def point_spec(doc: dict, base_dir: Path, max_states: int, memo: dict[str, Any],
@@ -717,10 +609,37 @@ def channel_only(assignments: Iterable[tuple[str, str]]) -> bool:
                for path, _ in assignments)
 
 
+POINT_FAULTS = (KfcritError, ValueError, ArithmeticError)
+"""What a point may raise: an error row of that point (anything else stops the sweep)."""
+
+
+@dataclass(frozen=True)
+class ParsedPoint:
+    """A point's parsed system and its memo keys (:func:`parse_point`)."""
+
+    spec: Any
+    options: Any
+    keys: tuple[str, str, str]
+
+
+def parse_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
+                assignments: list[tuple[str, str]], theories: dict[str, Any],
+                base_keys: tuple[str, str, str] | None = None) -> ParsedPoint:
+    """The point's system (memoised by :func:`point_spec`), options and memo keys; raises
+    what the point's document makes the parser raise."""
+    doc = apply_point(base_doc, assignments)
+    opts = point_options(tolerance)
+    keys = (base_keys if base_keys is not None and channel_only(assignments)
+            else system_keys(doc, max_states, tolerance, opts.upper_tol))
+    return ParsedPoint(point_spec(doc, Path(base_dir), max_states, theories, keys[0]), opts,
+                       keys)
+
+
 def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: int,
                    assignments: list[tuple[str, str]],
                    theories: dict[str, Any] | None = None,
-                   base_keys: tuple[str, str, str] | None = None) -> dict[str, Any]:
+                   base_keys: tuple[str, str, str] | None = None,
+                   parsed: ParsedPoint | Exception | None = None) -> dict[str, Any]:
     """The result columns of one point (``status`` ``error`` with a one-line message on error).
 
     The point is analysed by :func:`kfcrit.analysis.record.analyze_system` with
@@ -728,17 +647,20 @@ def evaluate_point(base_doc: dict, base_dir: str, tolerance: float, max_states: 
     on the same file. ``theories`` memoises the channel-independent sections per system within
     one chunk of work (passed in, never module state); ``base_keys`` are the
     :func:`system_keys` of ``base_doc`` (read for points that change only channel fields).
+    ``parsed`` is the point's :func:`parse_point` (or what it raised) when the caller parsed
+    it already.
     """
     from kfcrit.analysis.record import analysis_data, theory_sections
 
     row: dict[str, Any] = dict.fromkeys(RESULT_COLUMNS)
     theories = {} if theories is None else theories
     try:
-        doc = apply_point(base_doc, assignments)
-        opts = point_options(tolerance)
-        pkey, skey, ukey = (base_keys if base_keys is not None and channel_only(assignments)
-                            else system_keys(doc, max_states, tolerance, opts.upper_tol))
-        spec = point_spec(doc, Path(base_dir), max_states, theories, pkey)
+        if isinstance(parsed, Exception):
+            raise parsed
+        if parsed is None:
+            parsed = parse_point(base_doc, base_dir, tolerance, max_states, assignments,
+                                 theories, base_keys)
+        spec, opts, (_, skey, ukey) = parsed.spec, parsed.options, parsed.keys
         if skey not in theories:
             theory = theory_sections(spec.system, opts, channel=spec.channel,
                                      upper_bound=theories.get(ukey))
@@ -763,17 +685,29 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
 
     ``theories`` memoises the channel-independent sections per system across the chunks one
     caller evaluates (a serial run passes one dict for the whole run; a worker gets a fresh one
-    per chunk); results never depend on it.
+    per chunk); results never depend on it. The chunk's points are parsed first and their
+    links' arrival values computed together (:func:`kfcrit.link.linkbudget.warm_links`, the
+    same bits as one by one), then each point is evaluated.
     """
+    from kfcrit.link.linkbudget import warm_links
+
     theories = {} if theories is None else theories
     try:
         base_keys: tuple[str, str, str] | None = system_keys(
             base_doc, max_states, tolerance, point_options(tolerance).upper_tol)
     except (TypeError, ValueError):  # a malformed document: each point reports its own error
         base_keys = None
+    parsed: list[ParsedPoint | Exception] = []
+    for _, _, assignments in items:
+        try:
+            parsed.append(parse_point(base_doc, base_dir, tolerance, max_states, assignments,
+                                      theories, base_keys))
+        except POINT_FAULTS as exc:
+            parsed.append(exc)
+    warm_links(p.spec.channel for p in parsed if isinstance(p, ParsedPoint))
     return [(index, key, evaluate_point(base_doc, base_dir, tolerance, max_states, assignments,
-                                        theories, base_keys))
-            for index, key, assignments in items]
+                                        theories, base_keys, parsed=pre))
+            for (index, key, assignments), pre in zip(items, parsed)]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -782,11 +716,12 @@ def evaluate_chunk(base_doc: dict, base_dir: str, tolerance: float, max_states: 
 
 def _param_value(text: str) -> Any:
     """A parameter's value for the table: an int for an integer (``packet_bytes: 20`` stays
-    20), a float for any other number, else the text."""
-    from kfcrit.model.exprparse import parse_expression
+    20), a float for any other number, else the text (texts parsed once per process:
+    :func:`kfcrit.link.fields.parsed_text`, as when the sweep file was read)."""
+    from kfcrit.link.fields import parsed_text
 
     try:
-        value = parse_expression(text)
+        value = parsed_text(text)
         if value.is_Integer:
             return int(value)
         return float(sp.N(value, 17))
@@ -915,16 +850,19 @@ def run_sweep(spec: SweepSpec, output: str | Path, *, scheduler: str | None = No
         batches = run_serial(job, pending)
     else:
         batches = run_processes(job, pending, workers)
-    advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
-                                                                       lambda: None)
     try:
-        for batch in batches:
-            journal.append([(key, res) for _, key, res in batch])
-            for _, key, res in batch:
-                known[key] = res
-            advance(len(batch))
+        # after the runner started its pool (forked workers must not inherit the bar's thread)
+        advance, stop = progress(len(spec.keys), reused) if progress else (lambda n: None,
+                                                                           lambda: None)
+        try:
+            for batch in batches:
+                journal.append([(key, res) for _, key, res in batch])
+                for _, key, res in batch:
+                    known[key] = res
+                advance(len(batch))
+        finally:
+            stop()
     finally:
-        stop()
         batches.close()  # release workers / the Dask client at once, also on an interrupt
     rows = assemble_rows(spec, known)
     errors = [r for r in rows if r["status"] != "ok"]

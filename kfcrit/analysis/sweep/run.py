@@ -75,19 +75,67 @@ def run_serial(job: PointJob, items: Items) -> Iterator[list[tuple[int, str, dic
                            theories)
 
 
+def start_method() -> str:
+    """How local workers start: ``fork`` on Linux when this process runs no other thread,
+    else ``spawn``.
+
+    A forked worker inherits this process's imported modules and the memo of the first point
+    (:func:`run_processes`), so it starts at once instead of importing kfcrit, NumPy, SciPy
+    and SymPy and computing the system's theory again (most of a spawned worker's start-up).
+    Forking is safe only without other threads (a lock one of them holds would stay held in
+    the child for ever), and macOS system libraries do not support it: there, and whenever
+    another thread runs (a progress bar, a Dask client, a notebook's kernel threads),
+    workers are spawned as fresh interpreters.
+    """
+    import multiprocessing
+    import sys
+    import threading
+
+    if (sys.platform.startswith("linux") and threading.active_count() == 1
+            and "fork" in multiprocessing.get_all_start_methods()):
+        return "fork"
+    return "spawn"
+
+
 def run_processes(job: PointJob, items: Items, workers: int,
                   ) -> Iterator[list[tuple[int, str, dict]]]:
-    """Evaluate on a local process pool (spawned, so safe next to threads)."""
+    """Evaluate on a local process pool, started before this returns (:func:`start_method`).
+
+    Forked workers: the first point is evaluated here first (its batch is yielded first), so
+    the modules it imports and the memo it fills (parsed system, theory sections) are
+    inherited by every worker. The pool is started before this function returns (so that it
+    forks before the caller starts a progress bar's thread); closing the returned iterator,
+    started or not, terminates the pool.
+    """
+    method = start_method()
+    memo: dict[str, Any] = {}
+    first: list[tuple[int, str, dict]] = []
+    if method == "fork" and items:
+        first = job.evaluate(job.base_doc, job.base_dir, job.tolerance, job.max_states,
+                             items[:1], memo)
+        items = items[1:]
+    batches = _pool_batches(job, items, workers, method, memo, first)
+    next(batches)  # runs up to the started pool
+    return batches
+
+
+def _pool_batches(job: PointJob, items: Items, workers: int, method: str,
+                  memo: dict[str, Any], first: list[tuple[int, str, dict]],
+                  ) -> Iterator[list[tuple[int, str, dict]]]:
+    """Start the pool, yield once (nothing), then ``first`` and the workers' finished chunks."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                               initializer=_worker_init, initargs=(os.getpid(),))
+    ctx = multiprocessing.get_context(method)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                               initargs=(os.getpid(), memo if method == "fork" else None))
     try:
         futures = [pool.submit(evaluate_in_worker, job.evaluate, job.base_doc, job.base_dir,
                                job.tolerance, job.max_states, chunk)
                    for chunk in chunks(items, workers)]
+        yield []  # the pool runs: the caller gets the iterator now
+        if first:
+            yield first
         for fut in as_completed(futures):
             yield fut.result()
     except BaseException:  # interrupted (or closed early): stop the workers before leaving
@@ -118,11 +166,14 @@ PARENT_POLL_SECONDS = 0.5
 """How often a worker process checks that the sweep that started it is still alive."""
 
 
-def _worker_init(parent_pid: int | None = None) -> None:
+def _worker_init(parent_pid: int | None = None, memo: dict[str, Any] | None = None) -> None:
     """Set up a local worker process.
 
     * SIGINT is ignored: a Ctrl-C reaches the whole process group, and the parent alone
       decides (it terminates the workers); a worker must not die mid-chunk with a traceback.
+      SIGTERM takes its default action: a forked worker would otherwise keep the sweep's own
+      handler (SIGTERM → ``KeyboardInterrupt``), and the parent's ``terminate`` must end it at
+      once, without a traceback.
     * The worker leaves (``os._exit``) as soon as its parent is gone: a sweep killed with
       SIGKILL runs no cleanup, and its workers (and, once they are gone, multiprocessing's
       resource tracker, which ends when the last holder of its pipe exits) must not keep
@@ -132,13 +183,18 @@ def _worker_init(parent_pid: int | None = None) -> None:
     * Warnings from NumPy/SciPy are not printed: each point's record carries kfcrit's own
       warnings, and dozens of repeated library lines from every worker would drown the
       sweep's one summary line.
+    * ``memo``: the memo of the first point (forked workers; :func:`run_processes`) becomes
+      this worker's memo.
     """
     import signal
     import threading
     import warnings
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     warnings.simplefilter("ignore")
+    if memo:
+        _worker_memo.update(memo)
     if parent_pid is None:
         return
     if os.getppid() != parent_pid:  # the parent died before this worker got here
