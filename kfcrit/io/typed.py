@@ -97,6 +97,13 @@ def _public_fields(cls_or_obj: Any) -> list[dataclasses.Field]:
     return [f for f in dataclasses.fields(cls_or_obj) if not f.metadata.get("internal")]
 
 
+@functools.cache
+def _write_plan(cls: type) -> tuple[tuple[str, bool, bool], ...]:
+    """(name, omitted when absent, omitted when None) of each public field, once per class."""
+    return tuple((f.name, bool(f.metadata.get("omit_absent")), bool(f.metadata.get("omit_none")))
+                 for f in _public_fields(cls))
+
+
 class RecordError(ValueError):
     """A JSON value does not fit the typed record (the message names the path)."""
 
@@ -133,8 +140,12 @@ def to_json(obj: Any) -> Any:
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: to_json(getattr(obj, f.name)) for f in _public_fields(obj)
-                if not _omitted(f, getattr(obj, f.name))}
+        out = {}
+        for name, omit_absent, omit_none in _write_plan(type(obj)):
+            value = getattr(obj, name)
+            if not (value is ABSENT if omit_absent else omit_none and value is None):
+                out[name] = to_json(value)
+        return out
     if isinstance(obj, dict):
         return {str(k): to_json(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -145,7 +156,19 @@ def to_json(obj: Any) -> Any:
 # ----------------------------------------------------------------------------- from JSON
 
 def from_json(tp: Any, value: Any, path: str = "record") -> Any:
-    """Read ``value`` (plain JSON) as type ``tp``; :class:`RecordError` names the first misfit."""
+    """Read ``value`` (plain JSON) as type ``tp``; :class:`RecordError` names the first misfit.
+
+    A compiled reader of ``tp`` (:func:`_reader`, built once per type) reads a value that fits;
+    only a misfit is read again by the checking reader, for the message naming its path.
+    """
+    try:
+        return _reader(tp)(value)
+    except (_Misfit, RecordError, TypeError, ValueError):
+        return _checked(tp, value, path)
+
+
+def _checked(tp: Any, value: Any, path: str) -> Any:
+    """:func:`from_json`, checking every node and naming the path of the first misfit."""
     if tp is JSON or tp is Any:
         return _check_json(value, path)
     optional, inner = _is_optional(tp)
@@ -185,18 +208,18 @@ def from_json(tp: Any, value: Any, path: str = "record") -> Any:
         if not isinstance(value, list):
             raise RecordError(f"{path}: must be a list")
         (item,) = typing.get_args(tp)[:1]
-        items = [from_json(item, v, f"{path}[{i}]") for i, v in enumerate(value)]
+        items = [_checked(item, v, f"{path}[{i}]") for i, v in enumerate(value)]
         return tuple(items) if origin is tuple else items
     if origin is dict:
         if not isinstance(value, dict):
             raise RecordError(f"{path}: must be an object")
         _, item = typing.get_args(tp)
-        return {k: from_json(item, v, f"{path}.{k}") for k, v in value.items()}
+        return {k: _checked(item, v, f"{path}.{k}") for k, v in value.items()}
     if origin in (Union, types.UnionType):
         misfits = []
         for arg in typing.get_args(tp):
             try:
-                return from_json(arg, value, path)
+                return _checked(arg, value, path)
             except RecordError as exc:
                 misfits.append(str(exc))
         raise RecordError(f"{path}: fits none of {_type_name(tp)} ("
@@ -236,7 +259,108 @@ def _dataclass_from_json(cls: type, value: Any, path: str) -> Any:
     missing = [f.name for f in fields if f.name not in value and not _omittable(f)]
     if missing:
         raise RecordError(f"{path}: missing key {missing[0]!r}")
-    return cls(**{n: from_json(hints[n], value[n], f"{path}.{n}") for n in names if n in value})
+    return cls(**{n: _checked(hints[n], value[n], f"{path}.{n}") for n in names if n in value})
+
+
+# ----------------------------------------------------------------------------- compiled readers
+
+class _Misfit(Exception):
+    """A value that does not fit (the checking reader then names where)."""
+
+
+def _misfit(value: Any) -> Any:
+    raise _Misfit
+
+
+@functools.cache
+def _reader(tp: Any) -> typing.Callable[[Any], Any]:
+    """The reader of type ``tp``: :func:`_checked`'s rules with the type analysis done once.
+
+    It raises :class:`_Misfit` (or :class:`RecordError`) where :func:`_checked` raises
+    :class:`RecordError`, and returns the same value where it does not.
+    """
+    if tp is JSON or tp is Any:
+        return lambda v: _check_json(v, "record")
+    optional, inner = _is_optional(tp)
+    none_fits = optional or tp is type(None) or (
+        typing.get_origin(tp) in (Union, types.UnionType) and type(None) in typing.get_args(tp))
+    read = _inner_reader(inner)
+    if none_fits:
+        return lambda v: None if v is None else read(v)
+    return lambda v: _misfit(v) if v is None else read(v)
+
+
+def _scalar(kinds: tuple[type, ...], bool_fits: bool) -> typing.Callable[[Any], Any]:
+    def read(v: Any) -> Any:
+        if isinstance(v, bool) and not bool_fits or not isinstance(v, kinds):
+            raise _Misfit
+        return v
+    return read
+
+
+def _inner_reader(tp: Any) -> typing.Callable[[Any], Any]:
+    """The reader of a non-``None`` value of ``tp`` (``None`` handled by :func:`_reader`)."""
+    origin = typing.get_origin(tp)
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        return _dataclass_reader(tp)
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        return tp
+    if tp is bool:
+        return _scalar((bool,), True)
+    if tp is int:
+        return _scalar((int,), False)
+    if tp is float:
+        return _scalar((int, float), False)
+    if tp is str:
+        return _scalar((str,), True)
+    if origin in (list, tuple):
+        item = _reader(typing.get_args(tp)[0])
+        as_tuple = origin is tuple
+
+        def read_list(v: Any) -> Any:
+            if not isinstance(v, list):
+                raise _Misfit
+            items = [item(x) for x in v]
+            return tuple(items) if as_tuple else items
+        return read_list
+    if origin is dict:
+        value_reader = _reader(typing.get_args(tp)[1])
+
+        def read_dict(v: Any) -> Any:
+            if not isinstance(v, dict):
+                raise _Misfit
+            return {k: value_reader(x) for k, x in v.items()}
+        return read_dict
+    if origin in (Union, types.UnionType):
+        readers = [_reader(a) if a is not type(None) else _misfit for a in typing.get_args(tp)]
+
+        def read_union(v: Any) -> Any:
+            for r in readers:
+                try:
+                    return r(v)
+                except (_Misfit, RecordError, ValueError):   # ValueError: an enum's misfit
+                    continue
+            raise _Misfit
+        return read_union
+    return _misfit
+
+
+def _dataclass_reader(cls: type) -> typing.Callable[[Any], Any]:
+    hints = _hints(cls)
+    fields = _public_fields(cls)
+    names = frozenset(f.name for f in fields)
+    required = [f.name for f in fields if not _omittable(f)]
+    # readers are looked up at call time: a class may refer to itself (a tree of sections)
+    plan = [(f.name, hints[f.name]) for f in fields]
+
+    def read(v: Any) -> Any:
+        if not isinstance(v, dict) or not v.keys() <= names:
+            raise _Misfit
+        for n in required:
+            if n not in v:
+                raise _Misfit
+        return cls(**{n: _reader(t)(v[n]) for n, t in plan if n in v})
+    return read
 
 
 # ----------------------------------------------------------------------------- JSON Schema

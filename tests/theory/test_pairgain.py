@@ -113,3 +113,18 @@ def test_the_sufficient_curve_uses_the_same_gains():
     A, C, f, r = CASES[0]
     curve = markov.burst_critical_curve(plant(A, C), failure_rates=[0.3], tol=1e-3)
     assert curve.to_dict()["sufficient_recovery"][0] <= 0.5
+
+
+def test_previous_arrival_gains_without_an_inverse_give_no_certificate_not_an_error():
+    """π_1 = 0 (recovery rate 0) and C X C' singular at X = 0: the gain formula has no
+    inverse; the route gives no gains (None), the caller no certificate — never LinAlgError."""
+    import numpy as np
+
+    from kfcrit.theory.links.burstcov import previous_arrival_gains
+    from kfcrit.theory.links.markov import previous_arrival_radius
+
+    A = np.array([[0.0, 2.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    C = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    T = np.array([[1.0, 0.0], [0.05, 0.95]])
+    assert previous_arrival_gains(A, C, np.eye(3), np.eye(2), T, np.array([1.0, 0.0])) is None
+    assert previous_arrival_radius(A, C, np.eye(3), np.eye(2), 0.05, 0.0) is None

@@ -123,7 +123,7 @@ def previous_arrival_gains(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.nd
                            max_iterations: int = RICCATI_MAX_ITERATIONS
                            ) -> list[np.ndarray] | None:
     """Gains (K_0, K_1) chosen by the previous arrival, from the coupled Riccati iteration
-    (None when it diverges).
+    (None when it diverges or an inverse below does not exist).
 
     .. math:: K_i = -A X_i C'(C X_i C' + \\pi_i R)^{-1}
 
@@ -135,7 +135,13 @@ def previous_arrival_gains(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.nd
     last = 0.0
     with np.errstate(all="ignore"):
         for _ in range(max_iterations):
-            K = [-A @ X[i] @ C.T @ np.linalg.inv(C @ X[i] @ C.T + pi[i] * R) for i in range(2)]
+            try:
+                K = [-A @ X[i] @ C.T @ np.linalg.inv(C @ X[i] @ C.T + pi[i] * R)
+                     for i in range(2)]
+            except np.linalg.LinAlgError:
+                # C X_i C' + π_i R singular (π_i = 0 with C X_i C' singular): no gain of this
+                # form, so no certificate by this route
+                return None
             X = _affine(A, C, Q, R, T, pi, K, X)
             tr = float(np.trace(X[0] + X[1]))
             if not np.isfinite(tr) or tr > 1e200:
