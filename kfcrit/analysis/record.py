@@ -44,7 +44,7 @@ from kfcrit.analysis.requirements import (
     tail_simulation_check,
 )
 from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
-from kfcrit.analysis.verification import verification
+from kfcrit.analysis.verification import section_value, verification
 from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
@@ -176,12 +176,6 @@ def _split_timings(obj: Any, path: str, found: dict[str, float]) -> Any:
     if isinstance(obj, list):
         return [_split_timings(v, f"{path}[{i}]", found) for i, v in enumerate(obj)]
     return obj
-
-
-def section_value(sec: dict[str, Any], key: str) -> float | None:
-    """``value`` of the typed section ``key`` of ``sec`` (None when absent)."""
-    section = sec.get(key)
-    return section.value if section is not None else None
 
 
 def classification_of(sec: dict[str, Any]) -> str | None:

@@ -98,8 +98,8 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
         if between.status == "inconclusive":
             warnings.append(f"Monte Carlo check inconclusive: {between.check} "
                             f"({between.reason})")
-    pcv = _value(sec, "critical_value")
-    lb = _value(sec, "lower_bound")
+    pcv = section_value(sec, "critical_value")
+    lb = section_value(sec, "lower_bound")
     up = ub.value if ub is not None else None
     if pcv is not None and lb is not None:
         ok = lb <= pcv + 1e-12 and (up is None or pcv <= up + max(ub.tolerance or 0, 1e-9))
@@ -132,6 +132,7 @@ def _enclosure_check(upper: Any) -> list[VerificationCheck]:
                                      "not converged); it rests on its residual")]
 
 
-def _value(sec: dict[str, Any], key: str) -> float | None:
+def section_value(sec: dict[str, Any], key: str) -> float | None:
+    """``value`` of the typed section ``key`` of ``sec`` (None when absent)."""
     section = sec.get(key)
     return section.value if section is not None else None
