@@ -217,7 +217,8 @@ def from_json(tp: Any, value: Any, path: str = "record") -> Any:
 
 
 _PLAIN_ITEMS: typing.Mapping[Any, tuple[type, ...]] = types.MappingProxyType(
-    {str: (str,), float: (float, int), int: (int,), bool: (bool,)})
+    {str: (str,), float: (float, int), int: (int,), bool: (bool,),
+     float | None: (float, int, type(None)), str | None: (str, type(None))})
 """Item types whose JSON values :func:`from_json` returns unchanged, with the exact Python
 types that fit them as they are (a list of these is checked in one pass, not item by item)."""
 

@@ -176,19 +176,25 @@ class Rows:
     texts: list[list[str]]
     values: tuple[float, ...]
     counts: list[int]
+    matrix: list[list[float | None]]
+    labels: list[str | None]
 
 
 def test_typed_lists_of_plain_items_read_as_item_by_item() -> None:
-    good = {"texts": [["1/2", "3"], []], "values": [1, 2.5, -0.0], "counts": [1, 2]}
+    good = {"texts": [["1/2", "3"], []], "values": [1, 2.5, -0.0], "counts": [1, 2],
+            "matrix": [[1.5, None, 2]], "labels": ["a", None]}
     out = from_json(Rows, good)
-    assert out == Rows([["1/2", "3"], []], (1, 2.5, -0.0), [1, 2])
+    assert out == Rows([["1/2", "3"], []], (1, 2.5, -0.0), [1, 2], [[1.5, None, 2]], ["a", None])
     assert type(out.values) is tuple and type(out.counts) is list
     for bad, message in (({**good, "values": [1.0, True]}, "record.values[1]: must be a number"),
                          ({**good, "values": [1.0, "x"]}, "record.values[1]: must be a number"),
                          ({**good, "counts": [1, 2.0]}, "record.counts[1]: must be an integer"),
                          ({**good, "counts": [False]}, "record.counts[0]: must be an integer"),
                          ({**good, "texts": [["a", 1]]}, "record.texts[0][1]: must be a string"),
-                         ({**good, "texts": [["a"], None]}, "record.texts[1]: must not be null")):
+                         ({**good, "texts": [["a"], None]}, "record.texts[1]: must not be null"),
+                         ({**good, "matrix": [[1.0, False]]},
+                          "record.matrix[0][1]: must be a number"),
+                         ({**good, "labels": [None, 3]}, "record.labels[1]: must be a string")):
         with pytest.raises(RecordError) as info:
             from_json(Rows, bad)
         assert str(info.value) == message
