@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from kfcrit.errors import InputError
 from kfcrit.io import systemfile
+from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import ExactLoader, YamlNumber, read_system_file
 from kfcrit.io.typed import RecordError, from_json
 from kfcrit.model.exprparse import _general_number, parse_expression
@@ -198,3 +199,19 @@ def test_typed_lists_of_plain_items_read_as_item_by_item() -> None:
         with pytest.raises(RecordError) as info:
             from_json(Rows, bad)
         assert str(info.value) == message
+
+
+JSON_ITEM = st.one_of(st.floats(), st.integers(), st.text(max_size=3), st.none(), st.booleans(),
+                      st.floats().map(np.float64), st.integers(-5, 5).map(np.int64))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(JSON_ITEM, max_size=8), st.booleans())
+def test_lists_become_json_as_their_items_do(items: list, as_tuple: bool) -> None:
+    # the reference: each item converted on its own (the scalar rules: non-finite → None)
+    value = tuple(items) if as_tuple else items
+    out = jsonable(value)
+    assert type(out) is list
+    assert out == [jsonable(v) for v in items]
+    assert [type(v) for v in out] == [type(jsonable(v)) for v in items]
+    assert jsonable([items, items]) == [out, out]
