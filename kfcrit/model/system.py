@@ -230,8 +230,9 @@ def rational_floats(flat: list[sp.Rational]) -> np.ndarray:
         out = np.array([v.p / v.q for v in flat], dtype=float)
     except OverflowError:  # beyond the double range (only from a sympy rational given as such)
         return np.array([float(v) for v in flat], dtype=float)
-    for k in np.flatnonzero(np.abs(out) < np.finfo(float).tiny):  # zeros, and what underflows
-        out[k] = float(flat[k])
+    for k in np.flatnonzero(np.abs(out) < np.finfo(float).tiny):  # what underflows (not 0)
+        if flat[k].p:
+            out[k] = float(flat[k])
     return out
 
 
@@ -331,7 +332,8 @@ by the bounded exact test are taken as equal (the upper-triangle entry is used f
 
 
 def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
-                     exact: bool, budget: ParseBudget | None = None) -> sp.ImmutableMatrix:
+                     exact: bool, budget: ParseBudget | None = None,
+                     tol: float | None = None) -> sp.ImmutableMatrix:
     """Refuse an asymmetric matrix; return it (exact input: symmetrised where numerically equal).
 
     The float views are compared first (a clear asymmetry is refused at once). Exact entries are
@@ -339,8 +341,9 @@ def _check_symmetric(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str,
     exactly; otherwise :func:`kfcrit.model.exprparse.sign_of`-style evaluation with certain digits (a
     digit found means asymmetric), and a difference with no digit up to ``SYMMETRY_DIGITS``
     digits counts as zero (proven or not), in which case the upper entry is used for both.
+    ``tol`` is ``sym_tolerance(Mf)`` when the caller has it.
     """
-    if np.max(np.abs(Mf - Mf.T), initial=0.0) > sym_tolerance(Mf):
+    if np.max(np.abs(Mf - Mf.T), initial=0.0) > (sym_tolerance(Mf) if tol is None else tol):
         raise InputError("must be symmetric", field=name)
     if not exact:
         return M
@@ -378,27 +381,29 @@ EXACT_DEFINITE_MAX = 12
 """Largest rational matrix whose definiteness is decided exactly (sympy); above, in floats."""
 
 
-def is_definite(M: sp.MatrixBase, Mf: np.ndarray, exact: bool, strict: bool = True) -> bool:
+def is_definite(M: sp.MatrixBase, Mf: np.ndarray, exact: bool, strict: bool = True,
+                tol: float | None = None) -> bool:
     """Whether a symmetric matrix is positive definite (``strict``) or semidefinite.
 
     Exact for exact rational input up to :data:`EXACT_DEFINITE_MAX` states (``1e-250`` is
     positive, whatever its size); otherwise from the float eigenvalues against the
     scale-aware tolerance :func:`sym_tolerance` (λ_min > tol, resp. ≥ −tol), so scaling the
     matrix by any power of ten never changes the answer. Never an absolute threshold.
+    ``tol`` is ``sym_tolerance(Mf)`` when the caller has it (a singular value decomposition).
     """
     if exact and M.shape[0] <= EXACT_DEFINITE_MAX and all(e.is_Rational for e in M):
         return bool(M.is_positive_definite) if strict else bool(M.is_positive_semidefinite)
     with np.errstate(all="ignore"):
         w = np.linalg.eigvalsh(0.5 * (Mf + Mf.T))
-    tol = sym_tolerance(Mf)
+    tol = sym_tolerance(Mf) if tol is None else tol
     return bool(w.min() > tol) if strict else bool(w.min() >= -tol)
 
 
 def _check_definite(M: sp.ImmutableMatrix, Mf: np.ndarray, name: str, exact: bool,
-                    strict: bool) -> None:
+                    strict: bool, tol: float | None = None) -> None:
     """Positive (semi)definiteness (:func:`is_definite`), or an error naming the matrix."""
     what = "positive definite" if strict else "positive semidefinite"
-    if not is_definite(M, Mf, exact, strict):
+    if not is_definite(M, Mf, exact, strict, tol):
         raise InputError(f"must be symmetric {what}", field=name)
 
 
@@ -511,8 +516,9 @@ class System:
         checked = {}
         for M, nm, ex, strict in ((Q_, "Q", eq, False), (R_, "R", er, True),
                                   (S_, "Sigma0", es, False)):
-            checked[nm] = _check_symmetric(M, floats[nm], nm, ex, budget)
-            _check_definite(checked[nm], floats[nm], nm, ex, strict)
+            tol = sym_tolerance(floats[nm])   # one singular value decomposition per matrix
+            checked[nm] = _check_symmetric(M, floats[nm], nm, ex, budget, tol)
+            _check_definite(checked[nm], floats[nm], nm, ex, strict, tol)
         Q_, R_, S_ = checked["Q"], checked["R"], checked["Sigma0"]
         set_ = object.__setattr__
         for key, val in (("A", A_), ("C", C_), ("Q", Q_), ("R", R_), ("Sigma0", S_)):
