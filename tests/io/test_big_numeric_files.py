@@ -215,3 +215,25 @@ def test_lists_become_json_as_their_items_do(items: list, as_tuple: bool) -> Non
     assert out == [jsonable(v) for v in items]
     assert [type(v) for v in out] == [type(jsonable(v)) for v in items]
     assert jsonable([items, items]) == [out, out]
+
+
+def test_reading_pauses_the_collector_and_restores_it(tmp_path: Path) -> None:
+    import gc
+
+    good = write(tmp_path / "good.yaml", [["0.5"]], [["1"]], [["1"]], [["1"]])
+    bad = write(tmp_path / "bad.yaml", [["1e999"]], [["1"]], [["1"]], [["1"]])
+    seen = []
+    with systemfile.paused_gc():
+        seen.append(gc.isenabled())
+    assert seen == [False] and gc.isenabled()
+    read_system_file(good)
+    assert gc.isenabled()
+    with pytest.raises(InputError):
+        read_system_file(bad)
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        read_system_file(good)
+        assert not gc.isenabled()   # a caller's choice is kept
+    finally:
+        gc.enable()
