@@ -517,7 +517,11 @@ class System:
         for M, nm, ex, strict in ((Q_, "Q", eq, False), (R_, "R", er, True),
                                   (S_, "Sigma0", es, False)):
             tol = sym_tolerance(floats[nm])   # one singular value decomposition per matrix
-            checked[nm] = _check_symmetric(M, floats[nm], nm, ex, budget, tol)
+            # the parsing deadline bounds the evaluation of expressions; rational entries are
+            # compared exactly in bounded time (a slow or busy machine never refuses them)
+            rational = all(isinstance(e, sp.Rational) for row in matrix_rows(M) for e in row)
+            checked[nm] = _check_symmetric(M, floats[nm], nm, ex, None if rational else budget,
+                                           tol)
             _check_definite(checked[nm], floats[nm], nm, ex, strict, tol)
         Q_, R_, S_ = checked["Q"], checked["R"], checked["Sigma0"]
         set_ = object.__setattr__

@@ -193,3 +193,23 @@ def test_a_system_of_rationals_is_the_system_of_the_same_texts() -> None:
         System(A=[[1]], C=[[1], [2]], Q=1,
                R=[[number_from_text("1"), number_from_text("0.5")],
                   [number_from_text("0.25"), number_from_text("1")]])
+
+
+def test_the_parsing_deadline_never_refuses_plain_numbers(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the deadline bounds expression evaluation; here every check of it counts as expired
+    from kfcrit.model import system as system_module
+
+    calls: list[str] = []
+
+    def expired(self, where: str) -> None:
+        calls.append(where)
+        raise system_module.InputError("deadline", field=where)
+
+    monkeypatch.setattr(system_module.ParseBudget, "check", expired)
+    half = number_from_text("0.5")
+    s = System(A=[[half, 0], [0, half]], C=[[1, 0]], Q=[[1, half], [half, 1]], R=1)
+    assert s.exact and calls == []
+    with pytest.raises(system_module.InputError, match="deadline"):
+        System(A=[[half, 0], [0, half]], C=[[1, 0]], Q=[[1, "sqrt(2)/4"], ["sqrt(2)/4", 1]],
+               R=1)
+    assert calls
