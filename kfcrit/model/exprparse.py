@@ -173,11 +173,20 @@ def number_from_text(text: str, field: str | None = None) -> sp.Rational:
     fast = plain_decimal(text) if isinstance(text, str) else None
     if fast is not None:
         return fast
-    return _general_number(text, field)
+    return general_number_from_text(text, field)
 
 
-def _general_number(text: str, field: str | None = None) -> sp.Rational:
-    """:func:`number_from_text` for any text: every check, in its order, and its message."""
+def general_number_from_text(text: str, field: str | None = None) -> sp.Rational:
+    """:func:`number_from_text` without its fast path: every check, in its order, with its
+    message (the reference the fast path :func:`plain_decimal` is tested against).
+
+    Parameters
+    ----------
+    text : str
+        The literal as written (spaces around it and underscores between digits allowed).
+    field : str, optional
+        Name of the field, for the error message.
+    """
     t = text.strip().replace("_", "")
     if t.lower().lstrip("+-") in (".inf", ".nan", "inf", "nan", "infinity"):
         raise ExpressionError(f"{text.strip()[:20]!r} is not a finite number", field=field)

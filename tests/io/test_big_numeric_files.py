@@ -18,7 +18,7 @@ from kfcrit.io import systemfile
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import ExactLoader, YamlNumber, read_system_file
 from kfcrit.io.typed import RecordError, from_json
-from kfcrit.model.exprparse import _general_number, parse_expression
+from kfcrit.model.exprparse import general_number_from_text, parse_expression
 
 SCALARS = ["0", "1", "-1", "+1", "007", "00", "-0", "0.5", "-0.5", "1.", "1.e+5", "1.0e5",
            "1.0e+5", "1_0", "1:30", ".5", "1e5", "0x1F", "0o17", "0b11", "+.inf", ".nan",
@@ -96,7 +96,7 @@ def test_matrices_read_as_the_safe_loader_reads_them(rows: list[list[str]]) -> N
 def general_numbers(obj, where: str):
     """The general conversion, entry by entry: the reference for ``_exact_numbers``."""
     if isinstance(obj, YamlNumber):
-        return _general_number(str(obj), where)
+        return general_number_from_text(str(obj), where)
     if isinstance(obj, list):
         return [general_numbers(v, f"{where}[{i}]") for i, v in enumerate(obj)]
     return obj

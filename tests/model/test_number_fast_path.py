@@ -46,7 +46,7 @@ def outcome(fn, text: str) -> tuple:
 
 
 def same_as_general(text: str) -> None:
-    assert outcome(number_from_text, text) == outcome(exprparse._general_number, text), text
+    assert outcome(number_from_text, text) == outcome(exprparse.general_number_from_text, text), text
 
 
 @pytest.mark.parametrize("text", HOSTILE)
