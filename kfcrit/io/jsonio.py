@@ -10,6 +10,9 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+_PLAIN = frozenset({str, int, float, type(None)})
+"""Item types a list holds as JSON already (floats when finite)."""
+
 
 def jsonable(obj: Any) -> Any:
     """Convert a record to plain JSON types.
@@ -38,6 +41,9 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
+        if all(type(v) in _PLAIN for v in obj) and all(
+                math.isfinite(v) for v in obj if type(v) is float):
+            return list(obj)  # what the items give one by one, in one pass (big matrices)
         return [jsonable(v) for v in obj]
     if hasattr(obj, "to_dict"):
         return jsonable(obj.to_dict())

@@ -115,7 +115,16 @@ def _hints(cls: type) -> dict[str, Any]:
 
 
 def _is_optional(tp: Any) -> tuple[bool, Any]:
-    """``(True, T)`` for ``T | None``; ``(False, tp)`` otherwise."""
+    """``(True, T)`` for ``T | None``; ``(False, tp)`` otherwise (decided once per type)."""
+    try:
+        return _optional_of(tp)
+    except TypeError:  # an unhashable type annotation
+        return _optional_of.__wrapped__(tp)
+
+
+@functools.cache
+def _optional_of(tp: Any) -> tuple[bool, Any]:
+    """:func:`_is_optional`, cached (types never change)."""
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType) and tp is not JSON:
         args = [a for a in typing.get_args(tp) if a is not type(None)]
@@ -208,6 +217,9 @@ def _checked(tp: Any, value: Any, path: str) -> Any:
         if not isinstance(value, list):
             raise RecordError(f"{path}: must be a list")
         (item,) = typing.get_args(tp)[:1]
+        plain = _PLAIN_ITEMS.get(item)
+        if plain is not None and all(type(v) in plain for v in value):
+            return tuple(value) if origin is tuple else list(value)  # every item fits as is
         items = [_checked(item, v, f"{path}[{i}]") for i, v in enumerate(value)]
         return tuple(items) if origin is tuple else items
     if origin is dict:
@@ -225,6 +237,13 @@ def _checked(tp: Any, value: Any, path: str) -> Any:
         raise RecordError(f"{path}: fits none of {_type_name(tp)} ("
                           + "; ".join(misfits) + ")")
     raise RecordError(f"{path}: unsupported field type {tp!r}")
+
+
+_PLAIN_ITEMS: typing.Mapping[Any, tuple[type, ...]] = types.MappingProxyType(
+    {str: (str,), float: (float, int), int: (int,), bool: (bool,),
+     float | None: (float, int, type(None)), str | None: (str, type(None))})
+"""Item types whose JSON values :func:`from_json` returns unchanged, with the exact Python
+types that fit them as they are (a list of these is checked in one pass, not item by item)."""
 
 
 def _type_name(tp: Any) -> str:
@@ -315,11 +334,14 @@ def _inner_reader(tp: Any) -> typing.Callable[[Any], Any]:
         return _scalar((str,), True)
     if origin in (list, tuple):
         item = _reader(typing.get_args(tp)[0])
+        plain = _PLAIN_ITEMS.get(typing.get_args(tp)[0])
         as_tuple = origin is tuple
 
         def read_list(v: Any) -> Any:
             if not isinstance(v, list):
                 raise _Misfit
+            if plain is not None and all(type(x) in plain for x in v):
+                return tuple(v) if as_tuple else list(v)  # every item fits as is
             items = [item(x) for x in v]
             return tuple(items) if as_tuple else items
         return read_list

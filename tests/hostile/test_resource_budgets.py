@@ -20,7 +20,7 @@ import sympy as sp
 from kfcrit.errors import InputError
 from kfcrit.model.exprparse import parse_expression, parse_with_float
 from kfcrit.model.system import MAX_EXPRESSION_TEXT, ParseBudget, System, matrix_and_float
-from kfcrit.theory.structure.budget import field_degree_bound, run_bounded
+from kfcrit.theory.structure.budget import adopt_imports, field_degree_bound, run_bounded
 from kfcrit.theory.structure.eigen import structure_of
 from kfcrit.theory.structure.records import Fallback
 
@@ -121,6 +121,23 @@ def test_bounded_runner_returns_and_reraises() -> None:
     assert run_bounded(divmod, 17, 5, seconds=10, what="t") == (3, 2)
     with pytest.raises(ValueError, match="from the child"):
         run_bounded(_boom, seconds=10, what="t")
+
+
+def _import_json_tool() -> str:
+    import json.tool
+
+    return json.tool.__name__
+
+
+def test_modules_a_child_imports_are_imported_once_here_too() -> None:
+    # sympy imports modules lazily: a child's import would be lost and paid again by every
+    # later child; the parent adopts them (json.tool stands in for them: json is imported)
+    if "json.tool" in sys.modules:
+        pytest.skip("json.tool is already imported in this session")
+    assert run_bounded(_import_json_tool, seconds=10, what="t") == "json.tool"
+    assert "json.tool" in sys.modules
+    assert adopt_imports(["json.tool", "json.no_such_module", "no_such_package.mod"]) == []
+    assert "no_such_package" not in sys.modules
 
 
 def test_bounded_runner_stops_a_spinning_computation() -> None:

@@ -45,10 +45,14 @@ def f_arrival(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray,
 
 def g(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, X: np.ndarray,
       p: float) -> np.ndarray:
-    """MARE map g_p(X) = A X A' + Q − p A X C' (C X C' + R)^{-1} C X A' (Sinopoli eq. 16)."""
-    AXC = A @ X @ C.T
+    """MARE map g_p(X) = A X A' + Q − p A X C' (C X C' + R)^{-1} C X A' (Sinopoli eq. 16).
+
+    A X is formed once (``A @ X @ M`` is ``(A @ X) @ M``: the same products, bit for bit).
+    """
+    AX = A @ X
+    AXC = AX @ C.T
     S = C @ X @ C.T + R
-    return symmetrize(A @ X @ A.T + Q - p * AXC @ np.linalg.solve(S, AXC.T))
+    return symmetrize(AX @ A.T + Q - p * AXC @ np.linalg.solve(S, AXC.T))
 
 
 def phi(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, K: np.ndarray,

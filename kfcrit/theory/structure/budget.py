@@ -22,7 +22,9 @@ Two guards keep the exact eigen-structure analysis within documented time and me
   parent's current size) and a wall-clock deadline; on expiry the child is killed. sympy's inner
   loops (and GMP, which aborts on a failed allocation) cannot be interrupted in-process by a
   signal handler or a cooperative check, a killed child always stops. The result comes back
-  pickled through a pipe (measured overhead: a few milliseconds per call).
+  pickled through a pipe (measured overhead: a few milliseconds per call), with the names of
+  the modules the child imported: the parent imports them too (:func:`adopt_imports`), so that
+  sympy's lazy imports are paid once per process, not once per child.
 
 Everything the guards stop becomes a :class:`~kfcrit.theory.structure.records.Fallback` whose
 message names the limit; the caller falls back to certified enclosures or to the numeric path and
@@ -30,12 +32,14 @@ records the reason (``structure.path_reason``).
 """
 from __future__ import annotations
 
+import importlib
 import math
 import os
 import pickle
 import resource
 import select
 import signal
+import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable
@@ -221,6 +225,7 @@ def _child(write_fd: int, fn: Callable[..., Any], args: tuple[Any, ...], memory:
         signal.signal(signal.SIGINT, signal.SIG_DFL)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _limit_child(memory, seconds)
+        before = set(sys.modules)
         try:
             outcome: tuple[str, Any] = ("ok", fn(*args))
         except MemoryError:
@@ -228,11 +233,12 @@ def _child(write_fd: int, fn: Callable[..., Any], args: tuple[Any, ...], memory:
                                        f"{memory // 2**20} MB"))
         except BaseException as exc:  # noqa: BLE001 - every outcome goes back to the parent
             outcome = ("exc", exc, traceback.format_exc())
+        imported = sorted(set(sys.modules) - before)
         try:
-            data = pickle.dumps(outcome, protocol=pickle.HIGHEST_PROTOCOL)
+            data = pickle.dumps((imported, outcome), protocol=pickle.HIGHEST_PROTOCOL)
         except Exception as exc:  # noqa: BLE001 - an unpicklable outcome is reported as such
-            data = pickle.dumps(("exc", Fallback(f"{what}: result could not be returned "
-                                                 f"({type(exc).__name__})")))
+            data = pickle.dumps((imported, ("exc", Fallback(f"{what}: result could not be "
+                                                            f"returned ({type(exc).__name__})"))))
         view = memoryview(data)
         while view:
             view = view[os.write(write_fd, view):]
@@ -270,6 +276,24 @@ def _reap(pid: int, kill: bool) -> int:
             return 0
         except InterruptedError:  # pragma: no cover - PEP 475 retries already
             continue
+
+
+def adopt_imports(names: Iterable[str]) -> list[str]:
+    """Import here the modules a bounded child imported, of packages this process has already
+    imported (sympy imports many of its modules lazily, on first use: in a child that import is
+    lost with it, and every later child would pay it again, ~0.1 s each). Returns the names
+    imported; a module that fails to import is left alone (the child managed without it here).
+    """
+    done = []
+    for name in names:
+        if name in sys.modules or name.partition(".")[0] not in sys.modules:
+            continue
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001,S112 - a warm-up only: the child imports it again
+            continue
+        done.append(name)
+    return done
 
 
 def run_bounded(fn: Callable[..., Any], *args: Any, seconds: float, what: str,
@@ -310,9 +334,10 @@ def run_bounded(fn: Callable[..., Any], *args: Any, seconds: float, what: str,
                else f"exit status {os.waitstatus_to_exitcode(status)}")
         raise Fallback(f"{what} stopped ({why}; memory budget {memory // 2**20} MB)")
     try:
-        outcome = pickle.loads(data)  # noqa: S301 - bytes from our own forked child
+        imported, outcome = pickle.loads(data)  # noqa: S301 - bytes from our own forked child
     except Exception as exc:  # noqa: BLE001 - e.g. an exception class that does not unpickle
         raise Fallback(f"{what}: result could not be read ({type(exc).__name__})") from None
+    adopt_imports(imported)
     if outcome[0] == "ok":
         return outcome[1]
     exc = outcome[1]
