@@ -17,6 +17,7 @@ from kfcrit.model.channels import Channel, GilbertElliott
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import simulate
 from kfcrit.theory.critical.section import critical_value
+from kfcrit.theory.links.markov import burst_necessary
 
 GE_CLAIMS: tuple[dict[str, str], ...] = (
     {"statement": "Kalman filtering with Markovian (Gilbert-Elliott) packet losses: conditions "
@@ -129,6 +130,17 @@ def ge_condition_status(system: Any, classification: str, c_nonzero: bool) -> tu
             False)
 
 
+def _condition_holds(system: Any, recovery_rate: Any, value: float) -> bool:
+    r"""(1 − r)ρ(A)² < 1, decided exactly where r and ρ(A)² are exact
+    (:func:`kfcrit.theory.links.markov.burst_necessary`); the float ``value`` only when the
+    exact decision is out of reach.
+
+    .. math::  (1 - r)\,\rho(A)^2 < 1
+    """
+    holds = burst_necessary(system, recovery_rate).holds
+    return bool(value < 1) if holds is None else bool(holds)
+
+
 def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
                             simulate: bool = True,
                             classification: str | None = None) -> dict[str, Any]:
@@ -178,7 +190,8 @@ def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
         "applicable": True, "failure_rate": f, "recovery_rate": r,
         "stationary_arrival_probability": r / (f + r), "mean_burst_length": 1 / r,
         "spectral_radius": a, "classification": classification,
-        "condition": {"expression": "(1 - r) a^2 < 1", "value": value, "holds": value < 1,
+        "condition": {"expression": "(1 - r) a^2 < 1", "value": value,
+                      "holds": _condition_holds(system, channel.recovery_rate, value),
                       "status": status, "decides": decides},
         "required_recovery_rate": r_min,
         "max_mean_burst_length": (1 / r_min) if r_min > 0 else None,

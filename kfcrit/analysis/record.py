@@ -233,7 +233,10 @@ def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInput
     sufficient, basis = None, None
     if cond.get("decides") is True and cond.get("holds") is True:
         sufficient = True
-        basis = (f"Gilbert–Elliott condition {cond.get('expression')} = {cond.get('value'):.6g} "
+        value = cond.get("value")
+        shown = (f"{value:.6g}" if value != 1.0 else
+                 "1 to float precision, below 1 exactly (r exceeds 1 - 1/a^2)")
+        basis = (f"Gilbert–Elliott condition {cond.get('expression')} = {shown} "
                  f"< 1 ({cond.get('status')})")
     cert = (link or {}).get("certificate")
     if sufficient is None and isinstance(cert, dict) and (cert.get("facts") or {}).get(
@@ -537,6 +540,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"),
                                                  measured.inputs if measured else None)
+    estimator = sec["operating_point"]   # the estimator's verdict, before a loop joins it
     loop_reasons, loop_cost = [], None
     if spec.loop is not None:  # theory §12: operating_point.verdict becomes estimator AND loop
         from kfcrit.analysis.loop.section import loop_analysis
@@ -574,7 +578,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
                              "cross-check is left out (run without --quick for it); the verdict "
                              "rests on the theory"}
     elif opts.details or tail:
-        _simulation_sections(spec, opts, sec, warnings)
+        _simulation_sections(spec, opts, sec, warnings, estimator)
     for key in MEASURED_KEYS:     # typed here: what follows judges them
         if sec.get(key) is not None:
             sec[key] = typed_section(key, sec[key], timings)
@@ -758,12 +762,15 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
 
     if markers["operating"] is not None:
         cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
+        cb["lower"] = _lower_exists_exactly(cb["lower"], spec.channel, sec)
         if spec.channel is not None and spec.channel.model == "gilbert-elliott":
             from kfcrit.theory.links.burstcov import markov_jump_bounds
+            from kfcrit.theory.links.markov import burst_necessary
 
-            cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
-                                                   float(spec.channel.recovery_rate)
-                                                   ).to_dict()
+            ge = spec.channel
+            cb["markov_jump"] = markov_jump_bounds(
+                s, float(ge.failure_rate), float(ge.recovery_rate),
+                necessary_holds=burst_necessary(s, ge.recovery_rate).holds).to_dict()
         sec["covariance_bounds"] = cb
         warnings.extend(cb.get("warnings") or [])
         if curves:
@@ -782,8 +789,25 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
     return pt
 
 
+def _lower_exists_exactly(lower: dict[str, Any], channel: Any,
+                          sec: dict[str, Any]) -> dict[str, Any]:
+    r"""S̄ exists iff p > p_low (Sinopoli Thm 3, 4), decided on the exact p and p_low: a
+    float p that rounds onto p_low (p = 9/25 + 10⁻⁴⁰) finds no bounded S̄ in float64, yet S̄
+    exists, beyond float64.
+
+    .. math::  \exists\,\bar S \iff p > p_{low} = 1 - 1/\rho(A)^2
+    """
+    if lower.get("exists") is not False or channel is None or not channel.iid:
+        return lower
+    low = sec.get("lower_bound")
+    expr = getattr(low, "expression", None)
+    if expr is None or not vd.exceeds(channel.arrival_probability, expr):
+        return lower
+    return {**lower, "exists": True, "beyond_float64": True}
+
+
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                         warnings: list[str]) -> None:
+                         warnings: list[str], estimator: OperatingPoint | None = None) -> None:
     from kfcrit.theory.covariance import invariant
 
     sec["invariant"] = invariant.invariant_section(spec.system)
@@ -803,9 +827,17 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     sim = simulation_section(
         spec, critical_value=pc, upper_bound=section_value(sec, "upper_bound"),
         seed=opts.seed, quick=opts.quick,
-        critical_bracket=tuple(bracket) if bracket and None not in bracket else None)
+        critical_bracket=tuple(bracket) if bracket and None not in bracket else None,
+        mean_decision=_mean_decision(estimator))
     sec["simulation"] = sim
     warnings.extend((sim or {}).get("warnings") or [])
+
+
+def _mean_decision(estimator: OperatingPoint | None) -> tuple[bool, str] | None:
+    """(exists, basis) of E[P_t] at the operating point as the estimator's verdict decides
+    it, or None (undetermined, or no operating point)."""
+    exists = vd.mean_bounded(estimator.verdict) if estimator is not None else None
+    return None if exists is None else (exists, estimator.basis)
 
 
 def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
