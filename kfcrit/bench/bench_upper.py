@@ -81,7 +81,7 @@ def scaling_table(tol: float = 1e-6) -> list[dict]:
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
+def upper_benchmark(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="skip the reference (uses 41 s)")
     ap.add_argument("--reference-seconds", type=float, default=None,
@@ -142,4 +142,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(upper_benchmark())
