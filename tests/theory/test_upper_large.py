@@ -274,3 +274,44 @@ def test_a_too_narrow_request_gives_a_wider_certified_bracket_not_the_trivial_on
     p_low = 1 - 1 / _spectral_radius2(s.a)
     assert lo <= p_low <= hi <= p_low + 1e-4
     assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+
+
+def test_stein_widths_widen_before_the_costly_fallback():
+    from kfcrit.theory.upper.large import WIDER_WIDTHS, fallback_widths, stein_widths
+
+    assert stein_widths(1e-9) == pytest.approx([0.9e-9, 0.5e-9, *WIDER_WIDTHS], rel=1e-12)
+    assert stein_widths(1e-6) == pytest.approx([0.9e-6, 0.5e-6, 1e-6, 1e-5, 1e-4], rel=1e-12)
+    assert fallback_widths(1e-9) == [1e-9, WIDER_WIDTHS[-1]]
+    assert fallback_widths(1e-3) == [1e-3]
+
+
+def test_an_interior_root_widens_with_the_stein_certificate_not_the_fallback(large_path,
+                                                                            monkeypatch):
+    """Far below float64's reach the cheap Stein block certificate is tried at the wider
+    widths before any :func:`float_certificate`; the lower end stays at the Newton root (never
+    lifted above it) and the widened bracket is reported as such."""
+    from kfcrit.theory.upper import large
+
+    tried: list[float] = []
+    real = large.stein_block_certificate
+
+    def stein(system, red, K, hi, stats, exact_views):  # noqa: ANN001, ANN202
+        tried.append(hi)
+        return real(system, red, K, hi, stats, exact_views)
+
+    def no_fallback(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise AssertionError("float_certificate called although a Stein width passes")
+
+    monkeypatch.setattr(large, "stein_block_certificate", stein)
+    monkeypatch.setattr(large, "float_certificate", no_fallback)
+    s = _system_seeded(40, 3, 2)
+    tol = 1e-13
+    ub = bracket.upper_bound(s, tol=tol, method="newton")
+    assert ub.certified and ub.status == "undetermined"
+    assert any("certified to width" in w for w in ub.warnings)
+    lo, hi = ub.interval
+    p_star = ub.extras["p_star"]
+    assert lo == p_star < hi and hi - lo > tol
+    assert tried == sorted(tried[:2], reverse=True) + sorted(tried[2:])   # 0.9, 0.5, wider
+    assert len(tried) >= 3 and abs(hi - tried[-1]) == 0.0
+    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)

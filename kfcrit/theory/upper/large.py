@@ -14,10 +14,12 @@ a block-triangular Stein solution on the full state), with the lower end p_low p
 (1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
 (2) damped threshold Newton (:func:`kfcrit.theory.upper.krylov.threshold_newton_krylov`), which
 either converges to p* > p_low or runs into the floor p_low (a face root: p_up = p_low);
-(3) at hi = base + tol/2 (base = p* or p_low) the cone eigenpair of G_hi, its gain K and the
-Stein solution X_u − L_{K,hi}(X_u) = I, lifted to the full state
-(:func:`kfcrit.theory.upper.cone.lift_certificate`) and proven by
-:func:`kfcrit.theory.upper.floatcheck.verify_upper_float`.
+(3) at hi = base + w (w from :func:`stein_widths`: 0.9·tol, 0.5·tol, then the wider
+widths) the gain K of the threshold eigenvector and the preconditioned Stein solution
+X_u − L_{K,hi}(X_u) = I, lifted block by block to the full state and proven by
+:func:`kfcrit.theory.upper.floatcheck.verify_upper_float_basis`; only when every width fails,
+the costlier :func:`float_certificate` (cone eigenpair of G_hi, its Stein solution, the cruder
+lift) at the few :func:`fallback_widths`.
 The lower end is p_low (Sinopoli Thm 3, proven) for a face root; otherwise the Newton root
 with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not certified.
 """
@@ -43,8 +45,6 @@ from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
 
 START_OFFSETS = (0.02, 0.1, 0.3, 1.0)
 """p − p_low tried (clipped to 1) for the MARE start, until its fixed point converges."""
-CERTIFICATE_OFFSETS = (0.5, 1.0, 10.0, 100.0)
-"""hi = base + offset·tol tried in turn for the certificate."""
 EIGEN_STEPS = 6
 """Eigen-Newton steps at hi: only the gain of the eigenvector is used (the Stein solve gives
 the certificate), and near a face root the eigenvector turns singular, so more steps buy
@@ -234,6 +234,45 @@ def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: flo
     return (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
 
 
+def stein_widths(tol: float) -> list[float]:
+    r"""hi − base tried with the Stein block certificate: each of :data:`STEIN_OFFSETS` times
+    tol, then each of :data:`WIDER_WIDTHS` above the first.
+
+    .. math::  w \in \{0.9\,\mathrm{tol},\ 0.5\,\mathrm{tol}\} \cup
+        \{w_k \in \{10^{-8}, \dots, 10^{-4}\} : w_k > 0.9\,\mathrm{tol}\}
+    """
+    first = [off * tol for off in STEIN_OFFSETS]
+    return first + [w for w in WIDER_WIDTHS if w > first[0]]
+
+
+def fallback_widths(tol: float) -> list[float]:
+    """hi − base tried with :func:`float_certificate` once every Stein width has failed: the
+    requested width and the widest of :data:`WIDER_WIDTHS` (each try costs an eigen-Newton,
+    a Krylov Stein solve and a full-state check: tens of seconds at 400 states)."""
+    return [tol] + [w for w in WIDER_WIDTHS[-1:] if w > tol]
+
+
+def interior_certificate(system: System, red: Reduced, thr: krylov.KrylovResult, base: float,
+                         tol: float, stats: dict[str, Any]):
+    """The upper certificate at hi = base + width: the cheap Stein block certificate at each
+    of :func:`stein_widths` first, then :func:`float_certificate` at :func:`fallback_widths`.
+    Returns (hi, (basis triple, X, K, CheckResult)) or (hi, None)."""
+    exact_views = float_views_exact(system)
+    hi = base
+    for width in stein_widths(tol):
+        hi = float(min(base + width, 1.0))
+        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views)
+        if found is not None:
+            return hi, found
+    Ys = stable_gramian(red) if red.k < system.n else None
+    for width in fallback_widths(tol):
+        hi = float(min(base + width, 1.0))
+        found = float_certificate(system, red, hi, thr.X, stats, Ys)
+        if found is not None:
+            return hi, found
+    return hi, None
+
+
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
                  stats: dict[str, Any], warnings: list[str], done):
     """The bracket for a large unstable block (module docstring); ``done`` builds the result."""
@@ -272,21 +311,7 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
                         f"(stopped at p = {thr.value:.12g})")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
     base = p_low if face else thr.value
-    found, hi = None, None
-    exact_views = float_views_exact(system)
-    for off in STEIN_OFFSETS:
-        hi = float(min(base + off * tol, 1.0))
-        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views)
-        if found is not None:
-            break
-    Ys = stable_gramian(red) if red.k < system.n and found is None else None
-    widths = [off * tol for off in CERTIFICATE_OFFSETS]
-    widths += [w for w in WIDER_WIDTHS if w > widths[-1]]
-    for width in widths if found is None else ():
-        hi = float(min(base + width, 1.0))
-        found = float_certificate(system, red, hi, thr.X, stats, Ys)
-        if found is not None:
-            break
+    hi, found = interior_certificate(system, red, thr, base, tol, stats)
     if found is None:
         warnings.append("no certificate could be verified; the upper end 1 is the trivial one")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
