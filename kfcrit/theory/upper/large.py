@@ -20,8 +20,11 @@ X_u − L_{K,hi}(X_u) = I, lifted block by block to the full state and proven by
 :func:`kfcrit.theory.upper.floatcheck.verify_upper_float_basis`; only when every width fails,
 the costlier :func:`float_certificate` (cone eigenpair of G_hi, its Stein solution, the cruder
 lift) at the few :func:`fallback_widths`.
-The lower end is p_low (Sinopoli Thm 3, proven) for a face root; otherwise the Newton root
-with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not certified.
+The lower end is p_low (Sinopoli Thm 3, proven) for a face root; otherwise lo = hi − tol
+(never above the Newton root p*) proven by :func:`kfcrit.theory.upper.lowercert.prove_lower_end`
+(a Y ⪰ 0 with G_lo(Y) ⪰ Y on the enclosed exact unstable invariant subspace), or, when that
+fails, the Newton root with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not
+certified.
 """
 from __future__ import annotations
 
@@ -32,9 +35,10 @@ import numpy as np
 
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.upper import certify, floatcheck, krylov, stein
+from kfcrit.theory.upper import certify, floatcheck, krylov, lowercert, stein
 from kfcrit.theory.upper.certs import lower_end
 from kfcrit.theory.upper.cone import (
+    UNSTABLE_TOL,
     Reduced,
     full_gain,
     lift_certificate,
@@ -253,11 +257,10 @@ def fallback_widths(tol: float) -> list[float]:
 
 
 def interior_certificate(system: System, red: Reduced, thr: krylov.KrylovResult, base: float,
-                         tol: float, stats: dict[str, Any]):
+                         tol: float, stats: dict[str, Any], exact_views: bool):
     """The upper certificate at hi = base + width: the cheap Stein block certificate at each
     of :func:`stein_widths` first, then :func:`float_certificate` at :func:`fallback_widths`.
     Returns (hi, (basis triple, X, K, CheckResult)) or (hi, None)."""
-    exact_views = float_views_exact(system)
     hi = base
     for width in stein_widths(tol):
         hi = float(min(base + width, 1.0))
@@ -271,6 +274,58 @@ def interior_certificate(system: System, red: Reduced, thr: krylov.KrylovResult,
         if found is not None:
             return hi, found
     return hi, None
+
+
+LOWER_FRACTIONS = (0.1, 1.0)
+"""When the certified width exceeds the request the lower end sits at the Newton root p*,
+where no lower certificate can pass (its margin vanishes there): the proof is tried at
+p* − f·(hi − p*) for these f in turn, and a proven point replaces the numerical root."""
+LOWER_CHECK = ("verified float64 on the exact A, C: real eigenbasis S of A with a verified "
+               "approximate inverse, A S_u - S_u D_u, C S_u, Y C0' and C0 Y C0' by compensated "
+               "products (Dot2), the other products with a priori rounding bounds; Stewart's "
+               "theorem for the exact unstable invariant subspace; positive definiteness by a "
+               "Cholesky residual bound (docs/theory.md §3, Certified lower end for large "
+               "blocks)")
+
+
+def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low: float,
+                   lo: float, hi: float, exact_views: bool, stats: dict[str, Any],
+                   warnings: list[str]) -> tuple[float, dict[str, Any]]:
+    """The lower end of an interior root: proven by
+    :func:`kfcrit.theory.upper.lowercert.prove_lower_end` at lo (or, when lo is the Newton
+    root itself, at the points of :data:`LOWER_FRACTIONS` below it), else the numerical Newton
+    root. Returns (lo, lower-end evidence)."""
+    p_star = thr.value
+    points = [lo] if lo < p_star else [
+        q for q in (p_star - f * (hi - p_star) for f in LOWER_FRACTIONS) if q > p_low]
+    proof = lowercert.prove_lower_end(system.a, system.c, red.Z[:, :red.k], thr.X, points,
+                                      exact_views, UNSTABLE_TOL)
+    stats["operator_applications"] += proof.operator_applications
+    stats["lower_enclosure"] = lowercert.stats_of(proof.ball, proof.check)
+    if proof.ok and proof.ball is not None and proof.check is not None:
+        ck, ball = proof.check, proof.ball
+        check = certify.CheckResult(True, "lower: Y > 0 and G_lo(Y) - Y >= 0 on the exact "
+                                    "unstable pair", ck.p, ck.min_eig_y, ck.margin, "proven",
+                                    LOWER_CHECK)
+        statement = (
+            f"p_up >= lo proven: Y > 0 with G_lo(Y) - Y >= 0 for every pair (T, C) in the "
+            f"enclosure of the exact action of A and C on the {ball.k}-dimensional unstable "
+            f"invariant subspace (eigenbasis condition ~{ball.condition:.3g}, "
+            f"||I - RS|| <= {ball.neumann:.2g}; Stewart: eigenvalue gap >= {ball.gap:.3g}, "
+            f"subspace tilt ||Phi||_F <= {ball.phi:.2g}; radii ||T - T0|| <= {ball.tau:.2g}, "
+            f"||C - C0|| <= {ball.gamma:.2g}; Weyl shift {ck.perturbation:.2g}); then "
+            "L_{K,lo}(Y) >= G_lo(Y) >= Y for every gain K, so no X > 0 has X > L_{K,lo}(X) "
+            f"(Newton root p* = {p_star:.15g})")
+        return ck.p, {"kind": "certificate", "value": ck.p, "certified": True,
+                      "statement": statement, "check": check.to_dict(), "p_low_theorem": p_low}
+    warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
+                    "end is certified")
+    return lo, {"kind": "numerical", "value": lo, "certified": False,
+                "statement": (f"Newton root p* = {p_star:.15g} of r(p) = 1 (matrix-free "
+                              f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
+                              "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
+                              f"ball proof: {proof.reason})"),
+                "p_low_theorem": p_low}
 
 
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
@@ -311,7 +366,8 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
                         f"(stopped at p = {thr.value:.12g})")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
     base = p_low if face else thr.value
-    hi, found = interior_certificate(system, red, thr, base, tol, stats)
+    exact_views = float_views_exact(system)
+    hi, found = interior_certificate(system, red, thr, base, tol, stats, exact_views)
     if found is None:
         warnings.append("no certificate could be verified; the upper end 1 is the trivial one")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
@@ -328,18 +384,10 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         lower["statement"] += ("; the threshold Newton ran into p_low with a singular "
                                "eigenvector (face root), so p_up = p_low within the bracket")
     else:
-        # the evidence G_lo(X*) = X* + (p* − lo)P ⪰ X* needs lo ≤ p*: a widened hi must not
-        # lift lo above the Newton root
+        # a widened hi must not lift lo above the Newton root
         lo = max(min(lo, thr.value), p_low)
-        lower = {"kind": "numerical", "value": lo, "certified": False,
-                 "statement": (f"Newton root p* = {thr.value:.15g} of r(p) = 1 (matrix-free "
-                               f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
-                               "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
-                               "ball proof: the invariant subspace of a block of "
-                               f"{red.k} states is not enclosed)"),
-                 "p_low_theorem": p_low}
-        warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
-                        "end is certified")
+        lo, lower = interior_lower(system, red, thr, p_low, lo, hi, exact_views, stats,
+                                   warnings)
     status = "determined" if hi - lo <= tol else "undetermined"
     if status == "undetermined":
         warnings.append(widened_warning(hi - lo, tol))
