@@ -170,3 +170,28 @@ def test_an_interior_root_record_is_typed_end_to_end(large_path):
     assert section["lower_evidence"]["certified"]
     assert "lower_enclosure" in section["solver"]
     assert record_from_json(rec.to_dict()) == rec
+
+
+def test_every_mode_unstable_uses_the_pair_itself(large_path):
+    """No stable block: the invariant subspace is the whole space and the pair is (A, C)
+    (radius 0 for binary-float input); the lower end is still proven and consistent with the
+    independent MARE iteration."""
+    import scipy.linalg as sla
+
+    rng = np.random.default_rng(0)
+    blocks = []
+    for _ in range(6):
+        r, th = rng.uniform(1.02, 1.3), rng.uniform(0.2, 3.0)
+        blocks.append(r * np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]]))
+    V = np.eye(12) + 0.3 * rng.normal(size=(12, 12))
+    A = V @ sla.block_diag(*blocks) @ np.linalg.inv(V)
+    s = System(A, rng.normal(size=(2, 12)), np.eye(12), np.eye(2))
+    assert min(abs(np.linalg.eigvals(s.a))) > 1
+    ub = bracket.upper_bound(s, tol=1e-6, method="newton")
+    assert ub.lower_evidence["certified"] and "whole space" in ub.lower_evidence["statement"]
+    enc = ub.solver["lower_enclosure"]
+    assert enc["eigen_gap"] is None and enc["state_radius"] == 0.0
+    lo, hi = ub.interval
+    assert ub.status == "determined" and hi - lo <= 1e-6 * (1 + 1e-9)
+    a, b = _mare_threshold(s.a, s.c, lo - 0.05, min(1.0, hi + 0.05), 4e-3)
+    assert lo <= b and hi >= a

@@ -310,9 +310,12 @@ def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low
         statement = (
             f"p_up >= lo proven: Y > 0 with G_lo(Y) - Y >= 0 for every pair (T, C) in the "
             f"enclosure of the exact action of A and C on the {ball.k}-dimensional unstable "
-            f"invariant subspace (eigenbasis condition ~{ball.condition:.3g}, "
-            f"||I - RS|| <= {ball.neumann:.2g}; Stewart: eigenvalue gap >= {ball.gap:.3g}, "
-            f"subspace tilt ||Phi||_F <= {ball.phi:.2g}; radii ||T - T0|| <= {ball.tau:.2g}, "
+            + (f"invariant subspace (eigenbasis condition ~{ball.condition:.3g}, "
+               f"||I - RS|| <= {ball.neumann:.2g}; Stewart: eigenvalue gap >= {ball.gap:.3g}, "
+               f"subspace tilt ||Phi||_F <= {ball.phi:.2g}; " if ball.gap < float("inf") else
+               "invariant subspace, here the whole space (every mode unstable: the pair is "
+               "(A, C) itself; ")
+            + f"radii ||T - T0|| <= {ball.tau:.2g}, "
             f"||C - C0|| <= {ball.gamma:.2g}; Weyl shift {ck.perturbation:.2g}); then "
             "L_{K,lo}(Y) >= G_lo(Y) >= Y for every gain K, so no X > 0 has X > L_{K,lo}(X) "
             f"(Newton root p* = {p_star:.15g})")

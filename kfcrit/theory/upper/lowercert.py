@@ -379,6 +379,9 @@ def prove_lower_end(a: np.ndarray, c: np.ndarray, Z_u: np.ndarray, X_star: np.nd
     unstable pair once, take the gain K of the threshold eigenvector X* (given on the Schur
     basis Z_u, moved to the eigenbasis), and check the candidate Y of
     :func:`lower_candidate` at each p. Stops at the first proven point."""
+    if Z_u.shape[1] == a.shape[0]:
+        ball, Ys = whole_space_ball(a, c, exact_views), symmetrize(Z_u @ X_star @ Z_u.T)
+        return _prove_on(ball, Ys, points)
     basis = real_eigenbasis(a, unstable_tol)
     if basis is None:
         return LowerProof(None, None, "no real eigenbasis (unpaired complex eigenvalues)", 0)
@@ -390,7 +393,23 @@ def prove_lower_end(a: np.ndarray, c: np.ndarray, Z_u: np.ndarray, X_star: np.nd
     if ball is None:
         return LowerProof(None, None, "the unstable invariant subspace is not enclosed: " + why,
                           0)
-    Ys = schur_to_eigen(Z_u, S[:, :k], X_star)
+    return _prove_on(ball, schur_to_eigen(Z_u, S[:, :k], X_star), points)
+
+
+def whole_space_ball(a: np.ndarray, c: np.ndarray, exact_views: bool) -> PairBall:
+    """Every mode unstable: the invariant subspace is the whole space, the pair is (A, C)
+    itself, within one ulp of (a, c) (radius 0 with ``exact_views``)."""
+    if exact_views:
+        tau = gamma = 0.0
+    else:
+        tau, gamma = _frob(fc.from_exact(a)[1]), _frob(fc.from_exact(c)[1])
+    return PairBall(np.array(a, dtype=float), np.array(c, dtype=float), tau, gamma,
+                    a.shape[0], 1.0, math.inf, 0.0, 0.0)
+
+
+def _prove_on(ball: PairBall, Ys: np.ndarray, points: list[float]) -> LowerProof:
+    """The candidates of :func:`lower_candidate` (gain of the eigenvector Ys) checked at each
+    point in turn."""
     K, _ = krylov.gain_and_correction(ball.T0, ball.C0, Ys / float(np.trace(Ys)))
     check, count, reason = None, 0, "no candidate point"
     for p in points:
@@ -415,4 +434,5 @@ def stats_of(ball: PairBall | None, check: LowerCheck | None) -> dict[str, Any]:
                    subspace_tilt=ball.phi)
     if check is not None:
         out.update(perturbation=check.perturbation, margin=check.margin)
-    return out
+    # JSON has no infinity (the whole-space case has no gap to separate)
+    return {key: (v if v is None or math.isfinite(v) else None) for key, v in out.items()}
