@@ -75,12 +75,17 @@ def test_certified_lower_end_matches_an_independent_mare_iteration(large_path):
     assert enc["perturbation"] > 0 and enc["eigen_gap"] > 0
 
 
+def _binary(s: System):
+    """Offsets of a system given as NumPy floats: its entries are the floats themselves."""
+    return floatcheck.no_offsets(s.a), floatcheck.no_offsets(s.c)
+
+
 def _ball_and_root(s: System):
     """The enclosed unstable pair and the threshold Newton root computed on its midpoint."""
     from kfcrit.theory.upper.cone import UNSTABLE_TOL
 
     S, D, k = lowercert.real_eigenbasis(s.a, UNSTABLE_TOL)
-    ball, why = lowercert.enclose_unstable_pair(s.a, s.c, S, D, k, True)
+    ball, why = lowercert.enclose_unstable_pair(s.a, s.c, S, D, k, *_binary(s))
     assert ball is not None, why
     X0, ok = krylov.mare_start(ball.T0, ball.C0, 0.85)
     assert ok
@@ -129,9 +134,9 @@ def test_enclosure_refuses_a_basis_that_is_not_invariant():
     S, D, k = lowercert.real_eigenbasis(s.a, 1e-9)
     rng = np.random.default_rng(7)
     Q, _ = np.linalg.qr(rng.normal(size=S.shape))
-    ball, why = lowercert.enclose_unstable_pair(s.a, s.c, Q, D, k, True)
+    ball, why = lowercert.enclose_unstable_pair(s.a, s.c, Q, D, k, *_binary(s))
     assert ball is None and "Stewart" in why
-    ball, why = lowercert.enclose_unstable_pair(s.a, s.c, S, D, k, True)
+    ball, why = lowercert.enclose_unstable_pair(s.a, s.c, S, D, k, *_binary(s))
     assert ball is not None and ball.tau < 1e-10 and ball.gamma < 1e-10
 
 
@@ -190,8 +195,53 @@ def test_every_mode_unstable_uses_the_pair_itself(large_path):
     ub = bracket.upper_bound(s, tol=1e-6, method="newton")
     assert ub.lower_evidence["certified"] and "whole space" in ub.lower_evidence["statement"]
     enc = ub.solver["lower_enclosure"]
-    assert enc["eigen_gap"] is None and enc["state_radius"] == 0.0
+    assert enc["eigen_gap"] is None and enc["state_radius"] < 1e-250
     lo, hi = ub.interval
     assert ub.status == "determined" and hi - lo <= 1e-6 * (1 + 1e-9)
     a, b = _mare_threshold(s.a, s.c, lo - 0.05, min(1.0, hi + 0.05), 4e-3)
     assert lo <= b and hi >= a
+
+
+def test_exact_offsets_enclose_decimal_entries():
+    from fractions import Fraction
+
+    s = System([["1/10", "2/3"], ["-7/5", "sqrt(2)"]], [["3/10", "1"]], 1, 1)
+    lo, rad = floatcheck.exact_offsets(s.A, s.a)
+    exact = [[Fraction(1, 10), Fraction(2, 3)], [Fraction(-7, 5), None]]
+    for i in range(2):
+        for j in range(2):
+            if exact[i][j] is None:                      # not rational: the one-ulp radius
+                assert lo[i, j] == 0 and rad[i, j] >= 2 ** -53 * abs(s.a[i, j])
+                continue
+            err = exact[i][j] - Fraction(s.a[i, j]) - Fraction(lo[i, j])
+            assert lo[i, j] != 0 and abs(err) <= Fraction(rad[i, j])
+            assert rad[i, j] < 1e-30
+
+
+def test_decimal_input_is_certified_like_binary_input(large_path):
+    """A file's decimals are exact rationals, not the binary floats: the offsets keep the
+    enclosure as tight as for binary input (a one-ulp radius on A alone would not)."""
+    b = _system(40, 3, 2)
+    s = System([[repr(float(v)) for v in row] for row in b.a],
+               [[repr(float(v)) for v in row] for row in b.c], 1, 1)
+    assert s.exact
+    ub = bracket.upper_bound(s, tol=1e-6, method="newton")
+    assert ub.certified and ub.lower_evidence["certified"] and ub.status == "determined"
+    assert ub.solver["lower_enclosure"]["output_radius"] < 1e-12
+    assert "offset" in ub.certificate["verified_by"]
+
+
+def test_offset_product_encloses_the_exact_product():
+    from fractions import Fraction
+
+    rng = np.random.default_rng(11)
+    texts = [[f"{v:.7f}" for v in row] for row in rng.normal(size=(4, 6))]
+    s = System([[t for t in row] for row in texts[:4]] + [["0"] * 6] * 2, [["1"] * 6], 1, 1)
+    off = floatcheck.exact_offsets(s.A, s.a)
+    cols = rng.normal(size=(6, 2))
+    mid, rad = floatcheck.offset_product(s.a, off, cols)
+    for i in range(4):
+        for j in range(2):
+            exact = sum(Fraction(texts[i][q]) * Fraction(cols[q, j]) for q in range(6))
+            assert abs(Fraction(mid[i, j]) - exact) <= Fraction(rad[i, j])
+            assert rad[i, j] <= 1e-15 * (abs(mid[i, j]) + 1)

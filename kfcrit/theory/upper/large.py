@@ -203,8 +203,20 @@ def float_views_exact(system: System) -> bool:
     return True
 
 
+def system_offsets(system: System, exact_views: bool
+                  ) -> tuple[floatcheck.Offsets, floatcheck.Offsets]:
+    """The exact A and C as float view + offset
+    (:func:`kfcrit.theory.upper.floatcheck.exact_offsets`; zero offsets when every entry is a
+    binary float)."""
+    if exact_views:
+        return floatcheck.no_offsets(system.a), floatcheck.no_offsets(system.c)
+    return (floatcheck.exact_offsets(system.A, system.a),
+            floatcheck.exact_offsets(system.C, system.c))
+
+
 def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: float,
-                            stats: dict[str, Any], exact_views: bool):
+                            stats: dict[str, Any], exact_views: bool,
+                            offsets: tuple[floatcheck.Offsets, floatcheck.Offsets] | None = None):
     """The certificate at hi from the gain K alone: X_u − L_{K,hi}(X_u) = I by preconditioned
     GMRES (:func:`kfcrit.theory.upper.krylov.stein_solve_preconditioned`), the exact block
     lift (:func:`kfcrit.theory.upper.stein.block_lift`), the verified float64 check with the
@@ -223,7 +235,8 @@ def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: flo
         return None
     Xz, Kz = lifted
     ok, mx, mm, why = floatcheck.verify_upper_float_basis(
-        system.a, system.c, hi, red.Z, Xz, Kz, red.M, sharp=k, exact_views=exact_views)
+        system.a, system.c, hi, red.Z, Xz, Kz, red.M, sharp=k, exact_views=exact_views,
+        offsets=offsets)
     stats["certificate_checks"] += 1
     if not ok:
         return None
@@ -231,7 +244,9 @@ def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: flo
                                  "one-term Stein solve), K the gain of the threshold "
                                  "eigenvector, exact block lift")
     how = FACE_CHECK.replace("dominant-block columns", "unstable-block columns") + (
-        "; A and C are binary floats taken exactly" if exact_views else "")
+        "; A and C are binary floats taken exactly" if exact_views else
+        "; A and C as float view + float offset (their exact difference rounded once)"
+        if offsets is not None else "")
     check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
                                 how)
     Z = red.Z
@@ -257,16 +272,26 @@ def fallback_widths(tol: float) -> list[float]:
 
 
 def interior_certificate(system: System, red: Reduced, thr: krylov.KrylovResult, base: float,
-                         tol: float, stats: dict[str, Any], exact_views: bool):
+                         tol: float, stats: dict[str, Any], exact_views: bool,
+                         offsets: tuple[floatcheck.Offsets, floatcheck.Offsets]):
     """The upper certificate at hi = base + width: the cheap Stein block certificate at each
-    of :func:`stein_widths` first, then :func:`float_certificate` at :func:`fallback_widths`.
+    of :func:`stein_widths` first (a width is skipped when the Stein solve, not the check,
+    already failed at a wider one: the operator I − L_{K,hi} is nearer singular as hi
+    approaches the root), then :func:`float_certificate` at :func:`fallback_widths`.
     Returns (hi, (basis triple, X, K, CheckResult)) or (hi, None)."""
-    hi = base
+    hi, unsolved = base, 0.0
     for width in stein_widths(tol):
+        if width <= unsolved:
+            # the solve already failed at a wider width: closer to the root it is harder
+            continue
         hi = float(min(base + width, 1.0))
-        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views)
+        checks = stats["certificate_checks"]
+        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views,
+                                        offsets=offsets)
         if found is not None:
             return hi, found
+        if stats["certificate_checks"] == checks:
+            unsolved = max(unsolved, width)
     Ys = stable_gramian(red) if red.k < system.n else None
     for width in fallback_widths(tol):
         hi = float(min(base + width, 1.0))
@@ -289,8 +314,9 @@ LOWER_CHECK = ("verified float64 on the exact A, C: real eigenbasis S of A with 
 
 
 def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low: float,
-                   lo: float, hi: float, exact_views: bool, stats: dict[str, Any],
-                   warnings: list[str]) -> tuple[float, dict[str, Any]]:
+                   lo: float, hi: float,
+                   offsets: tuple[floatcheck.Offsets, floatcheck.Offsets],
+                   stats: dict[str, Any], warnings: list[str]) -> tuple[float, dict[str, Any]]:
     """The lower end of an interior root: proven by
     :func:`kfcrit.theory.upper.lowercert.prove_lower_end` at lo (or, when lo is the Newton
     root itself, at the points of :data:`LOWER_FRACTIONS` below it), else the numerical Newton
@@ -299,7 +325,7 @@ def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low
     points = [lo] if lo < p_star else [
         q for q in (p_star - f * (hi - p_star) for f in LOWER_FRACTIONS) if q > p_low]
     proof = lowercert.prove_lower_end(system.a, system.c, red.Z[:, :red.k], thr.X, points,
-                                      exact_views, UNSTABLE_TOL)
+                                      offsets[0], offsets[1], UNSTABLE_TOL)
     stats["operator_applications"] += proof.operator_applications
     stats["lower_enclosure"] = lowercert.stats_of(proof.ball, proof.check)
     if proof.ok and proof.ball is not None and proof.check is not None:
@@ -370,7 +396,8 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
     base = p_low if face else thr.value
     exact_views = float_views_exact(system)
-    hi, found = interior_certificate(system, red, thr, base, tol, stats, exact_views)
+    offsets = system_offsets(system, exact_views)
+    hi, found = interior_certificate(system, red, thr, base, tol, stats, exact_views, offsets)
     if found is None:
         warnings.append("no certificate could be verified; the upper end 1 is the trivial one")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
@@ -389,8 +416,7 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
     else:
         # a widened hi must not lift lo above the Newton root
         lo = max(min(lo, thr.value), p_low)
-        lo, lower = interior_lower(system, red, thr, p_low, lo, hi, exact_views, stats,
-                                   warnings)
+        lo, lower = interior_lower(system, red, thr, p_low, lo, hi, offsets, stats, warnings)
     status = "determined" if hi - lo <= tol else "undetermined"
     if status == "undetermined":
         warnings.append(widened_warning(hi - lo, tol))

@@ -168,10 +168,11 @@ def separation_lower(D: np.ndarray, k: int) -> float:
 
 
 def enclose_unstable_pair(a: np.ndarray, c: np.ndarray, S: np.ndarray, D: np.ndarray, k: int,
-                          exact_views: bool) -> tuple[PairBall | None, str]:
+                          a_off: fc.Offsets, c_off: fc.Offsets) -> tuple[PairBall | None, str]:
     r"""Balls around (D_u, C S_u) holding the exact pair (T, C_e) of A and C on its unstable
-    invariant subspace (module docstring, steps 1–3), for the exact A, C within one ulp of
-    a, c (radius 0 with ``exact_views``). Returns (ball, "proven") or (None, reason).
+    invariant subspace (module docstring, steps 1–3), for the exact A = a + a_lo ± a_rad and
+    C = c + c_lo ± c_rad (:func:`kfcrit.theory.upper.floatcheck.exact_offsets`). Returns
+    (ball, "proven") or (None, reason).
 
     .. math::
 
@@ -182,13 +183,15 @@ def enclose_unstable_pair(a: np.ndarray, c: np.ndarray, S: np.ndarray, D: np.nda
     n = a.shape[0]
     if not 0 < k < n:
         return None, "no stable block to separate" if k == n else "no unstable block"
-    A = fc.point(a) if exact_views else fc.from_exact(a)
-    Cx = fc.point(c) if exact_views else fc.from_exact(c)
+    A, Cx = fc.offset_interval(a, a_off), fc.offset_interval(c, c_off)
     u, s = slice(0, k), slice(k, n)
-    # unstable columns of A S − S D by compensated products: [A, −S_u] [S_u; D_uu]
-    Eu = fc.accurate_product(np.hstack([a, -S[:, u]]), np.vstack([S[:, u], D[u, u]]))
-    if not exact_views:
-        Eu = (Eu[0], fc._up(Eu[1] + A[1] @ np.abs(S[:, u]) * (1 + fc.gamma(n + 2)), n))
+    # unstable columns of A S − S D by compensated products: [a, a_lo, −S_u] [S_u; S_u; D_uu]
+    a_ext = np.hstack([a, a_off[0]]) if np.any(a_off[0]) else a
+    reps = 2 if np.any(a_off[0]) else 1
+    Eu = fc.accurate_product(np.hstack([a_ext, -S[:, u]]),
+                             np.vstack([S[:, u]] * reps + [D[u, u]]))
+    if np.any(a_off[1]):
+        Eu = (Eu[0], fc._up(Eu[1] + a_off[1] @ np.abs(S[:, u]) * (1 + fc.gamma(n + 2)), n))
     Es = fc.add(fc.mul(A, fc.point(S[:, s])), fc.mul(fc.point(S[:, s]), fc.point(D[s, s])),
                 -1.0)
     R = np.linalg.inv(S)
@@ -224,9 +227,7 @@ def enclose_unstable_pair(a: np.ndarray, c: np.ndarray, S: np.ndarray, D: np.nda
                       f"||F_ss|| {Fss:.2g}, ||F_su|| {Fsu:.2g}, ||F_us|| {Fus:.2g}")
     phi = 2.0 * b_su / delta * SAFE
     tau = (e_uu + Fus * phi) * SAFE
-    CSu = fc.accurate_product(c, S[:, u])
-    if not exact_views:
-        CSu = (CSu[0], fc._up(CSu[1] + Cx[1] @ np.abs(S[:, u]) * (1 + fc.gamma(n + 2)), n))
+    CSu = fc.offset_product(c, c_off, S[:, u])
     CSs = fc.mul(Cx, fc.point(S[:, s]))
     C0 = fc.add(CSu, fc.mul(CSs, Pt))
     gamma = (_frob(C0[1]) + _frob(_abs_up(CSs)) * phi) * SAFE
@@ -374,13 +375,14 @@ class LowerProof:
 
 
 def prove_lower_end(a: np.ndarray, c: np.ndarray, Z_u: np.ndarray, X_star: np.ndarray,
-                    points: list[float], exact_views: bool, unstable_tol: float) -> LowerProof:
+                    points: list[float], a_off: fc.Offsets, c_off: fc.Offsets,
+                    unstable_tol: float) -> LowerProof:
     """Try to prove p_up ≥ p at each of ``points`` in turn (module docstring): enclose the
     unstable pair once, take the gain K of the threshold eigenvector X* (given on the Schur
     basis Z_u, moved to the eigenbasis), and check the candidate Y of
     :func:`lower_candidate` at each p. Stops at the first proven point."""
     if Z_u.shape[1] == a.shape[0]:
-        ball, Ys = whole_space_ball(a, c, exact_views), symmetrize(Z_u @ X_star @ Z_u.T)
+        ball, Ys = whole_space_ball(a, c, a_off, c_off), symmetrize(Z_u @ X_star @ Z_u.T)
         return _prove_on(ball, Ys, points)
     basis = real_eigenbasis(a, unstable_tol)
     if basis is None:
@@ -389,20 +391,19 @@ def prove_lower_end(a: np.ndarray, c: np.ndarray, Z_u: np.ndarray, X_star: np.nd
     if k != Z_u.shape[1]:
         return LowerProof(None, None, f"the eigenvalues give {k} unstable modes, the Schur "
                                       f"form {Z_u.shape[1]}", 0)
-    ball, why = enclose_unstable_pair(a, c, S, D, k, exact_views)
+    ball, why = enclose_unstable_pair(a, c, S, D, k, a_off, c_off)
     if ball is None:
         return LowerProof(None, None, "the unstable invariant subspace is not enclosed: " + why,
                           0)
     return _prove_on(ball, schur_to_eigen(Z_u, S[:, :k], X_star), points)
 
 
-def whole_space_ball(a: np.ndarray, c: np.ndarray, exact_views: bool) -> PairBall:
+def whole_space_ball(a: np.ndarray, c: np.ndarray, a_off: fc.Offsets, c_off: fc.Offsets
+                     ) -> PairBall:
     """Every mode unstable: the invariant subspace is the whole space, the pair is (A, C)
-    itself, within one ulp of (a, c) (radius 0 with ``exact_views``)."""
-    if exact_views:
-        tau = gamma = 0.0
-    else:
-        tau, gamma = _frob(fc.from_exact(a)[1]), _frob(fc.from_exact(c)[1])
+    itself, within ‖|lo| + rad‖_F of (a, c) (:func:`kfcrit.theory.upper.floatcheck.exact_offsets`)."""
+    tau = _frob(fc.offset_interval(a, a_off)[1]) * SAFE
+    gamma = _frob(fc.offset_interval(c, c_off)[1]) * SAFE
     return PairBall(np.array(a, dtype=float), np.array(c, dtype=float), tau, gamma,
                     a.shape[0], 1.0, math.inf, 0.0, 0.0)
 
