@@ -10,11 +10,12 @@ without any large Sylvester inverse:
    [[α, β], [−β, α]], unstable modes first) and a verified approximate inverse R of S;
 2. B = S⁻¹ A S = D + F with ‖F_ij‖ enclosed blockwise (the unstable columns of A S − S D by
    compensated products, F = (I − N)⁻¹ R (A S − S D), ‖N‖ = ‖I − R S‖ < 1);
-3. Stewart's theorem on B: the Sylvester operator Φ ↦ Φ D_u − D_s Φ is normal with
-   separation min |λ_u − λ_s|, so the exact unstable subspace is span S [I; Φ] with
-   ‖Φ‖_F ≤ 2‖F_su‖_F / δ, δ = min|λ_u − λ_s| − ‖F_uu‖ − ‖F_ss‖, when 4‖F_su‖‖F_us‖ < δ²;
-   on it A acts as T = D_u + F_uu + F_us Φ and C as C S_u + C S_s Φ: every quantity lies in a
-   ball of verified radius around (T₀, C₀) = (D_u, C S_u);
+3. one correction step Φ̃ (D_s Φ̃ − Φ̃ D_u = −mid F_su) and Stewart's theorem on
+   B' = P⁻¹BP, P = [[I, 0], [Φ̃, I]]: the Sylvester operator Φ ↦ Φ D_u − D_s Φ is normal with
+   separation min |λ_u − λ_s|, so the exact unstable subspace is span S [I; Φ̃ + Φ] with
+   ‖Φ‖_F ≤ 2‖B'_su‖_F / δ, δ = min|λ_u − λ_s| − ‖B'_uu − D_u‖ − ‖B'_ss − D_s‖, when
+   4‖B'_su‖‖F_us‖ < δ²; on it A acts as T = B'_uu + F_us Φ and C as C S_u + C S_s (Φ̃ + Φ):
+   every quantity lies in a ball of verified radius around (T₀, C₀) = (D_u, C S_u + C S_s Φ̃);
 4. Y solves Y − L_{K,lo}(Y) = −I on (T₀, C₀) (K the gain of the threshold eigenvector, so
    G_lo(Y) − Y ≈ I), and G^{(T,C)}_lo(Y) − Y ⪰ 0 is proven for every (T, C) in the balls:
    the midpoint matrix in midpoint-radius arithmetic minus a scalar perturbation bound
