@@ -319,3 +319,34 @@ def test_an_interior_root_widens_with_the_stein_certificate_not_the_fallback(lar
     assert tried[0] == pytest.approx(p_star + 0.9 * tol, abs=1e-15)
     assert tried[1:] == sorted(tried[1:]) and len(tried) >= 2 and hi == tried[-1]
     assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+
+
+def test_gmres_gives_up_only_when_the_budget_cannot_suffice():
+    from kfcrit.theory.upper.krylov import hopeless
+
+    # stalled: no reduction over two cycles
+    assert hopeless([1.0, 0.87, 0.87, 0.87], 1e-7, 17)
+    # fast: a factor ~50 per cycle reaches 1e-7 well within the budget
+    assert not hopeless([1.0, 0.1, 2e-3, 1e-5, 2e-7], 1e-7, 15)
+    # slow after a quick start: about 0.8 per cycle needs ~70 more cycles, 12 are left
+    assert hopeless([1.0, 0.7, 0.6, 0.25, 0.06, 0.03, 0.024, 0.019], 1e-7, 12)
+    # a slow start alone is not judged before the fifth cycle
+    assert not hopeless([1.0, 0.9, 0.85, 0.8], 1e-7, 16)
+
+
+def test_gmres_with_give_up_still_solves_a_well_conditioned_system():
+    from kfcrit.theory.upper.krylov import gmres_solve
+
+    rng = np.random.default_rng(1)
+    M = np.eye(200) + 0.3 * rng.normal(size=(200, 200)) / np.sqrt(200)
+    b = rng.normal(size=200)
+    x, count, ok = gmres_solve(lambda v: M @ v, b, 1e-12, 20, 30, give_up=True)
+    assert ok and np.linalg.norm(M @ x - b) <= 1e-11 * np.linalg.norm(b)
+    # the cyclic shift with b = e₁ stalls restarted GMRES completely (residual 1 for every
+    # restart shorter than n): given up after a few cycles, not 30
+    e = np.zeros(200)
+    e[0] = 1.0
+    x, count, ok = gmres_solve(lambda v: np.roll(v, 1), e, 1e-12, 5, 30, give_up=True)
+    assert not ok and count <= 5 * 4
+    x, count, ok = gmres_solve(lambda v: np.roll(v, 1), e, 1e-12, 5, 30)
+    assert not ok and count >= 5 * 30
