@@ -52,6 +52,7 @@ from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.links.netmargins import exact_margin, network_bottleneck, uniform_necessary_bracket
 from kfcrit.theory.links.netsearch import Boundary, SeqContext, modal_gains
 from kfcrit.theory.upper.bracket import upper_bound
 
@@ -61,6 +62,9 @@ FLAT_BUDGET = 20000
 """Most sensor combinations tried per eigenvalue when enumerating hyperplanes (g ≥ 2)."""
 CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the Newton root + step·tol for these steps."""
+BALL_BRACKET_BUDGET = 200000
+"""Most (constraints × sensors) whose uniform-margin crossing is enclosed in ball arithmetic;
+beyond, the float bisection's crossing is reported."""
 
 
 # ---- the necessary surface
@@ -455,6 +459,8 @@ class SensorResult:
     margin: dict[str, Any]
     n_minus_1: StabilityFacts
     n_minus_1_reason: str
+    margin_exact: sp.Expr | None = None
+    """p_i − p_i* exactly where both are exact (ranks the bottleneck; not in the record)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "arrival_probability": self.arrival_probability,
@@ -684,11 +690,15 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     # ---- uniform margin
     upath = uniform_path(pf)
     s_nec_u = necessary_along(cons, upath, -1.0, 1.0)
-    if exact_region and not isinstance(ctx, SeqContext):
+    if exact_region:
         bu = Boundary(s_nec_u, s_nec_u, None, "exact region (modal one-step observability)")
     else:
         bu = ctx.path_boundary(upath, -1.0, 1.0, s_nec_u)
-    margin = _uniform_margin(bu, pf, exact_region)
+    if len(cons) * N <= BALL_BRACKET_BUDGET:
+        bracket = uniform_necessary_bracket(cons, pe)
+    else:
+        bracket = (s_nec_u, s_nec_u) if s_nec_u is not None else None
+    margin = _uniform_margin(bu, bracket, exact_region)
 
     # ---- facts at p (the verdict is read from them in kfcrit.analysis.verdict)
     nec = necessary_holds(cons, pf, pe)
@@ -706,7 +716,9 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         if N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
             chk, _ = ctx.try_at(pf)
             cert = chk.to_dict() if chk is not None else None
-            if chk is None:
+            if chk is not None:
+                sufficient, suff_basis = True, "sufficient surface (checked certificate)"
+            else:
                 warnings.append("no numerical certificate found at the operating point "
                                 "(the verdict rests on the exact-region proof)")
     elif bu.s_cert is not None and bu.s_cert <= 0.0:
@@ -730,7 +742,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                           "necessary surface (closed form) + exact region (theory §15.6, "
                           "Theorem E)"))
 
-    bottleneck = _bottleneck(rows)
+    bottleneck = network_bottleneck(rows)
     result = NetworkResult(
         facts=facts, reason=reason, sensors=tuple(rows),
         uniform_margin=margin, bottleneck=bottleneck,
@@ -785,13 +797,20 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
               "interval": ([pf[i] - crit["interval"][1] if crit["interval"][1] is not None
                             else None, pf[i] - crit["interval"][0]]
                            if crit["interval"] is not None else None)}
+    margin_exact = exact_margin(pe[i], nexpr) if possible and exact_region else None
+    if margin_exact is not None:
+        # a float difference of two nearly equal values loses what the exact data decide
+        m = float(sp.N(margin_exact, 30))
+        margin = {"value": m, "interval": [m, m]}
     # N−1: this sensor's link dead, the others at p
     q = pf.copy()
     q[i] = 0.0
     qe = list(pe)
     qe[i] = sp.Integer(0)
     nec0 = necessary_holds(cons, q, qe)
-    suff0 = bool(b.s_cert is not None and b.s_cert <= 0.0)
+    # only a checked certificate at p_i ≤ 0 proves stability with the link dead: the exact
+    # region's boundary point is an infimum (the region is open), not a certificate
+    suff0 = bool(b.s_cert is not None and b.s_cert <= 0.0 and b.check is not None)
     why = ("a necessary constraint fails with this link dead" if nec0 is False else
            "a necessary constraint is at equality with this link dead" if nec0 is None else
            "exact region: every necessary constraint holds" if exact_region else
@@ -803,7 +822,8 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     if network.size == 2 and not exact_region:
         dead, why = _lone_sensor_facts(ctx, 1 - i, pe, dead, why)
     return SensorResult(name, float(pf[i]), _expr_text(pe[i]), crit, surfaces, margin,
-                        dead, why)
+                        dead, why, margin_exact)
+
 
 
 def _lone_sensor_facts(ctx: _Context, j: int, pe: list[sp.Expr | None], dead: StabilityFacts,
@@ -834,66 +854,36 @@ def _lone_sensor_facts(ctx: _Context, j: int, pe: list[sp.Expr | None], dead: St
     return facts, why
 
 
-def _uniform_margin(b: Boundary, pf: np.ndarray, exact_region: bool) -> dict[str, Any]:
-    """δ with clip(p − δ·1) on the boundary; s = −δ on :func:`uniform_path`."""
+def _uniform_margin(b: Boundary, bracket: tuple[float, float] | None,
+                    exact_region: bool) -> dict[str, Any]:
+    """δ with clip(p − δ·1) on the boundary; s = −δ on :func:`uniform_path`.
+
+    ``bracket`` [a, b] encloses the necessary surface's crossing (ball arithmetic on the exact
+    data, :func:`~kfcrit.theory.links.netmargins.uniform_necessary_bracket`), so δ ≤ −a; in the
+    exact region δ ∈ [−b, −a]. Elsewhere the sufficient end −s_cert (certified) is the lower end.
+    """
     rule = ("signed δ such that clip(p − δ·(1, …, 1), 0, 1) lies on the boundary: positive "
             "when stable, negative when every link must improve")
-    if b.s_nec is None:
+    if bracket is None:
         return {"value": None, "interval": None, "unbounded": "negative", "rule": rule,
                 "reason": "a necessary constraint fails even with every link perfect (p = 1)"}
-    if b.s_nec <= -1.0 and b.s_cert is not None and b.s_cert <= -1.0:
+    a, b_nec = bracket
+    if a <= -1.0 and (exact_region or (b.s_cert is not None and b.s_cert <= -1.0)):
         return {"value": None, "interval": None, "unbounded": "positive", "rule": rule,
                 "reason": "mean-stable with every link dead (ρ(A) < 1 on what matters)"}
-    hi = -b.s_nec
-    lo = -b.s_cert if b.s_cert is not None else None
-    value = hi if exact_region or (lo is not None and hi - lo <= 1e-6) else None
+    hi = -a
+    if exact_region:
+        lo: float | None = -b_nec
+        value: float | None = -(0.5 * a + 0.5 * b_nec)
+        value = min(max(value, lo), hi)
+    else:
+        lo = -b.s_cert if b.s_cert is not None else None
+        value = hi if (lo is not None and hi - lo <= 1e-6) else None
     return {"value": value, "interval": [lo, hi], "unbounded": None, "rule": rule,
-            "reason": ("exact region" if exact_region else
-                       "necessary end closed form, sufficient end certified" if lo is not None
-                       else "necessary end only")}
-
-
-def _dead_is_stable(facts: StabilityFacts) -> bool:
-    """Whether the facts with a link dead prove mean stability (the rule of theory §16)."""
-    return facts.necessary is not False and (
-        facts.sufficient or (facts.exact_region and facts.necessary is True))
-
-
-def _bottleneck(rows: Sequence[SensorResult]) -> dict[str, Any]:
-    """The sensor with the smallest margin p_i − critical_i, named only when the bounds rank it.
-
-    Candidates are the sensors whose loss alone can break mean stability (their N − 1 facts do
-    not prove stability). Each margin is an interval [lo, hi] (a point where the critical value
-    is exact). Sensor a is the bottleneck when hi_a < lo_b for every other candidate b, or when
-    all the margins involved are exact and a's is the least (ties: file order). Otherwise the
-    bounds cannot rank them: no name is given and ``candidates`` lists the sensors whose
-    intervals overlap the least one.
-    """
-    rule = ("smallest p_i − critical_i among sensors whose loss alone can break mean stability; "
-            "named only when its margin interval lies below every other candidate's (exact "
-            "margins compare by value)")
-    cands = []
-    for k, r in enumerate(rows):
-        iv = r.margin.get("interval")
-        if iv is None or _dead_is_stable(r.n_minus_1):
-            continue
-        lo = iv[0] if iv[0] is not None else -math.inf
-        hi = iv[1] if iv[1] is not None else math.inf
-        cands.append((lo, hi, k, r))
-    if not cands:
-        return {"name": None, "margin": None, "rule": rule,
-                "reason": "no single link's degradation reaches the boundary"}
-    cands.sort(key=lambda c: (c[1], c[0], c[2]))
-    lo, hi, _, best = cands[0]
-    exact = all(c[0] == c[1] for c in cands)
-    rivals = [c for c in cands[1:] if not (hi < c[0] or (exact and hi <= c[0]))]
-    if rivals:
-        names = [best.name] + [c[3].name for c in rivals]
-        return {"name": None, "margin": None, "rule": rule, "candidates": names,
-                "reason": "the margin bounds of " + ", ".join(names) + " overlap: the bounds "
-                          "cannot rank these links"}
-    return {"name": best.name, "margin": best.margin.get("value"),
-            "margin_interval": best.margin.get("interval"), "rule": rule}
+            "reason": ("exact region (necessary surface enclosed in ball arithmetic)"
+                       if exact_region else
+                       "necessary end enclosed in ball arithmetic, sufficient end certified"
+                       if lo is not None else "necessary end only")}
 
 
 def _constraint_dict(network: Network, c: Constraint) -> dict[str, Any]:
