@@ -1,0 +1,102 @@
+"""A scalar plant seen by three sensors at and within 10⁻⁴⁰ of the boundary: facts consistent
+with each other and with the verdict, exact ties and exact orders of the margins, and a uniform
+margin whose interval contains the true δ with the verdict's sign (docs/theory.md §9.4–§9.5).
+
+By hand: x' = a x + w, independent arrivals p_i: mean-stable iff a²·Π(1 − p_i) < 1; sensor i's
+critical value p_i* = max(0, 1 − 1/(a² Π_{j≠i}(1 − p_j))); δ solves a² Π(1 − p_i + δ) = 1. The
+expected values are computed here with fractions and mpmath, never from kfcrit.
+"""
+from __future__ import annotations
+
+from fractions import Fraction as F
+
+import mpmath
+import sympy as sp
+
+from kfcrit.analysis.verdict import verdict_of
+from kfcrit.model.network import Network, Sensor
+from kfcrit.theory.links.network import network_analysis
+
+TINY = F(1, 10 ** 40)
+
+
+def scalar(a: int, ps: list[F]):
+    net = Network([[a]], 1, None, [Sensor(f"s{i}", [[1]], 1 + i) for i in range(len(ps))])
+    return network_analysis(net, p=[sp.Rational(p.numerator, p.denominator) for p in ps])
+
+
+def margins(a: int, ps: list[F]) -> list[F]:
+    out = []
+    for i, p in enumerate(ps):
+        c = F(a * a)
+        for j, q in enumerate(ps):
+            if j != i:
+                c *= 1 - q
+        out.append(p - max(F(0), 1 - 1 / c))
+    return out
+
+
+def true_delta(a: int, ps: list[F]) -> mpmath.mpf:
+    with mpmath.workdps(80):
+        def f(d):
+            out = mpmath.mpf(a * a)
+            for p in ps:
+                out *= 1 - mpmath.mpf(p.numerator) / p.denominator + d
+            return out - 1
+        return mpmath.findroot(f, mpmath.mpf(0))
+
+
+def stable(a: int, ps: list[F]) -> bool:
+    prod = F(a * a)
+    for p in ps:
+        prod *= 1 - p
+    return prod < 1
+
+
+def test_facts_agree_with_each_other_and_with_the_verdict_at_the_dead_links_boundary():
+    # p = 2/3, 2/3, 1/2: with s2 dead (1/3)(1/3)·9 = 1, unstable
+    ps = [F(2, 3), F(2, 3), F(1, 2)]
+    res = scalar(3, ps)
+    assert stable(3, ps) and verdict_of(res.facts)[0].value == "mean-stable"
+    if res.certificate is not None and res.certificate.get("ok"):
+        assert res.facts.sufficient
+    for row in res.sensors:
+        dead = row.n_minus_1
+        assert dead.necessary is False
+        assert dead.sufficient is False
+        assert verdict_of(dead)[0].value == "mean-unstable"
+
+
+def test_an_exact_tie_names_no_bottleneck():
+    ps = [F(2, 3), F(2, 3), F(1, 2)]
+    m = margins(3, ps)
+    assert m[0] == m[1] < m[2]
+    res = scalar(3, ps)
+    assert res.bottleneck["name"] is None
+    assert set(res.bottleneck["candidates"]) == {"s0", "s1"}
+
+
+def test_margins_10e_minus_40_apart_are_ranked_exactly():
+    for ps in ([F(2, 3) - TINY, F(2, 3), F(1, 2)],        # s1's margin is the least
+               [F(1, 2), F(1, 2), F(5, 9) + TINY]):       # s2's margin is the least
+        m = margins(3, ps)
+        least = min(range(3), key=lambda i: m[i])
+        assert all(m[least] < m[j] for j in range(3) if j != least)
+        res = scalar(3, ps)
+        assert res.bottleneck["name"] == f"s{least}"
+        for row, mi in zip(res.sensors, m):
+            # the record's margin is the exact one rounded, not a float difference
+            assert abs(row.margin["value"] - float(mi)) <= 1e-15 * abs(float(mi))
+
+
+def test_the_uniform_margin_interval_contains_the_true_delta_with_the_verdicts_sign():
+    for ps in ([F(1, 2), F(1, 2), F(5, 9) + TINY],
+               [F(1, 2), F(1, 2), F(5, 9) - TINY],
+               [F(2, 3), F(2, 3), F(1, 2)],
+               [F(1, 10)] * 11 + [F(2, 5)]):
+        res = scalar(3, ps)
+        delta = true_delta(3, ps)
+        lo, hi = res.uniform_margin["interval"]
+        assert mpmath.mpf(lo) <= delta <= mpmath.mpf(hi)
+        assert (res.uniform_margin["value"] > 0) == stable(3, ps)
+        assert (lo > 0) == stable(3, ps) and (hi > 0) == stable(3, ps)
