@@ -17,6 +17,7 @@ from kfcrit.analysis.verdict import verdict_of
 from kfcrit.model.network import Network, Sensor
 from kfcrit.theory.links.network import network_analysis
 
+R = sp.Rational
 TINY = F(1, 10 ** 40)
 
 
@@ -100,3 +101,33 @@ def test_the_uniform_margin_interval_contains_the_true_delta_with_the_verdicts_s
         assert mpmath.mpf(lo) <= delta <= mpmath.mpf(hi)
         assert (res.uniform_margin["value"] > 0) == stable(3, ps)
         assert (lo > 0) == stable(3, ps) and (hi > 0) == stable(3, ps)
+
+
+def diagonal_network(modes: list[str], sensor_modes: list[int]):
+    n = len(modes)
+    A = [[modes[i] if i == j else "0" for j in range(n)] for i in range(n)]
+    return Network(A, 1, None, [Sensor(f"m{k}_{i}", [[1 if j == k else 0 for j in range(n)]], 1)
+                                for i, k in enumerate(sensor_modes)])
+
+
+def test_eight_diagonal_states_decide_the_boundary_exactly():
+    # beyond the exact structure path (n > 6): the diagonal entries are the exact eigenvalues.
+    # Mode 2 seen by u at p, mode 3/2 by v at 2/3: stable iff (1 − p)·4 < 1 and (1/3)·9/4 < 1
+    net = diagonal_network(["2", "3/2"] + ["1/2"] * 6, [0, 1])
+    for p_u, is_stable in ((R(3, 4) + R(1, 10 ** 40), True), (R(3, 4), False),
+                           (R(3, 4) - R(1, 10 ** 40), False)):
+        assert ((1 - F(p_u.p, p_u.q)) * 4 < 1) == is_stable
+        res = network_analysis(net, p=[p_u, R(2, 3)])
+        assert res.facts.necessary is is_stable
+        assert verdict_of(res.facts)[0].value == ("mean-stable" if is_stable else "mean-unstable")
+        u, v = res.sensors
+        assert u.critical["exact"] and sp.sympify(u.critical["expression"]) == R(3, 4)
+        if is_stable:
+            # v alone: 1 − 1/(9/4) = 5/9
+            assert v.critical["exact"] and sp.sympify(v.critical["expression"]) == R(5, 9)
+        else:
+            # mode 2 fails whatever v does: no critical value, never an "exact" 0
+            assert v.critical["value"] is None and v.critical["interval"] is None
+        lo, hi = res.uniform_margin["interval"]
+        assert (lo > 0) == is_stable if p_u != R(3, 4) else lo <= 0 <= hi
+

@@ -118,8 +118,11 @@ class UniformMargin:
     """`network.uniform_margin`"""
 
     value: float | None
-    interval: list[float | None]
-    unbounded: bool | None
+    interval: list[float | None] | None
+    """None when δ is unbounded (``unbounded`` says which way)."""
+    unbounded: str | None
+    """``positive`` (mean-stable with every link dead), ``negative`` (a necessary constraint
+    fails even with every link perfect) or None."""
     rule: str
     reason: str
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
+from fractions import Fraction
 from typing import Any, Protocol
 
 import flint
@@ -76,7 +77,8 @@ def uniform_necessary_bracket(constraints: Sequence[NecessaryFactor],
     is non-increasing in s; the crossing s* = inf{s : max_T f_T(s) < 1} lies in [a, b]: every
     f_T(b) < 1 is proven in balls, and some f_T(a) ≥ 1 is proven unless a = lo. Returns (lo, lo)
     when they hold at lo, None when some constraint does not hold even at hi (the necessary
-    surface is not crossed).
+    surface is not crossed). Raises ArithmeticError when even the end of the path is undecided
+    in balls (a |λ|² known only in floats at 1).
     """
     old = flint.ctx.prec
     flint.ctx.prec = BALL_BITS
@@ -90,11 +92,14 @@ def uniform_necessary_bracket(constraints: Sequence[NecessaryFactor],
                 m = _float_ball(c.mod2)
                 mods.append(m + flint.arb(0, FLOAT_MOD2_RADIUS * abs(c.mod2)))
 
+        rational = _rationals(constraints, p_exact)
+
         def side(s: float) -> int:
-            """1: every constraint holds at s; −1: one fails; 0: undecided in balls."""
+            """1: every constraint holds at s; −1: one fails; 0: undecided (balls straddle 1
+            and the data are not all rational)."""
             sb = _float_ball(s)
             undecided = False
-            for c, m in zip(constraints, mods):
+            for k, (c, m) in enumerate(zip(constraints, mods)):
                 f = m
                 for i, p in enumerate(ps):
                     if i not in c.blind:
@@ -102,13 +107,20 @@ def uniform_necessary_bracket(constraints: Sequence[NecessaryFactor],
                 if f >= 1:
                     return -1
                 if not f < 1:
-                    undecided = True
+                    if rational is None:
+                        undecided = True
+                    elif _exact_factor(rational, k, c.blind, s) >= 1:
+                        return -1
             return 0 if undecided else 1
 
         if side(lo) == 1:
             return lo, lo
-        if side(hi) != 1:
+        at_hi = side(hi)
+        if at_hi == -1:
             return None
+        if at_hi == 0:
+            raise ArithmeticError("the necessary constraints are undecided in balls at the end "
+                                  "of the path")
         a, b = _order_key(lo), _order_key(hi)
         while b - a > 1:
             mid = (a + b) // 2
@@ -123,6 +135,28 @@ def uniform_necessary_bracket(constraints: Sequence[NecessaryFactor],
         return _key_float(a), _key_float(b)
     finally:
         flint.ctx.prec = old
+
+
+def _rationals(constraints: Sequence[NecessaryFactor], p_exact: Sequence[sp.Expr]
+               ) -> tuple[list[Fraction], list[Fraction]] | None:
+    """(ρ_T² per constraint, p_i) as fractions when every one is rational, else None."""
+    values = [c.mod2_expr for c in constraints] + [sp.sympify(p) for p in p_exact]
+    if not all(v is not None and v.is_Rational for v in values):
+        return None
+    fr = [Fraction(int(v.p), int(v.q)) for v in values]
+    return fr[:len(constraints)], fr[len(constraints):]
+
+
+def _exact_factor(rational: tuple[list[Fraction], list[Fraction]], k: int,
+                  blind: frozenset[int], s: float) -> Fraction:
+    """ρ_T² Π_{i∉T}(1 − clip(p_i + s, 0, 1)) in exact rationals (s a float, hence dyadic)."""
+    mods, ps = rational
+    sf = Fraction(s)
+    out = mods[k]
+    for i, p in enumerate(ps):
+        if i not in blind:
+            out *= 1 - min(max(p + sf, Fraction(0)), Fraction(1))
+    return out
 
 
 def exact_margin(p: sp.Expr | None, crit: sp.Expr | None) -> sp.Expr | None:

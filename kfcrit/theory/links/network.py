@@ -34,7 +34,6 @@ For one sensor the single-link theory (Sinopoli, Mo–Sinopoli: :mod:`kfcrit.the
 """
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -45,297 +44,32 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from kfcrit.errors import InputError, KfcritError
-from kfcrit.model.exprparse import compare, exact_text
+from kfcrit.errors import InputError
+from kfcrit.model.exprparse import exact_text
 from kfcrit.model.network import Network
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.links import netkernels as nk
 from kfcrit.theory.links.netmargins import exact_margin, network_bottleneck, uniform_necessary_bracket
+from kfcrit.theory.links.netnecessary import (  # noqa: F401 - Constraint, RANK_TOL re-exported
+    RANK_TOL,
+    Constraint,
+    factor_sign,
+    modal_one_step,
+    necessary_along,
+    necessary_constraints,
+    necessary_coordinate,
+    necessary_holds,
+)
 from kfcrit.theory.links.netsearch import Boundary, SeqContext, modal_gains
 from kfcrit.theory.upper.bracket import upper_bound
 
-RANK_TOL = 1e-9
-"""Relative tolerance of the float rank decisions (σ ≤ RANK_TOL·max(‖C‖, 1) counts as 0)."""
-FLAT_BUDGET = 20000
-"""Most sensor combinations tried per eigenvalue when enumerating hyperplanes (g ≥ 2)."""
 CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the Newton root + step·tol for these steps."""
 BALL_BRACKET_BUDGET = 200000
 """Most (constraints × sensors) whose uniform-margin crossing is enclosed in ball arithmetic;
 beyond, the float bisection's crossing is reported."""
-
-
-# ---- the necessary surface
-
-@dataclass(frozen=True)
-class Constraint:
-    """Necessary condition Π_{i∉T}(1 − p_i)·ρ_T² < 1 for a maximal unobservable set T."""
-
-    blind: frozenset[int]
-    mod2: float
-    mod2_expr: sp.Expr | None
-    eigenvalue: str
-    decided: str
-
-    def factor(self, p: np.ndarray) -> float:
-        """ρ_T² Π_{i∉T}(1 − p_i) in floats."""
-        out = self.mod2
-        for i in range(p.size):
-            if i not in self.blind:
-                out *= 1.0 - float(p[i])
-        return out
-
-    def factor_expr(self, p_exact: Sequence[sp.Expr | None]) -> sp.Expr | None:
-        """The same exactly (None when an ingredient is not exact)."""
-        if self.mod2_expr is None:
-            return None
-        out = self.mod2_expr
-        for i, pi in enumerate(p_exact):
-            if i not in self.blind:
-                if pi is None:
-                    return None
-                out = out * (1 - pi)
-        return out
-
-
-def _exact_eigvecs(A: sp.Matrix, lam: sp.Expr) -> list[sp.Matrix] | None:
-    """Exact eigenvectors for a rational eigenvalue (None otherwise or on failure)."""
-    if not (lam is not None and lam.is_Rational):
-        return None
-    try:
-        return (A - lam * sp.eye(A.shape[0])).nullspace()
-    except (ValueError, TypeError, ArithmeticError, NotImplementedError):
-        return None
-
-
-def _rank_fn(network: Network, e: Any, tol: float):
-    """Rank of the stacked C_i V over a set of sensors: exact for rational eigenvalues of exact
-    input, else float SVD with a relative tolerance. Returns (rank(sensors), g, how)."""
-    sl = network.row_slices()
-    A = sp.Matrix(network.A)
-    vecs = _exact_eigvecs(A, e.expr) if network.exact else None
-    if vecs:
-        V = sp.Matrix.hstack(*vecs)
-        C = sp.Matrix(network.stacked_system().C)
-        CV = C * V
-        blocks = [CV[s.start:s.stop, :] for s in sl]
-
-        def rank(idx: Sequence[int]) -> int:
-            if not idx:
-                return 0
-            return sp.Matrix.vstack(*[blocks[i] for i in idx]).rank()
-        return rank, V.shape[1], "exact (rational eigenvalue, sympy ranks)"
-    V = e.basis
-    c = network.stacked_system().c
-    scale = max(float(np.linalg.norm(c, 2)), 1.0)
-    CVf = c @ V
-    fblocks = [CVf[s] for s in sl]
-
-    def frank(idx: Sequence[int]) -> int:
-        if not idx:
-            return 0
-        M = np.vstack([fblocks[i] for i in idx])
-        sv = np.linalg.svd(M, compute_uv=False)
-        return int(np.sum(sv > tol * scale))
-    return frank, V.shape[1], f"float64 SVD, relative tolerance {tol:g}"
-
-
-def _eig_text(e: Any) -> str:
-    if e.expr is not None:
-        return sp.sstr(e.expr)
-    if e.text is not None:
-        return e.text
-    z = complex(e.value)
-    return repr(z.real) if z.imag == 0 else f"{z.real:.12g}{z.imag:+.12g}j"
-
-
-def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Constraint, ...]:
-    """The non-dominated necessary constraints (T, ρ_T²) (see the module docstring).
-
-    For each eigenvalue λ with |λ| ≥ 1 (eigenspace V, dimension g): the blind sensors
-    B = {i : C_i V = 0}; if all sensors together have rank < g on V, T = every sensor (the
-    network cannot detect λ: no p works); else every hyperplane flat — the closure of ≤ g − 1
-    sensors whose rows span rank g − 1 on V — united with B. A constraint (T, ρ²) is dropped
-    when another has T' ⊇ T and ρ'² ≥ ρ².
-    """
-    st = structure_of(network.stacked_system())
-    N = network.size
-    out: list[Constraint] = []
-    for idx, e in enumerate(st.eigen):
-        if not st.relevant(idx):
-            continue
-        rank, g, how = _rank_fn(network, e, tol)
-        blind = frozenset(i for i in range(N) if rank([i]) == 0)
-        seen = [i for i in range(N) if i not in blind]
-        flats: set[frozenset[int]] = set()
-        if rank(seen) < g:
-            flats.add(frozenset(range(N)))
-        else:
-            tried = 0
-            reps = _distinct_row_spaces(rank, seen) if g > 1 else seen
-            for size in range(0, g):
-                for U in itertools.combinations(reps, size):
-                    tried += 1
-                    if tried > FLAT_BUDGET:
-                        raise KfcritError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
-                                          f"eigenspace seen by {len(seen)} sensors: more than "
-                                          f"{FLAT_BUDGET} sensor combinations", field="sensors")
-                    if rank(list(U)) != g - 1:
-                        continue
-                    closure = frozenset(i for i in seen if rank(list(U) + [i]) == g - 1)
-                    flats.add(blind | closure)
-        for T in flats:
-            out.append(Constraint(T, float(e.mod2), e.mod2_expr, _eig_text(e), how))
-    keep = []
-    for c in out:
-        if any(d is not c and c.blind <= d.blind and c.mod2 <= d.mod2
-               and (c.blind != d.blind or c.mod2 < d.mod2 or id(d) < id(c)) for d in out):
-            continue
-        keep.append(c)
-    keep.sort(key=lambda c: (-c.mod2, sorted(c.blind)))
-    return tuple(keep)
-
-
-def _distinct_row_spaces(rank, seen: Sequence[int]) -> list[int]:
-    """One sensor per distinct row space C_i V among ``seen`` (first in sensor order).
-
-    Two sensors have the same row space on V iff rank([i, j]) = rank([i]) = rank([j]). A flat
-    spanned by some sensors is spanned by their representatives, and the closure is taken over
-    every sensor, so the flats (and the constraints) are unchanged; the enumeration then grows
-    with the number of distinct row spaces, not with N (many sensors seeing the same modes).
-    """
-    reps: list[int] = []
-    for i in seen:
-        ri = rank([i])
-        if not any(rank([r]) == ri and rank([r, i]) == ri for r in reps):
-            reps.append(i)
-    return reps
-
-
-def _sign_minus_one(value: float, expr: sp.Expr | None) -> int | None:
-    """Sign of (value − 1): exact from ``expr`` when given, else float with a 1e-12 guard."""
-    if expr is not None:
-        try:
-            return compare(expr, 1, "network", "necessary factor - 1")
-        except KfcritError:
-            pass
-    if abs(value - 1.0) <= 1e-12:
-        return None
-    return 1 if value > 1 else -1
-
-
-def necessary_holds(constraints: Sequence[Constraint], p: np.ndarray,
-                    p_exact: Sequence[sp.Expr | None]) -> bool | None:
-    """Whether every necessary constraint holds at p (None: undecided at float precision)."""
-    undecided = False
-    for c in constraints:
-        s = _sign_minus_one(c.factor(p), c.factor_expr(p_exact))
-        if s is None:
-            undecided = True
-        elif s >= 0:
-            return False
-    return None if undecided else True
-
-
-def necessary_coordinate(constraints: Sequence[Constraint], i: int, p: np.ndarray,
-                         p_exact: Sequence[sp.Expr | None]
-                         ) -> tuple[bool, float, sp.Expr | None]:
-    """Least p_i allowed by the necessary surface, others at p: (possible, value, exact).
-
-    A constraint with i ∈ T caps nothing in p_i: if it fails, no p_i works (possible False).
-    Otherwise c = ρ_T² Π_{j∉T, j≠i}(1 − p_j) and p_i > 1 − 1/c is needed (nothing if c ≤ 1).
-    """
-    best, best_expr = 0.0, sp.Integer(0)
-    exact_ok = True
-    for c in constraints:
-        if i in c.blind:
-            s = _sign_minus_one(c.factor(p), c.factor_expr(p_exact))
-            if s is not None and s >= 0:
-                return False, math.nan, None
-            continue
-        q = p.copy()
-        q[i] = 0.0
-        val = c.factor(q)
-        qe = list(p_exact)
-        qe[i] = sp.Integer(0)
-        expr = c.factor_expr(qe)
-        if val <= 1.0 and (expr is None or _sign_minus_one(val, expr) in (-1, 0)):
-            continue
-        cand = 1.0 - 1.0 / val
-        cand_expr = sp.radsimp(1 - 1 / expr) if expr is not None else None
-        if cand_expr is None:
-            exact_ok = False
-        if cand > best + 1e-15 or (cand_expr is not None and best_expr is not None
-                                   and abs(cand - best) <= 1e-15
-                                   and float(sp.N(cand_expr - best_expr, 30)) > 0):
-            best, best_expr = cand, cand_expr
-        elif abs(cand - best) <= 1e-15 and cand_expr is None:
-            exact_ok = False
-    if best_expr is not None:
-        best = float(sp.N(best_expr, 30))
-    return True, best, best_expr if exact_ok else None
-
-
-def necessary_along(constraints: Sequence[Constraint], path: nk.Path, lo: float,
-                    hi: float) -> float | None:
-    """Least s in [lo, hi] where every necessary constraint holds (bisection on the monotone
-    float factors to 1e-15); ``lo`` if they hold there, None if not even at ``hi``."""
-    def ok(s: float) -> bool:
-        p, _ = path(s)
-        return all(c.factor(p) < 1.0 for c in constraints)
-    if ok(lo):
-        return lo
-    if not ok(hi):
-        return None
-    a, b = lo, hi
-    for _ in range(200):
-        mid = 0.5 * (a + b)
-        if mid in (a, b):
-            break
-        a, b = (a, mid) if ok(mid) else (mid, b)
-        if b - a < 1e-15:
-            break
-    return b
-
-
-# ---- the exact case: modal one-step observability
-
-def modal_one_step(network: Network, tol: float = RANK_TOL) -> tuple[bool | None, str]:
-    """Whether the proof in the module docstring applies (True) or fails (False), with why.
-
-    The condition is checked sensor by sensor (O(N) rank tests): the nonzero C_S w_j are
-    linearly independent for every received set S iff they are for every single sensor
-    (docs/theory.md §15.6).
-    """
-    st = structure_of(network.stacked_system())
-    rel = [e for i, e in enumerate(st.eigen) if st.relevant(i)]
-    if not rel:
-        return True, "ρ(A) < 1: every arrival probability works"
-    if any(e.geometric != e.multiplicity for e in rel):
-        return False, "a mode with |λ| ≥ 1 is not diagonalizable"
-    W = np.hstack([e.basis for e in rel])
-    k = W.shape[1]
-    sys = network.stacked_system()
-    CW = sys.c @ W
-    scale = max(float(np.linalg.norm(sys.c, 2)), 1.0)
-    if k == 1:
-        return True, "one unstable mode"
-    # the condition for every received set S is equivalent to the one for every single
-    # sensor (docs/theory.md §15.6): O(N) rank tests instead of 2^N
-    for i, sl in enumerate(network.row_slices()):
-        M = CW[sl]
-        seen = np.linalg.norm(M, axis=0) > tol * scale
-        if not seen.any():
-            continue
-        rank = int(np.sum(np.linalg.svd(M[:, seen], compute_uv=False) > tol * scale))
-        if rank != int(seen.sum()):
-            return False, (f"sensor {network.names[i]} sees unstable modes through dependent "
-                           "outputs (not one-step observable)")
-    return True, ("every sensor sees its observable unstable modes through linearly "
-                  "independent outputs, hence so does every received set (docs/theory.md "
-                  f"§15.6; float64 ranks, relative tolerance {tol:g})")
 
 
 def _owner(network: Network) -> np.ndarray:
@@ -694,10 +428,13 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
         bu = Boundary(s_nec_u, s_nec_u, None, "exact region (modal one-step observability)")
     else:
         bu = ctx.path_boundary(upath, -1.0, 1.0, s_nec_u)
+    bracket = (s_nec_u, s_nec_u) if s_nec_u is not None else None
     if len(cons) * N <= BALL_BRACKET_BUDGET:
-        bracket = uniform_necessary_bracket(cons, pe)
-    else:
-        bracket = (s_nec_u, s_nec_u) if s_nec_u is not None else None
+        try:
+            bracket = uniform_necessary_bracket(cons, pe)
+        except ArithmeticError:
+            warnings.append("uniform margin: the necessary surface's crossing is not decided "
+                            "in ball arithmetic; the float bisection's crossing is reported")
     margin = _uniform_margin(bu, bracket, exact_region)
 
     # ---- facts at p (the verdict is read from them in kfcrit.analysis.verdict)
@@ -705,7 +442,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     cert = bu.check
     sufficient, suff_basis = False, "no sufficient certificate at p"
     if nec is False:
-        bad = next(c for c in cons if _sign_minus_one(c.factor(pf), c.factor_expr(pe)) != -1)
+        bad = next(c for c in cons if factor_sign(c.factor(pf), c.factor_expr(pe)) != -1)
         dead = [network.names[i] for i in range(N) if i not in bad.blind]
         reason = (f"necessary constraint fails: eigenvalue {bad.eigenvalue} (|λ|² = "
                   f"{bad.mod2:.6g}) is unobservable without sensors {{{', '.join(dead)}}}, and "
@@ -765,9 +502,11 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     name = network.names[i]
     possible, nval, nexpr = necessary_coordinate(cons, i, pf, pe)
     if not possible:
-        crit = {"value": None, "interval": None, "exact": True, "expression": None,
+        crit = {"value": None, "interval": None, "exact": possible is False, "expression": None,
                 "basis": "necessary surface: a constraint without this sensor fails, so no "
-                         "p_i in [0, 1] gives mean stability"}
+                         "p_i in [0, 1] gives mean stability" if possible is False else
+                         "undecided: a necessary constraint without this sensor is at "
+                         "equality to float precision"}
         surfaces = {"necessary": None, "sufficient": None}
         b = Boundary(None, None, None, "")
     else:
@@ -868,14 +607,14 @@ def _uniform_margin(b: Boundary, bracket: tuple[float, float] | None,
         return {"value": None, "interval": None, "unbounded": "negative", "rule": rule,
                 "reason": "a necessary constraint fails even with every link perfect (p = 1)"}
     a, b_nec = bracket
-    if a <= -1.0 and (exact_region or (b.s_cert is not None and b.s_cert <= -1.0)):
+    if b_nec <= -1.0 and (exact_region or (b.s_cert is not None and b.s_cert <= -1.0)):
         return {"value": None, "interval": None, "unbounded": "positive", "rule": rule,
                 "reason": "mean-stable with every link dead (ρ(A) < 1 on what matters)"}
-    hi = -a
+    hi = -a + 0.0   # no −0.0
     if exact_region:
         lo: float | None = -b_nec
         value: float | None = -(0.5 * a + 0.5 * b_nec)
-        value = min(max(value, lo), hi)
+        value = min(max(value, lo), hi) + 0.0
     else:
         lo = -b.s_cert if b.s_cert is not None else None
         value = hi if (lo is not None and hi - lo <= 1e-6) else None

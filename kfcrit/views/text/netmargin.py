@@ -97,7 +97,8 @@ def has_no_critical_value(sensor: NetworkSensor) -> bool:
     """Whether the record states that no arrival probability of this sensor gives mean
     stability (``critical_value`` with neither value nor interval)."""
     cv = sensor.critical_value
-    return _real(cv.value) is None and cv.interval is None
+    # exact False with neither: undecided at float precision, not "none"
+    return _real(cv.value) is None and cv.interval is None and cv.exact is True
 
 
 def bottleneck_margin_text(bottleneck: NetworkBottleneck) -> str:

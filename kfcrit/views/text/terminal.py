@@ -132,7 +132,9 @@ def network_lines(net: NetworkSection | None) -> list[str]:
                      f"{margin_text(s):>19}  "
                      f"{s.n_minus_1.verdict}")
     um = net.uniform_margin
-    lines.append(f"    uniform margin δ      {_value_text(um.value, um.interval)}  (every link "
+    delta = (f"unbounded ({um.unbounded})" if um.unbounded else
+             _value_text(um.value, um.interval))
+    lines.append(f"    uniform margin δ      {delta}  (every link "
                  "degraded by δ reaches the boundary)")
     bn = net.bottleneck
     if bn.name:
