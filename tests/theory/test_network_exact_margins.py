@@ -131,3 +131,28 @@ def test_eight_diagonal_states_decide_the_boundary_exactly():
         lo, hi = res.uniform_margin["interval"]
         assert (lo > 0) == is_stable if p_u != R(3, 4) else lo <= 0 <= hi
 
+
+
+def test_many_states_in_the_exact_region_are_decided_without_certificates():
+    # 30 decoupled modes (one unstable, a = 3/2) seen by two sensors: (1 − p)²·9/4 < 1 at
+    # p = 1/3 + 10⁻⁴⁰ fails at 1/3: the exact-region proof decides, no vech operator of
+    # 465 × 465 per sensor is formed
+    net = diagonal_network(["3/2"] + ["1/3"] * 29, [0, 0])
+    for p, is_stable in ((R(1, 3) + R(1, 10 ** 40), True), (R(1, 3), False)):
+        assert ((1 - F(p.p, p.q)) ** 2 * F(9, 4) < 1) == is_stable
+        res = network_analysis(net, p=[p, p])
+        assert verdict_of(res.facts)[0].value == ("mean-stable" if is_stable else "mean-unstable")
+        assert res.method["certificates"] == 0
+
+
+def test_a_congruence_batch_too_large_is_refused_naming_the_limit():
+    import numpy as np
+    import pytest
+
+    from kfcrit.errors import NumericalError
+    from kfcrit.theory.links import netkernels as nk
+
+    # 100 operators on 100 states: 3·100·5050²·8 bytes ≈ 57 GiB > the limit
+    with pytest.raises(NumericalError, match="limit"):
+        nk.congruence_batch(np.zeros((100, 100, 100)))
+    assert nk.congruence_batch(np.eye(2)[None]).shape == (1, 3, 3)

@@ -67,6 +67,10 @@ from kfcrit.theory.upper.bracket import upper_bound
 
 CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the Newton root + step·tol for these steps."""
+CERT_MAX_STATES = 24
+"""Where the region is exact (modal one-step observability), numerical certificates are only
+sought up to this many states (N operators of size n(n+1)/2 squared); beyond, the exact-region
+proof decides alone."""
 BALL_BRACKET_BUDGET = 200000
 """Most (constraints × sensors) whose uniform-margin crossing is enclosed in ball arithmetic;
 beyond, the float bisection's crossing is reported."""
@@ -450,7 +454,10 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     elif exact_region and nec is True:
         reason = ("every necessary constraint holds and the region is exactly the necessary "
                   "region (modal one-step observability)")
-        if N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
+        if network.n > CERT_MAX_STATES:
+            warnings.append(f"n = {network.n} states > {CERT_MAX_STATES}: no numerical "
+                            "certificate attempted (the verdict rests on the exact-region proof)")
+        elif N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
             chk, _ = ctx.try_at(pf)
             cert = chk.to_dict() if chk is not None else None
             if chk is not None:
@@ -510,7 +517,7 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
         surfaces = {"necessary": None, "sufficient": None}
         b = Boundary(None, None, None, "")
     else:
-        if exact_region and not isinstance(ctx, SeqContext):
+        if exact_region and not _searches_in_exact_region(ctx):
             b = Boundary(nval, nval, None, "exact region")
         else:
             b = ctx.coordinate_boundary(i, pf, nval)
@@ -563,6 +570,12 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     return SensorResult(name, float(pf[i]), _expr_text(pe[i]), crit, surfaces, margin,
                         dead, why, margin_exact)
 
+
+
+def _searches_in_exact_region(ctx: _Context | SeqContext) -> bool:
+    """Whether the sufficient surface is searched on a sensor's coordinate where the region is
+    exact: by the one-sensor maps (a certificate is cheap there), up to CERT_MAX_STATES."""
+    return isinstance(ctx, SeqContext) and ctx.network.n <= CERT_MAX_STATES
 
 
 def _lone_sensor_facts(ctx: _Context, j: int, pe: list[sp.Expr | None], dead: StabilityFacts,
