@@ -51,8 +51,9 @@ class SufficientSurface:
 
 @dataclass(frozen=True, kw_only=True)
 class NecessarySurfacePoint:
-    """`network.sensors[].surfaces.necessary`: the least p_i the necessary surface allows
-    (``expression`` None when an ingredient is not exact)."""
+    """`network.sensors[].surfaces.necessary`: least p_i the necessary surface allows.
+
+    ``expression`` is None when an ingredient is not exact."""
 
     value: float | None
     expression: str | None
@@ -60,8 +61,9 @@ class NecessarySurfacePoint:
 
 @dataclass(frozen=True, kw_only=True)
 class SensorSurfaces:
-    """`network.sensors[].surfaces`: None where a surface is not crossed on this sensor's
-    coordinate (no p_i works, or no certificate was found up to p_i = 1)."""
+    """`network.sensors[].surfaces`: each None where not crossed on this coordinate.
+
+    (No p_i works, or no certificate was found up to p_i = 1.)"""
 
     necessary: NecessarySurfacePoint | None
     sufficient: SufficientSurface | None
