@@ -763,6 +763,7 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
     if markers["operating"] is not None:
         cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
         cb["lower"] = _lower_exists_exactly(cb["lower"], spec.channel, sec)
+        cb["upper"] = _upper_exists_exactly(cb["upper"], spec.channel, sec)
         if spec.channel is not None and spec.channel.model == "gilbert-elliott":
             from kfcrit.theory.links.burstcov import markov_jump_bounds
             from kfcrit.theory.links.markov import burst_necessary
@@ -806,6 +807,25 @@ def _lower_exists_exactly(lower: dict[str, Any], channel: Any,
     return {**lower, "exists": True, "beyond_float64": True}
 
 
+def _upper_exists_exactly(upper: dict[str, Any], channel: Any,
+                          sec: dict[str, Any]) -> dict[str, Any]:
+    r"""V̄ exists for p > p_up (Sinopoli Thm 5, 6), decided on the exact p where p_up is
+    known exactly (``method`` "exact": C invertible or p_up = p_low proven): a float p that
+    rounds onto p_up finds no V̄ in float64, yet it exists, beyond float64.
+
+    .. math::  p > p_{up} \Rightarrow \exists\,\bar V = g_p(\bar V)
+    """
+    ub = sec.get("upper_bound")
+    if upper.get("exists") is not False or channel is None or not channel.iid \
+            or getattr(ub, "method", None) != "exact":
+        return upper
+    expr = getattr(getattr(ub, "lower_evidence", None), "expression", None)
+    if expr is None or not vd.exceeds(channel.arrival_probability, expr):
+        return upper
+    return {**upper, "exists": True, "beyond_float64": True,
+            "method": "none in float64: p > p_up exactly, but p rounds onto p_up"}
+
+
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
                          warnings: list[str], estimator: OperatingPoint | None = None) -> None:
     from kfcrit.theory.covariance import invariant
@@ -833,11 +853,12 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     warnings.extend((sim or {}).get("warnings") or [])
 
 
-def _mean_decision(estimator: OperatingPoint | None) -> tuple[bool, str] | None:
+def _mean_decision(estimator: OperatingPoint | None) -> tuple[bool | None, str] | None:
     """(exists, basis) of E[P_t] at the operating point as the estimator's verdict decides
-    it, or None (undetermined, or no operating point)."""
-    exists = vd.mean_bounded(estimator.verdict) if estimator is not None else None
-    return None if exists is None else (exists, estimator.basis)
+    it (exists None when the verdict is undetermined), or None without an operating point."""
+    if estimator is None:
+        return None
+    return vd.mean_bounded(estimator.verdict), estimator.basis
 
 
 def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,

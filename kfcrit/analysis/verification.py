@@ -26,8 +26,8 @@ def _simulated_mean_between_bounds(cb: CovarianceBounds | None,
     if cb is None or sim_op is None:
         return None
     lower, upper, mt = cb.lower, cb.upper, sim_op.mean_trace
-    if not (lower.exists and upper.exists and mt.mean):
-        return None
+    if not (lower.exists and upper.exists and mt.mean) or None in (lower.trace, upper.trace):
+        return None   # a bound that exists beyond float64 has no trace to compare with
     if sim_op.iid is False:  # S̄ and V̄ are bounds for i.i.d. losses only
         return None
     if sim_op.divergence.diverged_paths:

@@ -74,7 +74,7 @@ def phase_probabilities(reference: float) -> list[tuple[str, float]]:
 def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: float | None,
                        seed: int, quick: bool,
                        critical_bracket: tuple[float | None, float | None] | None = None,
-                       mean_decision: tuple[bool, str] | None = None) -> dict[str, Any]:
+                       mean_decision: tuple[bool | None, str] | None = None) -> dict[str, Any]:
     """The ``simulation`` section of the analysis record.
 
     Keys: ``seed``, ``quick``, ``budget``, ``seeds``, ``operating_point`` (None without a
@@ -117,7 +117,7 @@ def _simulation_parts(spec: Any, system: System, budget: Budget, seed: int,
                       critical_bracket: tuple[float | None, float | None] | None,
                       out: dict[str, Any], warnings: list[str],
                       checks: list[dict[str, Any]],
-                      mean_decision: tuple[bool, str] | None = None) -> None:
+                      mean_decision: tuple[bool | None, str] | None = None) -> None:
     if spec.channel is not None:
         known = {"critical_value": critical_value, "critical_bracket": critical_bracket,
                  "upper_bound": upper_bound}
@@ -133,7 +133,7 @@ def _simulation_parts(spec: Any, system: System, budget: Budget, seed: int,
 
 def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any],
                      warnings: list[str], checks: list[dict[str, Any]],
-                     mean_decision: tuple[bool, str] | None = None) -> dict:
+                     mean_decision: tuple[bool | None, str] | None = None) -> dict:
     system, chan = spec.system, spec.channel
     samples = DEFAULT_SAMPLES if system.n <= 10 else 50  # λ_max costs ~n³ per sample
     # λ_max costs a dense eigenproblem per path and sample time: fewer times for large n
@@ -173,9 +173,12 @@ def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any]
     return op
 
 
-def decided_mean(mean: dict[str, Any], decision: tuple[bool, str] | None) -> dict[str, Any]:
+def decided_mean(mean: dict[str, Any], decision: tuple[bool | None, str] | None
+                 ) -> dict[str, Any]:
     """:func:`mean_regime`'s answer, with ``exists`` (and, where it differs, the basis) taken
-    from the caller's exact ``decision`` = (exists, basis) when there is one."""
+    from the caller's ``decision`` = (exists, basis) when there is one: the analysis's verdict
+    at the operating point, exact; ``exists`` None when that verdict is undetermined (a float
+    comparison here must not decide what the verdict could not)."""
     if decision is None or mean.get("exists") is None and mean.get("basis") == \
             "a measured trace: no model":
         return mean

@@ -207,3 +207,24 @@ def test_scalar_bursty_link_at_the_threshold(r: str, expected: str) -> None:
     assert assert_one_verdict(record) == expected
     assert record["link_budget"]["condition"]["holds"] is (expected == "mean-stable")
     assert record["review"]["decision"] == STATUS[expected]
+
+
+def test_bursty_link_on_a_general_plant_just_above_the_burst_threshold() -> None:
+    """(1 − r)ρ(A)² = 1 − 1.5625·10⁻⁴⁰ < 1 (ρ(A) = 5/4, by hand): the necessary condition holds,
+    nothing proves more, so the verdict is undetermined — and no section may call E[P_t]
+    unbounded on a float comparison that rounds (1 − r)ρ(A)² to 1."""
+    doc = {"name": "ge general", **GENERAL, "C": [[1, 1]], "R": [[2.5]],
+           "channel": {"model": "gilbert-elliott", "failure_rate": "1/20",
+                       "recovery_rate": "9/25 + 10^-40"}}
+    record = analyze_simulated(doc)
+    assert assert_one_verdict(record) != "mean-unstable"
+    assert record["link_budget"]["certificate"]["facts"]["necessary"] is True
+
+
+def test_upper_covariance_bound_exists_just_above_an_exact_p_up() -> None:
+    """Scalar plant (C invertible): p_up = p_c = 1 − 1/a² = 9/25 exactly (Sinopoli Section IV),
+    so V̄ exists at p = 9/25 + 10⁻⁴⁰ although p rounds onto 9/25 in float64."""
+    doc = {"name": "probe", "A": [[1.25]], "C": [[1]], "Q": 1, "R": 2.5,
+           "channel": {"model": "bernoulli", "arrival_probability": "9/25 + 10^-40"}}
+    cb = analyze_simulated(doc)["covariance_bounds"]
+    assert cb["upper"]["exists"] is True and cb["lower"]["exists"] is True

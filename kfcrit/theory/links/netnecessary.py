@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from kfcrit.errors import KfcritError
+from kfcrit.errors import KfcritError, NumericalError
 from kfcrit.model.exprparse import compare
 from kfcrit.model.network import Network
 from kfcrit.theory.critical.section import structure_of
@@ -193,9 +193,10 @@ def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Cons
                 for U in itertools.combinations(reps, size):
                     tried += 1
                     if tried > FLAT_BUDGET:
-                        raise KfcritError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
-                                          f"eigenspace seen by {len(seen)} sensors: more than "
-                                          f"{FLAT_BUDGET} sensor combinations", field="sensors")
+                        raise NumericalError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
+                                             f"eigenspace seen by {len(seen)} sensors: more than "
+                                             f"{FLAT_BUDGET} sensor combinations (a size limit of "
+                                             "kfcrit, not an error in the file)", field="sensors")
                     if rank(list(U)) != g - 1:
                         continue
                     closure = frozenset(i for i in seen if rank(list(U) + [i]) == g - 1)
