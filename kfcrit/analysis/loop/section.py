@@ -33,7 +33,10 @@ from kfcrit.analysis.loop.designs import (
     tcp_cost_at,
     tcp_rectangle,
 )
+from kfcrit.analysis.loop.schema import LoopSection
 from kfcrit.analysis.records.contract import RequirementAssessment
+from kfcrit.analysis.records.link import DesignCheck
+from kfcrit.analysis.records.read import read_plain
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import to_float
 from kfcrit.theory.facts import StabilityFacts
@@ -185,12 +188,15 @@ def cost_dict(cost: Any) -> dict[str, Any]:
             "error": num(cost.error) if cost.error is not None else None, "reason": cost.reason}
 
 
-def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str]
-                  ) -> tuple[dict[str, Any], list[vd.Reason], dict[str, Any] | None]:
+def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str],
+                  timings: dict[str, float] | None = None
+                  ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """The ``loop`` section, the review's loop reasons and the cost requirement's assessment.
 
     Also sets ``operating_point.verdict`` to the rule of
-    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop).
+    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop). The section is
+    assembled from the loop theory's plain results (:mod:`kfcrit.theory.loop`) and read once,
+    strictly, as :class:`~kfcrit.analysis.loop.schema.LoopSection` before it is returned.
     """
     lp = spec.loop
     m = plant(spec)
@@ -227,7 +233,7 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
         try:
             design = judged_design(spec)
         except (ValueError, np.linalg.LinAlgError) as exc:
-            return _no_design(out, spec, sec, exc, act, notes, warnings)
+            return _no_design(out, spec, sec, exc, act, notes, warnings, timings)
         res = fixed_loop(design, s_link, a_link)
         facts = fixed_facts(res.stability)
         out["stability"] = {"status": res.stability.status, "holds": res.stability.holds,
@@ -259,7 +265,8 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
-    return out, vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
+    return (read_plain(LoopSection, out, "loop", timings), vd.loop_reasons(verdict, basis, check),
+            cost_assessment(spec, out))
 
 
 def _trace_link(spec: SystemSpec) -> bool:
@@ -267,8 +274,9 @@ def _trace_link(spec: SystemSpec) -> bool:
 
 
 def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: Exception,
-               act: dict[str, Any], notes: list[str], warnings: list[str]
-               ) -> tuple[dict[str, Any], list[vd.Reason], dict[str, Any] | None]:
+               act: dict[str, Any], notes: list[str], warnings: list[str],
+               timings: dict[str, float] | None = None
+               ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """No default gains exist (a Riccati equation has no stabilising solution): the loop is
     mean-square unstable when (A, B) is not stabilisable (ν_c does not exist), else
     undetermined."""
@@ -288,7 +296,8 @@ def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: 
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
-    return out, vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
+    return (read_plain(LoopSection, out, "loop", timings), vd.loop_reasons(verdict, basis, None),
+            cost_assessment(spec, out))
 
 
 def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesign | None,
@@ -322,7 +331,7 @@ def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesi
 
 
 def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | None,
-                   warnings: list[str]) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+                   warnings: list[str]) -> tuple[dict[str, Any] | None, DesignCheck | None]:
     """The actuation link budget against its margin policy, read against the arrival
     probability the loop needs there: ν_c (TCP-like) or the design's critical ν̄ at the
     operating γ̄ (the upper end of its bracket)."""
@@ -345,13 +354,13 @@ def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | 
     req = (lb.get("required_arrival_probability") or {}).get("design_value")
     summary = {"required_arrival_probability": req, "required_basis": basis,
                "arrival_probability": out["actuation_arrival_probability"],
-               "link_margin_db": check.get("link_margin_db"),
-               "required_margin_db": check.get("required_margin_db"),
-               "margin_policy_met": check.get("margin_policy_met"),
-               "distance_m": check.get("distance_m"), "max_distance_m": check.get("max_distance_m"),
-               "outage_probability": check.get("outage_probability"),
-               "max_outage": check.get("max_outage"),
-               "outage_within_policy": check.get("outage_within_policy"),
+               "link_margin_db": check.link_margin_db,
+               "required_margin_db": check.required_margin_db,
+               "margin_policy_met": check.margin_policy_met,
+               "distance_m": check.distance_m, "max_distance_m": check.max_distance_m,
+               "outage_probability": check.outage_probability,
+               "max_outage": check.max_outage,
+               "outage_within_policy": check.outage_within_policy,
                "sinr_db": link.get("sinr_db"), "radio": (lb.get("radio") or {}).get("model")}
     return summary, check
 

@@ -25,7 +25,9 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.measured.section import ChannelFitSection
 from kfcrit.analysis.measured.single import MeasuredFit, fit_fields
+from kfcrit.analysis.records.read import read_plain
 from kfcrit.errors import InputError
 from kfcrit.link.tracefit import clopper_pearson, fit_trace, joint_law, rows_to_decide
 from kfcrit.model.network import Network
@@ -166,7 +168,8 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
                          f"the fit above is of the trace 'at least one sensor received'; the "
                          f"likelihood-ratio p-value {fit.lrt_p_value:.3g} tests whether it is "
                          "i.i.d. in time, as the joint-law theory assumes"]}
-    return MeasuredFit(section, None, inputs)
+    # assembled from the trace fits' and the joint law's plain results: read once, here
+    return MeasuredFit(read_plain(ChannelFitSection, section, "channel_fit"), None, inputs)
 
 
 def set_text(names: list[str]) -> str:

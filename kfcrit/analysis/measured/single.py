@@ -23,6 +23,8 @@ from typing import Any
 import numpy as np
 
 from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.measured.section import ChannelFitSection
+from kfcrit.analysis.records.read import read_plain
 from kfcrit.link.tracefit import (
     ChannelFit,
     fit_trace,
@@ -39,9 +41,9 @@ certificate search per point)."""
 
 @dataclass(frozen=True)
 class MeasuredFit:
-    """The ``channel_fit`` section (plain JSON form) and the verdict's inputs."""
+    """The ``channel_fit`` section and the verdict's inputs."""
 
-    section: dict[str, Any]
+    section: ChannelFitSection
     inputs: vd.MeasuredInputs | None
     joint: vd.JointLawInputs | None = None
 
@@ -246,7 +248,8 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
     out["boundary"] = boundary_section(system, crit, fit, structure=structure,
                                        curve=details and fit.model == "gilbert-elliott")
     out["notes"] = model_notes(fit)
-    return MeasuredFit(out, inputs)
+    # assembled from the trace fit's plain results (kfcrit.link.tracefit): read once, here
+    return MeasuredFit(read_plain(ChannelFitSection, out, "channel_fit"), inputs)
 
 
 def model_notes(fit: ChannelFit) -> list[str]:
