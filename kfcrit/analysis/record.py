@@ -34,7 +34,11 @@ from kfcrit.analysis.links import bursty_channel, design_check, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
-from kfcrit.analysis.records.bursty import BurstCurveRecord, GilbertElliottSection
+from kfcrit.analysis.records.bursty import (
+    BurstCertificateRecord,
+    BurstCurveRecord,
+    GilbertElliottSection,
+)
 from kfcrit.analysis.records.channel import channel_record
 from kfcrit.analysis.records.contract import (
     OperatingPoint,
@@ -840,28 +844,31 @@ def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheoryS
     §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
     :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
     (failure rate, recovery rate) plane."""
-    from kfcrit.analysis.bursty import gilbert_elliott_section
+    from kfcrit.analysis.bursty import gilbert_elliott_record
     from kfcrit.theory.links import markov
 
     s = spec.system
     cls = theory.classification
-    out = gilbert_elliott_section(s, ge, seed=opts.seed, simulate=opts.details,
-                                  classification=cls)
-    if cls != "not-detectable":
-        bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate,
-                                structure=theory.structure, classification=cls)
-        out["certificate"] = vd.with_verdict(bv.to_dict())
-        if opts.details and s.n <= 12 and cls != "stable":
-            points = 5 if opts.quick else 9
-            grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
-                          | {0.01, float(ge.failure_rate)})
-            curve = markov.burst_critical_curve(
-                s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
-                operating=(float(ge.failure_rate), float(ge.recovery_rate)),
-                structure=theory.structure)
-            out["critical_curve"] = curve.to_dict()
-    # assembled from the simulation's and the theory's plain results: read once, here
-    return read_plain(GilbertElliottSection, out, path, timings)
+    out = gilbert_elliott_record(s, ge, seed=opts.seed, simulate=opts.details,
+                                 classification=cls)
+    if cls == "not-detectable":
+        return out
+    bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
+                            classification=cls)
+    out = replace(out, certificate=read_plain(BurstCertificateRecord,
+                                              vd.with_verdict(bv.to_dict()),
+                                              f"{path}.certificate", timings))
+    if opts.details and s.n <= 12 and cls != "stable":
+        points = 5 if opts.quick else 9
+        grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
+                      | {0.01, float(ge.failure_rate)})
+        curve = markov.burst_critical_curve(
+            s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
+            operating=(float(ge.failure_rate), float(ge.recovery_rate)),
+            structure=theory.structure)
+        out = replace(out, critical_curve=read_plain(BurstCurveRecord, curve.to_dict(),
+                                                     f"{path}.critical_curve", timings))
+    return out
 
 
 def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],

@@ -1,7 +1,8 @@
 """The typed ``loop`` section of the analysis record (theory §12), field by field.
 
-Built as plain JSON by :mod:`kfcrit.analysis.loop.section` and read into these frozen
-dataclasses by :func:`kfcrit.io.typed.from_json` (strict), like every other section. Non-finite
+Assembled by :mod:`kfcrit.analysis.loop.section` from the loop theory's plain results and read
+into these frozen dataclasses once, where the section is made
+(:func:`kfcrit.analysis.records.read.read_plain`, strict). Non-finite
 numbers (an infinite cost) are ``null`` in JSON; ``finite`` then says which case it is.
 """
 from __future__ import annotations
