@@ -402,7 +402,7 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])
     ub_result = None
-    if sec.get("classification") == "not-detectable":   # the theory's plain value
+    if sec.get("classification") == "not-detectable":
         sec["upper_bound"] = not_detectable_upper()
     else:
         if upper_bound is None:
