@@ -550,8 +550,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     if spec.loop is not None:  # theory §12: operating_point.verdict becomes estimator AND loop
         from kfcrit.analysis.loop.section import loop_analysis
 
-        sec["loop"], loop_reasons, loop_cost = loop_analysis(spec, opts, sec, warnings,
-                                                             timings)
+        sec["loop"], loop_reasons, loop_cost = loop_analysis(spec, opts, sec, warnings)
     vd.stamp_operating_verdict(sec)
     if spec.network is not None and spec.network.size == 1:
         op1 = sec["operating_point"]

@@ -34,8 +34,8 @@ FILES = ["network-redundant-gauges", "link-oqpsk-sensor", "ge-bursty-scalar",
 """One file per kind of section: a network, a link budget, a Gilbert–Elliott link, a closed
 loop, a measured trace, a mesh, a continuous-time plant, requirements."""
 
-BUILT_TYPED = frozenset({"system", "network", "link_budget", "channel_fit", "design", "tail",
-                         "requirements", "verification", "provenance", "review",
+BUILT_TYPED = frozenset({"system", "network", "link_budget", "channel_fit", "loop", "design",
+                         "tail", "requirements", "verification", "provenance", "review",
                          "operating_point", "mesh"})
 """Sections the analysis builds as their classes (a lower layer's plain parts inside them are
 read by field, ``record.KEY.FIELD``, never the whole section ``record.KEY``)."""

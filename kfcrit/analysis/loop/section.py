@@ -33,10 +33,21 @@ from kfcrit.analysis.loop.designs import (
     tcp_cost_at,
     tcp_rectangle,
 )
-from kfcrit.analysis.loop.schema import LoopSection
+from kfcrit.analysis.loop.schema import (
+    LoopCostCurve,
+    LoopCostSummary,
+    LoopCurve,
+    LoopDesignRow,
+    LoopGains,
+    LoopLinkCheck,
+    LoopSection,
+    LoopSimulationSummary,
+    LoopStability,
+    LoopThreshold,
+)
 from kfcrit.analysis.records.contract import RequirementAssessment
 from kfcrit.analysis.records.link import DesignCheck
-from kfcrit.analysis.records.read import read_plain
+from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import to_float
 from kfcrit.theory.facts import StabilityFacts
@@ -188,15 +199,14 @@ def cost_dict(cost: Any) -> dict[str, Any]:
             "error": num(cost.error) if cost.error is not None else None, "reason": cost.reason}
 
 
-def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str],
-                  timings: dict[str, float] | None = None
+def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str]
                   ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """The ``loop`` section, the review's loop reasons and the cost requirement's assessment.
 
     Also sets ``operating_point.verdict`` to the rule of
-    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop). The section is
-    assembled from the loop theory's plain results (:mod:`kfcrit.theory.loop`) and read once,
-    strictly, as :class:`~kfcrit.analysis.loop.schema.LoopSection` before it is returned.
+    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop). The designs
+    and the Monte Carlo fill working values (:mod:`kfcrit.analysis.loop.designs` reads them);
+    :func:`loop_record` builds the section from them.
     """
     lp = spec.loop
     m = plant(spec)
@@ -233,7 +243,7 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
         try:
             design = judged_design(spec)
         except (ValueError, np.linalg.LinAlgError) as exc:
-            return _no_design(out, spec, sec, exc, act, notes, warnings, timings)
+            return _no_design(out, spec, sec, exc, act, notes, warnings)
         res = fixed_loop(design, s_link, a_link)
         facts = fixed_facts(res.stability)
         out["stability"] = {"status": res.stability.status, "holds": res.stability.holds,
@@ -265,8 +275,39 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
-    return (read_plain(LoopSection, out, "loop", timings), vd.loop_reasons(verdict, basis, check),
-            cost_assessment(spec, out))
+    return loop_record(out), vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
+
+
+def loop_record(out: dict[str, Any]) -> LoopSection:
+    """The ``loop`` section built from the loop's working values (the groups the designs and
+    the Monte Carlo fill, their NumPy numbers as Python numbers, each as its class)."""
+    def each(cls: type, value: Any) -> Any:
+        return None if value is None else cls(**jsonable(value))
+
+    def row(value: dict[str, Any]) -> LoopDesignRow:
+        plain = jsonable(value)
+        return LoopDesignRow(**{**plain, "cost": LoopCostSummary(**plain["cost"])})
+
+    return LoopSection(
+        acknowledged=bool(out["acknowledged"]), on_loss=out["on_loss"], design=out["design"],
+        sensing_arrival_probability=out["sensing_arrival_probability"],
+        actuation_arrival_probability=out["actuation_arrival_probability"],
+        sensing_iid=out["sensing_iid"], actuation_iid=out["actuation_iid"],
+        actuation_model=out["actuation_model"],
+        sensing_critical=each(LoopThreshold, out["sensing_critical"]),
+        actuation_critical=each(LoopThreshold, out["actuation_critical"]),
+        verdict=vd.LoopVerdict(out["verdict"]), basis=out["basis"],
+        operating_verdict=vd.Verdict(out["operating_verdict"]),
+        spectral_radius=jsonable(out["spectral_radius"]),
+        stability=each(LoopStability, out["stability"]), cost=each(LoopCostSummary, out["cost"]),
+        critical_curve=each(LoopCurve, out["critical_curve"]),
+        alternative_curve=each(LoopCurve, out["alternative_curve"]),
+        comparison=[row(r) for r in out["comparison"]],
+        cost_curves=[each(LoopCostCurve, c) for c in out["cost_curves"]],
+        simulation=each(LoopSimulationSummary, out["simulation"]),
+        actuation_link=each(LoopLinkCheck, out["actuation_link"]),
+        gains=each(LoopGains, out["gains"]), control_gain=jsonable(out["control_gain"]),
+        notes=list(out["notes"]))
 
 
 def _trace_link(spec: SystemSpec) -> bool:
@@ -274,8 +315,7 @@ def _trace_link(spec: SystemSpec) -> bool:
 
 
 def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: Exception,
-               act: dict[str, Any], notes: list[str], warnings: list[str],
-               timings: dict[str, float] | None = None
+               act: dict[str, Any], notes: list[str], warnings: list[str]
                ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """No default gains exist (a Riccati equation has no stabilising solution): the loop is
     mean-square unstable when (A, B) is not stabilisable (ν_c does not exist), else
@@ -296,8 +336,7 @@ def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: 
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
-    return (read_plain(LoopSection, out, "loop", timings), vd.loop_reasons(verdict, basis, None),
-            cost_assessment(spec, out))
+    return loop_record(out), vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
 
 
 def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesign | None,
