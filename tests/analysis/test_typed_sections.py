@@ -21,10 +21,12 @@ from kfcrit.analysis.record import (
     theory_sections,
 )
 from kfcrit.analysis.records import read
+from kfcrit.analysis.records.bursty import BurstCondition, StabilityFactsRecord
+from kfcrit.analysis.records.network import DeadLinkBurst
 from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.analysis.spec import load_spec
 from kfcrit.io import typed
-from kfcrit.io.typed import ABSENT
+from kfcrit.io.typed import ABSENT, RecordError
 
 REPORTS = Path(__file__).resolve().parents[2] / "reports"
 
@@ -114,3 +116,29 @@ def test_lean_rows_are_the_record_json(name: str) -> None:
     lean, _ = analysis_data(spec, options(), lean=True)
     for key, value in lean.items():   # a section the record leaves out is null in a row
         assert json.dumps(value) == json.dumps(full.get(key)), key   # same keys, same order
+
+
+def test_a_lower_layers_result_is_read_strictly_and_its_seconds_kept_apart() -> None:
+    plain = {"expression": "(1 - r) a^2 < 1", "value": 0.5, "holds": True, "status": "theorem",
+             "decides": True, "seconds": 0.25}
+    found: dict[str, float] = {}
+    cond = read.read_plain(BurstCondition, plain, "link_budget.condition", found)
+    assert cond == BurstCondition(expression="(1 - r) a^2 < 1", value=0.5, holds=True,
+                                  status="theorem", decides=True)
+    assert found == {"link_budget.condition.seconds": 0.25}
+    with pytest.raises(RecordError, match=r"record\.link_budget\.condition: unknown key 'extra'"):
+        read.read_plain(BurstCondition, {**plain, "extra": 1}, "link_budget.condition")
+    with pytest.raises(RecordError, match=r"record\.x\.holds: must be true or false"):
+        read.read_plain(BurstCondition, {**plain, "holds": "yes"}, "x")
+
+
+def test_fields_the_analysis_built_join_the_lower_layers_fields() -> None:
+    facts = StabilityFactsRecord(necessary=True, sufficient=False, exact_region=False,
+                                 necessary_basis="n", sufficient_basis="")
+    dead = read.read_fields(DeadLinkBurst, {"holds": True}, "network.burst", facts=facts)
+    assert dead == DeadLinkBurst(holds=True, facts=facts)
+    with pytest.raises(RecordError, match=r"record\.network\.burst: unknown key 'other'"):
+        read.read_fields(DeadLinkBurst, {"holds": True, "other": 1}, "network.burst",
+                         facts=facts)
+    with pytest.raises(RecordError, match=r"record\.network\.burst: .*facts"):
+        read.read_fields(DeadLinkBurst, {"holds": True}, "network.burst")

@@ -38,8 +38,7 @@ def split_timings(obj: Any, path: str, found: dict[str, float]) -> Any:
     return obj
 
 
-def read_plain(tp: Any, value: Any, path: str,
-                 timings: dict[str, float] | None = None) -> Any:
+def read_plain(tp: Any, value: Any, path: str, timings: dict[str, float] | None = None) -> Any:
     """A lower layer's plain result ``value`` as the record type ``tp``.
 
     Parameters
@@ -75,7 +74,8 @@ def read_fields(cls: type, plain: typing.Mapping[str, Any], path: str,
     Raises
     ------
     kfcrit.io.typed.RecordError
-        A plain key ``cls`` does not declare, or a plain value of the wrong type.
+        A plain key ``cls`` does not declare, a missing field, or a plain value of the wrong
+        type (names its path).
     """
     hints = _field_types(cls)
     unknown = sorted(k for k in plain if k not in hints and k not in TIMING_KEYS)
@@ -91,7 +91,10 @@ def read_fields(cls: type, plain: typing.Mapping[str, Any], path: str,
             found[f"{path}.{k}"] = v
             continue
         fields[k] = read_plain(hints[k], v, f"{path}.{k}", found)
-    return cls(**fields, **typed)
+    try:
+        return cls(**fields, **typed)
+    except TypeError as exc:   # a required field neither built nor stated
+        raise RecordError(f"record.{path}: {exc}") from None
 
 
 @functools.cache
