@@ -19,6 +19,7 @@ from kfcrit.analysis.records.network import (
 )
 from kfcrit.analysis.records.read import read_fields, read_plain
 from kfcrit.analysis.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
+from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 
 
@@ -204,8 +205,7 @@ def stacked_paths(paths: int, n: int, m: int) -> int:
     return max(min(paths, STACKED_MIN_PATHS), int(paths / factor)) if factor > 1 else paths
 
 
-def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint,
-                       timings: dict[str, float] | None = None) -> Simulation:
+def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint) -> Simulation:
     """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
     of C that arrived update the filter, theory §9): E[tr P_t] at the horizon, or — when the
     network is mean-unstable — the sample statistics labelled as not estimating a mean."""
@@ -221,14 +221,13 @@ def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint,
     mt = res.get("mean_trace") or {}
     last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
     horizon = res.get("horizon") or {}
-    # the simulator's plain result: read strictly as the fields it fills
-    summary = read_plain(NetworkSimulation, {
-        "paths": paths, "steps": budget.steps, "seed": opts.seed,
-        "sensors": [s.name for s in net.sensors], "mean_exists": None,
-        "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
-        "horizon_quantiles": horizon.get("quantiles"),
-        "horizon_levels": horizon.get("levels")}, "simulation.network", timings)
-    mean = read_plain(NetworkMeanTrace, last, "simulation.network.mean_trace", timings)
+    summary = NetworkSimulation(
+        paths=paths, steps=budget.steps, seed=opts.seed, sensors=[s.name for s in net.sensors],
+        mean_exists=None, **jsonable({
+            "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
+            "horizon_quantiles": horizon.get("quantiles"),
+            "horizon_levels": horizon.get("levels")}))
+    mean = NetworkMeanTrace(**jsonable(last))
     if op.verdict is vd.Verdict.MEAN_UNSTABLE:
         summary = replace(summary, mean_exists=False, sample_mean_trace=mean.mean,
                           statement="E[tr P_t] diverges (the network is mean-unstable): the "

@@ -573,7 +573,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     if spec.network is not None and spec.network.size > 1:
         if opts.simulate and opts.details and not (opts.quick and s.n >
                                                    QUICK_SIMULATION_MAX_STATES):
-            sec["simulation"] = network_simulation(spec, opts, sec["operating_point"], timings)
+            sec["simulation"] = network_simulation(spec, opts, sec["operating_point"])
         else:
             sec["simulation"] = Simulation(skipped=True, reason="simulation disabled")
     elif spec.mesh is not None:
