@@ -9,22 +9,28 @@ simulator, :func:`kfcrit.sim.montecarlo.simulate`.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.records.bursty import (
+    BurstCertificateRecord,
     BurstCondition,
+    BurstCurveRecord,
     BurstSimulationCheck,
     GilbertElliottSection,
     LiteratureClaim,
 )
+from kfcrit.analysis.records.read import read_plain
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.typed import to_json
 from kfcrit.model.channels import Channel, GilbertElliott
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import simulate
 from kfcrit.theory.critical.section import critical_value
+from kfcrit.theory.links.markov import burst_necessary
 
 GE_CLAIMS: tuple[dict[str, str], ...] = (
     {"statement": "Kalman filtering with Markovian (Gilbert-Elliott) packet losses: conditions "
@@ -137,6 +143,17 @@ def ge_condition_status(system: Any, classification: str, c_nonzero: bool) -> tu
             False)
 
 
+def _condition_holds(system: Any, recovery_rate: Any, value: float) -> bool:
+    r"""(1 − r)ρ(A)² < 1, decided exactly where r and ρ(A)² are exact
+    (:func:`kfcrit.theory.links.markov.burst_necessary`); the float ``value`` only when the
+    exact decision is out of reach.
+
+    .. math::  (1 - r)\,\rho(A)^2 < 1
+    """
+    holds = burst_necessary(system, recovery_rate).holds
+    return bool(value < 1) if holds is None else bool(holds)
+
+
 def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
                             simulate: bool = True,
                             classification: str | None = None) -> dict[str, Any]:
@@ -218,6 +235,43 @@ def gilbert_elliott_record(system: Any, channel: GilbertElliott, *, seed: int = 
         stationary_arrival_probability=r / (f + r), mean_burst_length=1 / r, spectral_radius=a,
         classification=classification,
         condition=BurstCondition(expression="(1 - r) a^2 < 1", value=jsonable(value),
-                                 holds=bool(value < 1), status=status, decides=decides),
+                                 holds=_condition_holds(system, channel.recovery_rate, value),
+                                 status=status, decides=decides),
         required_recovery_rate=r_min, max_mean_burst_length=(1 / r_min) if r_min > 0 else None,
         claims=[LiteratureClaim(**c) for c in GE_CLAIMS], **out)
+
+
+def bursty_link_section(spec: Any, opts: Any, theory: Any, ge: GilbertElliott,
+                        timings: dict[str, float] | None = None,
+                        path: str = "link_budget") -> GilbertElliottSection:
+    """The Gilbert–Elliott section of a bursty chain: the conditions of theory §7 (scalar) and
+    §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
+    :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
+    (failure rate, recovery rate) plane. ``theory`` is the system's
+    :class:`~kfcrit.analysis.record.TheorySections`, ``opts`` the analysis options; the
+    theory's certificate and curve (plain data) are read where they enter, their seconds into
+    ``timings``."""
+    from kfcrit.theory.links import markov
+
+    s = spec.system
+    cls = theory.classification
+    out = gilbert_elliott_record(s, ge, seed=opts.seed, simulate=opts.details,
+                                 classification=cls)
+    if cls == "not-detectable":
+        return out
+    bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
+                            classification=cls)
+    out = replace(out, certificate=read_plain(BurstCertificateRecord,
+                                              vd.with_verdict(bv.to_dict()),
+                                              f"{path}.certificate", timings))
+    if opts.details and s.n <= 12 and cls != "stable":
+        points = 5 if opts.quick else 9
+        grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
+                      | {0.01, float(ge.failure_rate)})
+        curve = markov.burst_critical_curve(
+            s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
+            operating=(float(ge.failure_rate), float(ge.recovery_rate)),
+            structure=theory.structure)
+        out = replace(out, critical_curve=read_plain(BurstCurveRecord, curve.to_dict(),
+                                                     f"{path}.critical_curve", timings))
+    return out

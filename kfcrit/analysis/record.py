@@ -34,11 +34,7 @@ from kfcrit.analysis.links import bursty_channel, design_check, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
-from kfcrit.analysis.records.bursty import (
-    BurstCertificateRecord,
-    BurstCurveRecord,
-    GilbertElliottSection,
-)
+from kfcrit.analysis.records.bursty import BurstCurveRecord, GilbertElliottSection
 from kfcrit.analysis.records.channel import channel_record
 from kfcrit.analysis.records.contract import (
     OperatingPoint,
@@ -258,8 +254,9 @@ def burst_inputs(spec: SystemSpec, link: Any) -> vd.BurstInputs | None:
     sufficient, basis = None, None
     if cond is not None and cond.decides is True and cond.holds is True:
         sufficient = True
-        basis = (f"Gilbert–Elliott condition {cond.expression} = {cond.value:.6g} "
-                 f"< 1 ({cond.status})")
+        shown = (f"{cond.value:.6g}" if cond.value != 1.0 else
+                 "1 to float precision, below 1 exactly (r exceeds 1 - 1/a^2)")
+        basis = f"Gilbert–Elliott condition {cond.expression} = {shown} < 1 ({cond.status})"
     cert = part.certificate if part is not None else None
     if sufficient is None and cert and cert.facts and cert.facts.sufficient is True:
         sufficient, basis = True, cert.basis or "coupled fixed-gain certificate"
@@ -546,6 +543,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     if sec.get("operating_point") is None:
         sec["operating_point"] = operating_point(spec, theory, sec.get("link_budget"),
                                                  measured.inputs if measured else None)
+    estimator = sec["operating_point"]   # the estimator's verdict, before a loop joins it
     loop_reasons, loop_cost = [], None
     if spec.loop is not None:  # theory §12: operating_point.verdict becomes estimator AND loop
         from kfcrit.analysis.loop.section import loop_analysis
@@ -584,7 +582,7 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
             "the Monte Carlo cross-check is left out (run without --quick for it); the verdict "
             "rests on the theory"))
     elif opts.details or tail:
-        _simulation_sections(spec, opts, sec, warnings, timings)
+        _simulation_sections(spec, opts, sec, warnings, timings, estimator)
     if sec.get("tail") is not None:
         sec["tail"] = tail_simulation_check(sec["tail"], sec.get("simulation"))
     requirements = requirement_assessment(reqs.to_dict() if reqs else None,
@@ -781,11 +779,14 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any], markers
         cb = bounds.covariance_bounds(s, markers.operating, upper=upper)
         if spec.channel is not None and spec.channel.model == "gilbert-elliott":
             from kfcrit.theory.links.burstcov import markov_jump_bounds
+            from kfcrit.theory.links.markov import burst_necessary
 
-            cb["markov_jump"] = markov_jump_bounds(s, float(spec.channel.failure_rate),
-                                                   float(spec.channel.recovery_rate)
-                                                   ).to_dict()
+            ge = spec.channel
+            cb["markov_jump"] = markov_jump_bounds(
+                s, float(ge.failure_rate), float(ge.recovery_rate),
+                necessary_holds=burst_necessary(s, ge.recovery_rate).holds).to_dict()
         typed = read_plain(CovarianceBounds, cb, "covariance_bounds", timings)
+        typed = replace(typed, lower=_lower_exists_exactly(typed.lower, spec.channel, sec))
         sec["covariance_bounds"] = typed
         warnings.extend(typed.warnings or [])
         if curves:
@@ -806,8 +807,26 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any], markers
     return read_plain(PhaseTransition, pt, "phase_transition", timings)
 
 
+def _lower_exists_exactly(lower: CovarianceSummary, channel: Any,
+                          sec: dict[str, Any]) -> CovarianceSummary:
+    r"""S̄ exists iff p > p_low (Sinopoli Thm 3, 4), decided on the exact p and p_low: a
+    float p that rounds onto p_low (p = 9/25 + 10⁻⁴⁰) finds no bounded S̄ in float64, yet S̄
+    exists, beyond float64.
+
+    .. math::  \exists\,\bar S \iff p > p_{low} = 1 - 1/\rho(A)^2
+    """
+    if lower.exists is not False or channel is None or not channel.iid:
+        return lower
+    low = sec.get("lower_bound")
+    expr = getattr(low, "expression", None)
+    if expr is None or not vd.exceeds(channel.arrival_probability, expr):
+        return lower
+    return replace(lower, exists=True, beyond_float64=True)
+
+
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                         warnings: list[str], timings: dict[str, float]) -> None:
+                         warnings: list[str], timings: dict[str, float],
+                         estimator: OperatingPoint | None = None) -> None:
     from kfcrit.theory.covariance import invariant
 
     inv = read_plain(Invariant | None, invariant.invariant_section(spec.system), "invariant",
@@ -830,44 +849,17 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     sim = read_plain(Simulation | None, simulation_section(
         spec, critical_value=pc, upper_bound=section_value(sec, "upper_bound"),
         seed=opts.seed, quick=opts.quick,
-        critical_bracket=tuple(bracket) if bracket and None not in bracket else None),
-        "simulation", timings)
+        critical_bracket=tuple(bracket) if bracket and None not in bracket else None,
+        mean_decision=_mean_decision(estimator)), "simulation", timings)
     sec["simulation"] = sim
     warnings.extend((sim.warnings or []) if sim is not None else [])
 
 
-def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
-                        ge: Any, timings: dict[str, float] | None = None,
-                        path: str = "link_budget") -> GilbertElliottSection:
-    """The Gilbert–Elliott section of a bursty chain: the conditions of theory §7 (scalar) and
-    §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
-    :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
-    (failure rate, recovery rate) plane."""
-    from kfcrit.analysis.bursty import gilbert_elliott_record
-    from kfcrit.theory.links import markov
-
-    s = spec.system
-    cls = theory.classification
-    out = gilbert_elliott_record(s, ge, seed=opts.seed, simulate=opts.details,
-                                 classification=cls)
-    if cls == "not-detectable":
-        return out
-    bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
-                            classification=cls)
-    out = replace(out, certificate=read_plain(BurstCertificateRecord,
-                                              vd.with_verdict(bv.to_dict()),
-                                              f"{path}.certificate", timings))
-    if opts.details and s.n <= 12 and cls != "stable":
-        points = 5 if opts.quick else 9
-        grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
-                      | {0.01, float(ge.failure_rate)})
-        curve = markov.burst_critical_curve(
-            s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
-            operating=(float(ge.failure_rate), float(ge.recovery_rate)),
-            structure=theory.structure)
-        out = replace(out, critical_curve=read_plain(BurstCurveRecord, curve.to_dict(),
-                                                     f"{path}.critical_curve", timings))
-    return out
+def _mean_decision(estimator: OperatingPoint | None) -> tuple[bool, str] | None:
+    """(exists, basis) of E[P_t] at the operating point as the estimator's verdict decides
+    it, or None (undetermined, or no operating point)."""
+    exists = vd.mean_bounded(estimator.verdict) if estimator is not None else None
+    return None if exists is None else (exists, estimator.basis)
 
 
 def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
@@ -876,6 +868,7 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
     ch = spec.channel
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
+    from kfcrit.analysis.bursty import bursty_link_section
     from kfcrit.link import linkbudget
 
     if ch.model == "gilbert-elliott":

@@ -37,6 +37,12 @@ class Verdict(str, enum.Enum):
     UNDETERMINED = "undetermined"
 
 
+def mean_bounded(verdict: Verdict | None) -> bool | None:
+    """Whether sup_t E[P_t] is finite, as the estimator's verdict decides it (None when it
+    does not decide): what every section that states the mean's existence follows."""
+    return {Verdict.MEAN_STABLE: True, Verdict.MEAN_UNSTABLE: False}.get(verdict)
+
+
 class LoopVerdict(str, enum.Enum):
     """Mean-square stability of a closed loop at the operating point (theory §12, §16.5)."""
 

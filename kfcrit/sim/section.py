@@ -73,8 +73,8 @@ def phase_probabilities(reference: float) -> list[tuple[str, float]]:
 
 def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: float | None,
                        seed: int, quick: bool,
-                       critical_bracket: tuple[float | None, float | None] | None = None
-                       ) -> dict[str, Any]:
+                       critical_bracket: tuple[float | None, float | None] | None = None,
+                       mean_decision: tuple[bool, str] | None = None) -> dict[str, Any]:
     """The ``simulation`` section of the analysis record.
 
     Keys: ``seed``, ``quick``, ``budget``, ``seeds``, ``operating_point`` (None without a
@@ -86,7 +86,9 @@ def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: 
     the mean exists at the operating point (:func:`mean_regime`; when it does not, the
     operating point carries no E[tr P_t] and no interval, only the sample statistics labelled
     as such) and whether tr P has a finite variance (:func:`tail_regime`, the upper end of what
-    is known about p_c: conservative).
+    is known about p_c: conservative). ``mean_decision`` = (exists, basis), when the caller
+    has decided the mean's existence exactly (the analysis's verdict at the operating point),
+    is the one that counts: the float comparison of :func:`mean_regime` then only describes.
     """
     t0 = time.perf_counter()
     if not isinstance(spec, SystemSpec):
@@ -103,7 +105,7 @@ def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: 
         warnings.append(note)
     with quiet_numerics():
         _simulation_parts(spec, system, budget, seed, critical_value, upper_bound,
-                          critical_bracket, out, warnings, checks)
+                          critical_bracket, out, warnings, checks, mean_decision)
     out["checks"] = checks
     out["runtime_seconds"] = time.perf_counter() - t0
     out["warnings"] = warnings
@@ -114,11 +116,13 @@ def _simulation_parts(spec: Any, system: System, budget: Budget, seed: int,
                       critical_value: float | None, upper_bound: float | None,
                       critical_bracket: tuple[float | None, float | None] | None,
                       out: dict[str, Any], warnings: list[str],
-                      checks: list[dict[str, Any]]) -> None:
+                      checks: list[dict[str, Any]],
+                      mean_decision: tuple[bool, str] | None = None) -> None:
     if spec.channel is not None:
         known = {"critical_value": critical_value, "critical_bracket": critical_bracket,
                  "upper_bound": upper_bound}
-        out["operating_point"] = _operating_point(spec, budget, seed, known, warnings, checks)
+        out["operating_point"] = _operating_point(spec, budget, seed, known, warnings, checks,
+                                                  mean_decision)
         out["seeds"]["operating_point"] = {
             "seed": int(seed), "paths": "SeedSequence(seed, spawn_key=(0, i))",
             "ergodic": "SeedSequence(seed, spawn_key=(2, j))"}
@@ -128,7 +132,8 @@ def _simulation_parts(spec: Any, system: System, budget: Budget, seed: int,
 
 
 def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any],
-                     warnings: list[str], checks: list[dict[str, Any]]) -> dict:
+                     warnings: list[str], checks: list[dict[str, Any]],
+                     mean_decision: tuple[bool, str] | None = None) -> dict:
     system, chan = spec.system, spec.channel
     samples = DEFAULT_SAMPLES if system.n <= 10 else 50  # λ_max costs ~n³ per sample
     # λ_max costs a dense eigenproblem per path and sample time: fewer times for large n
@@ -145,7 +150,7 @@ def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any]
         warnings.append(f"{e['divergence']['diverged_replicas']} of {erg.replicas} long paths "
                         "exceeded the divergence threshold (time averages stop there)")
     regime = tail_regime(system, chan, res.steps, **known)
-    mean = mean_regime(system, chan, **known)
+    mean = decided_mean(mean_regime(system, chan, **known), mean_decision)
     found = simulation_checks(system, chan, res, erg, regime)
     for c in found:
         if c.get("status") == "inconclusive":
@@ -166,6 +171,18 @@ def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any]
     if mean["exists"] is False:
         _withhold_means(op, warnings)
     return op
+
+
+def decided_mean(mean: dict[str, Any], decision: tuple[bool, str] | None) -> dict[str, Any]:
+    """:func:`mean_regime`'s answer, with ``exists`` (and, where it differs, the basis) taken
+    from the caller's exact ``decision`` = (exists, basis) when there is one."""
+    if decision is None or mean.get("exists") is None and mean.get("basis") == \
+            "a measured trace: no model":
+        return mean
+    exists, basis = decision
+    if mean.get("exists") is exists:
+        return mean
+    return {**mean, "exists": exists, "basis": f"the verdict at the operating point: {basis}"}
 
 
 DIVERGES = ("E[tr P_t] diverges at this operating point (sup_t E[tr P_t] = ∞: {basis}); a "

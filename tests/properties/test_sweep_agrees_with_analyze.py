@@ -58,6 +58,10 @@ def test_gilbert_elliott_grid_points_agree(f, r) -> None:  # noqa: ANN001
     assert row["status"] == "ok"
     assert row["verdict"] == rec["operating_point"]["verdict"]
     assert row["decision"] == rec["review"]["decision"]
+    # the margin of a bursty link is r − r_nec, r_nec = 1 − 1/ρ(A)² = 9/25 (by hand), as in
+    # the record, never p − p_c
+    assert row["margin"] == rec["operating_point"]["margin"]
+    assert row["margin"] == pytest.approx(float(r - sp.Rational(9, 25)), abs=1e-12)
     # necessary burst condition (MATH §10): (1 − r)·ρ(A)² ≥ 1 ⇔ r ≤ 1 − 1/1.5625 = 9/25
     if r <= sp.Rational(9, 25) and f + r != 1:
         assert row["verdict"] == "mean-unstable" and row["decision"] == "fail"

@@ -56,8 +56,28 @@ def operating_verdicts(record: dict) -> list[tuple[str, str]]:
     return out
 
 
+def mean_facts(record: dict) -> list[tuple[str, str]]:
+    """Every other statement of the record about E[P_t] at the operating point, as the
+    verdict it implies: the mean exists (stable) or not (unstable); S̄ ⪯ lim E[P_t] not
+    existing, or a divergence warning, implies unstable."""
+    out = []
+    sim_op = (record.get("simulation") or {}).get("operating_point") or {}
+    if sim_op.get("mean_exists") is not None:
+        out.append(("simulation.mean_exists",
+                    "mean-stable" if sim_op["mean_exists"] else "mean-unstable"))
+    cb = record.get("covariance_bounds") or {}
+    for path, bound in (("covariance_bounds.lower", cb.get("lower")),
+                        ("covariance_bounds.markov_jump.lower",
+                         (cb.get("markov_jump") or {}).get("lower"))):
+        if isinstance(bound, dict) and bound.get("exists") is False:
+            out.append((path, "mean-unstable"))
+    if any("diverges at this operating point" in w for w in record.get("warnings") or []):
+        out.append(("warnings", "mean-unstable"))
+    return out
+
+
 def assert_one_verdict(record: dict) -> str | None:
-    found = operating_verdicts(record)
+    found = operating_verdicts(record) + mean_facts(record)
     verdicts = {v for _, v in found}
     assert len(verdicts) <= 1, f"verdicts disagree: {found}"
     if not found:
@@ -152,3 +172,38 @@ def test_closed_loop_at_its_thresholds(gamma: str, nu: str, expected: str) -> No
            "loop": {"B": [[1]], "channel": {"model": "bernoulli",
                                             "arrival_probability": nu}}}
     assert assert_one_verdict(analyze_doc(doc)) == expected
+
+
+def analyze_simulated(doc: dict) -> dict:
+    spec = spec_from_mapping(doc, base_dir=Path("."))
+    return kfcrit.analyze(spec, quick=True).to_dict()
+
+
+@pytest.mark.parametrize("p, expected", [
+    ("9/25 + 10^-40", "mean-stable"), ("9/25", "mean-unstable"),
+    ("9/25 - 10^-40", "mean-unstable")])
+def test_simulated_record_at_the_threshold_has_one_verdict(p: str, expected: str) -> None:
+    """With the Monte Carlo, the bounds and the tail exponent: p_c = 1 − 1/a² = 9/25 for
+    a = 5/4 (by hand), and every section that states whether E[P_t] exists agrees with it,
+    although p rounds to 9/25 in float64."""
+    doc = {"name": "probe", "A": [[1.25]], "C": [[1]], "Q": 1, "R": 2.5,
+           "channel": {"model": "bernoulli", "arrival_probability": p}}
+    record = analyze_simulated(doc)
+    assert assert_one_verdict(record) == expected
+    finite = record["tail"]["exponent"]["finite_mean"]   # β > 1 iff (1 − p)a² < 1
+    assert finite is (expected == "mean-stable")
+
+
+@pytest.mark.parametrize("r, expected", [
+    ("9/25 + 10^-40", "mean-stable"), ("9/25", "mean-unstable"),
+    ("9/25 - 10^-40", "mean-unstable")])
+def test_scalar_bursty_link_at_the_threshold(r: str, expected: str) -> None:
+    """Scalar theorem (theory §7): n = 1, c ≠ 0, E[P_t] bounded iff (1 − r)a² < 1; a = −5/4
+    gives the threshold r = 9/25 (by hand)."""
+    doc = {"name": "ge", "A": [[-1.25]], "C": [[1]], "Q": 1, "R": 2.5,
+           "channel": {"model": "gilbert-elliott", "failure_rate": "1/20",
+                       "recovery_rate": r}}
+    record = analyze_simulated(doc)
+    assert assert_one_verdict(record) == expected
+    assert record["link_budget"]["condition"]["holds"] is (expected == "mean-stable")
+    assert record["review"]["decision"] == STATUS[expected]

@@ -83,6 +83,12 @@ def row_of(record: dict[str, Any]) -> dict[str, Any]:
                    margin=margin, verdict=op.get("verdict"), requirement=None,
                    requirement_basis="uniform margin of the sensor network (the conservative "
                                      "end of its interval when not exact)")
+    elif op and not op.get("iid") and op.get("margin_basis") and op.get("margin") is not None:
+        # a channel with memory: the record's margin (r − r_nec of a bursty link), not p − p_c
+        row.update(arrival_probability=op.get("arrival_probability"), iid=False,
+                   margin=op.get("margin"), verdict=op.get("verdict"),
+                   requirement=op.get("recovery_threshold"),
+                   requirement_basis=op.get("margin_basis"))
     elif op:
         p = op.get("arrival_probability")
         # against p_c or its robust value the record's own margin (an exact difference, so

@@ -10,7 +10,7 @@ Sinopoli Thm 4 and 6 (docs/theory.md §3), for p above the relevant threshold:
   stabilising when the solution of V = L_{K_0,p}(V) + Q + p K_0 R K_0' is positive definite: for
   a positive operator with Q ≻ 0 that holds iff ρ(L_{K_0,p}) < 1.
 
-Static gains (Sinopoli journal §V): a fixed gain K gives the jump-linear error system
+Static gains (Sinopoli journal Section V): a fixed gain K gives the jump-linear error system
 e' = (A + γ K C) e + noise, mean-square stable iff ρ(L_{K,p}) < 1 with steady covariance
 Σ = L_{K,p}(Σ) + Q + p K R K'. Its critical value p_K = inf{p : ρ(L_{K,p}) < 1} is never below
 p_up, and the best static gain attains p_up (that is the definition of p_up in Thm 5).

@@ -20,7 +20,8 @@ from typing import Any
 import sympy as sp
 
 from kfcrit.model.system import System
-from kfcrit.theory.links.markov import exact_rate, spectral_radius2
+from kfcrit.theory.critical.compare import compare_probability
+from kfcrit.theory.links.markov import Rho2, exact_rate, spectral_radius2
 
 SOURCE = ("Mo & Sinopoli, 'Kalman filtering with intermittent observations: tail distribution "
           "and critical value', IEEE Transactions on Automatic Control 57(3), 2012")
@@ -88,6 +89,27 @@ def tail_exponent(system: System, p: Any, classification: str | None = None,
         value = float(sp.N(sp.log(1 / (1 - pe)) / sp.log(sp.Rational(mid.numerator,
                                                                         mid.denominator)), 30))
         text = None
-    return TailExponent(value, text, True, value > 1, value > 2,
+    return TailExponent(value, text, True, _beta_exceeds(pe, rho, 1, value),
+                        _beta_exceeds(pe, rho, 2, value),
                         f"P(tr P > M) ~ M^(-{value:.6g}) for large M (non-degenerate system, "
                         "i.i.d. losses); E[tr P] finite iff beta > 1, variance iff beta > 2")
+
+
+def _beta_exceeds(p: sp.Expr, rho: Rho2, k: int, value: float) -> bool:
+    r"""β > k, decided exactly where ρ(A)² is exact (the package's one exact comparison),
+    rigorously from the enclosure of ρ(A)² otherwise, and from the float β only when the
+    enclosure straddles the boundary.
+
+    .. math::  \beta > k \iff \frac{1}{1-p} > \rho(A)^{2k} \iff p > 1 - \rho(A)^{-2k}
+    """
+    if rho.exact is not None:
+        try:
+            return compare_probability(p, 1 - 1 / rho.exact ** k) > 0
+        except ArithmeticError:
+            return value > k
+    pf = sp.Rational(p)
+    if pf > 1 - 1 / sp.Rational(rho.hi) ** k:
+        return True
+    if pf <= 1 - 1 / sp.Rational(rho.lo) ** k:
+        return False
+    return value > k

@@ -176,11 +176,11 @@ def classify_structure(system: System, st: Structure, low: Num) -> tuple[str, Nu
         if c_full_rank(system, st):
             return ("non-diagonalizable", low,
                     "A is not diagonalizable (outside Mo–Sinopoli), but C is invertible: "
-                    "Sinopoli et al. §IV, upper and lower bounds coincide, p_c = 1 − 1/ρ(A)²")
+                    "Sinopoli et al. Section IV, upper and lower bounds coincide, p_c = 1 − 1/ρ(A)²")
         if _single_unstable(st):
             return ("non-diagonalizable", low,
                     f"A is not diagonalizable (outside Mo–Sinopoli), but it has a single unstable "
-                    f"eigenvalue {eig_text(st, 0)}: Sinopoli et al. §IV, bounds coincide, "
+                    f"eigenvalue {eig_text(st, 0)}: Sinopoli et al. Section IV, bounds coincide, "
                     "p_c = 1 − 1/|λ₁|²")
         return ("non-diagonalizable", None,
                 "A is not diagonalizable: Mo–Sinopoli (H2) fails and the papers give no closed "

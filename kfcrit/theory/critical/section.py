@@ -7,7 +7,7 @@ The decision tree (docs/theory.md §3–§4, Mo–Sinopoli; the eigen-structure 
    diverges for every p, even with no losses);
 2. ρ(A) < 1                                            → ``stable``, p_c = 0;
 3. A not diagonalizable                                → ``non-diagonalizable``: no closed form,
-   except Sinopoli §IV (C invertible, or a single unstable eigenvalue), where p_c = p_low;
+   except Sinopoli Section IV (C invertible, or a single unstable eigenvalue), where p_c = p_low;
 4. every equi-block with |λ| ≥ 1 one-step observable   → ``non-degenerate`` (Thm 4),
    p_c = max(1 − |λ_1|^{−2}, 0);
 5. the |λ| ≥ 1 part is one degenerate equal-modulus pair → ``degenerate-second-order``
@@ -175,7 +175,7 @@ def _hypothesis_warnings(system: System, st: Structure) -> list[str]:
 def _exact_p_up(system: System, st: Structure, low: Num) -> list[tuple[Num, str, bool]]:
     """Cases where the upper bound p_up is known exactly: (value, why, theorem?).
 
-    * C invertible: p_up = p_low (Sinopoli et al. 2004 §IV, a theorem);
+    * C invertible: p_up = p_low (Sinopoli et al. 2004 Section IV, a theorem);
     * a single output (m = 1, exact path, every |λ|² of the unstable eigenvalues an explicit
       algebraic number): p_up = 1 − 1/Π_{|λ_i| > 1} |λ_i|² (with multiplicity) — docs/theory.md §3
       **[beyond]**: the dual of Elia's rank-one result, checked numerically on the paper
@@ -183,7 +183,7 @@ def _exact_p_up(system: System, st: Structure, low: Num) -> list[tuple[Num, str,
     """
     out: list[tuple[Num, str, bool]] = []
     if c_full_rank(system, st):
-        out.append((low, "C invertible: p_up = p_low (Sinopoli et al. 2004 §IV, theorem)", True))
+        out.append((low, "C invertible: p_up = p_low (Sinopoli et al. 2004 Section IV, theorem)", True))
     if system.m == 1 and st.path == "exact":
         unstable = [e for e in st.eigen if e.unit_cmp is not None and e.unit_cmp > 0]
         if all(e.mod2_expr is not None for e in unstable):

@@ -70,11 +70,16 @@ class MarkovJumpBounds:
     upper_reason: str
     spectral_radius: float | None
     gains: tuple[tuple[float, ...], ...] | None
+    lower_exists: bool | None = None
+    """Whether the lower bound exists when that is decided beyond its float trace (exactly:
+    (1 − r)ρ(A)² < 1 with a float that rounds onto 1); None: it exists iff it has a trace."""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON data (``covariance_bounds.markov_jump`` of the record)."""
         return {"failure_rate": self.failure_rate, "recovery_rate": self.recovery_rate,
-                "lower": {"trace": self.lower_trace, "exists": self.lower_trace is not None,
+                "lower": {"trace": self.lower_trace,
+                          "exists": (self.lower_trace is not None if self.lower_exists is None
+                                     else self.lower_exists),
                           "basis": self.lower_reason},
                 "upper": {"trace": self.upper_trace, "exists": self.upper_trace is not None,
                           "basis": self.upper_reason,
@@ -204,7 +209,8 @@ def burst_upper_covariance(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.nd
 
 
 def markov_jump_bounds(system: System, failure_rate: float, recovery_rate: float,
-                       gains: list[np.ndarray] | None = None) -> MarkovJumpBounds:
+                       gains: list[np.ndarray] | None = None, *,
+                       necessary_holds: bool | None = None) -> MarkovJumpBounds:
     """Lower and upper bounds on lim E[tr P_t] over a Gilbert–Elliott link (theory §10).
 
     Parameters
@@ -216,6 +222,10 @@ def markov_jump_bounds(system: System, failure_rate: float, recovery_rate: float
     gains : list of ndarray, optional
         Fixed gains (K_0, K_1) for the upper bound (predictor form, F = A + K C); by default
         the coupled Riccati choice.
+    necessary_holds : bool, optional
+        (1 − r)ρ(A)² < 1 decided exactly by the caller
+        (:func:`kfcrit.theory.links.markov.burst_necessary`): when it holds but the float
+        recursion finds no bounded lower bound, the bound exists beyond float64.
 
     Returns
     -------
@@ -229,8 +239,14 @@ def markov_jump_bounds(system: System, failure_rate: float, recovery_rate: float
                     if low is None else
                     "losses-only recursion Z_1 = pi_1 (A u(Q) A' + Q), Z_0 = (1 - r) A Z_0 A' + "
                     "f A Z_1 A' + pi_0 Q: lim inf E[P_t] is above Z_0 + Z_1 (theory §10)")
+    lower_exists = None
+    if low is None and necessary_holds:
+        lower_exists = True
+        lower_reason = ("(1 - r) rho(A)^2 < 1 exactly: the losses-only lower bound exists, but "
+                        "(1 - r) rho(A)^2 rounds to 1 in float64 and its series is beyond float64")
     up, rho, K, upper_reason = burst_upper_covariance(A, C, Q, R, f, r, gains)
     return MarkovJumpBounds(
         f, r, None if low is None else float(np.trace(low)),
         None if up is None else float(np.trace(up)), lower_reason, upper_reason, rho,
-        None if K is None else tuple(tuple(float(v) for v in k.ravel()) for k in K))
+        None if K is None else tuple(tuple(float(v) for v in k.ravel()) for k in K),
+        lower_exists)

@@ -52,6 +52,7 @@ import sympy as sp
 
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
+from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.plow import rational_rho2
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.upper import certify
@@ -199,13 +200,17 @@ def burst_necessary(system: System, recovery_rate: Any,
     lo, hi = one_minus * rho.lo, one_minus * rho.hi
     holds: bool | None = None
     how = rho.how
+    excess: sp.Expr | None = None
     if rho.exact is not None:
-        d = sp.N((1 - r) * rho.exact - 1, EXACT_DIGITS)
-        if abs(d) > sp.Float(10) ** (-(EXACT_DIGITS - 10)):
-            holds = bool(d < 0)
-        elif sp.simplify((1 - r) * rho.exact - 1) == 0:
-            holds = False
-            how += "; equality (1 - r) rho^2 = 1 proven exactly"
+        excess = sp.expand((1 - r) * rho.exact - 1)
+        try:   # (1 - r) rho^2 < 1  <=>  r > 1 - 1/rho^2: the package's one exact comparison
+            sign = compare_probability(r, 1 - 1 / rho.exact)
+        except ArithmeticError:
+            sign = None
+        if sign is not None:
+            holds = sign > 0
+            if sign == 0:
+                how += "; equality (1 - r) rho^2 = 1 proven exactly"
     elif r.is_Rational:
         if hi < 1:
             holds = True
@@ -216,14 +221,15 @@ def burst_necessary(system: System, recovery_rate: Any,
     value = float((lo + hi) / 2)
     expr = None if rho.exact is None else sp.sstr(rho.exact)
     rs = float(r)
+    shown = near_one_text(excess) if excess is not None else f"{value:.12g}"
     if holds is None:
         statement = (f"(1 - r) rho(A)^2 lies in [{float(lo):.12g}, {float(hi):.12g}] at "
                      f"r = {rs:.12g}: too close to 1 to decide")
     elif holds:
-        statement = (f"(1 - r) rho(A)^2 = {value:.12g} < 1 at r = {rs:.12g}: the necessary burst "
+        statement = (f"(1 - r) rho(A)^2 = {shown} < 1 at r = {rs:.12g}: the necessary burst "
                      "condition holds (not sufficient on its own)")
     else:
-        statement = (f"(1 - r) rho(A)^2 = {value:.12g} >= 1 at r = {rs:.12g}: a loss burst of j "
+        statement = (f"(1 - r) rho(A)^2 = {shown} >= 1 at r = {rs:.12g}: a loss burst of j "
                      "steps has probability (1 - r)^(j-1) r and lets the dominant mode grow like "
                      "rho^(2j), so E[P_t] diverges (docs/theory.md §7, §10)")
     return BurstNecessary(holds, value, (float(lo), float(hi)), float((rho.lo + rho.hi) / 2),
@@ -637,10 +643,36 @@ def burst_facts(system: System, failure_rate: Any, recovery_rate: Any,
                  "fixed gain, so E[P_t] is bounded (theory §10)")
         return BurstFacts(StabilityFacts(nec.holds, True, False, nec_basis, basis), basis,
                           f, r, stationary, nec, cert, claim)
+    if nec.holds and scalar_theorem_applies(system):
+        basis = ("scalar theorem (docs/theory.md §7): for n = 1 and c != 0, (1 - r) a^2 < 1 is "
+                 "necessary and sufficient for bounded E[P_t]; " + nec.statement)
+        return BurstFacts(StabilityFacts(True, True, True, nec_basis, basis), basis,
+                          f, r, stationary, nec, cert, claim)
     basis = ("neither condition decides: " + nec.statement + "; sufficient certificate not "
              "proven (" + cert.reason + ")")
     return BurstFacts(StabilityFacts(nec.holds, False, False, nec_basis, ""), basis,
                       f, r, stationary, nec, cert, claim)
+
+
+def near_one_text(excess: sp.Expr) -> str:
+    r"""The number 1 + ``excess`` in words a reader can compare with 1: ``1 - 1.5625e-40``
+    where a float would print ``1``.
+
+    .. math::  x = 1 + \varepsilon,\quad |\varepsilon| < 10^{-9} \Rightarrow
+               \text{"}1 \pm |\varepsilon|\text{"}
+    """
+    eps = sp.N(excess, 20)
+    if eps != 0 and abs(eps) < sp.Float("1e-9"):
+        return f"1 {'-' if eps < 0 else '+'} {float(abs(eps)):.6g}"
+    return f"{float(sp.N(1 + excess, 20)):.12g}"
+
+
+def scalar_theorem_applies(system: System) -> bool:
+    r"""Whether the scalar theorem of docs/theory.md §7 decides mean stability: n = 1, c ≠ 0.
+
+    .. math::  \sup_t E[P_t] < \infty \iff (1 - r)\,a^2 < 1 \qquad (n = 1,\ c \ne 0)
+    """
+    return system.n == 1 and any(e != 0 for e in system.C)
 
 
 @dataclass(frozen=True)

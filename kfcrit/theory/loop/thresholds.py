@@ -213,7 +213,7 @@ def actuation_threshold(A: Any, B: Any, W: Any = None, U: Any = None,
         return LoopThresholdFact("nu_c", value, (pl.down, pl.up), expr is not None,
                          pl.expression, "theorem", pl.rigorous,
                          f"B square and invertible ({how}): ν_c = max(1 − 1/ρ(A)², 0), the "
-                         "dual of 'C invertible' (Sinopoli et al. 2004 §IV)")
+                         "dual of 'C invertible' (Sinopoli et al. 2004 Section IV)")
     interval, certified, why, _ = _from_upper(dual, tol)
     if interval is None:
         return LoopThresholdFact("nu_c", None, None, False, None, "none", False,

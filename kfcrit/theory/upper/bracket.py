@@ -66,14 +66,14 @@ __all__ = ["METHODS", "PLow", "UpperBound", "c_invertible", "invariant_block_of"
 
 
 def _c_invertible_bound(system: System, how: str, known: PLow | None) -> UpperBound:
-    """p_up = p_c = p_low exactly when C is invertible (Sinopoli et al. 2004 §IV)."""
+    """p_up = p_c = p_low exactly when C is invertible (Sinopoli et al. 2004 Section IV)."""
     t0 = time.perf_counter()
     pl = known if known is not None else p_low_bounds(system)
     kappa = float(np.linalg.cond(system.c))
     statement = ("C is square and invertible (" + how + "): the gain K = −A C⁻¹ gives "
                  "F = A + K C = 0, so X ≻ L_{K,p}(X) = (1−p) A X A' has a solution X ≻ 0 iff "
                  "(1−p) ρ(A)² < 1, i.e. iff p > p_low; hence p_up = p_low = max(1 − 1/ρ(A)², 0) "
-                 "exactly and p_c = p_up = p_low (Sinopoli et al. 2004 §IV). The infimum is "
+                 "exactly and p_c = p_up = p_low (Sinopoli et al. 2004 Section IV). The infimum is "
                  "not attained: every p > p_low is certified by this K.")
     warn: list[str] = []
     if not system.exact and kappa > 1e8:
