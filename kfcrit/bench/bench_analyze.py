@@ -45,7 +45,7 @@ def write_system(n: int, path: Path) -> None:
                     "channel:\n  model: bernoulli\n  arrival_probability: 0.9\n")
 
 
-def run(path: Path, quick: bool, timeout: float, env: dict[str, str] | None = None) -> dict:
+def analyze_once(path: Path, quick: bool, timeout: float, env: dict[str, str] | None = None) -> dict:
     """Wall time, CPU time (user + system), exit code and peak RSS (MiB) of one
     ``kfcrit analyze`` child process, read from its own ``wait4`` resource usage."""
     cmd = [sys.executable, "-m", "kfcrit", "analyze", str(path), "--max-states", "100000"] + \
@@ -76,7 +76,7 @@ def run(path: Path, quick: bool, timeout: float, env: dict[str, str] | None = No
             "load_after": os.getloadavg(), "tail": tail}
 
 
-def main(argv: list[str] | None = None) -> int:
+def analyze_benchmark(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[200, 400])
     ap.add_argument("--skip-full", action="store_true", help="time --quick only")
@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
             for quick in (True, False):
                 if not quick and args.skip_full:
                     continue
-                r = run(path, quick, args.timeout, env)
+                r = analyze_once(path, quick, args.timeout, env)
                 target = TARGETS.get((n, quick))
                 lb, la = r["load_before"], r["load_after"]
                 print(f"n={n:>4} {'--quick' if quick else 'full   '} wall {r['seconds']:7.1f} s "
@@ -110,4 +110,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(analyze_benchmark())

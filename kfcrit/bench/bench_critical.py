@@ -171,7 +171,7 @@ def _time(system: System, repeat: int) -> tuple[float, dict]:
     return best, rec
 
 
-def main() -> None:
+def critical_benchmark() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--n", type=int, default=200)
@@ -221,4 +221,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    critical_benchmark()

@@ -49,7 +49,7 @@ def run_one(n: int, N: int, seed: int, ball: bool) -> dict:
             "load": os.getloadavg()[0]}
 
 
-def main(argv: list[str] | None = None) -> int:
+def network_benchmark(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--small", type=int, nargs="*", default=[4, 8, 12],
                     help="sensor counts at n = 6")
@@ -69,4 +69,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(network_benchmark())

@@ -97,7 +97,7 @@ def step_flops(n: int, m: int) -> int:
     return 2 * madds + m ** 3 // 3
 
 
-def main(argv: list[str] | None = None) -> int:
+def rre_benchmark(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--paths", type=int, default=4000)
     ap.add_argument("--steps", type=int, default=300)
@@ -163,4 +163,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(rre_benchmark())

@@ -85,7 +85,7 @@ def _load() -> str:
         return "load average unavailable"
 
 
-def run(points: int = 10_000, workers: int | None = None, dask_workers: int | None = None,
+def sweep_throughput(points: int = 10_000, workers: int | None = None, dask_workers: int | None = None,
         dask_processes: bool = True, out: TextIO | None = None,
         dask: bool = True) -> dict[str, Any]:
     """Run the benchmark and print its report.
@@ -170,7 +170,7 @@ def run(points: int = 10_000, workers: int | None = None, dask_workers: int | No
     return result
 
 
-def main(argv: list[str] | None = None) -> None:
+def sweep_benchmark(argv: list[str] | None = None) -> None:
     """Command-line entry: ``python -m kfcrit.bench.bench_sweep``."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=10_000)
@@ -181,9 +181,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--no-dask", action="store_true",
                     help="Local processes only (no Dask LocalCluster).")
     args = ap.parse_args(argv)
-    run(args.points, args.workers, args.dask_workers, dask_processes=not args.dask_threads,
+    sweep_throughput(args.points, args.workers, args.dask_workers, dask_processes=not args.dask_threads,
         dask=not args.no_dask)
 
 
 if __name__ == "__main__":
-    main()
+    sweep_benchmark()

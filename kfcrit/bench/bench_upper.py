@@ -1,6 +1,7 @@
 """Benchmark: kfcrit's upper bound p_up against the reference LMI bisection, in one process.
 
     python -m kfcrit.bench.bench_upper [--quick] [--reference-seconds S]
+    python -m kfcrit.bench.bench_upper --lower     # certified lower end at 400 states
 
 Times ``upper_bound`` of ``../shared/bench/reference_lmi.py`` (cvxpy + Clarabel, bisection to
 width 1e-6) and ``kfcrit.theory.upper.bracket.upper_bound`` (default method) on
@@ -81,7 +82,43 @@ def scaling_table(tol: float = 1e-6) -> list[dict]:
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
+LOWER_CASES = ((400, 60, 1e-6), (400, 60, 1e-9), (200, 40, 1e-6))
+"""(n, m, tol) of :func:`lower_table`: the interior root of random_system(400, 60, 0) whose
+lower end is proven by the enclosed unstable pair (docs/theory.md §3, Certified lower end for
+large blocks), at the bench tolerance and at analyze's 1e-9, and a face root for contrast."""
+
+
+def lower_table() -> list[dict]:
+    """Time p_up at each of :data:`LOWER_CASES` (one run each, seed 0): wall and CPU seconds,
+    the bracket width, whether each end is certified, the numbers of the lower-end enclosure
+    (eigenbasis condition, eigenvalue gap, radii, Weyl shift) and the load average before and
+    after the run."""
+    rows = []
+    for n, m, tol in LOWER_CASES:
+        before = os.getloadavg()
+        cpu = time.process_time()
+        wall, _best, res = _ours(n, m, 0, tol, 1)
+        cpu = time.process_time() - cpu
+        after = os.getloadavg()
+        lo, hi = res.interval
+        enc = res.solver.get("lower_enclosure") or {}
+        row = {"n": n, "m": m, "tol": tol, "seconds": wall, "cpu_seconds": cpu,
+               "width": hi - lo, "upper": res.certified,
+               "lower": bool(res.lower_evidence.get("certified")),
+               "lower_kind": res.lower_evidence.get("kind"), "status": res.status, **enc}
+        rows.append(row)
+        print(f"({n}, {m}) tol {tol:g}: [{lo:.15f}, {hi:.15f}] width {hi - lo:.2e} "
+              f"wall {wall:.2f} s cpu {cpu:.2f} s upper={res.certified} "
+              f"lower={row['lower']} ({row['lower_kind']}) status={res.status} "
+              f"load(1m/5m) {before[0]:.2f}/{before[1]:.2f} -> {after[0]:.2f}/{after[1]:.2f}",
+              flush=True)
+        if enc:
+            print("    lower enclosure: " + ", ".join(
+                f"{k}={v:.3g}" for k, v in enc.items() if isinstance(v, float)), flush=True)
+    return rows
+
+
+def upper_benchmark(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="skip the reference (uses 41 s)")
     ap.add_argument("--reference-seconds", type=float, default=None,
@@ -92,8 +129,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--large", action="store_true",
                     help="also time n = 100 and n = 200 (issue 18: analyze --quick at n = 200 "
                          "within 60 s; p_up's share is printed as a ratio to that budget)")
+    ap.add_argument("--lower", action="store_true",
+                    help="only the certified-lower-end table (400, 60) at 1e-6 and 1e-9, "
+                         "(200, 40) at 1e-6: times, load, both ends")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(shared_bench()))
+    if args.lower:
+        print(f"machine: {os.cpu_count()} cores, OPENBLAS_NUM_THREADS="
+              f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+        lower_table()
+        return 0
 
     print(f"machine: {os.cpu_count()} cores, OPENBLAS_NUM_THREADS="
           f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
@@ -142,4 +187,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(upper_benchmark())

@@ -39,11 +39,7 @@ Shadowing X (``path_loss.shadowing``):
   the arrivals are the two-state Markov (Gilbert–Elliott) approximation of
   :mod:`kfcrit.link.shadowing`, with stationary arrival probability p̄ — a bursty channel.
 
-Design outputs (``design_section``): for each required arrival probability (p_c, the robust
-value, the bracket ends, p_up) the required SINR and received power, the link margin of the
-configured link in dB, the largest distance that still meets it under the margin policy, and
-the outage probabilities. The bursty-loss condition is an analysis section
-(:func:`kfcrit.analysis.bursty.gilbert_elliott_section`).
+Design outputs: :func:`design_section`.
 """
 from __future__ import annotations
 
@@ -62,7 +58,15 @@ from kfcrit.errors import InputError
 from kfcrit.link.fading import NO_FADING, FastFading, correlated_all_fail, fading_note
 from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
-from kfcrit.link.propagation import MAX_SIGMA_DB, SHADOWING_MODES, Noise, PathLoss
+from kfcrit.link.propagation import (
+    BOLTZMANN,
+    MAX_SIGMA_DB,
+    SHADOWING_MODES,
+    SPEED_OF_LIGHT,
+    Noise,
+    PathLoss,
+    thermal_noise_dbm,
+)
 from kfcrit.link.radios import (
     CalibratedOqpsk,
     Radio,
@@ -79,7 +83,6 @@ from kfcrit.link.shadowing import (
     shadowing_averages,
     shadowing_grid,
 )
-from kfcrit.link.units import BOLTZMANN, SPEED_OF_LIGHT, thermal_noise_dbm
 from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check_keys
 
 __all__ = [

@@ -40,7 +40,7 @@ import numpy as np
 from kfcrit.errors import InputError
 from kfcrit.link.fields import integer_field, real_field
 from kfcrit.link.frames import IEEE802154_2450, UNFRAMED, FrameFormat
-from kfcrit.link.units import db_to_linear, thermal_noise_dbm
+from kfcrit.link.propagation import db_to_linear, thermal_noise_dbm
 
 SINR_SEARCH_DB = (-40.0, 60.0)
 """Interval (dB) searched when inverting PER(SINR); error rates outside it are reported as edges."""

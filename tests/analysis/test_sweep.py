@@ -529,7 +529,7 @@ def test_benchmark_module_runs_with_a_few_points() -> None:
     from kfcrit.bench import bench_sweep
 
     buf = io.StringIO()
-    result = bench_sweep.run(points=24, workers=1, dask_workers=1, dask_processes=False,
+    result = bench_sweep.sweep_throughput(points=24, workers=1, dask_workers=1, dask_processes=False,
                              out=buf)
     text = buf.getvalue()
     assert result["points"] == 24 and result["identical"] is True

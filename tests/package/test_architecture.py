@@ -219,8 +219,6 @@ def public_definitions() -> dict[str, list[str]]:
     """Module-level public classes and functions of the package, by name."""
     found: dict[str, list[str]] = {}
     for name, path in modules().items():
-        if name.startswith("kfcrit.bench"):
-            continue  # each benchmark is a script with its own ``main``
         tree = ast.parse(path.read_text())
         for node in tree.body:
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) \

@@ -238,13 +238,14 @@ def _system_seeded(n: int, m: int, seed: int) -> System:
 
 def test_interior_root_upper_end_is_certified_and_matches_an_independent_mare(large_path):
     """A root p* > p_low (three outputs for 19 unstable states): the preconditioned Stein
-    certificate proves the upper end; the lower end is the numerical Newton root."""
+    certificate proves the upper end; the lower end is proven on the enclosed unstable pair
+    (tests/theory/test_upper_lowercert.py)."""
     s = _system_seeded(40, 3, 2)
     tol = 1e-6
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     assert ub.solver["certificate_from"].startswith("stein")
     assert ub.certified and ub.status == "determined"
-    assert not ub.lower_evidence["certified"]
+    assert ub.lower_evidence["certified"] and ub.lower_evidence["kind"] == "certificate"
     lo, hi = ub.interval
     assert hi - lo <= tol * (1 + 1e-9)
     assert lo > 1 - 1 / _spectral_radius2(s.a) + 1e-3        # not a face root
@@ -274,3 +275,78 @@ def test_a_too_narrow_request_gives_a_wider_certified_bracket_not_the_trivial_on
     p_low = 1 - 1 / _spectral_radius2(s.a)
     assert lo <= p_low <= hi <= p_low + 1e-4
     assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+
+
+def test_stein_widths_widen_before_the_costly_fallback():
+    from kfcrit.theory.upper.large import WIDER_WIDTHS, fallback_widths, stein_widths
+
+    assert stein_widths(1e-9) == pytest.approx([0.9e-9, 0.5e-9, *WIDER_WIDTHS], rel=1e-12)
+    assert stein_widths(1e-6) == pytest.approx([0.9e-6, 0.5e-6, 1e-6, 1e-5, 1e-4], rel=1e-12)
+    assert fallback_widths(1e-9) == [1e-9, WIDER_WIDTHS[-1]]
+    assert fallback_widths(1e-3) == [1e-3]
+
+
+def test_an_interior_root_widens_with_the_stein_certificate_not_the_fallback(large_path,
+                                                                            monkeypatch):
+    """Far below float64's reach the cheap Stein block certificate is tried at the wider
+    widths before any :func:`float_certificate`; the lower end stays at the Newton root (never
+    lifted above it) and the widened bracket is reported as such."""
+    from kfcrit.theory.upper import large
+
+    tried: list[float] = []
+    real = large.stein_block_certificate
+
+    def stein(system, red, K, hi, stats, exact_views, **kw):  # noqa: ANN001, ANN003, ANN202
+        tried.append(hi)
+        return real(system, red, K, hi, stats, exact_views, **kw)
+
+    def no_fallback(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise AssertionError("float_certificate called although a Stein width passes")
+
+    monkeypatch.setattr(large, "stein_block_certificate", stein)
+    monkeypatch.setattr(large, "float_certificate", no_fallback)
+    s = _system_seeded(40, 3, 2)
+    tol = 1e-13
+    ub = bracket.upper_bound(s, tol=tol, method="newton")
+    assert ub.certified and ub.status == "undetermined"
+    assert any("certified to width" in w for w in ub.warnings)
+    lo, hi = ub.interval
+    p_star = ub.extras["p_star"]
+    assert lo <= p_star < hi and hi - lo > tol
+    # the lower end is the Newton root, or a proven point just below it
+    assert lo == p_star or (ub.lower_evidence["certified"] and p_star - lo <= hi - p_star)
+    # 0.9·tol first, then 0.5·tol (skipped when the solve already failed at 0.9·tol), wider
+    assert tried[0] == pytest.approx(p_star + 0.9 * tol, abs=1e-15)
+    assert tried[1:] == sorted(tried[1:]) and len(tried) >= 2 and hi == tried[-1]
+    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+
+
+def test_gmres_gives_up_only_when_the_budget_cannot_suffice():
+    from kfcrit.theory.upper.krylov import hopeless
+
+    # stalled: no reduction over two cycles
+    assert hopeless([1.0, 0.87, 0.87, 0.87], 1e-7, 17)
+    # fast: a factor ~50 per cycle reaches 1e-7 well within the budget
+    assert not hopeless([1.0, 0.1, 2e-3, 1e-5, 2e-7], 1e-7, 15)
+    # slow after a quick start: about 0.8 per cycle needs ~70 more cycles, 12 are left
+    assert hopeless([1.0, 0.7, 0.6, 0.25, 0.06, 0.03, 0.024, 0.019], 1e-7, 12)
+    # a slow start alone is not judged before the fifth cycle
+    assert not hopeless([1.0, 0.9, 0.85, 0.8], 1e-7, 16)
+
+
+def test_gmres_with_give_up_still_solves_a_well_conditioned_system():
+    from kfcrit.theory.upper.krylov import gmres_solve
+
+    rng = np.random.default_rng(1)
+    M = np.eye(200) + 0.3 * rng.normal(size=(200, 200)) / np.sqrt(200)
+    b = rng.normal(size=200)
+    x, count, ok = gmres_solve(lambda v: M @ v, b, 1e-12, 20, 30, give_up=True)
+    assert ok and np.linalg.norm(M @ x - b) <= 1e-11 * np.linalg.norm(b)
+    # the cyclic shift with b = e₁ stalls restarted GMRES completely (residual 1 for every
+    # restart shorter than n): given up after a few cycles, not 30
+    e = np.zeros(200)
+    e[0] = 1.0
+    x, count, ok = gmres_solve(lambda v: np.roll(v, 1), e, 1e-12, 5, 30, give_up=True)
+    assert not ok and count <= 5 * 4
+    x, count, ok = gmres_solve(lambda v: np.roll(v, 1), e, 1e-12, 5, 30)
+    assert not ok and count >= 5 * 30

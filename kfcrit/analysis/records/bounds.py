@@ -104,3 +104,6 @@ class UpperSolver:
     operator_applications: int = opt_key()
     """Matrix-free applications of the Lyapunov-type operator (GMRES and Newton, large blocks)."""
     verified_by: str = opt_key()
+    lower_enclosure: dict[str, float | None] = opt_key()
+    """Numbers of the certified lower end of an interior root (large blocks): eigenbasis
+    condition, eigenvalue gap, radii of the enclosed unstable pair, Weyl shift, margin."""

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 from kfcrit.analysis.records.bursty import StabilityFactsRecord
 from kfcrit.analysis.records.contract import CriticalValueRecord, UpperBoundRecord
-from kfcrit.analysis.records.covariance import ValueExpression
 from kfcrit.analysis.records.link import DesignCheck, LinkState, MarginPolicy, Shadowing
 from kfcrit.io.typed import opt_key
 
@@ -18,7 +17,9 @@ class SensorCriticalValue:
     """`network.sensors[].critical_value`"""
 
     value: float | None
-    interval: list[float | None]
+    interval: list[float | None] | None
+    """[lower, upper] of the critical value; None when no p_i in [0, 1] gives mean stability
+    (a necessary constraint without this sensor fails: ``basis`` says so)."""
     exact: bool
     expression: str | None
     basis: str
@@ -49,11 +50,23 @@ class SufficientSurface:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SensorSurfaces:
-    """`network.sensors[].surfaces`"""
+class NecessarySurfacePoint:
+    """`network.sensors[].surfaces.necessary`: least p_i the necessary surface allows.
 
-    necessary: ValueExpression
-    sufficient: SufficientSurface
+    ``expression`` is None when an ingredient is not exact."""
+
+    value: float | None
+    expression: str | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorSurfaces:
+    """`network.sensors[].surfaces`: each None where not crossed on this coordinate.
+
+    (No p_i works, or no certificate was found up to p_i = 1.)"""
+
+    necessary: NecessarySurfacePoint | None
+    sufficient: SufficientSurface | None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -61,7 +74,8 @@ class SensorMargin:
     """`network.sensors[].margin`"""
 
     value: float | None
-    interval: list[float | None]
+    interval: list[float | None] | None
+    """None when the critical value has no interval (no p_i works)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -106,8 +120,11 @@ class UniformMargin:
     """`network.uniform_margin`"""
 
     value: float | None
-    interval: list[float | None]
-    unbounded: bool | None
+    interval: list[float | None] | None
+    """None when δ is unbounded (``unbounded`` says which way)."""
+    unbounded: str | None
+    """``positive`` (mean-stable with every link dead), ``negative`` (a necessary constraint
+    fails even with every link perfect) or None."""
     rule: str
     reason: str
 
@@ -144,7 +161,9 @@ class NecessaryConstraint:
     blind_sensors: list[str]
     eigenvalue: str
     modulus2: float | None
-    modulus2_expression: str
+    modulus2_expression: str | None
+    """|λ|² exactly; None when the eigenvalue is only known in floats (e.g. n beyond the exact
+    structure path)."""
     decided: str
     condition: str
 

@@ -40,8 +40,8 @@ import numpy as np
 
 from kfcrit.errors import InputError
 from kfcrit.link.linkbudget import LinkBudget
+from kfcrit.link.propagation import SPEED_OF_LIGHT
 from kfcrit.link.radios import CalibratedOqpsk, Ieee802154Oqpsk
-from kfcrit.link.units import SPEED_OF_LIGHT
 
 MAX_NS3_SENSORS = 64
 """Most sensors simulated together (short addresses 1..64)."""

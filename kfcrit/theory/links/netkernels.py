@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import flint
 import numpy as np
 
+from kfcrit.errors import NumericalError
 from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 from kfcrit.theory.upper.certify import PRECISION_BITS, arb_from_float, arb_from_sympy, definite_margin
 
@@ -45,6 +46,9 @@ COLLECTION_BUDGET = 4096
 NEWTON_EPS = 1e-9
 """Regulariser of the threshold Newton (Q = R = ε·tr X·I): its root is a little above the
 plain threshold, and its eigenvector X_ε ≻ 0 with gains K_ε is a certificate there."""
+CONGRUENCE_MAX_BYTES = 1 << 30
+"""Most memory of one batch of vech congruence operators (K × N_v × N_v floats, with its
+temporaries); beyond, the certificate search is refused rather than run out of memory."""
 POWER_FLOOR = 1e-12
 """Homogeneous regulariser floor of the plain map (keeps C_S X C_S' + εtI invertible)."""
 
@@ -190,8 +194,19 @@ def set_gains(plant: Plant, B: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def congruence_batch(F: np.ndarray) -> np.ndarray:
-    """Matrices of X ↦ F_S X F_S' on ``vech`` coordinates, batched (K × N_v × N_v)."""
+    """Matrices of X ↦ F_S X F_S' on ``vech`` coordinates, batched (K × N_v × N_v).
+
+    Refused (NumericalError naming the limit) when the K × N_v × N_v result and its two
+    temporaries would exceed :data:`CONGRUENCE_MAX_BYTES`, N_v = n(n + 1)/2.
+    """
     n = F.shape[-1]
+    nv = n * (n + 1) // 2
+    need = 3 * F.shape[0] * nv * nv * 8
+    if need > CONGRUENCE_MAX_BYTES:
+        raise NumericalError(
+            f"the network certificate needs {F.shape[0]} operators of size {nv} × {nv} "
+            f"(n = {n} states, {need / 2 ** 30:.1f} GiB), above the limit of "
+            f"{CONGRUENCE_MAX_BYTES / 2 ** 30:.0f} GiB", field="network")
     iu, ju = np.triu_indices(n)
     Fr, Fs = F[:, iu, :], F[:, ju, :]
     T = Fr[:, :, iu] * Fs[:, :, ju] + Fr[:, :, ju] * Fs[:, :, iu]

@@ -34,7 +34,6 @@ For one sensor the single-link theory (Sinopoli, Mo–Sinopoli: :mod:`kfcrit.the
 """
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -45,293 +44,36 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from kfcrit.errors import InputError, KfcritError
-from kfcrit.model.exprparse import compare, exact_text
+from kfcrit.errors import InputError
+from kfcrit.model.exprparse import exact_text
 from kfcrit.model.network import Network
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.links import netkernels as nk
+from kfcrit.theory.links.netmargins import exact_margin, network_bottleneck, uniform_necessary_bracket
+from kfcrit.theory.links.netnecessary import (  # noqa: F401 - Constraint, RANK_TOL re-exported
+    RANK_TOL,
+    Constraint,
+    factor_sign,
+    modal_one_step,
+    necessary_along,
+    necessary_constraints,
+    necessary_coordinate,
+    necessary_holds,
+)
 from kfcrit.theory.links.netsearch import Boundary, SeqContext, modal_gains
 from kfcrit.theory.upper.bracket import upper_bound
 
-RANK_TOL = 1e-9
-"""Relative tolerance of the float rank decisions (σ ≤ RANK_TOL·max(‖C‖, 1) counts as 0)."""
-FLAT_BUDGET = 20000
-"""Most sensor combinations tried per eigenvalue when enumerating hyperplanes (g ≥ 2)."""
 CERT_STEPS = (0.5, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
 """Certificates are tried at the Newton root + step·tol for these steps."""
-
-
-# ---- the necessary surface
-
-@dataclass(frozen=True)
-class Constraint:
-    """Necessary condition Π_{i∉T}(1 − p_i)·ρ_T² < 1 for a maximal unobservable set T."""
-
-    blind: frozenset[int]
-    mod2: float
-    mod2_expr: sp.Expr | None
-    eigenvalue: str
-    decided: str
-
-    def factor(self, p: np.ndarray) -> float:
-        """ρ_T² Π_{i∉T}(1 − p_i) in floats."""
-        out = self.mod2
-        for i in range(p.size):
-            if i not in self.blind:
-                out *= 1.0 - float(p[i])
-        return out
-
-    def factor_expr(self, p_exact: Sequence[sp.Expr | None]) -> sp.Expr | None:
-        """The same exactly (None when an ingredient is not exact)."""
-        if self.mod2_expr is None:
-            return None
-        out = self.mod2_expr
-        for i, pi in enumerate(p_exact):
-            if i not in self.blind:
-                if pi is None:
-                    return None
-                out = out * (1 - pi)
-        return out
-
-
-def _exact_eigvecs(A: sp.Matrix, lam: sp.Expr) -> list[sp.Matrix] | None:
-    """Exact eigenvectors for a rational eigenvalue (None otherwise or on failure)."""
-    if not (lam is not None and lam.is_Rational):
-        return None
-    try:
-        return (A - lam * sp.eye(A.shape[0])).nullspace()
-    except (ValueError, TypeError, ArithmeticError, NotImplementedError):
-        return None
-
-
-def _rank_fn(network: Network, e: Any, tol: float):
-    """Rank of the stacked C_i V over a set of sensors: exact for rational eigenvalues of exact
-    input, else float SVD with a relative tolerance. Returns (rank(sensors), g, how)."""
-    sl = network.row_slices()
-    A = sp.Matrix(network.A)
-    vecs = _exact_eigvecs(A, e.expr) if network.exact else None
-    if vecs:
-        V = sp.Matrix.hstack(*vecs)
-        C = sp.Matrix(network.stacked_system().C)
-        CV = C * V
-        blocks = [CV[s.start:s.stop, :] for s in sl]
-
-        def rank(idx: Sequence[int]) -> int:
-            if not idx:
-                return 0
-            return sp.Matrix.vstack(*[blocks[i] for i in idx]).rank()
-        return rank, V.shape[1], "exact (rational eigenvalue, sympy ranks)"
-    V = e.basis
-    c = network.stacked_system().c
-    scale = max(float(np.linalg.norm(c, 2)), 1.0)
-    CVf = c @ V
-    fblocks = [CVf[s] for s in sl]
-
-    def frank(idx: Sequence[int]) -> int:
-        if not idx:
-            return 0
-        M = np.vstack([fblocks[i] for i in idx])
-        sv = np.linalg.svd(M, compute_uv=False)
-        return int(np.sum(sv > tol * scale))
-    return frank, V.shape[1], f"float64 SVD, relative tolerance {tol:g}"
-
-
-def _eig_text(e: Any) -> str:
-    if e.expr is not None:
-        return sp.sstr(e.expr)
-    if e.text is not None:
-        return e.text
-    z = complex(e.value)
-    return repr(z.real) if z.imag == 0 else f"{z.real:.12g}{z.imag:+.12g}j"
-
-
-def necessary_constraints(network: Network, tol: float = RANK_TOL) -> tuple[Constraint, ...]:
-    """The non-dominated necessary constraints (T, ρ_T²) (see the module docstring).
-
-    For each eigenvalue λ with |λ| ≥ 1 (eigenspace V, dimension g): the blind sensors
-    B = {i : C_i V = 0}; if all sensors together have rank < g on V, T = every sensor (the
-    network cannot detect λ: no p works); else every hyperplane flat — the closure of ≤ g − 1
-    sensors whose rows span rank g − 1 on V — united with B. A constraint (T, ρ²) is dropped
-    when another has T' ⊇ T and ρ'² ≥ ρ².
-    """
-    st = structure_of(network.stacked_system())
-    N = network.size
-    out: list[Constraint] = []
-    for idx, e in enumerate(st.eigen):
-        if not st.relevant(idx):
-            continue
-        rank, g, how = _rank_fn(network, e, tol)
-        blind = frozenset(i for i in range(N) if rank([i]) == 0)
-        seen = [i for i in range(N) if i not in blind]
-        flats: set[frozenset[int]] = set()
-        if rank(seen) < g:
-            flats.add(frozenset(range(N)))
-        else:
-            tried = 0
-            reps = _distinct_row_spaces(rank, seen) if g > 1 else seen
-            for size in range(0, g):
-                for U in itertools.combinations(reps, size):
-                    tried += 1
-                    if tried > FLAT_BUDGET:
-                        raise KfcritError(f"eigenvalue {_eig_text(e)} has a {g}-dimensional "
-                                          f"eigenspace seen by {len(seen)} sensors: more than "
-                                          f"{FLAT_BUDGET} sensor combinations", field="sensors")
-                    if rank(list(U)) != g - 1:
-                        continue
-                    closure = frozenset(i for i in seen if rank(list(U) + [i]) == g - 1)
-                    flats.add(blind | closure)
-        for T in flats:
-            out.append(Constraint(T, float(e.mod2), e.mod2_expr, _eig_text(e), how))
-    keep = []
-    for c in out:
-        if any(d is not c and c.blind <= d.blind and c.mod2 <= d.mod2
-               and (c.blind != d.blind or c.mod2 < d.mod2 or id(d) < id(c)) for d in out):
-            continue
-        keep.append(c)
-    keep.sort(key=lambda c: (-c.mod2, sorted(c.blind)))
-    return tuple(keep)
-
-
-def _distinct_row_spaces(rank, seen: Sequence[int]) -> list[int]:
-    """One sensor per distinct row space C_i V among ``seen`` (first in sensor order).
-
-    Two sensors have the same row space on V iff rank([i, j]) = rank([i]) = rank([j]). A flat
-    spanned by some sensors is spanned by their representatives, and the closure is taken over
-    every sensor, so the flats (and the constraints) are unchanged; the enumeration then grows
-    with the number of distinct row spaces, not with N (many sensors seeing the same modes).
-    """
-    reps: list[int] = []
-    for i in seen:
-        ri = rank([i])
-        if not any(rank([r]) == ri and rank([r, i]) == ri for r in reps):
-            reps.append(i)
-    return reps
-
-
-def _sign_minus_one(value: float, expr: sp.Expr | None) -> int | None:
-    """Sign of (value − 1): exact from ``expr`` when given, else float with a 1e-12 guard."""
-    if expr is not None:
-        try:
-            return compare(expr, 1, "network", "necessary factor - 1")
-        except KfcritError:
-            pass
-    if abs(value - 1.0) <= 1e-12:
-        return None
-    return 1 if value > 1 else -1
-
-
-def necessary_holds(constraints: Sequence[Constraint], p: np.ndarray,
-                    p_exact: Sequence[sp.Expr | None]) -> bool | None:
-    """Whether every necessary constraint holds at p (None: undecided at float precision)."""
-    undecided = False
-    for c in constraints:
-        s = _sign_minus_one(c.factor(p), c.factor_expr(p_exact))
-        if s is None:
-            undecided = True
-        elif s >= 0:
-            return False
-    return None if undecided else True
-
-
-def necessary_coordinate(constraints: Sequence[Constraint], i: int, p: np.ndarray,
-                         p_exact: Sequence[sp.Expr | None]
-                         ) -> tuple[bool, float, sp.Expr | None]:
-    """Least p_i allowed by the necessary surface, others at p: (possible, value, exact).
-
-    A constraint with i ∈ T caps nothing in p_i: if it fails, no p_i works (possible False).
-    Otherwise c = ρ_T² Π_{j∉T, j≠i}(1 − p_j) and p_i > 1 − 1/c is needed (nothing if c ≤ 1).
-    """
-    best, best_expr = 0.0, sp.Integer(0)
-    exact_ok = True
-    for c in constraints:
-        if i in c.blind:
-            s = _sign_minus_one(c.factor(p), c.factor_expr(p_exact))
-            if s is not None and s >= 0:
-                return False, math.nan, None
-            continue
-        q = p.copy()
-        q[i] = 0.0
-        val = c.factor(q)
-        qe = list(p_exact)
-        qe[i] = sp.Integer(0)
-        expr = c.factor_expr(qe)
-        if val <= 1.0 and (expr is None or _sign_minus_one(val, expr) in (-1, 0)):
-            continue
-        cand = 1.0 - 1.0 / val
-        cand_expr = sp.radsimp(1 - 1 / expr) if expr is not None else None
-        if cand_expr is None:
-            exact_ok = False
-        if cand > best + 1e-15 or (cand_expr is not None and best_expr is not None
-                                   and abs(cand - best) <= 1e-15
-                                   and float(sp.N(cand_expr - best_expr, 30)) > 0):
-            best, best_expr = cand, cand_expr
-        elif abs(cand - best) <= 1e-15 and cand_expr is None:
-            exact_ok = False
-    if best_expr is not None:
-        best = float(sp.N(best_expr, 30))
-    return True, best, best_expr if exact_ok else None
-
-
-def necessary_along(constraints: Sequence[Constraint], path: nk.Path, lo: float,
-                    hi: float) -> float | None:
-    """Least s in [lo, hi] where every necessary constraint holds (bisection on the monotone
-    float factors to 1e-15); ``lo`` if they hold there, None if not even at ``hi``."""
-    def ok(s: float) -> bool:
-        p, _ = path(s)
-        return all(c.factor(p) < 1.0 for c in constraints)
-    if ok(lo):
-        return lo
-    if not ok(hi):
-        return None
-    a, b = lo, hi
-    for _ in range(200):
-        mid = 0.5 * (a + b)
-        if mid in (a, b):
-            break
-        a, b = (a, mid) if ok(mid) else (mid, b)
-        if b - a < 1e-15:
-            break
-    return b
-
-
-# ---- the exact case: modal one-step observability
-
-def modal_one_step(network: Network, tol: float = RANK_TOL) -> tuple[bool | None, str]:
-    """Whether the proof in the module docstring applies (True) or fails (False), with why.
-
-    The condition is checked sensor by sensor (O(N) rank tests): the nonzero C_S w_j are
-    linearly independent for every received set S iff they are for every single sensor
-    (docs/theory.md §15.6).
-    """
-    st = structure_of(network.stacked_system())
-    rel = [e for i, e in enumerate(st.eigen) if st.relevant(i)]
-    if not rel:
-        return True, "ρ(A) < 1: every arrival probability works"
-    if any(e.geometric != e.multiplicity for e in rel):
-        return False, "a mode with |λ| ≥ 1 is not diagonalizable"
-    W = np.hstack([e.basis for e in rel])
-    k = W.shape[1]
-    sys = network.stacked_system()
-    CW = sys.c @ W
-    scale = max(float(np.linalg.norm(sys.c, 2)), 1.0)
-    if k == 1:
-        return True, "one unstable mode"
-    # the condition for every received set S is equivalent to the one for every single
-    # sensor (docs/theory.md §15.6): O(N) rank tests instead of 2^N
-    for i, sl in enumerate(network.row_slices()):
-        M = CW[sl]
-        seen = np.linalg.norm(M, axis=0) > tol * scale
-        if not seen.any():
-            continue
-        rank = int(np.sum(np.linalg.svd(M[:, seen], compute_uv=False) > tol * scale))
-        if rank != int(seen.sum()):
-            return False, (f"sensor {network.names[i]} sees unstable modes through dependent "
-                           "outputs (not one-step observable)")
-    return True, ("every sensor sees its observable unstable modes through linearly "
-                  "independent outputs, hence so does every received set (docs/theory.md "
-                  f"§15.6; float64 ranks, relative tolerance {tol:g})")
+CERT_MAX_STATES = 24
+"""Where the region is exact (modal one-step observability), numerical certificates are only
+sought up to this many states (N operators of size n(n+1)/2 squared); beyond, the exact-region
+proof decides alone."""
+BALL_BRACKET_BUDGET = 200000
+"""Most (constraints × sensors) whose uniform-margin crossing is enclosed in ball arithmetic;
+beyond, the float bisection's crossing is reported."""
 
 
 def _owner(network: Network) -> np.ndarray:
@@ -455,6 +197,8 @@ class SensorResult:
     margin: dict[str, Any]
     n_minus_1: StabilityFacts
     n_minus_1_reason: str
+    margin_exact: sp.Expr | None = None
+    """p_i − p_i* exactly where both are exact (ranks the bottleneck; not in the record)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "arrival_probability": self.arrival_probability,
@@ -684,18 +428,25 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     # ---- uniform margin
     upath = uniform_path(pf)
     s_nec_u = necessary_along(cons, upath, -1.0, 1.0)
-    if exact_region and not isinstance(ctx, SeqContext):
+    if exact_region:
         bu = Boundary(s_nec_u, s_nec_u, None, "exact region (modal one-step observability)")
     else:
         bu = ctx.path_boundary(upath, -1.0, 1.0, s_nec_u)
-    margin = _uniform_margin(bu, pf, exact_region)
+    bracket = (s_nec_u, s_nec_u) if s_nec_u is not None else None
+    if len(cons) * N <= BALL_BRACKET_BUDGET:
+        try:
+            bracket = uniform_necessary_bracket(cons, pe)
+        except ArithmeticError:
+            warnings.append("uniform margin: the necessary surface's crossing is not decided "
+                            "in ball arithmetic; the float bisection's crossing is reported")
+    margin = _uniform_margin(bu, bracket, exact_region)
 
     # ---- facts at p (the verdict is read from them in kfcrit.analysis.verdict)
     nec = necessary_holds(cons, pf, pe)
     cert = bu.check
     sufficient, suff_basis = False, "no sufficient certificate at p"
     if nec is False:
-        bad = next(c for c in cons if _sign_minus_one(c.factor(pf), c.factor_expr(pe)) != -1)
+        bad = next(c for c in cons if factor_sign(c.factor(pf), c.factor_expr(pe)) != -1)
         dead = [network.names[i] for i in range(N) if i not in bad.blind]
         reason = (f"necessary constraint fails: eigenvalue {bad.eigenvalue} (|λ|² = "
                   f"{bad.mod2:.6g}) is unobservable without sensors {{{', '.join(dead)}}}, and "
@@ -703,10 +454,15 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     elif exact_region and nec is True:
         reason = ("every necessary constraint holds and the region is exactly the necessary "
                   "region (modal one-step observability)")
-        if N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
+        if network.n > CERT_MAX_STATES:
+            warnings.append(f"n = {network.n} states > {CERT_MAX_STATES}: no numerical "
+                            "certificate attempted (the verdict rests on the exact-region proof)")
+        elif N <= nk.EXACT_MAX_SENSORS or isinstance(ctx, SeqContext):
             chk, _ = ctx.try_at(pf)
             cert = chk.to_dict() if chk is not None else None
-            if chk is None:
+            if chk is not None:
+                sufficient, suff_basis = True, "sufficient surface (checked certificate)"
+            else:
                 warnings.append("no numerical certificate found at the operating point "
                                 "(the verdict rests on the exact-region proof)")
     elif bu.s_cert is not None and bu.s_cert <= 0.0:
@@ -730,7 +486,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                           "necessary surface (closed form) + exact region (theory §15.6, "
                           "Theorem E)"))
 
-    bottleneck = _bottleneck(rows)
+    bottleneck = network_bottleneck(rows)
     result = NetworkResult(
         facts=facts, reason=reason, sensors=tuple(rows),
         uniform_margin=margin, bottleneck=bottleneck,
@@ -753,13 +509,15 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     name = network.names[i]
     possible, nval, nexpr = necessary_coordinate(cons, i, pf, pe)
     if not possible:
-        crit = {"value": None, "interval": None, "exact": True, "expression": None,
+        crit = {"value": None, "interval": None, "exact": possible is False, "expression": None,
                 "basis": "necessary surface: a constraint without this sensor fails, so no "
-                         "p_i in [0, 1] gives mean stability"}
+                         "p_i in [0, 1] gives mean stability" if possible is False else
+                         "undecided: a necessary constraint without this sensor is at "
+                         "equality to float precision"}
         surfaces = {"necessary": None, "sufficient": None}
         b = Boundary(None, None, None, "")
     else:
-        if exact_region and not isinstance(ctx, SeqContext):
+        if exact_region and not _searches_in_exact_region(ctx):
             b = Boundary(nval, nval, None, "exact region")
         else:
             b = ctx.coordinate_boundary(i, pf, nval)
@@ -785,13 +543,20 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
               "interval": ([pf[i] - crit["interval"][1] if crit["interval"][1] is not None
                             else None, pf[i] - crit["interval"][0]]
                            if crit["interval"] is not None else None)}
+    margin_exact = exact_margin(pe[i], nexpr) if possible and exact_region else None
+    if margin_exact is not None:
+        # a float difference of two nearly equal values loses what the exact data decide
+        m = float(sp.N(margin_exact, 30))
+        margin = {"value": m, "interval": [m, m]}
     # N−1: this sensor's link dead, the others at p
     q = pf.copy()
     q[i] = 0.0
     qe = list(pe)
     qe[i] = sp.Integer(0)
     nec0 = necessary_holds(cons, q, qe)
-    suff0 = bool(b.s_cert is not None and b.s_cert <= 0.0)
+    # only a checked certificate at p_i ≤ 0 proves stability with the link dead: the exact
+    # region's boundary point is an infimum (the region is open), not a certificate
+    suff0 = bool(b.s_cert is not None and b.s_cert <= 0.0 and b.check is not None)
     why = ("a necessary constraint fails with this link dead" if nec0 is False else
            "a necessary constraint is at equality with this link dead" if nec0 is None else
            "exact region: every necessary constraint holds" if exact_region else
@@ -803,7 +568,14 @@ def _sensor_row(ctx: _Context, cons: Sequence[Constraint], exact_region: bool, i
     if network.size == 2 and not exact_region:
         dead, why = _lone_sensor_facts(ctx, 1 - i, pe, dead, why)
     return SensorResult(name, float(pf[i]), _expr_text(pe[i]), crit, surfaces, margin,
-                        dead, why)
+                        dead, why, margin_exact)
+
+
+
+def _searches_in_exact_region(ctx: _Context | SeqContext) -> bool:
+    """Whether the sufficient surface is searched on a sensor's coordinate where the region is
+    exact: by the one-sensor maps (a certificate is cheap there), up to CERT_MAX_STATES."""
+    return isinstance(ctx, SeqContext) and ctx.network.n <= CERT_MAX_STATES
 
 
 def _lone_sensor_facts(ctx: _Context, j: int, pe: list[sp.Expr | None], dead: StabilityFacts,
@@ -834,66 +606,36 @@ def _lone_sensor_facts(ctx: _Context, j: int, pe: list[sp.Expr | None], dead: St
     return facts, why
 
 
-def _uniform_margin(b: Boundary, pf: np.ndarray, exact_region: bool) -> dict[str, Any]:
-    """δ with clip(p − δ·1) on the boundary; s = −δ on :func:`uniform_path`."""
+def _uniform_margin(b: Boundary, bracket: tuple[float, float] | None,
+                    exact_region: bool) -> dict[str, Any]:
+    """δ with clip(p − δ·1) on the boundary; s = −δ on :func:`uniform_path`.
+
+    ``bracket`` [a, b] encloses the necessary surface's crossing (ball arithmetic on the exact
+    data, :func:`~kfcrit.theory.links.netmargins.uniform_necessary_bracket`), so δ ≤ −a; in the
+    exact region δ ∈ [−b, −a]. Elsewhere the sufficient end −s_cert (certified) is the lower end.
+    """
     rule = ("signed δ such that clip(p − δ·(1, …, 1), 0, 1) lies on the boundary: positive "
             "when stable, negative when every link must improve")
-    if b.s_nec is None:
+    if bracket is None:
         return {"value": None, "interval": None, "unbounded": "negative", "rule": rule,
                 "reason": "a necessary constraint fails even with every link perfect (p = 1)"}
-    if b.s_nec <= -1.0 and b.s_cert is not None and b.s_cert <= -1.0:
+    a, b_nec = bracket
+    if b_nec <= -1.0 and (exact_region or (b.s_cert is not None and b.s_cert <= -1.0)):
         return {"value": None, "interval": None, "unbounded": "positive", "rule": rule,
                 "reason": "mean-stable with every link dead (ρ(A) < 1 on what matters)"}
-    hi = -b.s_nec
-    lo = -b.s_cert if b.s_cert is not None else None
-    value = hi if exact_region or (lo is not None and hi - lo <= 1e-6) else None
+    hi = -a + 0.0   # no −0.0
+    if exact_region:
+        lo: float | None = -b_nec
+        value: float | None = -(0.5 * a + 0.5 * b_nec)
+        value = min(max(value, lo), hi) + 0.0
+    else:
+        lo = -b.s_cert if b.s_cert is not None else None
+        value = hi if (lo is not None and hi - lo <= 1e-6) else None
     return {"value": value, "interval": [lo, hi], "unbounded": None, "rule": rule,
-            "reason": ("exact region" if exact_region else
-                       "necessary end closed form, sufficient end certified" if lo is not None
-                       else "necessary end only")}
-
-
-def _dead_is_stable(facts: StabilityFacts) -> bool:
-    """Whether the facts with a link dead prove mean stability (the rule of theory §16)."""
-    return facts.necessary is not False and (
-        facts.sufficient or (facts.exact_region and facts.necessary is True))
-
-
-def _bottleneck(rows: Sequence[SensorResult]) -> dict[str, Any]:
-    """The sensor with the smallest margin p_i − critical_i, named only when the bounds rank it.
-
-    Candidates are the sensors whose loss alone can break mean stability (their N − 1 facts do
-    not prove stability). Each margin is an interval [lo, hi] (a point where the critical value
-    is exact). Sensor a is the bottleneck when hi_a < lo_b for every other candidate b, or when
-    all the margins involved are exact and a's is the least (ties: file order). Otherwise the
-    bounds cannot rank them: no name is given and ``candidates`` lists the sensors whose
-    intervals overlap the least one.
-    """
-    rule = ("smallest p_i − critical_i among sensors whose loss alone can break mean stability; "
-            "named only when its margin interval lies below every other candidate's (exact "
-            "margins compare by value)")
-    cands = []
-    for k, r in enumerate(rows):
-        iv = r.margin.get("interval")
-        if iv is None or _dead_is_stable(r.n_minus_1):
-            continue
-        lo = iv[0] if iv[0] is not None else -math.inf
-        hi = iv[1] if iv[1] is not None else math.inf
-        cands.append((lo, hi, k, r))
-    if not cands:
-        return {"name": None, "margin": None, "rule": rule,
-                "reason": "no single link's degradation reaches the boundary"}
-    cands.sort(key=lambda c: (c[1], c[0], c[2]))
-    lo, hi, _, best = cands[0]
-    exact = all(c[0] == c[1] for c in cands)
-    rivals = [c for c in cands[1:] if not (hi < c[0] or (exact and hi <= c[0]))]
-    if rivals:
-        names = [best.name] + [c[3].name for c in rivals]
-        return {"name": None, "margin": None, "rule": rule, "candidates": names,
-                "reason": "the margin bounds of " + ", ".join(names) + " overlap: the bounds "
-                          "cannot rank these links"}
-    return {"name": best.name, "margin": best.margin.get("value"),
-            "margin_interval": best.margin.get("interval"), "rule": rule}
+            "reason": ("exact region (necessary surface enclosed in ball arithmetic)"
+                       if exact_region else
+                       "necessary end enclosed in ball arithmetic, sufficient end certified"
+                       if lo is not None else "necessary end only")}
 
 
 def _constraint_dict(network: Network, c: Constraint) -> dict[str, Any]:

@@ -47,8 +47,8 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
-import sympy as sp
 
+from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.critical.plow import PLow, c_invertible, p_low_bounds, p_low_from_structure, p_low_of
@@ -100,7 +100,7 @@ def _c_invertible_bound(system: System, how: str, known: PLow | None) -> UpperBo
 METHODS = ("auto", "newton", "lmi")
 
 
-def upper_bound(system: System, tol: float = 1e-9, method: str = "auto",
+def upper_bound(system: System, tol: float = DEFAULT_TOLERANCE, method: str = "auto",
                 structure: Any | None = None) -> UpperBound:
     r"""Upper bound p_up on the critical arrival probability with a bracket [lo, hi], hi − lo ≤ tol.
 
@@ -169,10 +169,8 @@ def upper_bound(system: System, tol: float = 1e-9, method: str = "auto",
             inv, how = c_invertible(system)
             if inv:
                 return replace(_c_invertible_bound(system, how, known), tolerance=float(tol))
-        key = ((sp.srepr(system.A), sp.srepr(system.C)) if system.exact else
-               (system.a.tobytes(), system.c.tobytes(), system.a.shape, system.c.shape),
-               float(tol), method)
-        raw = _solve(_Problem(key, system, float(tol), method, progress))
+        raw = _solve(_Problem(problem_key(system, tol, method), system, float(tol), method,
+                              progress))
         # the LMI works to max(tol, 1e-7): judge its width by the tolerance it used
         used = max(tol, 1e-7) if raw.method == "lmi" else tol
         return _exact_lower_end(system, raw, used, known)
@@ -181,6 +179,19 @@ def upper_bound(system: System, tol: float = 1e-9, method: str = "auto",
             raise
         return _failure_record(system, tol, method, exc, progress,
                                time.perf_counter() - t0, known)
+
+
+def problem_key(system: System, tol: float, method: str) -> tuple:
+    """What fixes the bracket: the exact A and C (their exact entry text, computed once per
+    system by :meth:`kfcrit.model.system.System.matrices_text`; for float input the binary
+    floats themselves), tol and method. Equal for equal matrices however they were built;
+    costs a few tenths of a second at 400 states where ``sympy.srepr`` took seconds."""
+    if system.exact:
+        text = system.matrices_text()
+        mats: tuple = tuple(tuple(tuple(row) for row in text[nm]) for nm in ("A", "C"))
+    else:
+        mats = (system.a.tobytes(), system.c.tobytes(), system.a.shape, system.c.shape)
+    return mats, float(tol), method
 
 
 @dataclass(frozen=True)
@@ -397,7 +408,7 @@ def marginal_certificate(system: System, tol: float) -> UpperBound | None:
     return None
 
 
-def upper_result(system: System, tol: float = 1e-9,
+def upper_result(system: System, tol: float = DEFAULT_TOLERANCE,
                  structure: Any | None = None) -> UpperBound:
     """``upper_bound(system, tol, structure=structure)``; numerical trouble gives status
     "undetermined" with the bracket [p_low, 1]."""
@@ -409,7 +420,7 @@ def upper_result(system: System, tol: float = 1e-9,
                           evidence_p_low(p_low), {}, (f"numerical failure: {exc}",))
 
 
-def upper_section(system: System, tol: float = 1e-9,
+def upper_section(system: System, tol: float = DEFAULT_TOLERANCE,
                   structure: Any | None = None) -> dict[str, Any]:
     """The record's ``upper_bound`` section: :func:`upper_result` as JSON data."""
     return upper_result(system, tol, structure).to_dict()

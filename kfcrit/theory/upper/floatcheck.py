@@ -31,8 +31,11 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
+
+from kfcrit.model.system import matrix_rows
 
 U = 2.0 ** -53
 """Unit roundoff of float64 (round to nearest)."""
@@ -264,12 +267,17 @@ U_ROUND_SAFE = 2.0 * U
 
 
 def sharpen_columns(a_int: Interval, Z: np.ndarray, d: int,
-                    B: Interval, G: Interval) -> tuple[Interval, Interval]:
+                    B: Interval, G: Interval,
+                    a_lo: np.ndarray | None = None) -> tuple[Interval, Interval]:
     """B = Z'AZ and G = Z'Z with their first d columns (and G's first d rows) recomputed by
-    :func:`accurate_product`: (Z'(A Z₁), Z'Z₁) with Z₁ = Z[:, :d]."""
+    :func:`accurate_product`: (Z'(A Z₁), Z'Z₁) with Z₁ = Z[:, :d]. With ``a_lo`` the exact A
+    is a + a_lo ± rad(a_int) (:func:`exact_offsets`) and A Z₁ = [a, a_lo][Z₁; Z₁] ± rad|Z₁|."""
     a, ra = a_int
     Z1 = Z[:, :d]
-    y, ry = accurate_product(a, Z1)
+    if a_lo is not None and np.any(a_lo):
+        y, ry = accurate_product(np.hstack([a, a_lo]), np.vstack([Z1, Z1]))
+    else:
+        y, ry = accurate_product(a, Z1)
     # the exact A is within ra of a: add |ra||Z₁| (a float product, made an upper bound)
     ry = ry + _up((ra @ np.abs(Z1)) * (1.0 + gamma(Z.shape[0] + 2)), Z.shape[0])
     b1, rb1 = accurate_product(Z.T, y)
@@ -315,7 +323,7 @@ def congruence(P: Interval, X: np.ndarray, sharp: int = 0) -> Interval:
 
 def _sharp_gain_columns(A: Interval, C: Interval, Z: np.ndarray, G: Interval, B: Interval,
                         Kz: np.ndarray, output_map: np.ndarray | None, d: int,
-                        F: Interval) -> Interval:
+                        F: Interval, c_off: Offsets | None = None) -> Interval:
     """F̂ = B + G K_z (M C Z) with its first d columns recomputed sharply: C Z₁ by compensated
     products, G K_z as K_z + (G − I) K_z (G − I is tiny; the diagonal subtraction is exact by
     Sterbenz's lemma when G_ii ∈ [1/2, 2]), the product with inner dimension m."""
@@ -324,8 +332,11 @@ def _sharp_gain_columns(A: Interval, C: Interval, Z: np.ndarray, G: Interval, B:
     if not (np.all(gd >= 0.5) and np.all(gd <= 2.0)):
         return F
     Z1 = Z[:, :d]
-    cz, rcz = accurate_product(C[0], Z1)
-    rcz = rcz + _up((C[1] @ np.abs(Z1)) * (1.0 + gamma(n + 2)), n)
+    if c_off is not None:
+        cz, rcz = offset_product(C[0], c_off, Z1)
+    else:
+        cz, rcz = accurate_product(C[0], Z1)
+        rcz = rcz + _up((C[1] @ np.abs(Z1)) * (1.0 + gamma(n + 2)), n)
     CZ1 = (cz, rcz)
     if output_map is not None:
         CZ1 = mul(point(output_map), CZ1)
@@ -339,7 +350,9 @@ def _sharp_gain_columns(A: Interval, C: Interval, Z: np.ndarray, G: Interval, B:
 
 def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np.ndarray,
                    Kz: np.ndarray, output_map: np.ndarray | None = None, sharp: int = 0,
-                   exact_views: bool = False) -> tuple[Interval, Interval, Interval]:
+                   exact_views: bool = False,
+                   offsets: tuple[Offsets, Offsets] | None = None
+                   ) -> tuple[Interval, Interval, Interval]:
     r"""Enclosures of G = Z'Z, Z'XZ and Z'(X − L_{K,p}(X))Z for X = Z X_z Z', K = Z K_z (M).
 
     .. math::
@@ -352,20 +365,29 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
     X ≻ L_{K,p}(X). With ``sharp`` = d > 0 the first d columns of B and G are enclosed by
     compensated products (:func:`sharpen_columns`). ``exact_views``: a and c are the exact
     matrices themselves (every entry a binary float, checked by the caller), radius 0.
+    ``offsets``: the exact A and C as a + a_lo ± a_rad, c + c_lo ± c_rad
+    (:func:`exact_offsets`, decimal input); the sharpened columns then carry radii of order u²
+    from them instead of one ulp.
     """
     A, C = (point(a), point(c)) if exact_views else (from_exact(a), from_exact(c))
+    if offsets is not None and not exact_views:
+        A, C = offset_interval(a, offsets[0]), offset_interval(c, offsets[1])
     Zi = point(Z)
     Zt = transpose(Zi)
     G = mul(Zt, Zi)
     B = mul(Zt, mul(A, Zi))
     if sharp > 0:
-        B, G = sharpen_columns(A, Z, sharp, B, G)
+        if offsets is not None and not exact_views:
+            B, G = sharpen_columns((a, offsets[0][1]), Z, sharp, B, G, a_lo=offsets[0][0])
+        else:
+            B, G = sharpen_columns(A, Z, sharp, B, G)
     CZ = mul(C, Zi)
     if output_map is not None:
         CZ = mul(point(output_map), CZ)
     F = add(B, mul(mul(G, point(Kz)), CZ))
     if sharp > 0:
-        F = _sharp_gain_columns(A, C, Z, G, B, Kz, output_map, sharp, F)
+        F = _sharp_gain_columns(A, C, Z, G, B, Kz, output_map, sharp, F,
+                                offsets[1] if offsets is not None and not exact_views else None)
     GXG = congruence(G, Xz, sharp)
     BXB = congruence(B, Xz, sharp)
     FXF = congruence(F, Xz, sharp)
@@ -376,7 +398,8 @@ def basis_operands(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray, Xz: np
 def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarray,
                              Xz: np.ndarray, Kz: np.ndarray,
                              output_map: np.ndarray | None = None, sharp: int = 0,
-                             exact_views: bool = False
+                             exact_views: bool = False,
+                             offsets: tuple[Offsets, Offsets] | None = None
                              ) -> tuple[bool, float | None, float | None, str]:
     """:func:`verify_upper_float` for the certificate X = Z X_z Z', K = Z K_z (M) given in the
     basis Z (:func:`basis_operands`, ``sharp`` leading columns by compensated products); X_z
@@ -393,7 +416,7 @@ def verify_upper_float_basis(a: np.ndarray, c: np.ndarray, p: float, Z: np.ndarr
         return False, None, None, "bad number of sharpened columns"
     G, GXG, M = basis_operands(np.asarray(a, float), np.asarray(c, float), float(p),
                                np.asarray(Z, float), Xz, np.asarray(Kz, float), output_map,
-                               int(sharp), bool(exact_views))
+                               int(sharp), bool(exact_views), offsets)
     if verified_definite_margin(G) is None:
         return False, None, None, "the basis Z is not proven invertible (Z'Z > 0)"
     mx = verified_definite_margin(GXG)
@@ -475,3 +498,51 @@ def dominant_radius_lower(a: np.ndarray, Z: np.ndarray, d: int) -> float | None:
     e = Fraction(eta)
     low = abs(det0) - m0f * e - e * e / 2
     return float(low) * (1.0 - 1e-15) if low > 0 else None
+
+
+Offsets = tuple[np.ndarray, np.ndarray]
+"""(lo, rad): the exact matrix is view + lo + e with |e| ≤ rad entrywise."""
+
+
+def exact_offsets(M: Any, view: np.ndarray) -> Offsets:
+    r"""The exact matrix M (sympy) as its float view plus a float offset: for a rational entry
+    lo = fl(M_ij − view_ij) (the exact difference rounded once, so |e| ≤ u|lo| + η), for any
+    other entry lo = 0 and the one-ulp radius 2u|view_ij| + η of the view.
+
+    .. math::  M = \mathrm{view} + \mathrm{lo} + e, \qquad |e| \le \mathrm{rad}
+
+    Decimal input (a file's 0.1) is not a binary float: the one-ulp radius alone would make
+    the enclosure of the invariant subspace as uncertain as u·cond(S)/gap, while the offset
+    form leaves only u²-sized radii."""
+    view = np.asarray(view, dtype=float)
+    lo = np.zeros_like(view)
+    rad = np.zeros_like(view)
+    for i, row in enumerate(matrix_rows(M)):
+        for j, e in enumerate(row):
+            if e.is_Rational:
+                lo[i, j] = float(Fraction(int(e.p), int(e.q)) - Fraction(float(view[i, j])))
+            else:
+                rad[i, j] = 2 * U * abs(view[i, j]) + ETA
+    return lo, rad + 2 * U * np.abs(lo) + ETA
+
+
+def no_offsets(view: np.ndarray) -> Offsets:
+    """The offsets of a matrix whose entries are its float view exactly (binary input)."""
+    return np.zeros_like(view, dtype=float), np.zeros_like(view, dtype=float)
+
+
+def offset_interval(view: np.ndarray, off: Offsets) -> Interval:
+    """The exact matrix as an interval around its view (the offset folded into the radius)."""
+    return np.asarray(view, dtype=float), _up(np.abs(off[0]) + off[1], 2)
+
+
+def offset_product(view: np.ndarray, off: Offsets, cols: np.ndarray) -> Interval:
+    """(view + lo + e)·cols by compensated products: [view, lo]·[cols; cols] plus rad·|cols|."""
+    n = view.shape[1]
+    if np.any(off[0]):
+        prod = accurate_product(np.hstack([view, off[0]]), np.vstack([cols, cols]))
+    else:
+        prod = accurate_product(view, cols)
+    if np.any(off[1]):
+        prod = (prod[0], _up(prod[1] + off[1] @ np.abs(cols) * (1 + gamma(n + 2)), n))
+    return prod

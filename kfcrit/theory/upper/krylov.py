@@ -17,6 +17,7 @@ upper certificate with margin W. Nothing here proves anything: the certificates 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,10 +69,32 @@ def second_moment_operator(A: np.ndarray, F: np.ndarray, X: np.ndarray, p: float
     return (1 - p) * (A @ X @ A.T) + p * (F @ X @ F.T)
 
 
+def hopeless(history: list[float], target: float, remaining: int) -> bool:
+    r"""Whether restarted GMRES will not reach ``target`` within ``remaining`` cycles, judged
+    from the residual norms at the starts of its cycles: stagnation (rate ≥ 0.999 over the
+    last two cycles), or, from the fifth cycle on (restarted GMRES often speeds up after a
+    slow start), a geometric extrapolation needing more than twice the cycles left.
+
+    .. math::  q = (r_c / r_{c-2})^{1/2}, \quad \frac{\log(\mathrm{target}/r_c)}{\log q}
+        > 2\,(\text{cycles left})
+    """
+    if len(history) < 3 or not history[-3] > 0:
+        return False
+    rate = (history[-1] / history[-3]) ** 0.5
+    if rate >= 0.999:
+        return True
+    if len(history) < 5:
+        return False
+    return math.log(target / history[-1]) / math.log(rate) > 2 * remaining
+
+
 def gmres_solve(apply, rhs: np.ndarray, rtol: float, restart: int = 120,
-                max_cycles: int = 10) -> tuple[np.ndarray, int, bool]:
+                max_cycles: int = 10, give_up: bool = False) -> tuple[np.ndarray, int, bool]:
     """Restarted GMRES for apply(x) = rhs (classical Gram–Schmidt twice, BLAS-2).
 
+    With ``give_up`` the solve stops early when :func:`hopeless` says the budget will not be
+    enough (near the threshold the Stein operators of too narrow a bracket stall: 2 400
+    operator applications, 13 s at 151 states, for nothing).
     Returns (x, operator applications, converged to ‖rhs − apply(x)‖ ≤ rtol‖rhs‖).
     """
     N = rhs.size
@@ -81,6 +104,7 @@ def gmres_solve(apply, rhs: np.ndarray, rtol: float, restart: int = 120,
     if bnorm == 0.0:
         return x, 0, True
     m = min(restart, N)
+    history: list[float] = []
     for cycle in range(max_cycles):
         if cycle:
             r = rhs - apply(x)
@@ -90,6 +114,9 @@ def gmres_solve(apply, rhs: np.ndarray, rtol: float, restart: int = 120,
         beta = float(np.linalg.norm(r))
         if beta <= rtol * bnorm:
             return x, count, True
+        history.append(beta)
+        if give_up and hopeless(history, rtol * bnorm, max_cycles - cycle):
+            return x, count, False
         V = np.empty((m + 1, N))
         V[0] = r / beta
         H = np.zeros((m + 1, m))
@@ -316,7 +343,7 @@ def stein_solve_preconditioned(A: np.ndarray, C: np.ndarray, K: np.ndarray, p: f
         Y = v.reshape(k, k)
         return (Y - p * F @ s_inv(Y) @ F.T).ravel()
 
-    y, count, ok = gmres_solve(apply, W.ravel(), rtol, 120, 20)
+    y, count, ok = gmres_solve(apply, W.ravel(), rtol, 120, 20, give_up=True)
     if not ok:
         return None, count
     return symmetrize(s_inv(y.reshape(k, k))), count

@@ -14,12 +14,17 @@ a block-triangular Stein solution on the full state), with the lower end p_low p
 (1) a start from the MARE with Q = I, R = I at some p > p_up (fixed point, cheap there);
 (2) damped threshold Newton (:func:`kfcrit.theory.upper.krylov.threshold_newton_krylov`), which
 either converges to p* > p_low or runs into the floor p_low (a face root: p_up = p_low);
-(3) at hi = base + tol/2 (base = p* or p_low) the cone eigenpair of G_hi, its gain K and the
-Stein solution X_u − L_{K,hi}(X_u) = I, lifted to the full state
-(:func:`kfcrit.theory.upper.cone.lift_certificate`) and proven by
-:func:`kfcrit.theory.upper.floatcheck.verify_upper_float`.
-The lower end is p_low (Sinopoli Thm 3, proven) for a face root; otherwise the Newton root
-with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not certified.
+(3) at hi = base + w (w from :func:`stein_widths`: 0.9·tol, 0.5·tol, then the wider
+widths) the gain K of the threshold eigenvector and the preconditioned Stein solution
+X_u − L_{K,hi}(X_u) = I, lifted block by block to the full state and proven by
+:func:`kfcrit.theory.upper.floatcheck.verify_upper_float_basis`; only when every width fails,
+the costlier :func:`float_certificate` (cone eigenpair of G_hi, its Stein solution, the cruder
+lift) at the few :func:`fallback_widths`.
+The lower end is p_low (Sinopoli Thm 3, proven) for a face root; otherwise lo = hi − tol
+(never above the Newton root p*) proven by :func:`kfcrit.theory.upper.lowercert.prove_lower_end`
+(a Y ⪰ 0 with G_lo(Y) ⪰ Y on the enclosed exact unstable invariant subspace), or, when that
+fails, the Newton root with numerical evidence G_lo(X*) = X* + (p* − lo) P ⪰ X*, labelled not
+certified.
 """
 from __future__ import annotations
 
@@ -30,9 +35,10 @@ import numpy as np
 
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.riccati import symmetrize
-from kfcrit.theory.upper import certify, floatcheck, krylov, stein
+from kfcrit.theory.upper import certify, floatcheck, krylov, lowercert, stein
 from kfcrit.theory.upper.certs import lower_end
 from kfcrit.theory.upper.cone import (
+    UNSTABLE_TOL,
     Reduced,
     full_gain,
     lift_certificate,
@@ -43,8 +49,6 @@ from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
 
 START_OFFSETS = (0.02, 0.1, 0.3, 1.0)
 """p − p_low tried (clipped to 1) for the MARE start, until its fixed point converges."""
-CERTIFICATE_OFFSETS = (0.5, 1.0, 10.0, 100.0)
-"""hi = base + offset·tol tried in turn for the certificate."""
 EIGEN_STEPS = 6
 """Eigen-Newton steps at hi: only the gain of the eigenvector is used (the Stein solve gives
 the certificate), and near a face root the eigenvector turns singular, so more steps buy
@@ -199,8 +203,20 @@ def float_views_exact(system: System) -> bool:
     return True
 
 
+def system_offsets(system: System, exact_views: bool
+                  ) -> tuple[floatcheck.Offsets, floatcheck.Offsets]:
+    """The exact A and C as float view + offset
+    (:func:`kfcrit.theory.upper.floatcheck.exact_offsets`; zero offsets when every entry is a
+    binary float)."""
+    if exact_views:
+        return floatcheck.no_offsets(system.a), floatcheck.no_offsets(system.c)
+    return (floatcheck.exact_offsets(system.A, system.a),
+            floatcheck.exact_offsets(system.C, system.c))
+
+
 def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: float,
-                            stats: dict[str, Any], exact_views: bool):
+                            stats: dict[str, Any], exact_views: bool,
+                            offsets: tuple[floatcheck.Offsets, floatcheck.Offsets] | None = None):
     """The certificate at hi from the gain K alone: X_u − L_{K,hi}(X_u) = I by preconditioned
     GMRES (:func:`kfcrit.theory.upper.krylov.stein_solve_preconditioned`), the exact block
     lift (:func:`kfcrit.theory.upper.stein.block_lift`), the verified float64 check with the
@@ -219,7 +235,8 @@ def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: flo
         return None
     Xz, Kz = lifted
     ok, mx, mm, why = floatcheck.verify_upper_float_basis(
-        system.a, system.c, hi, red.Z, Xz, Kz, red.M, sharp=k, exact_views=exact_views)
+        system.a, system.c, hi, red.Z, Xz, Kz, red.M, sharp=k, exact_views=exact_views,
+        offsets=offsets)
     stats["certificate_checks"] += 1
     if not ok:
         return None
@@ -227,11 +244,117 @@ def stein_block_certificate(system: System, red: Reduced, K: np.ndarray, hi: flo
                                  "one-term Stein solve), K the gain of the threshold "
                                  "eigenvector, exact block lift")
     how = FACE_CHECK.replace("dominant-block columns", "unstable-block columns") + (
-        "; A and C are binary floats taken exactly" if exact_views else "")
+        "; A and C are binary floats taken exactly" if exact_views else
+        "; A and C as float view + float offset (their exact difference rounded once)"
+        if offsets is not None else "")
     check = certify.CheckResult(True, "upper: X > 0 and X - L_{K,p}(X) > 0", hi, mx, mm, why,
                                 how)
     Z = red.Z
     return (Z, Xz, Kz), symmetrize(Z @ Xz @ Z.T), full_gain(red, Z @ Kz), check
+
+
+def stein_widths(tol: float) -> list[float]:
+    r"""hi − base tried with the Stein block certificate: each of :data:`STEIN_OFFSETS` times
+    tol, then each of :data:`WIDER_WIDTHS` above the first.
+
+    .. math::  w \in \{0.9\,\mathrm{tol},\ 0.5\,\mathrm{tol}\} \cup
+        \{w_k \in \{10^{-8}, \dots, 10^{-4}\} : w_k > 0.9\,\mathrm{tol}\}
+    """
+    first = [off * tol for off in STEIN_OFFSETS]
+    return first + [w for w in WIDER_WIDTHS if w > first[0]]
+
+
+def fallback_widths(tol: float) -> list[float]:
+    """hi − base tried with :func:`float_certificate` once every Stein width has failed: the
+    requested width and the widest of :data:`WIDER_WIDTHS` (each try costs an eigen-Newton,
+    a Krylov Stein solve and a full-state check: tens of seconds at 400 states)."""
+    return [tol] + [w for w in WIDER_WIDTHS[-1:] if w > tol]
+
+
+def interior_certificate(system: System, red: Reduced, thr: krylov.KrylovResult, base: float,
+                         tol: float, stats: dict[str, Any], exact_views: bool,
+                         offsets: tuple[floatcheck.Offsets, floatcheck.Offsets]):
+    """The upper certificate at hi = base + width: the cheap Stein block certificate at each
+    of :func:`stein_widths` first (a width is skipped when the Stein solve, not the check,
+    already failed at a wider one: the operator I − L_{K,hi} is nearer singular as hi
+    approaches the root), then :func:`float_certificate` at :func:`fallback_widths`.
+    Returns (hi, (basis triple, X, K, CheckResult)) or (hi, None)."""
+    hi, unsolved = base, 0.0
+    for width in stein_widths(tol):
+        if width <= unsolved:
+            # the solve already failed at a wider width: closer to the root it is harder
+            continue
+        hi = float(min(base + width, 1.0))
+        checks = stats["certificate_checks"]
+        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views,
+                                        offsets=offsets)
+        if found is not None:
+            return hi, found
+        if stats["certificate_checks"] == checks:
+            unsolved = max(unsolved, width)
+    Ys = stable_gramian(red) if red.k < system.n else None
+    for width in fallback_widths(tol):
+        hi = float(min(base + width, 1.0))
+        found = float_certificate(system, red, hi, thr.X, stats, Ys)
+        if found is not None:
+            return hi, found
+    return hi, None
+
+
+LOWER_FRACTIONS = (0.1, 1.0)
+"""When the certified width exceeds the request the lower end sits at the Newton root p*,
+where no lower certificate can pass (its margin vanishes there): the proof is tried at
+p* − f·(hi − p*) for these f in turn, and a proven point replaces the numerical root."""
+LOWER_CHECK = ("verified float64 on the exact A, C: real eigenbasis S of A with a verified "
+               "approximate inverse, A S_u - S_u D_u, C S_u, Y C0' and C0 Y C0' by compensated "
+               "products (Dot2), the other products with a priori rounding bounds; Stewart's "
+               "theorem for the exact unstable invariant subspace; positive definiteness by a "
+               "Cholesky residual bound (docs/theory.md §3, Certified lower end for large "
+               "blocks)")
+
+
+def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low: float,
+                   lo: float, hi: float,
+                   offsets: tuple[floatcheck.Offsets, floatcheck.Offsets],
+                   stats: dict[str, Any], warnings: list[str]) -> tuple[float, dict[str, Any]]:
+    """The lower end of an interior root: proven by
+    :func:`kfcrit.theory.upper.lowercert.prove_lower_end` at lo (or, when lo is the Newton
+    root itself, at the points of :data:`LOWER_FRACTIONS` below it), else the numerical Newton
+    root. Returns (lo, lower-end evidence)."""
+    p_star = thr.value
+    points = [lo] if lo < p_star else [
+        q for q in (p_star - f * (hi - p_star) for f in LOWER_FRACTIONS) if q > p_low]
+    proof = lowercert.prove_lower_end(system.a, system.c, red.Z[:, :red.k], thr.X, points,
+                                      offsets[0], offsets[1], UNSTABLE_TOL)
+    stats["operator_applications"] += proof.operator_applications
+    stats["lower_enclosure"] = lowercert.stats_of(proof.ball, proof.check)
+    if proof.ok and proof.ball is not None and proof.check is not None:
+        ck, ball = proof.check, proof.ball
+        check = certify.CheckResult(True, "lower: Y > 0 and G_lo(Y) - Y >= 0 on the exact "
+                                    "unstable pair", ck.p, ck.min_eig_y, ck.margin, "proven",
+                                    LOWER_CHECK)
+        statement = (
+            f"p_up >= lo proven: Y > 0 with G_lo(Y) - Y >= 0 for every pair (T, C) in the "
+            f"enclosure of the exact action of A and C on the {ball.k}-dimensional unstable "
+            + (f"invariant subspace (eigenbasis condition ~{ball.condition:.3g}, "
+               f"||I - RS|| <= {ball.neumann:.2g}; Stewart: eigenvalue gap >= {ball.gap:.3g}, "
+               f"subspace tilt ||Phi||_F <= {ball.phi:.2g}; " if ball.gap < float("inf") else
+               "invariant subspace, here the whole space (every mode unstable: the pair is "
+               "(A, C) itself; ")
+            + f"radii ||T - T0|| <= {ball.tau:.2g}, "
+            f"||C - C0|| <= {ball.gamma:.2g}; Weyl shift {ck.perturbation:.2g}); then "
+            "L_{K,lo}(Y) >= G_lo(Y) >= Y for every gain K, so no X > 0 has X > L_{K,lo}(X) "
+            f"(Newton root p* = {p_star:.15g})")
+        return ck.p, {"kind": "certificate", "value": ck.p, "certified": True,
+                      "statement": statement, "check": check.to_dict(), "p_low_theorem": p_low}
+    warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
+                    "end is certified")
+    return lo, {"kind": "numerical", "value": lo, "certified": False,
+                "statement": (f"Newton root p* = {p_star:.15g} of r(p) = 1 (matrix-free "
+                              f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
+                              "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
+                              f"ball proof: {proof.reason})"),
+                "p_low_theorem": p_low}
 
 
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
@@ -272,21 +395,9 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
                         f"(stopped at p = {thr.value:.12g})")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
     base = p_low if face else thr.value
-    found, hi = None, None
     exact_views = float_views_exact(system)
-    for off in STEIN_OFFSETS:
-        hi = float(min(base + off * tol, 1.0))
-        found = stein_block_certificate(system, red, thr.K, hi, stats, exact_views)
-        if found is not None:
-            break
-    Ys = stable_gramian(red) if red.k < system.n and found is None else None
-    widths = [off * tol for off in CERTIFICATE_OFFSETS]
-    widths += [w for w in WIDER_WIDTHS if w > widths[-1]]
-    for width in widths if found is None else ():
-        hi = float(min(base + width, 1.0))
-        found = float_certificate(system, red, hi, thr.X, stats, Ys)
-        if found is not None:
-            break
+    offsets = system_offsets(system, exact_views)
+    hi, found = interior_certificate(system, red, thr, base, tol, stats, exact_views, offsets)
     if found is None:
         warnings.append("no certificate could be verified; the upper end 1 is the trivial one")
         return done(None, (p_low, 1.0), False, "undetermined", None, evidence_p_low(p_low))
@@ -303,18 +414,9 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
         lower["statement"] += ("; the threshold Newton ran into p_low with a singular "
                                "eigenvector (face root), so p_up = p_low within the bracket")
     else:
-        # the evidence G_lo(X*) = X* + (p* − lo)P ⪰ X* needs lo ≤ p*: a widened hi must not
-        # lift lo above the Newton root
+        # a widened hi must not lift lo above the Newton root
         lo = max(min(lo, thr.value), p_low)
-        lower = {"kind": "numerical", "value": lo, "certified": False,
-                 "statement": (f"Newton root p* = {thr.value:.15g} of r(p) = 1 (matrix-free "
-                               f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
-                               "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
-                               "ball proof: the invariant subspace of a block of "
-                               f"{red.k} states is not enclosed)"),
-                 "p_low_theorem": p_low}
-        warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
-                        "end is certified")
+        lo, lower = interior_lower(system, red, thr, p_low, lo, hi, offsets, stats, warnings)
     status = "determined" if hi - lo <= tol else "undetermined"
     if status == "undetermined":
         warnings.append(widened_warning(hi - lo, tol))

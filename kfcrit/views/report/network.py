@@ -12,7 +12,13 @@ from typing import TYPE_CHECKING, Any
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures.network import margin_bounds, positions_of, sink_of, weakest_pair
 from kfcrit.views.report.parts import closed_form_text, figure_entry, number, prose, stated
-from kfcrit.views.text.netmargin import bottleneck_margin_text, margin_text, margin_value_text
+from kfcrit.views.text.netmargin import (
+    NO_CRITICAL_VALUE,
+    bottleneck_margin_text,
+    has_no_critical_value,
+    margin_text,
+    margin_value_text,
+)
 
 if TYPE_CHECKING:
     from kfcrit.analysis.records.network import NetworkSection
@@ -43,7 +49,8 @@ def node_rows(rec: AnalysisRecord, net: NetworkSection) -> list[dict[str, Any]]:
             "name": name, "bottleneck": name == bottleneck,
             "p": number(s.arrival_probability),
             "p_expression": closed_form_text(s.arrival_probability_expression),
-            "critical": margin_value_text(cv.value, cv.interval),
+            "critical": (NO_CRITICAL_VALUE if has_no_critical_value(s)
+                         else margin_value_text(cv.value, cv.interval)),
             "critical_expression": expr if expr and expr != filters.num(number(cv.value))
             else None,
             # "exact" describes a value: with none (only a bracket, or nothing) it is not said

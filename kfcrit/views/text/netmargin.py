@@ -63,6 +63,8 @@ def signed_range_text(low: float | None, high: float | None) -> str:
 def margin_text(sensor: NetworkSensor) -> str:
     """The margin p_i − p_c,i with its sign: one number, or ``[+a, +b]`` when p_c,i is only
     bracketed (— when the record has neither)."""
+    if has_no_critical_value(sensor):
+        return "none"
     return signed_range_text(*sensor_margin_bounds(sensor))
 
 
@@ -84,6 +86,19 @@ def margin_value_text(value: Any, interval: Any, digits: int = 6) -> str:
             return filters.num(iv[0], digits)
         return filters.interval(list(iv), digits)
     return "—"
+
+
+NO_CRITICAL_VALUE = "none (no p_i suffices)"
+"""A sensor's critical value when the record has neither a value nor an interval: a necessary
+constraint without that sensor fails, whatever its link does."""
+
+
+def has_no_critical_value(sensor: NetworkSensor) -> bool:
+    """Whether the record states that no arrival probability of this sensor gives mean
+    stability (``critical_value`` with neither value nor interval)."""
+    cv = sensor.critical_value
+    # exact False with neither: undecided at float precision, not "none"
+    return _real(cv.value) is None and cv.interval is None and cv.exact is True
 
 
 def bottleneck_margin_text(bottleneck: NetworkBottleneck) -> str:

@@ -15,7 +15,9 @@ from kfcrit.views.mesh.meshtext import mesh_lines
 from kfcrit.views.text.looptext import loop_lines
 from kfcrit.views.text.netmargin import (
     NETWORK_P_MEANING,
+    NO_CRITICAL_VALUE,
     bottleneck_margin_text,
+    has_no_critical_value,
     margin_text,
 )
 from kfcrit.views.text.tracefit import channel_fit_lines
@@ -121,14 +123,18 @@ def network_lines(net: NetworkSection | None) -> list[str]:
              f"    {'sensor':<12} {'p_i':>9}  {'critical p_i':<24} {'margin':>19}  N−1 (link dead)"]
     for s in net.sensors:
         cv = s.critical_value
+        critical = (NO_CRITICAL_VALUE if has_no_critical_value(s) else
+                    _value_text(cv.value, cv.interval, exact=cv.exact, expression=cv.expression))
         # the report's margin text (an interval when p_c,i is only bracketed): one rendering
         lines.append(f"    {safe_text(s.name)[:12]:<12} "
                      f"{_num(s.arrival_probability):>9}  "
-                     f"{_value_text(cv.value, cv.interval, exact=cv.exact, expression=cv.expression):<24} "
+                     f"{critical:<24} "
                      f"{margin_text(s):>19}  "
                      f"{s.n_minus_1.verdict}")
     um = net.uniform_margin
-    lines.append(f"    uniform margin δ      {_value_text(um.value, um.interval)}  (every link "
+    delta = (f"unbounded ({um.unbounded})" if um.unbounded else
+             _value_text(um.value, um.interval))
+    lines.append(f"    uniform margin δ      {delta}  (every link "
                  "degraded by δ reaches the boundary)")
     bn = net.bottleneck
     if bn.name:
