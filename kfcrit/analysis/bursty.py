@@ -9,10 +9,23 @@ simulator, :func:`kfcrit.sim.montecarlo.simulate`.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.records.bursty import (
+    BurstCertificateRecord,
+    BurstCondition,
+    BurstCurveRecord,
+    BurstSimulationCheck,
+    GilbertElliottSection,
+    LiteratureClaim,
+)
+from kfcrit.analysis.records.read import read_plain
+from kfcrit.io.jsonio import jsonable
+from kfcrit.io.typed import to_json
 from kfcrit.model.channels import Channel, GilbertElliott
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import simulate
@@ -144,6 +157,17 @@ def _condition_holds(system: Any, recovery_rate: Any, value: float) -> bool:
 def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
                             simulate: bool = True,
                             classification: str | None = None) -> dict[str, Any]:
+    """The JSON form of :func:`gilbert_elliott_record` (``{"applicable": False, "reason"}``
+    for a channel that is not a :class:`GilbertElliott` model)."""
+    if not isinstance(channel, GilbertElliott):
+        return {"applicable": False, "reason": "the channel is not a Gilbert-Elliott model"}
+    return to_json(gilbert_elliott_record(system, channel, seed=seed, simulate=simulate,
+                                          classification=classification))
+
+
+def gilbert_elliott_record(system: Any, channel: GilbertElliott, *, seed: int = 0,
+                           simulate: bool = True,
+                           classification: str | None = None) -> GilbertElliottSection:
     """Mean stability under Gilbert–Elliott losses (theory §7).
 
     Scalar case (theorem): losses arrive in bursts of length j with probability
@@ -158,9 +182,8 @@ def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
     ----------
     system : System
         The system.
-    channel : Channel
-        The configured channel; anything but :class:`GilbertElliott` gives
-        ``{"applicable": False}``.
+    channel : GilbertElliott
+        The configured bursty channel.
     seed : int
         Seed of the simulation check.
     simulate : bool
@@ -168,14 +191,13 @@ def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
 
     Returns
     -------
-    dict
+    GilbertElliottSection
         ``applicable, failure_rate, recovery_rate, stationary_arrival_probability,
         mean_burst_length, spectral_radius, classification, condition {expression, value, holds,
         status, decides}, required_recovery_rate, max_mean_burst_length, simulation | null,
-        simulation_consistent | null, simulation_note, claims``.
+        simulation_consistent | null, simulation_note, claims`` (the certificate and the
+        critical curve are added by the analysis, :func:`kfcrit.analysis.record.bursty_link_section`).
     """
-    if not isinstance(channel, GilbertElliott):
-        return {"applicable": False, "reason": "the channel is not a Gilbert-Elliott model"}
     f = float(channel.failure_rate)
     r = float(channel.recovery_rate)
     a = float(max(abs(np.linalg.eigvals(system.a))))
@@ -186,23 +208,14 @@ def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
     c_nonzero = bool(np.any(system.c != 0))
     status, decides = ge_condition_status(system, classification, c_nonzero)
     r_min = max(0.0, 1 - 1 / (a * a)) if a > 0 else 0.0
-    out: dict[str, Any] = {
-        "applicable": True, "failure_rate": f, "recovery_rate": r,
-        "stationary_arrival_probability": r / (f + r), "mean_burst_length": 1 / r,
-        "spectral_radius": a, "classification": classification,
-        "condition": {"expression": "(1 - r) a^2 < 1", "value": value,
-                      "holds": _condition_holds(system, channel.recovery_rate, value),
-                      "status": status, "decides": decides},
-        "required_recovery_rate": r_min,
-        "max_mean_burst_length": (1 / r_min) if r_min > 0 else None,
-        "simulation": None, "simulation_consistent": None, "simulation_note": None,
-        "claims": [dict(c) for c in GE_CLAIMS]}
+    out: dict[str, Any] = {"simulation": None, "simulation_consistent": None,
+                           "simulation_note": None}
     # the scalar theorem, and the literature's claim for non-degenerate vector systems, are both
     # checked by simulation (small systems: each path-step costs O(n³))
     claim = classification == "non-degenerate" and system.n <= 6
     if simulate and (scalar and decides or claim) and classification != "stable":
         sim = ge_simulation_check(system, channel, seed=seed)
-        out["simulation"] = sim
+        out["simulation"] = BurstSimulationCheck(**jsonable(sim))
         expected = sim["expected_growth_if_unbounded"]
         if abs(value - 1) < 0.15:
             out["simulation_note"] = ("(1 - r) a^2 is within 0.15 of 1: a simulation of this "
@@ -217,4 +230,48 @@ def gilbert_elliott_section(system: Any, channel: Channel, *, seed: int = 0,
             out["simulation_note"] = (f"E[P_T]/E[P_T/2] = {sim['growth_ratio']:.4g} at T = "
                                       f"{sim['steps']}; read as {reading} (threshold "
                                       f"{GE_GROWTH_FACTOR:g})")
+    return GilbertElliottSection(
+        applicable=True, failure_rate=f, recovery_rate=r,
+        stationary_arrival_probability=r / (f + r), mean_burst_length=1 / r, spectral_radius=a,
+        classification=classification,
+        condition=BurstCondition(expression="(1 - r) a^2 < 1", value=jsonable(value),
+                                 holds=_condition_holds(system, channel.recovery_rate, value),
+                                 status=status, decides=decides),
+        required_recovery_rate=r_min, max_mean_burst_length=(1 / r_min) if r_min > 0 else None,
+        claims=[LiteratureClaim(**c) for c in GE_CLAIMS], **out)
+
+
+def bursty_link_section(spec: Any, opts: Any, theory: Any, ge: GilbertElliott,
+                        timings: dict[str, float] | None = None,
+                        path: str = "link_budget") -> GilbertElliottSection:
+    """The Gilbert–Elliott section of a bursty chain: the conditions of theory §7 (scalar) and
+    §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
+    :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
+    (failure rate, recovery rate) plane. ``theory`` is the system's
+    :class:`~kfcrit.analysis.record.TheorySections`, ``opts`` the analysis options; the
+    theory's certificate and curve (plain data) are read where they enter, their seconds into
+    ``timings``."""
+    from kfcrit.theory.links import markov
+
+    s = spec.system
+    cls = theory.classification
+    out = gilbert_elliott_record(s, ge, seed=opts.seed, simulate=opts.details,
+                                 classification=cls)
+    if cls == "not-detectable":
+        return out
+    bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
+                            classification=cls)
+    out = replace(out, certificate=read_plain(BurstCertificateRecord,
+                                              vd.with_verdict(bv.to_dict()),
+                                              f"{path}.certificate", timings))
+    if opts.details and s.n <= 12 and cls != "stable":
+        points = 5 if opts.quick else 9
+        grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
+                      | {0.01, float(ge.failure_rate)})
+        curve = markov.burst_critical_curve(
+            s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
+            operating=(float(ge.failure_rate), float(ge.recovery_rate)),
+            structure=theory.structure)
+        out = replace(out, critical_curve=read_plain(BurstCurveRecord, curve.to_dict(),
+                                                     f"{path}.critical_curve", timings))
     return out

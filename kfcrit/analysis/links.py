@@ -4,7 +4,17 @@ from __future__ import annotations
 
 from typing import Any
 
+from kfcrit.analysis.records.link import (
+    ArrivalVsDistance,
+    DesignCheck,
+    LinkCurves,
+    OutageVsDistance,
+    PerVsSinr,
+)
+from kfcrit.analysis.records.read import read_plain
+from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
+from kfcrit.io.typed import ABSENT
 
 
 def bursty_channel(channel: Any) -> Any:
@@ -19,9 +29,10 @@ def bursty_channel(channel: Any) -> Any:
     return None
 
 
-def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
+def design_check(lb: dict[str, Any]) -> DesignCheck | None:
     """The configured link against its own margin policy (read from the link-budget section).
 
+    ``lb`` is the link layer's plain result (:func:`kfcrit.link.linkbudget.design_section`).
     ``margin_policy_met``: the link margin at the configured distance is at least the policy's
     effective margin max(margin_db, σ·Φ⁻¹(1 − max_outage)) (equivalently, the distance is within
     ``max_distance_m``); ``outage_within_policy``: the per-link shadowing outage below the design
@@ -58,20 +69,22 @@ def design_check(lb: dict[str, Any]) -> dict[str, Any] | None:
         # p_c = 0: every SINR gives p > 0, so the margin over the requirement is unbounded
         out.update(margin_policy_met=True, margin_unbounded=True)
     if req.get("accuracy") is None:
-        return out
+        return DesignCheck(**jsonable(out))
     reachable = not (design is None and req.get("binding") == "accuracy") and not (
         design is not None and margin is None and not lb.get("max_distance_unbounded"))
     if not reachable:
         out.update(margin_policy_met=False, outage_probability=1.0,
                    outage_within_policy=False if max_outage is not None else None)
     out.update(design_value=design, basis=req.get("basis"), requirement_reachable=reachable)
-    return out
+    return DesignCheck(**jsonable(out))
 
 
-def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str, Any]:
+def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec,
+                required_sinr_db: float | None = None) -> LinkCurves:
     """The link's curves for the report: arrival probability and outage against distance, PER
     against SINR (:mod:`kfcrit.link.curves`), with the arrival probabilities they are read
-    against (p_c or the bracket's upper end, and the accuracy requirement's [p_S, p_V])."""
+    against (p_c or the bracket's upper end, and the accuracy requirement's [p_S, p_V]).
+    ``required_sinr_db`` is the link section's SINR at the design value (marked on PER)."""
     from kfcrit.link import curves
 
     marks: dict[str, float] = {}
@@ -81,19 +94,23 @@ def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec) -> dict[str
         marks["p_c"] = float(pc)
     elif up is not None:
         marks["p_up"] = float(up)
-    req = ((sec.get("design") or {}).get("required_arrival_probability") or {})
-    if req.get("interval"):
-        marks["p_S"], marks["p_V"] = (float(v) for v in req["interval"])
+    design = sec.get("design")
+    interval = design.required_arrival_probability.interval if design else None
+    if interval:
+        marks["p_S"], marks["p_V"] = (float(v) for v in interval)
     sizes = tuple(sorted({20, int(channel.psdu_bytes), 127}))
-    out = {"arrival_vs_distance": curves.arrival_vs_distance(channel).to_dict(),
-           "per_vs_sinr": curves.per_vs_sinr(
-               channel.radio, sizes, include_db=[v for v in (
-                   channel.sinr_db, (sec.get("link_budget") or {}).get("required_sinr_db"))
-                   if v is not None],
-               header_bytes=channel.per_bytes - channel.psdu_bytes).to_dict(),
-           "marks": marks}
+    path = "link_budget.curves"
     usable = {k: v for k, v in marks.items() if 0 < v < 1}
-    if usable:
-        out["outage_vs_distance"] = curves.outage_vs_distance(
-            channel, usable, curves.distance_grid(channel, points=60)).to_dict()
-    return out
+    outage = read_plain(OutageVsDistance, curves.outage_vs_distance(
+        channel, usable, curves.distance_grid(channel, points=60)).to_dict(),
+        f"{path}.outage_vs_distance") if usable else ABSENT
+    return LinkCurves(
+        arrival_vs_distance=read_plain(ArrivalVsDistance,
+                                       curves.arrival_vs_distance(channel).to_dict(),
+                                       f"{path}.arrival_vs_distance"),
+        per_vs_sinr=read_plain(PerVsSinr, curves.per_vs_sinr(
+            channel.radio, sizes, include_db=[v for v in (channel.sinr_db, required_sinr_db)
+                                              if v is not None],
+            header_bytes=channel.per_bytes - channel.psdu_bytes).to_dict(),
+            f"{path}.per_vs_sinr"),
+        marks=marks, outage_vs_distance=outage)

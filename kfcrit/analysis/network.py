@@ -2,19 +2,32 @@
 link's policy, the network's Lyapunov bound, its simulation and the burst condition."""
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel, design_check
+from kfcrit.analysis.records.bursty import StabilityFactsRecord, facts_record
 from kfcrit.analysis.records.channel import NetworkChannel, NetworkChannelSensor, channel_record
-from kfcrit.analysis.records.contract import OperatingPoint
+from kfcrit.analysis.records.contract import CriticalValueRecord, OperatingPoint, UpperBoundRecord
+from kfcrit.analysis.records.covariance import CovarianceBounds, CovarianceSummary
+from kfcrit.analysis.records.network import (
+    DeadLinkBurst,
+    NetworkBurstCondition,
+    NetworkSection,
+    SensorLink,
+)
+from kfcrit.analysis.records.read import read_fields, read_plain
+from kfcrit.analysis.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
+from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 
 
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
                      single: tuple[vd.Verdict, str] | None = None,
-                     stacked: dict[str, Any] | None = None
-                     ) -> tuple[dict[str, Any], OperatingPoint]:
+                     stacked: tuple[CriticalValueRecord | None, UpperBoundRecord | None]
+                     | None = None, timings: dict[str, float] | None = None
+                     ) -> tuple[NetworkSection, OperatingPoint]:
     """The ``network`` section (theory §9: per-sensor critical values, uniform margin, N − 1
     verdicts, bottleneck) and the operating point of a ``sensors:`` file.
 
@@ -27,6 +40,8 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
 
     Every verdict of the section (the network's, each N − 1 case's) is read from the theory's
     facts by :mod:`kfcrit.analysis.verdict`; with bursty links the burst condition joins in.
+    The theory's result (plain data) is read strictly here, with those verdicts; the burst
+    condition, the links and the stacked sections are built typed.
     """
     from kfcrit.theory.links.network import network_analysis
 
@@ -38,51 +53,59 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
                         "critical values, the uniform margin and N − 1 verdicts are in "
                         "`network`")
     verdict, basis = vd.network_verdict(net)
-    network_link_designs(spec.network, net, warnings)
     burst = network_burst_condition(spec.network)
     iid = all(s.channel is None or s.channel.iid for s in spec.network.sensors)
+    typed: dict[str, Any] = {}
     if burst is not None:
-        net["burst_condition"] = burst
-        verdict, basis = vd.network_burst_verdict(verdict, basis, burst["holds"],
-                                                  burst["statement"], burst["facts"])
+        typed["burst_condition"] = burst
+        verdict, basis = vd.network_burst_verdict(verdict, basis, burst.holds,
+                                                  burst.statement, burst.facts)
     if single is not None:
         verdict, basis = single
-    net["verdict"], net["basis"] = verdict.value, basis
     if stacked is not None:
-        net["stacked_critical_value"] = stacked.get("critical_value")
-        net["stacked_upper_bound"] = stacked.get("upper_bound")
-        net["stacked_meaning"] = ("the top-level critical_value and upper_bound: the stacked "
-                                  "system, every sensor's packet arriving together as over one "
-                                  "link (not any one sensor's critical value)")
-    holds = burst["holds"] if burst is not None else None
-    dead_burst = (burst or {}).get("n_minus_1") or {}
+        typed.update(stacked_critical_value=stacked[0], stacked_upper_bound=stacked[1],
+                     stacked_meaning=("the top-level critical_value and upper_bound: the "
+                                      "stacked system, every sensor's packet arriving together "
+                                      "as over one link (not any one sensor's critical value)"))
+    holds = burst.holds if burst is not None else None
+    dead_burst = burst.n_minus_1 or {} if burst is not None else {}
+    burst_facts: dict[str, StabilityFactsRecord] = {}
     for row in list(net.get("sensors") or []) + list(net.get("n_minus_1") or []):
         dead = row["n_minus_1"] if "n_minus_1" in row else row
-        bf = (dead_burst.get(row.get("name")) or {}).get("facts")
+        bf = dead_burst[row["name"]].facts if row.get("name") in dead_burst else None
         if bf is not None:
-            dead["burst_facts"] = bf
+            burst_facts[row["name"]] = bf
         dead["verdict"] = vd.dead_link_verdict(dead.get("facts") or {}, iid=iid,
                                                burst_holds=holds, burst_facts=bf).value
-    sensors = net.get("sensors") or []
-    bottleneck = (net.get("bottleneck") or {}).get("name")
-    row = next((s for s in sensors if s.get("name") == bottleneck), sensors[0] if sensors else {})
+    section = read_fields(NetworkSection, net, "network", timings, verdict=verdict.value,
+                          basis=basis, **typed)
+    links = network_link_designs(spec.network, section, warnings, timings)
+    section = replace(section, sensors=[
+        replace(row, link=links.get(row.name, row.link), n_minus_1=replace(
+            row.n_minus_1, burst_facts=burst_facts.get(row.name, row.n_minus_1.burst_facts)))
+        for row in section.sensors], n_minus_1=[
+        replace(row, burst_facts=burst_facts.get(row.name, row.burst_facts))
+        for row in section.n_minus_1])
+    sensors = section.sensors
+    bottleneck = section.bottleneck.name
+    row = next((s for s in sensors if s.name == bottleneck), sensors[0] if sensors else None)
     op = OperatingPoint(
-        arrival_probability=row.get("arrival_probability"),
+        arrival_probability=row.arrival_probability if row is not None else None,
         channel=NetworkChannel(model="network", sensors=[
             NetworkChannelSensor(name=s.name, channel=channel_record(s.channel))
             for s in spec.network.sensors]),
-        iid=iid, margin=(net.get("uniform_margin") or {}).get("value"), margin_robust=None,
-        bracket=(net.get("uniform_margin") or {}).get("interval"),
-        arrival_probabilities={s.get("name"): s.get("arrival_probability") for s in sensors},
+        iid=iid, margin=section.uniform_margin.value, margin_robust=None,
+        bracket=section.uniform_margin.interval,
+        arrival_probabilities={s.name: s.arrival_probability for s in sensors},
         bottleneck=bottleneck,
         note="network: the operating-point arrival probability is the bottleneck sensor's; the "
              "margin is the uniform margin δ (every link degraded by δ reaches the stability "
              "boundary)",
         verdict=verdict, basis=basis)
-    return net, op
+    return section, op
 
 
-def network_lower_bound(network: Any, all_lost: float | None = None) -> dict[str, Any]:
+def network_lower_bound(network: Any, all_lost: float | None = None) -> CovarianceBounds:
     r"""The Lyapunov lower bound of a network's error covariance (theory §9).
 
     .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
@@ -96,38 +119,50 @@ def network_lower_bound(network: Any, all_lost: float | None = None) -> dict[str
     """
     import numpy as np
 
-    from kfcrit.theory.covariance import bounds
-
     product = all_lost is None
     lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
                           for s in network.sensors if s.channel is not None])) if product \
         else float(all_lost)
-    system = network.stacked_system()
+    return lyapunov_only_bounds(network.stacked_system(), lost, "not computed for a network", (
+        "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost together); p is "
+        "1 − Π(1 − p_i); V̄ is not computed" if product else
+        "sensor network of time-aligned traces: S̄ solves S = π̂(∅) A S A' + Q with the "
+        "measured probability π̂(∅) that every packet is lost; p is 1 − π̂(∅); V̄ is not "
+        "computed"))
+
+
+def lyapunov_only_bounds(system: Any, lost: float, method: str, reason: str
+                         ) -> CovarianceBounds:
+    r"""Covariance bounds with the Lyapunov lower bound only (a network or a mesh, theory §9,
+    §13): S̄ at ``p = 1 − lost``,
+
+    .. math:: \bar S = \text{lost}\cdot A \bar S A' + Q,
+
+    and V̄ not computed (``method`` says why)."""
+    from kfcrit.theory.covariance import bounds
+
     S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
-    return {"p": 1.0 - lost,
-            "lower": bounds.covariance_summary(S),
-            "upper": {**bounds.covariance_summary(None), "computed": False,
-                      "method": "not computed for a network"},
-            "ordered": None, "applicable": True,
-            "reason": ("sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost "
-                       "together); p is 1 − Π(1 − p_i); V̄ is not computed" if product else
-                       "sensor network of time-aligned traces: S̄ solves S = π̂(∅) A S A' + Q "
-                       "with the measured probability π̂(∅) that every packet is lost; p is "
-                       "1 − π̂(∅); V̄ is not computed")}
+    lower = read_plain(CovarianceSummary, bounds.covariance_summary(S), "covariance_bounds.lower")
+    upper = replace(read_plain(CovarianceSummary, bounds.covariance_summary(None),
+                               "covariance_bounds.upper"), computed=False, method=method)
+    return CovarianceBounds(p=1.0 - lost, lower=lower, upper=upper, ordered=None,
+                            applicable=True, reason=reason)
 
 
-def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str]) -> None:
+def network_link_designs(network: Any, net: NetworkSection, warnings: list[str],
+                         timings: dict[str, float] | None = None) -> dict[str, SensorLink]:
     """Each link-budget sensor's link against its own margin policy (``link`` of its row in
-    ``network.sensors``): the arrival probability it must exceed is its critical value with the
-    other links at their operating values (the upper end of its interval when only bracketed)."""
+    ``network.sensors``), by sensor name: the arrival probability it must exceed is its critical
+    value with the other links at their operating values (the upper end of its interval when
+    only bracketed)."""
     from kfcrit.link import linkbudget
 
-    for row, sensor in zip(net.get("sensors") or [], network.sensors):
+    out: dict[str, SensorLink] = {}
+    for row, sensor in zip(net.sensors, network.sensors):
         ch = sensor.channel
         if ch is None or ch.model != "link-budget":
             continue
-        cv = row.get("critical_value") or {}
-        value, interval = cv.get("value"), cv.get("interval")
+        value, interval = row.critical_value.value, row.critical_value.interval
         bracket = (None, None) if value is not None or not interval else tuple(interval)
         try:
             lb = linkbudget.design_section(ch, critical_value=value, robust_value=None,
@@ -135,11 +170,14 @@ def network_link_designs(network: Any, net: dict[str, Any], warnings: list[str])
         except (ValueError, ArithmeticError) as exc:
             warnings.append(f"link design of sensor {sensor.name} not computed: {exc}")
             continue
-        if isinstance(lb, dict):
-            lb["design_check"] = design_check(lb)
-            row["link"] = {k: lb.get(k) for k in ("link", "link_margin_db", "required_sinr_db",
-                                                  "max_distance_m", "margin_policy",
-                                                  "design_check", "shadowing")}
+        check = design_check(lb)
+        if check is not None:
+            out[row.name] = read_fields(
+                SensorLink, {k: lb.get(k) for k in ("link", "link_margin_db", "required_sinr_db",
+                                                    "max_distance_m", "margin_policy",
+                                                    "shadowing")},
+                "network.sensors.link", timings, design_check=check)
+    return out
 
 
 STACKED_MIN_PATHS = 64
@@ -167,8 +205,7 @@ def stacked_paths(paths: int, n: int, m: int) -> int:
     return max(min(paths, STACKED_MIN_PATHS), int(paths / factor)) if factor > 1 else paths
 
 
-def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint
-                       ) -> dict[str, Any]:
+def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint) -> Simulation:
     """Monte Carlo of the random Riccati equation with each sensor over its own link (the rows
     of C that arrived update the filter, theory §9): E[tr P_t] at the horizon, or — when the
     network is mean-unstable — the sample statistics labelled as not estimating a mean."""
@@ -183,24 +220,26 @@ def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint
                    track_lambda_max=False).to_dict()
     mt = res.get("mean_trace") or {}
     last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
-    diverges = op.verdict is vd.Verdict.MEAN_UNSTABLE
-    summary = {"paths": paths, "steps": budget.steps, "seed": opts.seed,
-               "sensors": [s.name for s in net.sensors],
-               "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
-               "horizon_quantiles": (res.get("horizon") or {}).get("quantiles"),
-               "horizon_levels": (res.get("horizon") or {}).get("levels")}
-    if diverges:
-        summary.update(mean_exists=False, sample_mean_trace=last["mean"],
-                       statement="E[tr P_t] diverges (the network is mean-unstable): the sample "
-                                 "mean estimates nothing")
+    horizon = res.get("horizon") or {}
+    summary = NetworkSimulation(
+        paths=paths, steps=budget.steps, seed=opts.seed, sensors=[s.name for s in net.sensors],
+        mean_exists=None, **jsonable({
+            "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
+            "horizon_quantiles": horizon.get("quantiles"),
+            "horizon_levels": horizon.get("levels")}))
+    mean = NetworkMeanTrace(**jsonable(last))
+    if op.verdict is vd.Verdict.MEAN_UNSTABLE:
+        summary = replace(summary, mean_exists=False, sample_mean_trace=mean.mean,
+                          statement="E[tr P_t] diverges (the network is mean-unstable): the "
+                                    "sample mean estimates nothing")
     else:
-        summary.update(mean_exists=None if op.verdict is not vd.Verdict.MEAN_STABLE else True,
-                       mean_trace=last)
-    return {"seed": opts.seed, "quick": opts.quick, "network": summary,
-            "reason": "per-sensor arrivals, each sensor over its own link"}
+        summary = replace(summary, mean_exists=None if op.verdict is not vd.Verdict.MEAN_STABLE
+                          else True, mean_trace=mean)
+    return Simulation(seed=opts.seed, quick=opts.quick, network=summary,
+                      reason="per-sensor arrivals, each sensor over its own link")
 
 
-def network_burst_condition(network: Any) -> dict[str, Any] | None:
+def network_burst_condition(network: Any) -> NetworkBurstCondition | None:
     r"""The burst facts of a network with bursty links (theory §9 and §10).
 
     *Necessary.* A run of k steps in which every sensor outside T loses its packets has
@@ -235,27 +274,34 @@ def network_burst_condition(network: Any) -> dict[str, Any] | None:
     cons = necessary_constraints(network)
     scalar = network.n == 1
 
-    def facts(holds: bool | None, what: str) -> dict[str, Any]:
+    def facts(holds: bool | None, what: str) -> StabilityFactsRecord:
         nec = (f"burst condition {what}: Π_(j∉T) c_j·ρ_T² < 1 for every sensor set T "
                + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
                   if holds is False else "undecided at float precision"))
         suff = ("scalar plant: any useful arrival resets the error, so E[P_t] is bounded iff the "
                 "all-lost runs decay faster than a^(-2k), i.e. the burst condition (theory §10)"
                 if scalar and holds is True else "")
-        return StabilityFacts(holds, bool(scalar and holds is True), scalar, nec, suff).to_dict()
+        return facts_record(StabilityFacts(holds, bool(scalar and holds is True), scalar, nec,
+                                           suff))
 
     holds = necessary_holds(cons, q, q_exact)
-    dead: dict[str, Any] = {}
+    dead: dict[str, DeadLinkBurst] = {}
     for i, s in enumerate(network.sensors):
         qd, qde = q.copy(), list(q_exact)
         qd[i], qde[i] = 0.0, sp.Integer(0)
         hd = necessary_holds(cons, qd, qde)
-        dead[s.name] = {"holds": hd, "facts": facts(hd, f"with {s.name} dead")}
+        dead[s.name] = DeadLinkBurst(holds=_bool(hd), facts=facts(hd, f"with {s.name} dead"))
     names = ", ".join(s.name for s, c in zip(network.sensors, chains) if c is not None)
     statement = (f"burst condition for the bursty links ({names}): Π_(j∉T) c_j·ρ_T² < 1 for "
                  "every sensor set T, c_j = 1 − r_j (Gilbert–Elliott) or 1 − p_j (i.i.d.) — "
                  + ("holds" if holds else "fails: loss bursts make E[P_t] diverge"
                     if holds is False else "undecided at float precision"))
-    return {"holds": holds, "statement": statement, "facts": facts(holds, "at the operating point"),
-            "n_minus_1": dead,
-            "continuation": {s.name: 1 - float(v) for s, v in zip(network.sensors, q)}}
+    return NetworkBurstCondition(
+        holds=_bool(holds), statement=statement,
+        continuation={s.name: 1 - float(v) for s, v in zip(network.sensors, q)},
+        facts=facts(holds, "at the operating point"), n_minus_1=dead)
+
+
+def _bool(value: Any) -> bool | None:
+    """A decided fact as a bool (None stays undecided)."""
+    return None if value is None else bool(value)

@@ -23,7 +23,6 @@ followed by the detail sections ``system``, ``structure``, ``theory``, ``covaria
 from __future__ import annotations
 
 import dataclasses
-import enum
 import functools
 import platform
 import typing
@@ -35,9 +34,37 @@ from kfcrit.analysis.links import bursty_channel, design_check, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
+from kfcrit.analysis.records.bursty import BurstCurveRecord, GilbertElliottSection
 from kfcrit.analysis.records.channel import channel_record
-from kfcrit.analysis.records.contract import OperatingPoint, Provenance
-from kfcrit.analysis.records.system import AnalysisOptionsRecord
+from kfcrit.analysis.records.contract import (
+    OperatingPoint,
+    Provenance,
+    SystemSection,
+    UpperBoundRecord,
+)
+from kfcrit.analysis.records.covariance import (
+    AccuracyDesign,
+    BestStaticGain,
+    CovarianceBounds,
+    CovarianceSummary,
+    Invariant,
+    Markers,
+    PhaseTransition,
+    RequiredArrivalProbability,
+    StaticGain,
+    StaticGainEstimate,
+    TailExponentRecord,
+    TailSection,
+)
+from kfcrit.analysis.records.link import LinkBudgetRecord, LinkDesignRecord
+from kfcrit.analysis.records.read import TIMING_KEYS, read_fields, read_plain
+from kfcrit.analysis.records.simulation import Simulation
+from kfcrit.analysis.records.system import (
+    AnalysisOptionsRecord,
+    ContinuousModel,
+    Matrices,
+    SensorRecord,
+)
 from kfcrit.analysis.requirements import (
     power_law_tail,
     requirement_assessment,
@@ -46,9 +73,8 @@ from kfcrit.analysis.requirements import (
 from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
 from kfcrit.analysis.verification import section_value, verification
 from kfcrit.defaults import DEFAULT_TOLERANCE
-from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
-from kfcrit.io.typed import from_json, to_json
+from kfcrit.io.typed import ABSENT, to_json
 from kfcrit.model.system import System, conditioning_warnings
 from kfcrit.version import __version__
 
@@ -154,28 +180,12 @@ class TheorySections:
         return section.value if section is not None else None
 
 
-TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
 QUICK_SIMULATION_MAX_STATES = 40
 """Largest n simulated by a ``--quick`` draft (each path-step costs O(n³))."""
 QUICK_ROBUST_MAX_STATES = 60
 """Largest n whose robust critical value a ``--quick`` draft computes."""
 QUICK_PHASE_SECONDS = 5.0
 """Time budget of the V̄ curve in a ``--quick`` draft of a system with more than 20 states."""
-
-
-def _split_timings(obj: Any, path: str, found: dict[str, float]) -> Any:
-    """Copy of ``obj`` without the keys in :data:`TIMING_KEYS`; those go into ``found``."""
-    if isinstance(obj, dict):
-        out = {}
-        for k, v in obj.items():
-            if k in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
-                found[f"{path}.{k}".lstrip(".")] = v
-            else:
-                out[k] = _split_timings(v, f"{path}.{k}", found)
-        return out
-    if isinstance(obj, list):
-        return [_split_timings(v, f"{path}[{i}]", found) for i, v in enumerate(obj)]
-    return obj
 
 
 def classification_of(sec: dict[str, Any]) -> str | None:
@@ -188,19 +198,21 @@ def _as_spec(system: System | SystemSpec) -> SystemSpec:
     return system if isinstance(system, SystemSpec) else SystemSpec(system=system)
 
 
-def system_section(spec: SystemSpec) -> dict[str, Any]:
+def system_section(spec: SystemSpec) -> SystemSection:
     """Sizes, exactness and exact matrices of the system (and how it was sampled, for a
     continuous-time file; its sensors, for a network)."""
     s = spec.system
-    out = {"n": s.n, "m": s.m, "exact_input": s.exact, "matrices": s.matrices_text(),
-           "channel": spec.channel.to_dict() if spec.channel is not None else None}
+    extra: dict[str, Any] = {}
     if spec.continuous is not None:
-        out["continuous"] = spec.continuous.to_dict()
+        extra["continuous"] = read_plain(ContinuousModel, spec.continuous.to_dict(),
+                                           "system.continuous")
     if spec.network is not None:
         net = spec.network.to_dict()
-        out["sensors"] = net.get("sensors")
-        out["sink_position_m"] = net.get("sink_position_m")
-    return out
+        extra["sensors"] = read_plain(list[SensorRecord] | None, net.get("sensors"),
+                                        "system.sensors")
+        extra["sink_position_m"] = net.get("sink_position_m")
+    return SystemSection(n=s.n, m=s.m, exact_input=s.exact, matrices=Matrices(**s.matrices_text()),
+                         channel=channel_record(spec.channel), **extra)
 
 
 def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
@@ -217,7 +229,18 @@ def critical_inputs(theory: TheorySections) -> vd.CriticalInputs:
         upper=theory.value("upper_bound"), p_low=p_low, p_low_exact=theory.p_low_exact)
 
 
-def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInputs | None:
+def bursty_part(spec: SystemSpec, link: Any) -> GilbertElliottSection | None:
+    """The Gilbert–Elliott section of the operating point's link: the ``link_budget`` section
+    of a Gilbert–Elliott channel, ``link_budget.bursty`` of a link budget with time-correlated
+    shadowing; None otherwise."""
+    if link is None or spec.channel is None:
+        return None
+    if spec.channel.model == "link-budget":
+        return link.bursty or None if isinstance(link, LinkBudgetRecord) else None
+    return link if isinstance(link, GilbertElliottSection) else None
+
+
+def burst_inputs(spec: SystemSpec, link: Any) -> vd.BurstInputs | None:
     """The Gilbert–Elliott chain for the verdict, with the sufficient condition the link
     section proved (the exact scalar condition of theory §7 or a coupled certificate, §10).
 
@@ -226,26 +249,21 @@ def burst_inputs(spec: SystemSpec, link: dict[str, Any] | None) -> vd.BurstInput
     ge = bursty_channel(spec.channel)
     if ge is None:
         return None
-    if spec.channel.model == "link-budget":
-        link = (link or {}).get("bursty") or {}
-    cond = (link or {}).get("condition") if isinstance((link or {}).get("condition"), dict) \
-        else {}
+    part = bursty_part(spec, link)
+    cond = part.condition if part is not None else None
     sufficient, basis = None, None
-    if cond.get("decides") is True and cond.get("holds") is True:
+    if cond is not None and cond.decides is True and cond.holds is True:
         sufficient = True
-        value = cond.get("value")
-        shown = (f"{value:.6g}" if value != 1.0 else
+        shown = (f"{cond.value:.6g}" if cond.value != 1.0 else
                  "1 to float precision, below 1 exactly (r exceeds 1 - 1/a^2)")
-        basis = (f"Gilbert–Elliott condition {cond.get('expression')} = {shown} "
-                 f"< 1 ({cond.get('status')})")
-    cert = (link or {}).get("certificate")
-    if sufficient is None and isinstance(cert, dict) and (cert.get("facts") or {}).get(
-            "sufficient") is True:
-        sufficient, basis = True, cert.get("basis") or "coupled fixed-gain certificate"
-    elif sufficient is None and isinstance(cert, dict) and cert.get("basis"):
-        basis = cert["basis"]
-    elif sufficient is None and cond.get("status"):
-        basis = f"the condition {cond.get('expression')} is labelled: {cond.get('status')}"
+        basis = f"Gilbert–Elliott condition {cond.expression} = {shown} < 1 ({cond.status})"
+    cert = part.certificate if part is not None else None
+    if sufficient is None and cert and cert.facts and cert.facts.sufficient is True:
+        sufficient, basis = True, cert.basis or "coupled fixed-gain certificate"
+    elif sufficient is None and cert and cert.basis:
+        basis = cert.basis
+    elif sufficient is None and cond is not None and cond.status:
+        basis = f"the condition {cond.expression} is labelled: {cond.status}"
     return vd.BurstInputs(recovery=ge.recovery_rate, failure=ge.failure_rate,
                           sufficient=sufficient, basis=basis)
 
@@ -255,14 +273,14 @@ def joint_verdict(sec: dict[str, Any], joint: vd.JointLawInputs, warnings: list[
     received set (theory §13, §14), stated in the operating point and the network section."""
     verdict, basis = vd.joint_law_verdict(joint)
     sec["operating_point"] = replace(sec["operating_point"], verdict=verdict, basis=basis)
-    sec["network"]["verdict"], sec["network"]["basis"] = verdict.value, basis
+    sec["network"] = replace(sec["network"], verdict=verdict.value, basis=basis)
     warnings.append("network of measured traces: the verdict uses the joint law of the "
                     "received set (`channel_fit.joint_law`); the per-sensor critical values "
                     "and the uniform margin in `network` assume independent links")
 
 
 def operating_point(spec: SystemSpec, theory: TheorySections,
-                    link: dict[str, Any] | None = None,
+                    link: LinkBudgetRecord | GilbertElliottSection | None = None,
                     measured: vd.MeasuredInputs | None = None) -> OperatingPoint | None:
     """Arrival probability of the configured channel against p_c, the robust value and bracket,
     with the verdict of :func:`kfcrit.analysis.verdict.operating_verdict`."""
@@ -300,8 +318,7 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
                        "channel the margin compares only the stationary arrival probability, "
                        "and the verdict follows the basis stated")
     if burst is not None and cls != "not-detectable":
-        _burst_margin(out, burst, crit, link if ch.model != "link-budget"
-                      else (link or {}).get("bursty"))
+        _burst_margin(out, burst, crit, bursty_part(spec, link))
     elif (measured is not None and measured.model == "gilbert-elliott"
           and measured.worst_burst is not None and cls != "not-detectable"):
         # a trace fitted as bursty is judged on its own boundary too, at the worst corner of
@@ -317,7 +334,7 @@ def operating_point(spec: SystemSpec, theory: TheorySections,
 
 
 def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalInputs,
-                  link: dict[str, Any] | None) -> None:
+                  link: GilbertElliottSection | None) -> None:
     """The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
     r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
     burst condition holds), and ``margin_to_sufficient`` r − r_suf(f) from the critical curve
@@ -334,10 +351,10 @@ def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalI
                margin_basis="recovery rate r − r_nec, r_nec = max(1 − 1/ρ(A)², 0) (the "
                             "necessary burst condition (1 − r)ρ(A)² < 1, theory §10)",
                recovery_threshold=r_nec)
-    curve = (link or {}).get("critical_curve") if isinstance(link, dict) else None
-    if isinstance(curve, dict):
+    curve: BurstCurveRecord | None = link.critical_curve or None if link is not None else None
+    if curve is not None:
         f = float(burst.failure)
-        for fi, rs in zip(curve.get("failure_rates") or [], curve.get("sufficient_recovery") or []):
+        for fi, rs in zip(curve.failure_rates or [], curve.sufficient_recovery or []):
             if rs is not None and abs(fi - f) <= 1e-12:
                 out["margin_to_sufficient"] = float(r) - rs
                 break
@@ -404,16 +421,13 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
 
 
 def typed_section(key: str, value: Any, timings: dict[str, float]) -> Any:
-    """The record section ``key`` as its typed class (:class:`AnalysisRecord`'s field type).
+    """The theory's section ``key`` as its typed class (:class:`AnalysisRecord`'s field type).
 
-    A lower layer states its result as plain data (``to_dict()``); it is typed here, once,
-    where it enters the record (strict: a key the record does not declare is an error), its
-    wall-clock seconds moved to ``timings``. A value that is already typed is returned as is.
+    The theory layer states its result as plain data (``to_dict()``); it is read here, once,
+    where it enters the analysis (:func:`kfcrit.analysis.records.read.read_plain`: strict, its
+    wall-clock seconds moved to ``timings``). A value that is already typed is returned as is.
     """
-    if value is None or dataclasses.is_dataclass(value) or isinstance(value, enum.Enum):
-        return value
-    plain = _split_timings(jsonable(value), f".{key}", timings)
-    return from_json(record_hints()[key], plain, f"record.{key}")
+    return read_plain(record_hints()[key], value, key, timings)
 
 
 def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None = None, *,
@@ -454,17 +468,11 @@ def _prepared(system: System | SystemSpec, options: AnalysisOptions | None,
 
 def _typed_record(sec: dict[str, Any], theory: TheorySections,
                   timings: dict[str, float]) -> AnalysisRecord:
-    """The :class:`AnalysisRecord` of the sections: typed sections are taken as built; a
-    section a lower layer delivered as plain data is typed by :func:`typed_section`, its
-    wall-clock seconds moved to ``timings`` (with the theory's)."""
+    """The :class:`AnalysisRecord` of the sections, every one taken as built (each is typed
+    where it is made, :data:`TYPED_KEYS`); the theory's wall-clock seconds join ``timings``."""
     timings.update(theory.timings)
-    fields: dict[str, Any] = {}
-    for f in dataclasses.fields(AnalysisRecord):
-        if f.name == "timings" or f.name not in sec:
-            continue
-        value = sec[f.name]
-        fields[f.name] = value if f.name in TYPED_KEYS else typed_section(f.name, value, timings)
-    return AnalysisRecord(**fields)
+    return AnalysisRecord(**{f.name: sec[f.name] for f in dataclasses.fields(AnalysisRecord)
+                             if f.name != "timings" and f.name in sec})
 
 
 @functools.cache
@@ -473,16 +481,11 @@ def record_hints() -> dict[str, Any]:
     return typing.get_type_hints(AnalysisRecord)
 
 
-TYPED_KEYS = frozenset({"name", "description", "warnings", "schema_version", "review",
-                        "requirements", "verification", "provenance", "mesh",
-                        "operating_point"})
-"""The record's sections :func:`analysis_sections` builds as typed values."""
-
-
-MEASURED_KEYS = ("design", "tail", "covariance_bounds", "static_gain", "phase_transition",
-                 "invariant", "simulation")
-"""The sections the lower layers state as plain data that the requirements and the
-verification read: typed by :func:`analysis_sections` before they are judged."""
+TYPED_KEYS = frozenset(f.name for f in dataclasses.fields(AnalysisRecord)
+                       if f.name != "timings")
+"""The record's sections :func:`analysis_sections` builds as typed values: all of them (each
+where it is made; a lower layer's plain result is read strictly there,
+:mod:`kfcrit.analysis.records.read`)."""
 
 
 def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections, *,
@@ -524,16 +527,16 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
 
     if spec.network is None or spec.network.size == 1:
         # before the link: the link design reads the accuracy requirement's [p_S, p_V]
-        _design_sections(spec, theory, sec, warnings)
-    _link_sections(spec, opts, sec, warnings, theory)
+        _design_sections(spec, theory, sec, warnings, timings)
+    _link_sections(spec, opts, sec, warnings, theory, timings)
     measured = measured_channel(spec, critical_inputs(theory), details=opts.details,
                                 structure=theory.structure)
     if measured is not None:
         sec["channel_fit"] = measured.section
     if spec.network is not None and spec.network.size > 1:
         sec["network"], sec["operating_point"] = network_sections(
-            spec, opts, warnings, stacked={k: to_json(sec.get(k)) for k in ("critical_value",
-                                                                            "upper_bound")})
+            spec, opts, warnings, stacked=(sec.get("critical_value"), sec.get("upper_bound")),
+            timings=timings)
         if measured is not None and measured.joint is not None:
             joint_verdict(sec, measured.joint, warnings)
     hop_reasons = mesh_sections(spec, opts, sec, warnings) if spec.mesh is not None else []
@@ -550,18 +553,19 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     if spec.network is not None and spec.network.size == 1:
         op1 = sec["operating_point"]
         sec["network"], _ = network_sections(spec, opts, warnings,
-                                             single=(op1.verdict, op1.basis or ""))
+                                             single=(op1.verdict, op1.basis or ""),
+                                             timings=timings)
     reqs = spec.requirements
     if not lean or getattr(reqs, "max_error_trace", None) is not None:
-        _tail_section(spec, theory, sec)
+        _tail_section(spec, theory, sec, timings)
     if spec.network is not None and spec.network.size > 1:
-        joint = ((sec.get("channel_fit") or {}).get("joint_law")
-                 if isinstance(sec.get("channel_fit"), dict) else None)
+        fit = sec.get("channel_fit")
+        joint = fit.joint_law if fit is not None else None
         sec["covariance_bounds"] = network_lower_bound(
-            spec.network, (joint or {}).get("p_all_lost"))
+            spec.network, joint.p_all_lost if joint is not None else None)
     elif spec.mesh is None and (opts.details
                                 or getattr(reqs, "max_mean_error_trace", None) is not None):
-        _bounds_sections(spec, sec, warnings, curves=opts.details, quick=opts.quick,
+        _bounds_sections(spec, sec, warnings, timings, curves=opts.details, quick=opts.quick,
                          upper=theory.upper)
     tail = reqs.max_error_trace is not None and reqs.max_tail_probability is not None
     if spec.network is not None and spec.network.size > 1:
@@ -569,19 +573,16 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
                                                    QUICK_SIMULATION_MAX_STATES):
             sec["simulation"] = network_simulation(spec, opts, sec["operating_point"])
         else:
-            sec["simulation"] = {"skipped": True, "reason": "simulation disabled"}
+            sec["simulation"] = Simulation(skipped=True, reason="simulation disabled")
     elif spec.mesh is not None:
         pass  # mesh_sections simulated over the hop outcomes
     elif opts.quick and s.n > QUICK_SIMULATION_MAX_STATES and not tail:
-        sec["simulation"] = {"skipped": True, "reason": f"--quick draft of a system with "
-                             f"n = {s.n} > {QUICK_SIMULATION_MAX_STATES} states: the Monte Carlo "
-                             "cross-check is left out (run without --quick for it); the verdict "
-                             "rests on the theory"}
+        sec["simulation"] = Simulation(skipped=True, reason=(
+            f"--quick draft of a system with n = {s.n} > {QUICK_SIMULATION_MAX_STATES} states: "
+            "the Monte Carlo cross-check is left out (run without --quick for it); the verdict "
+            "rests on the theory"))
     elif opts.details or tail:
-        _simulation_sections(spec, opts, sec, warnings, estimator)
-    for key in MEASURED_KEYS:     # typed here: what follows judges them
-        if sec.get(key) is not None:
-            sec[key] = typed_section(key, sec[key], timings)
+        _simulation_sections(spec, opts, sec, warnings, timings, estimator)
     if sec.get("tail") is not None:
         sec["tail"] = tail_simulation_check(sec["tail"], sec.get("simulation"))
     requirements = requirement_assessment(reqs.to_dict() if reqs else None,
@@ -593,12 +594,13 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
     sec["requirements"] = power_law_tail(requirements, sec.get("tail"), sec.get("simulation"))
     sec["verification"] = [] if lean else verification(sec, warnings)
     op = sec.get("operating_point")
-    lb = sec.get("link_budget") if isinstance(sec.get("link_budget"), dict) else {}
-    sensor_links = [vd.link_reasons((row.get("link") or {}).get("design_check"), row.get("name"))
-                    for row in (sec.get("network") or {}).get("sensors") or []]
+    lb = sec.get("link_budget")
+    net = sec.get("network")
+    sensor_links = [vd.link_reasons(row.link.design_check if row.link else None, row.name)
+                    for row in (net.sensors if net else [])]
     review = vd.review(op.verdict if op else None, op.basis if op else None,
                        requirements.assessments if requirements is not None else (),
-                       lb.get("design_check"),
+                       lb.design_check if isinstance(lb, LinkBudgetRecord) else None,
                        extra=[r for rs in sensor_links for r in rs] + hop_reasons
                        + loop_reasons)
     ub = sec.get("upper_bound")
@@ -654,10 +656,8 @@ def _json_sections(sec: dict[str, Any], theory: TheorySections,
             if key not in memo:
                 memo[key] = to_json(v)
             out[key] = memo[key]
-        elif dataclasses.is_dataclass(v) or isinstance(v, enum.Enum):
-            out[key] = to_json(v)
         else:
-            out[key] = _split_timings(jsonable(v), f".{key}", timings)
+            out[key] = to_json(v)
     return out
 
 
@@ -672,12 +672,12 @@ NOT_DETECTABLE = ("not applicable: (C, A) is not detectable, so E[P_t] diverges 
                   "arrival probability (even p = 1)")
 
 
-def not_detectable_upper() -> dict[str, Any]:
+def not_detectable_upper() -> UpperBoundRecord:
     """The ``upper_bound`` section of an undetectable system: p_up is not defined (Sinopoli's
     Theorems 3–6 assume (A, C) detectable), so it is labelled instead of computed."""
-    return {"value": None, "interval": None, "certified": False, "status": "not applicable",
-            "method": None, "certificate": None, "tolerance": None, "reason": NOT_DETECTABLE,
-            "warnings": []}
+    return UpperBoundRecord(value=None, interval=None, certified=False, status="not applicable",
+                            method=None, certificate=None, warnings=[], tolerance=None,
+                            reason=NOT_DETECTABLE)
 
 
 def close_bracket(sections: dict[str, Any]) -> None:
@@ -701,8 +701,9 @@ def close_bracket(sections: dict[str, Any]) -> None:
                     f"(Sinopoli Thm 3) differ by at most {tol:g}.").strip())
 
 
-def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str], *,
-                     curves: bool = True, quick: bool = False, upper: Any = None) -> None:
+def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
+                     timings: dict[str, float], *, curves: bool = True, quick: bool = False,
+                     upper: Any = None) -> None:
     """Covariance bounds at the operating point; with ``curves`` also the static gains and the
     phase-transition curves tr S̄(p), tr V̄(p)."""
     import numpy as np
@@ -710,38 +711,35 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
     from kfcrit.theory.covariance import bounds
 
     s = spec.system
-    markers = {"p_low": section_value(sec, "lower_bound"),
-               "p_c": section_value(sec, "critical_value"),
-               "p_up": section_value(sec, "upper_bound"),
-               "operating": (float(spec.channel.arrival_probability)
-                             if spec.channel is not None else None)}
+    markers = Markers(p_low=section_value(sec, "lower_bound"),
+                      p_c=section_value(sec, "critical_value"),
+                      p_up=section_value(sec, "upper_bound"),
+                      operating=(float(spec.channel.arrival_probability)
+                                 if spec.channel is not None else None))
     if classification_of(sec) == "not-detectable":
-        p = markers["operating"]
+        p = markers.operating
         if p is not None:
-            S = bounds.lower_covariance(s.a, s.q, p)
-            sec["covariance_bounds"] = {
-                "p": p, "lower": bounds.covariance_summary(S),
-                "upper": {**bounds.covariance_summary(None), "residual": None, "method": NOT_DETECTABLE,
-                          "iterations": 0},
-                "ordered": None, "applicable": False, "reason": NOT_DETECTABLE}
-            na = {"available": False, "reason": NOT_DETECTABLE}
-            sec["static_gain"] = {"p": p, "kalman": na, "best": dict(na), "p_up": None,
-                                  "p_up_interval": None}
+            sec["covariance_bounds"] = not_detectable_bounds(s, p)
+            sec["static_gain"] = StaticGain(
+                p=p, kalman=StaticGainEstimate(available=False, reason=NOT_DETECTABLE),
+                best=BestStaticGain(available=False, reason=NOT_DETECTABLE), p_up=None,
+                p_up_interval=None)
         if not curves:
             return
-        grid = bounds.phase_grid(markers["p_low"] or 0.0, None, bounds.phase_points(s.n))
+        grid = bounds.phase_grid(markers.p_low or 0.0, None, bounds.phase_points(s.n))
         lower = [bounds.lower_covariance(s.a, s.q, float(p)) for p in grid]
-        sec["phase_transition"] = {
-            "p": [float(v) for v in grid],
-            "trace_lower": [None if S is None else float(np.trace(S)) for S in lower],
-            "trace_upper": [None] * len(grid), "markers": markers,
-            "warnings": [f"V̄ {NOT_DETECTABLE}"]}
+        sec["phase_transition"] = PhaseTransition(
+            p=[float(v) for v in grid],
+            trace_lower=[None if S is None else float(np.trace(S)) for S in lower],
+            trace_upper=[None] * len(grid), markers=markers,
+            warnings=[f"V̄ {NOT_DETECTABLE}"])
         return
     from kfcrit.theory.covariance.riccati import single_blas_thread
 
     try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
         with single_blas_thread():
-            pt = _bounds_and_curves(spec, s, sec, markers, warnings, curves, quick, upper)
+            pt = _bounds_and_curves(spec, s, sec, markers, warnings, timings, curves, quick,
+                                    upper)
     except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
         warnings.append("covariance bounds and phase transition not computed: numerical "
                         f"failure ({type(exc).__name__}: {str(exc)[:120]})")
@@ -749,21 +747,36 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
     if pt is None:
         return
     sec["phase_transition"] = pt
-    if (pt.get("limits") or {}).get("stopped"):
-        warnings.append(f"phase-transition curve incomplete: {pt['limits']['stopped']}")
+    if pt.limits and pt.limits.stopped:
+        warnings.append(f"phase-transition curve incomplete: {pt.limits.stopped}")
 
 
-def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
-                       markers: dict[str, Any], warnings: list[str], curves: bool, quick: bool,
-                       upper: Any) -> dict[str, Any] | None:
+def not_detectable_bounds(s: System, p: float) -> CovarianceBounds:
+    """The covariance bounds of an undetectable system at ``p``: the Lyapunov lower bound S̄
+    (theory §3) and no V̄ (E[P_t] diverges for every p)."""
+    from kfcrit.theory.covariance import bounds
+
+    path = "covariance_bounds"
+    lower = read_plain(CovarianceSummary,
+                       bounds.covariance_summary(bounds.lower_covariance(s.a, s.q, p)),
+                       f"{path}.lower")
+    upper = replace(read_plain(CovarianceSummary, bounds.covariance_summary(None),
+                               f"{path}.upper"),
+                    residual=None, method=NOT_DETECTABLE, iterations=0)
+    return CovarianceBounds(p=p, lower=lower, upper=upper, ordered=None, applicable=False,
+                            reason=NOT_DETECTABLE)
+
+
+def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any], markers: Markers,
+                       warnings: list[str], timings: dict[str, float], curves: bool,
+                       quick: bool, upper: Any) -> PhaseTransition | None:
     """Covariance bounds at the operating point (and static gains) into ``sec``; the
     phase-transition curve returned (None without ``curves``)."""
     from kfcrit.theory.covariance import bounds
 
-    if markers["operating"] is not None:
-        cb = bounds.covariance_bounds(s, markers["operating"], upper=upper)
-        cb["lower"] = _lower_exists_exactly(cb["lower"], spec.channel, sec)
-        cb["upper"] = _upper_exists_exactly(cb["upper"], spec.channel, sec)
+    plain_markers = to_json(markers)    # the theory layer reads plain data
+    if markers.operating is not None:
+        cb = bounds.covariance_bounds(s, markers.operating, upper=upper)
         if spec.channel is not None and spec.channel.model == "gilbert-elliott":
             from kfcrit.theory.links.burstcov import markov_jump_bounds
             from kfcrit.theory.links.markov import burst_necessary
@@ -772,43 +785,48 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any],
             cb["markov_jump"] = markov_jump_bounds(
                 s, float(ge.failure_rate), float(ge.recovery_rate),
                 necessary_holds=burst_necessary(s, ge.recovery_rate).holds).to_dict()
-        sec["covariance_bounds"] = cb
-        warnings.extend(cb.get("warnings") or [])
+        typed = read_plain(CovarianceBounds, cb, "covariance_bounds", timings)
+        typed = replace(typed, lower=_lower_exists_exactly(typed.lower, spec.channel, sec),
+                        upper=_upper_exists_exactly(typed.upper, spec.channel, sec))
+        sec["covariance_bounds"] = typed
+        warnings.extend(typed.warnings or [])
         if curves:
-            sec["static_gain"] = bounds.static_gain(s, markers["operating"], upper=upper)
+            sec["static_gain"] = read_plain(
+                StaticGain, bounds.static_gain(s, markers.operating, upper=upper),
+                "static_gain", timings)
     if not curves:
         return None
     if quick and s.n > bounds.LARGE_STATES:   # iteration budgets, stated in the curve
-        pt = bounds.phase_transition(s, markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
+        pt = bounds.phase_transition(s, plain_markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
                                      time_budget=QUICK_PHASE_SECONDS, upper=upper,
                                      iteration_budget=bounds.LARGE_QUICK_PHASE_ITERATIONS)
     elif quick and s.n > 20:
-        pt = bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
-                                     upper=upper)
+        pt = bounds.phase_transition(s, plain_markers, points=40,
+                                     time_budget=QUICK_PHASE_SECONDS, upper=upper)
     else:
-        pt = bounds.phase_transition(s, markers, upper=upper)
-    return pt
+        pt = bounds.phase_transition(s, plain_markers, upper=upper)
+    return read_plain(PhaseTransition, pt, "phase_transition", timings)
 
 
-def _lower_exists_exactly(lower: dict[str, Any], channel: Any,
-                          sec: dict[str, Any]) -> dict[str, Any]:
+def _lower_exists_exactly(lower: CovarianceSummary, channel: Any,
+                          sec: dict[str, Any]) -> CovarianceSummary:
     r"""S̄ exists iff p > p_low (Sinopoli Thm 3, 4), decided on the exact p and p_low: a
     float p that rounds onto p_low (p = 9/25 + 10⁻⁴⁰) finds no bounded S̄ in float64, yet S̄
     exists, beyond float64.
 
     .. math::  \exists\,\bar S \iff p > p_{low} = 1 - 1/\rho(A)^2
     """
-    if lower.get("exists") is not False or channel is None or not channel.iid:
+    if lower.exists is not False or channel is None or not channel.iid:
         return lower
     low = sec.get("lower_bound")
     expr = getattr(low, "expression", None)
     if expr is None or not vd.exceeds(channel.arrival_probability, expr):
         return lower
-    return {**lower, "exists": True, "beyond_float64": True}
+    return replace(lower, exists=True, beyond_float64=True)
 
 
-def _upper_exists_exactly(upper: dict[str, Any], channel: Any,
-                          sec: dict[str, Any]) -> dict[str, Any]:
+def _upper_exists_exactly(upper: CovarianceSummary, channel: Any,
+                          sec: dict[str, Any]) -> CovarianceSummary:
     r"""V̄ exists for p > p_up (Sinopoli Thm 5, 6), decided on the exact p where p_up is
     known exactly (``method`` "exact": C invertible or p_up = p_low proven): a float p that
     rounds onto p_up finds no V̄ in float64, yet it exists, beyond float64.
@@ -816,24 +834,28 @@ def _upper_exists_exactly(upper: dict[str, Any], channel: Any,
     .. math::  p > p_{up} \Rightarrow \exists\,\bar V = g_p(\bar V)
     """
     ub = sec.get("upper_bound")
-    if upper.get("exists") is not False or channel is None or not channel.iid \
+    if upper.exists is not False or channel is None or not channel.iid \
             or getattr(ub, "method", None) != "exact":
         return upper
     expr = getattr(getattr(ub, "lower_evidence", None), "expression", None)
     if expr is None or not vd.exceeds(channel.arrival_probability, expr):
         return upper
-    return {**upper, "exists": True, "beyond_float64": True,
-            "method": "none in float64: p > p_up exactly, but p rounds onto p_up"}
+    return replace(upper, exists=True, beyond_float64=True,
+                   method="none in float64: p > p_up exactly, but p rounds onto p_up")
 
 
 def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                         warnings: list[str], estimator: OperatingPoint | None = None) -> None:
+                         warnings: list[str], timings: dict[str, float],
+                         estimator: OperatingPoint | None = None) -> None:
     from kfcrit.theory.covariance import invariant
 
-    sec["invariant"] = invariant.invariant_section(spec.system)
-    warnings.extend((sec["invariant"] or {}).get("warnings") or [])
+    inv = read_plain(Invariant | None, invariant.invariant_section(spec.system), "invariant",
+                     timings)
+    sec["invariant"] = inv
+    warnings.extend((inv.warnings or []) if inv is not None else [])
     if not opts.simulate:
-        sec["simulation"] = {"skipped": True, "reason": "simulation disabled (--no-simulate)"}
+        sec["simulation"] = Simulation(skipped=True,
+                                       reason="simulation disabled (--no-simulate)")
         return
     from kfcrit.sim.montecarlo import simulation_section
 
@@ -844,13 +866,13 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
     if pc is not None and robust is not None and robust > pc:
         # a system within the tolerance is worse: judge the mean's existence conservatively
         pc, bracket = None, [pc, robust]
-    sim = simulation_section(
+    sim = read_plain(Simulation | None, simulation_section(
         spec, critical_value=pc, upper_bound=section_value(sec, "upper_bound"),
         seed=opts.seed, quick=opts.quick,
         critical_bracket=tuple(bracket) if bracket and None not in bracket else None,
-        mean_decision=_mean_decision(estimator))
+        mean_decision=_mean_decision(estimator)), "simulation", timings)
     sec["simulation"] = sim
-    warnings.extend((sim or {}).get("warnings") or [])
+    warnings.extend((sim.warnings or []) if sim is not None else [])
 
 
 def _mean_decision(estimator: OperatingPoint | None) -> tuple[bool | None, str] | None:
@@ -861,68 +883,43 @@ def _mean_decision(estimator: OperatingPoint | None) -> tuple[bool | None, str] 
     return vd.mean_bounded(estimator.verdict), estimator.basis
 
 
-def bursty_link_section(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections,
-                        ge: Any) -> dict[str, Any]:
-    """The Gilbert–Elliott section of a bursty chain: the conditions of theory §7 (scalar) and
-    §10 (any system: the necessary burst condition and the coupled fixed-gain certificate,
-    :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
-    (failure rate, recovery rate) plane."""
-    from kfcrit.analysis.bursty import gilbert_elliott_section
-    from kfcrit.theory.links import markov
-
-    s = spec.system
-    cls = theory.classification
-    out = gilbert_elliott_section(s, ge, seed=opts.seed, simulate=opts.details,
-                                  classification=cls)
-    if cls == "not-detectable":
-        return out
-    bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
-                            classification=cls)
-    out["certificate"] = vd.with_verdict(bv.to_dict())
-    if opts.details and s.n <= 12 and cls != "stable":
-        points = 5 if opts.quick else 9
-        grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
-                      | {0.01, float(ge.failure_rate)})
-        curve = markov.burst_critical_curve(
-            s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
-            operating=(float(ge.failure_rate), float(ge.recovery_rate)),
-            structure=theory.structure)
-        out["critical_curve"] = curve.to_dict()
-    return out
-
-
 def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
-                   warnings: list[str], theory: TheorySections) -> None:
+                   warnings: list[str], theory: TheorySections,
+                   timings: dict[str, float]) -> None:
     ch = spec.channel
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
+    from kfcrit.analysis.bursty import bursty_link_section
     from kfcrit.link import linkbudget
 
     if ch.model == "gilbert-elliott":
-        sec["link_budget"] = bursty_link_section(spec, opts, theory, ch)
+        sec["link_budget"] = bursty_link_section(spec, opts, theory, ch, timings)
         return
     blb = section_value(sec, "block_lower_bound")
     low = blb if blb is not None else section_value(sec, "lower_bound")
     bracket = (None, None) if section_value(sec, "critical_value") is not None or \
         classification_of(sec) in ("stable", "not-detectable") else \
         (low if low is not None else 0.0, section_value(sec, "upper_bound"))
-    sec["link_budget"] = linkbudget.design_section(
+    design = sec.get("design")
+    plain = linkbudget.design_section(
         ch, critical_value=section_value(sec, "critical_value"),
         robust_value=section_value(sec, "robust_critical_value"),
         bracket=bracket, upper_bound=section_value(sec, "upper_bound"),
-        accuracy=sec.get("design"))
-    if isinstance(sec["link_budget"], dict):
-        sec["link_budget"].setdefault("design_check", design_check(sec["link_budget"]))
-        if opts.details:
-            sec["link_budget"]["curves"] = link_curves(ch, sec, spec)
-        ge = bursty_channel(ch)
-        if ge is not None:
-            sec["link_budget"]["bursty"] = bursty_link_section(spec, opts, theory, ge)
-    warnings.extend((sec["link_budget"] or {}).get("warnings") or [])
+        accuracy=to_json(design) if design is not None else None)
+    typed: dict[str, Any] = {"design_check": plain.get("design_check") or design_check(plain)}
+    if opts.details:
+        typed["curves"] = link_curves(ch, sec, spec, plain.get("required_sinr_db"))
+    ge = bursty_channel(ch)
+    if ge is not None:
+        typed["bursty"] = bursty_link_section(spec, opts, theory, ge, timings,
+                                              "link_budget.bursty")
+    lb = read_fields(LinkBudgetRecord, plain, "link_budget", timings, **typed)
+    sec["link_budget"] = lb
+    warnings.extend(lb.warnings or [])
 
 
 def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any],
-                     warnings: list[str]) -> None:
+                     warnings: list[str], timings: dict[str, float]) -> None:
     """The accuracy requirement turned into a required arrival probability [p_S, p_V] (theory
     §11) and, for a link budget, into the radio: distance, transmit power, payload, retries."""
     level = getattr(spec.requirements, "max_mean_error_trace", None)
@@ -930,30 +927,35 @@ def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, An
         return
     from kfcrit.theory.covariance.design import required_arrival
 
-    req = required_arrival(spec.system, level, structure=theory.structure).to_dict()
-    out: dict[str, Any] = {"requirement": f"lim E[tr P] ≤ {level:g}",
-                           "required_arrival_probability": req}
+    req = read_plain(RequiredArrivalProbability,
+                     required_arrival(spec.system, level, structure=theory.structure).to_dict(),
+                     "design.required_arrival_probability", timings)
+    radio: Any = ABSENT
     ch = spec.channel
-    if ch is not None and ch.model == "link-budget" and req.get("status") == "interval":
+    if ch is not None and ch.model == "link-budget" and req.status == "interval":
         from kfcrit.link.design import link_design
 
-        p_s, p_v = req["interval"]
+        p_s, p_v = req.interval
         try:
-            out["radio"] = link_design(ch, p_s, p_v).to_dict()
+            radio = read_plain(LinkDesignRecord, link_design(ch, p_s, p_v).to_dict(),
+                               "design.radio", timings)
         except (ValueError, ArithmeticError) as exc:
             warnings.append(f"link design for the accuracy requirement not computed: {exc}")
-    sec["design"] = out
+    sec["design"] = AccuracyDesign(requirement=f"lim E[tr P] ≤ {level:g}",
+                                   required_arrival_probability=req, radio=radio)
 
 
-def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any]) -> None:
+def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any],
+                  timings: dict[str, float]) -> None:
     """The power-law tail exponent of tr P at the operating point (a labelled claim)."""
     if spec.channel is None or not spec.channel.iid or spec.channel.model == "trace":
         return
     from kfcrit.theory.covariance.tails import tail_exponent
 
-    sec["tail"] = {"exponent": tail_exponent(
+    sec["tail"] = TailSection(exponent=read_plain(TailExponentRecord, tail_exponent(
         spec.system, spec.channel.arrival_probability,
-        classification=theory.classification, structure=theory.structure).to_dict()}
+        classification=theory.classification, structure=theory.structure).to_dict(),
+        "tail.exponent", timings))
 
 
 @functools.lru_cache(maxsize=1)

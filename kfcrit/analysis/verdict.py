@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 from kfcrit.errors import ExitCode
+from kfcrit.io.typed import ABSENT
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.facts import StabilityFacts
 
@@ -474,11 +475,16 @@ def stamp_operating_verdict(sections: dict[str, Any]) -> None:
     op = sections.get("operating_point")
     verdict = op.verdict.value if op is not None else None
     link = sections.get("link_budget")
-    if verdict is None or not isinstance(link, dict):
+    if verdict is None or link is None:
         return
-    for holder in (link, link.get("bursty")):
-        if isinstance(holder, dict) and isinstance(holder.get("certificate"), dict):
-            holder["certificate"] = {**holder["certificate"], "verdict": verdict}
+    bursty = getattr(link, "bursty", None)
+    if bursty and bursty.certificate:   # a link budget's time-correlated shadowing
+        link = replace(link, bursty=replace(bursty, certificate=replace(
+            bursty.certificate, verdict=verdict)))
+    certificate = getattr(link, "certificate", None)
+    if certificate:                     # a Gilbert–Elliott channel
+        link = replace(link, certificate=replace(certificate, verdict=verdict))
+    sections["link_budget"] = link
 
 
 def network_verdict(result: Mapping[str, Any]) -> tuple[Verdict, str]:
@@ -498,8 +504,12 @@ def condition_verdict(holds: bool | None, *, necessary: bool) -> Verdict:
     return Verdict.UNDETERMINED
 
 
-def facts_from_dict(data: Mapping[str, Any]) -> StabilityFacts:
-    """:class:`StabilityFacts` from its JSON form."""
+def facts_from_dict(data: Any) -> StabilityFacts:
+    """:class:`StabilityFacts` from its JSON form (a mapping) or its record
+    (:class:`kfcrit.analysis.records.bursty.StabilityFactsRecord`)."""
+    if not isinstance(data, Mapping):
+        data = {k: getattr(data, k, None) for k in ("necessary", "sufficient", "exact_region",
+                                                     "necessary_basis", "sufficient_basis")}
     return StabilityFacts(necessary=data.get("necessary"),
                           sufficient=bool(data.get("sufficient")),
                           exact_region=bool(data.get("exact_region")),
@@ -508,7 +518,7 @@ def facts_from_dict(data: Mapping[str, Any]) -> StabilityFacts:
 
 
 def dead_link_verdict(facts: Mapping[str, Any], *, iid: bool, burst_holds: bool | None,
-                      burst_facts: Mapping[str, Any] | None = None) -> Verdict:
+                      burst_facts: Any = None) -> Verdict:
     """The N − 1 verdict of one dead link: the facts with that link dead. With bursty links the
     i.i.d. surfaces decide nothing (the sufficient one assumes independence in time, and the
     necessary one at the stationary arrival probabilities is weaker than the burst condition
@@ -525,8 +535,7 @@ def dead_link_verdict(facts: Mapping[str, Any], *, iid: bool, burst_holds: bool 
 
 
 def network_burst_verdict(verdict: Verdict, basis: str, holds: bool | None,
-                          statement: str, facts: Mapping[str, Any] | None = None
-                          ) -> tuple[Verdict, str]:
+                          statement: str, facts: Any = None) -> tuple[Verdict, str]:
     """A network with bursty links (theory §10): the burst facts decide (``facts``: the
     burst condition as the necessary fact, the scalar renewal bound as the sufficient one);
     the i.i.d. surfaces at the stationary arrival probabilities prove nothing either way."""
@@ -629,35 +638,36 @@ def requirement_reasons(assessments: Iterable[Assessed]) -> list[Reason]:
     return out
 
 
-def link_reasons(design_check: Mapping[str, Any] | None, link: str | None = None
-                 ) -> list[Reason]:
+def link_reasons(design_check: Any, link: str | None = None) -> list[Reason]:
     """The link policy of a link-budget channel: the margin and the shadowing outage (of the
-    named sensor's link in a network)."""
+    named sensor's link in a network). ``design_check`` is the typed
+    :class:`~kfcrit.analysis.records.link.DesignCheck` (None: no link budget)."""
     if not design_check:
         return []
     suffix = f" ({link})" if link else ""
     out = []
-    met = design_check.get("margin_policy_met")
-    design = design_check.get("design_value")
-    against = (f" above the required p = {design:.6g} ({design_check.get('basis')})"
-               if design is not None and design_check.get("basis") else "")
-    if design_check.get("requirement_reachable") is False:
+    met = design_check.margin_policy_met
+    design = None if design_check.design_value is ABSENT else design_check.design_value
+    basis = None if design_check.basis is ABSENT else design_check.basis
+    against = (f" above the required p = {design:.6g} ({basis})"
+               if design is not None and basis else "")
+    if design_check.requirement_reachable is False:
         out.append(Reason(LINK_MARGIN_CHECK + suffix, CheckStatus.FAIL,
                           "no link margin: the radio reaches no arrival probability that meets "
-                          f"the binding requirement ({design_check.get('basis')})"))
-    elif design_check.get("margin_unbounded"):
+                          f"the binding requirement ({basis})"))
+    elif design_check.margin_unbounded:
         out.append(Reason(LINK_MARGIN_CHECK + suffix, CheckStatus.PASS,
                           "link margin unbounded: the requirement is p > 0 (p_c = 0), which "
                           "every SINR meets"))
     elif met is not None:
-        margin, needed = design_check.get("link_margin_db"), design_check.get("required_margin_db")
+        margin, needed = design_check.link_margin_db, design_check.required_margin_db
         out.append(Reason(LINK_MARGIN_CHECK + suffix,
                           CheckStatus.PASS if met else CheckStatus.FAIL,
                           f"link margin {margin:.3g} dB {'≥' if met else '<'} the policy's "
                           f"{needed:.3g} dB{against}"))
-    ok = design_check.get("outage_within_policy")
+    ok = design_check.outage_within_policy
     if ok is not None:
-        outage, allowed = design_check.get("outage_probability"), design_check.get("max_outage")
+        outage, allowed = design_check.outage_probability, design_check.max_outage
         out.append(Reason(LINK_OUTAGE_CHECK + suffix,
                           CheckStatus.PASS if ok else CheckStatus.FAIL,
                           f"shadowing outage {100 * outage:.3g} % {'≤' if ok else '>'} the "
@@ -677,7 +687,7 @@ def decide(reasons: Sequence[Reason]) -> Decision:
 
 def review(verdict: Verdict | str | None, basis: str | None,
            assessments: Iterable[Assessed],
-           design_check: Mapping[str, Any] | None,
+           design_check: Any,
            extra: Sequence[Reason] = ()) -> Review:
     """The review decision: stability, then each requirement, then the link policy."""
     reasons = [stability_reason(verdict, basis), *requirement_reasons(assessments),

@@ -110,10 +110,10 @@ def verification(sec: dict[str, Any], warnings: list[str] | None = None
 
         check = loop_check(sec["loop"])
         if check is not None:
-            checks.append(VerificationCheck(**check))
-            if check["status"] == "inconclusive":
-                warnings.append(f"Monte Carlo check inconclusive: {check['check']} "
-                                f"({check['reason']})")
+            checks.append(check)
+            if check.status == "inconclusive":
+                warnings.append(f"Monte Carlo check inconclusive: {check.check} "
+                                f"({check.reason})")
     return checks
 
 

@@ -22,6 +22,7 @@ from kfcrit.analysis.links import design_check
 from kfcrit.analysis.sweep.journal import valid_result
 from kfcrit.analysis.sweep.points import RESULT_COLUMNS, row_of
 from kfcrit.analysis.verdict import CheckStatus, link_reasons
+from kfcrit.io.typed import ABSENT, to_json
 from kfcrit.link.linkbudget import LinkBudget, design_section
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.design import required_arrival
@@ -109,9 +110,9 @@ def test_policy_check_and_review_use_the_binding_value(link) -> None:
     assert d_v < d_c
     near = link.with_changes(distance_m=0.5 * (d_c + d_v))
     plain, bound = section(near, None), section(near, accuracy([P_S, P_V]))
-    assert plain["design_check"]["margin_policy_met"] is True
-    assert bound["design_check"]["margin_policy_met"] is False
-    assert bound["design_check"]["design_value"] == P_V
+    assert plain["design_check"].margin_policy_met is True
+    assert bound["design_check"].margin_policy_met is False
+    assert bound["design_check"].design_value == P_V
     [reason] = link_reasons(bound["design_check"])
     assert reason.status is CheckStatus.FAIL and "0.4125" in reason.detail
 
@@ -128,7 +129,7 @@ def test_impossible_requirement_has_no_margin_and_fails_the_policy(link) -> None
     assert lb["required_arrival_probability"]["design_value"] is None
     assert lb["max_distance_m"] is None and lb["link_margin_db"] is None
     dc = lb["design_check"]
-    assert dc["requirement_reachable"] is False and dc["margin_policy_met"] is False
+    assert dc.requirement_reachable is False and dc.margin_policy_met is False
     assert {r.status for r in link_reasons(dc)} == {CheckStatus.FAIL}
 
 
@@ -144,12 +145,13 @@ def test_without_requirement_the_section_has_only_the_stability_fields(link) -> 
     assert set(lb["required_arrival_probability"]) == {
         "critical_value", "robust_value", "bracket", "design_value", "basis"}
     assert lb["required_arrival_probability"]["basis"] == "critical value p_c"
-    assert "design_value" not in lb["design_check"]
+    assert lb["design_check"].design_value is ABSENT   # the key is left out
     assert not any(r["label"].startswith("accuracy") for r in lb["thresholds"])
 
 
 def test_sweep_row_reads_the_binding_requirement(link) -> None:
-    lb = section(link, accuracy([P_S, P_V]))
+    typed = section(link, accuracy([P_S, P_V]))
+    lb = {**typed, "design_check": to_json(typed["design_check"])}   # the record's JSON form
     p = arrival(sinr(100.0))
     record = {"critical_value": {"value": P_C}, "link_budget": lb,
               "operating_point": {"arrival_probability": p, "iid": True,
@@ -160,5 +162,7 @@ def test_sweep_row_reads_the_binding_requirement(link) -> None:
     assert row["margin"] == pytest.approx(p - P_V, abs=1e-12)
     assert row["max_distance_m"] == lb["max_distance_m"]
     assert valid_result(row, RESULT_COLUMNS)
-    plain = row_of({**record, "link_budget": section(link, None)})
+    stability = section(link, None)
+    plain = row_of({**record, "link_budget": {**stability, "design_check": to_json(
+        stability["design_check"])}})
     assert plain["requirement"] == P_C and plain["requirement_basis"] == "critical value"

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from kfcrit.analysis.records.contract import VerificationCheck
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.loop.curve import loop_critical_curve
 from kfcrit.theory.loop.filter_mean import FilterMoments, filter_moments, rre_mean_monte_carlo
@@ -351,14 +352,13 @@ def _mc_check(out: dict[str, Any], sim: Any) -> tuple[str, str]:
     return "failed", detail + f": outside {MC_Z:g} standard errors"
 
 
-def loop_check(loop: dict[str, Any] | None) -> dict[str, Any] | None:
-    """The verification entry of the closed-loop Monte Carlo (None when not run)."""
-    sim = (loop or {}).get("simulation")
+def loop_check(loop: Any) -> VerificationCheck | None:
+    """The verification entry of the closed-loop Monte Carlo (None when not run); ``loop`` is
+    the typed :class:`~kfcrit.analysis.loop.schema.LoopSection`."""
+    sim = loop.simulation if loop is not None else None
     if not sim:
         return None
-    passed = {"passed": True, "failed": False}.get(sim["status"])
-    out = {"check": "closed loop: simulated cost against the theory's J (theory §12)",
-           "passed": passed, "status": sim["status"], "detail": sim["detail"]}
-    if sim["status"] == "inconclusive":
-        out["reason"] = sim["detail"]
-    return out
+    passed = {"passed": True, "failed": False}.get(sim.status)
+    return VerificationCheck("closed loop: simulated cost against the theory's J (theory §12)",
+                             passed, sim.status, detail=sim.detail,
+                             **({"reason": sim.detail} if sim.status == "inconclusive" else {}))

@@ -1,8 +1,8 @@
 """The typed ``loop`` section of the analysis record (theory §12), field by field.
 
-Built as plain JSON by :mod:`kfcrit.analysis.loop.section` and read into these frozen
-dataclasses by :func:`kfcrit.io.typed.from_json` (strict), like every other section. Non-finite
-numbers (an infinite cost) are ``null`` in JSON; ``finite`` then says which case it is.
+Built by :func:`kfcrit.analysis.loop.section.loop_record` from the working values of the loop's
+designs and Monte Carlo, where the section is made. Non-finite numbers (an infinite cost) are
+``null`` in JSON; ``finite`` then says which case it is.
 """
 from __future__ import annotations
 

@@ -33,7 +33,21 @@ from kfcrit.analysis.loop.designs import (
     tcp_cost_at,
     tcp_rectangle,
 )
+from kfcrit.analysis.loop.schema import (
+    LoopCostCurve,
+    LoopCostSummary,
+    LoopCurve,
+    LoopDesignRow,
+    LoopGains,
+    LoopLinkCheck,
+    LoopSection,
+    LoopSimulationSummary,
+    LoopStability,
+    LoopThreshold,
+)
 from kfcrit.analysis.records.contract import RequirementAssessment
+from kfcrit.analysis.records.link import DesignCheck
+from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import to_float
 from kfcrit.theory.facts import StabilityFacts
@@ -186,11 +200,13 @@ def cost_dict(cost: Any) -> dict[str, Any]:
 
 
 def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str]
-                  ) -> tuple[dict[str, Any], list[vd.Reason], dict[str, Any] | None]:
+                  ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """The ``loop`` section, the review's loop reasons and the cost requirement's assessment.
 
     Also sets ``operating_point.verdict`` to the rule of
-    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop).
+    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop). The designs
+    and the Monte Carlo fill working values (:mod:`kfcrit.analysis.loop.designs` reads them);
+    :func:`loop_record` builds the section from them.
     """
     lp = spec.loop
     m = plant(spec)
@@ -259,7 +275,39 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
-    return out, vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
+    return loop_record(out), vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
+
+
+def loop_record(out: dict[str, Any]) -> LoopSection:
+    """The ``loop`` section built from the loop's working values (the groups the designs and
+    the Monte Carlo fill, their NumPy numbers as Python numbers, each as its class)."""
+    def each(cls: type, value: Any) -> Any:
+        return None if value is None else cls(**jsonable(value))
+
+    def row(value: dict[str, Any]) -> LoopDesignRow:
+        plain = jsonable(value)
+        return LoopDesignRow(**{**plain, "cost": LoopCostSummary(**plain["cost"])})
+
+    return LoopSection(
+        acknowledged=bool(out["acknowledged"]), on_loss=out["on_loss"], design=out["design"],
+        sensing_arrival_probability=out["sensing_arrival_probability"],
+        actuation_arrival_probability=out["actuation_arrival_probability"],
+        sensing_iid=out["sensing_iid"], actuation_iid=out["actuation_iid"],
+        actuation_model=out["actuation_model"],
+        sensing_critical=each(LoopThreshold, out["sensing_critical"]),
+        actuation_critical=each(LoopThreshold, out["actuation_critical"]),
+        verdict=vd.LoopVerdict(out["verdict"]), basis=out["basis"],
+        operating_verdict=vd.Verdict(out["operating_verdict"]),
+        spectral_radius=jsonable(out["spectral_radius"]),
+        stability=each(LoopStability, out["stability"]), cost=each(LoopCostSummary, out["cost"]),
+        critical_curve=each(LoopCurve, out["critical_curve"]),
+        alternative_curve=each(LoopCurve, out["alternative_curve"]),
+        comparison=[row(r) for r in out["comparison"]],
+        cost_curves=[each(LoopCostCurve, c) for c in out["cost_curves"]],
+        simulation=each(LoopSimulationSummary, out["simulation"]),
+        actuation_link=each(LoopLinkCheck, out["actuation_link"]),
+        gains=each(LoopGains, out["gains"]), control_gain=jsonable(out["control_gain"]),
+        notes=list(out["notes"]))
 
 
 def _trace_link(spec: SystemSpec) -> bool:
@@ -268,7 +316,7 @@ def _trace_link(spec: SystemSpec) -> bool:
 
 def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: Exception,
                act: dict[str, Any], notes: list[str], warnings: list[str]
-               ) -> tuple[dict[str, Any], list[vd.Reason], dict[str, Any] | None]:
+               ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """No default gains exist (a Riccati equation has no stabilising solution): the loop is
     mean-square unstable when (A, B) is not stabilisable (ν_c does not exist), else
     undetermined."""
@@ -288,7 +336,7 @@ def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: 
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
     out["operating_verdict"] = joint.value
-    return out, vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
+    return loop_record(out), vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
 
 
 def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesign | None,
@@ -322,7 +370,7 @@ def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesi
 
 
 def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | None,
-                   warnings: list[str]) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+                   warnings: list[str]) -> tuple[dict[str, Any] | None, DesignCheck | None]:
     """The actuation link budget against its margin policy, read against the arrival
     probability the loop needs there: ν_c (TCP-like) or the design's critical ν̄ at the
     operating γ̄ (the upper end of its bracket)."""
@@ -345,13 +393,13 @@ def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | 
     req = (lb.get("required_arrival_probability") or {}).get("design_value")
     summary = {"required_arrival_probability": req, "required_basis": basis,
                "arrival_probability": out["actuation_arrival_probability"],
-               "link_margin_db": check.get("link_margin_db"),
-               "required_margin_db": check.get("required_margin_db"),
-               "margin_policy_met": check.get("margin_policy_met"),
-               "distance_m": check.get("distance_m"), "max_distance_m": check.get("max_distance_m"),
-               "outage_probability": check.get("outage_probability"),
-               "max_outage": check.get("max_outage"),
-               "outage_within_policy": check.get("outage_within_policy"),
+               "link_margin_db": check.link_margin_db,
+               "required_margin_db": check.required_margin_db,
+               "margin_policy_met": check.margin_policy_met,
+               "distance_m": check.distance_m, "max_distance_m": check.max_distance_m,
+               "outage_probability": check.outage_probability,
+               "max_outage": check.max_outage,
+               "outage_within_policy": check.outage_within_policy,
                "sinr_db": link.get("sinr_db"), "radio": (lb.get("radio") or {}).get("model")}
     return summary, check
 

@@ -25,8 +25,15 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.measured.section import (
+    ChannelFitSection,
+    JointConstraintFit,
+    JointLawFit,
+    SensorTraceFit,
+)
 from kfcrit.analysis.measured.single import MeasuredFit, fit_fields
 from kfcrit.errors import InputError
+from kfcrit.io.jsonio import jsonable
 from kfcrit.link.tracefit import clopper_pearson, fit_trace, joint_law, rows_to_decide
 from kfcrit.model.network import Network
 from kfcrit.theory.critical.compare import compare_probability
@@ -137,35 +144,34 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     p_hat = np.array([t.mean() for t in traces])
     independent = None if not cons else all(c.factor(p_hat) < 1 for c in cons)
     covered = decided
-    section = {"subject": "at least one sensor received (the network's time-aligned traces)",
-               **fit_fields(fit, any_received),
-               "length_to_decide": length,
-               "length_to_decide_basis": (
-                   "decided: the whole confidence region is on one side" if decided else
-                   "the binding constraint's probability against 1/ρ_T²" if length is not None
-                   else "no trace length decides at the estimated law"),
-               "sensors": [_sensor_row(name, t, confidence)
-                           for name, t in zip(network.names, traces)],
-               "joint_law": {
-                   "sensors": list(network.names), "n": ej.n, "confidence": confidence,
-                   "p_all_lost": ej.p_all_lost,
-                   "p_all_lost_interval": list(ej.p_all_lost_interval),
-                   "p_all_lost_product": ej.p_all_lost_product,
-                   "all_lost_ratio": ej.all_lost_ratio,
-                   "law": ([float(v) for v in ej.counts / ej.n]
-                           if ej.counts.size <= MAX_LAW_CELLS_SHOWN else []),
-                   "constraints": [{k: v for k, v in r.items() if not k.startswith("_")}
-                                   for r in rows],
-                   "necessary": ls.facts.necessary, "sufficient": ls.facts.sufficient,
-                   "exact_region": bool(ls.exact_region), "independent_necessary": independent,
-                   "region_covered": covered,
-                   "statement": _statement(covered, ls.reason)},
-               "notes": ["the sensors' traces are read time-aligned (period k of each is the "
-                         "same sampling period): the joint law of the received set replaces "
-                         "the product of independent links (theory §13)",
-                         f"the fit above is of the trace 'at least one sensor received'; the "
-                         f"likelihood-ratio p-value {fit.lrt_p_value:.3g} tests whether it is "
-                         "i.i.d. in time, as the joint-law theory assumes"]}
+    law = JointLawFit(
+        constraints=[JointConstraintFit(**jsonable({k: v for k, v in r.items()
+                                                    if not k.startswith("_")})) for r in rows],
+        **jsonable({"sensors": list(network.names), "n": ej.n, "confidence": confidence,
+                    "p_all_lost": ej.p_all_lost,
+                    "p_all_lost_interval": list(ej.p_all_lost_interval),
+                    "p_all_lost_product": ej.p_all_lost_product,
+                    "all_lost_ratio": ej.all_lost_ratio,
+                    "law": ([float(v) for v in ej.counts / ej.n]
+                            if ej.counts.size <= MAX_LAW_CELLS_SHOWN else []),
+                    "necessary": ls.facts.necessary, "sufficient": ls.facts.sufficient,
+                    "exact_region": bool(ls.exact_region), "independent_necessary": independent,
+                    "region_covered": covered, "statement": _statement(covered, ls.reason)}))
+    section = ChannelFitSection(
+        subject="at least one sensor received (the network's time-aligned traces)",
+        **fit_fields(fit, any_received), length_to_decide=jsonable(length),
+        length_to_decide_basis=(
+            "decided: the whole confidence region is on one side" if decided else
+            "the binding constraint's probability against 1/ρ_T²" if length is not None
+            else "no trace length decides at the estimated law"),
+        sensors=[_sensor_row(name, t, confidence) for name, t in zip(network.names, traces)],
+        joint_law=law,
+        notes=["the sensors' traces are read time-aligned (period k of each is the same "
+               "sampling period): the joint law of the received set replaces the product of "
+               "independent links (theory §13)",
+               f"the fit above is of the trace 'at least one sensor received'; the "
+               f"likelihood-ratio p-value {fit.lrt_p_value:.3g} tests whether it is i.i.d. in "
+               "time, as the joint-law theory assumes"])
     return MeasuredFit(section, None, inputs)
 
 
@@ -182,11 +188,12 @@ def _statement(covered: bool, reason: str) -> str:
             f"are given ({reason})")
 
 
-def _sensor_row(name: str, trace: np.ndarray, confidence: float) -> dict[str, Any]:
+def _sensor_row(name: str, trace: np.ndarray, confidence: float) -> SensorTraceFit:
     fit = fit_trace(trace, confidence)
-    return {"name": name, "n": fit.n, "p_hat": fit.p_hat, "p_interval": list(fit.p_interval),
-            "failure_rate_hat": fit.failure_rate_hat,
-            "recovery_rate_hat": fit.recovery_rate_hat, "lrt_p_value": fit.lrt_p_value}
+    return SensorTraceFit(name=name, **jsonable({
+        "n": fit.n, "p_hat": fit.p_hat, "p_interval": list(fit.p_interval),
+        "failure_rate_hat": fit.failure_rate_hat, "recovery_rate_hat": fit.recovery_rate_hat,
+        "lrt_p_value": fit.lrt_p_value}))
 
 
 def network_confidence(network: Network) -> float:

@@ -23,6 +23,14 @@ from typing import Any
 import numpy as np
 
 from kfcrit.analysis import verdict as vd
+from kfcrit.analysis.measured.section import (
+    BurstLengthHistogram,
+    ChannelFitSection,
+    ConfidenceRegion,
+    RegionCorner,
+    StabilityBoundary,
+)
+from kfcrit.io.jsonio import jsonable
 from kfcrit.link.tracefit import (
     ChannelFit,
     fit_trace,
@@ -39,9 +47,9 @@ certificate search per point)."""
 
 @dataclass(frozen=True)
 class MeasuredFit:
-    """The ``channel_fit`` section (plain JSON form) and the verdict's inputs."""
+    """The ``channel_fit`` section and the verdict's inputs."""
 
-    section: dict[str, Any]
+    section: ChannelFitSection
     inputs: vd.MeasuredInputs | None
     joint: vd.JointLawInputs | None = None
 
@@ -51,25 +59,30 @@ def plant_spectral_radius(system: System) -> float:
     return float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
 
 
-def burst_section(fit: ChannelFit) -> dict[str, Any]:
-    """The burst-length histogram of a fit in the record's form."""
+def burst_section(fit: ChannelFit) -> BurstLengthHistogram:
+    """The burst-length histogram of a fit in the record's form (the fit's NumPy numbers as
+    Python numbers)."""
     b = fit.bursts
-    return {"lengths": list(b.lengths), "counts": list(b.counts), "expected": list(b.expected),
-            "runs": b.runs, "censored": b.censored, "mean_length": b.mean_length,
-            "fitted_recovery_rate": fit.recovery_rate_hat, "statistic": b.statistic,
-            "dof": b.dof, "p_value": b.p_value}
+    return BurstLengthHistogram(**jsonable({
+        "lengths": list(b.lengths), "counts": list(b.counts), "expected": list(b.expected),
+        "runs": b.runs, "censored": b.censored, "mean_length": b.mean_length,
+        "fitted_recovery_rate": fit.recovery_rate_hat, "statistic": b.statistic,
+        "dof": b.dof, "p_value": b.p_value}))
 
 
 def fit_fields(fit: ChannelFit, arrivals: Any) -> dict[str, Any]:
-    """The fields of ``channel_fit`` that describe the fit itself (theory §14)."""
+    """The fields of ``channel_fit`` that describe the fit itself (theory §14), as the keyword
+    arguments of :class:`~kfcrit.analysis.measured.section.ChannelFitSection`."""
     stat, _ = lrt_iid_vs_markov(transition_counts(arrivals))
-    return {"model": fit.model, "n": fit.n, "p_hat": fit.p_hat,
-            "p_interval": list(fit.p_interval), "failure_rate_hat": fit.failure_rate_hat,
-            "failure_rate_interval": list(fit.failure_rate_interval),
-            "recovery_rate_hat": fit.recovery_rate_hat,
-            "recovery_rate_interval": list(fit.recovery_rate_interval),
-            "lrt_statistic": stat, "lrt_p_value": fit.lrt_p_value,
-            "confidence": fit.confidence, "bursts": burst_section(fit)}
+    return {**jsonable({"model": fit.model, "n": fit.n, "p_hat": fit.p_hat,
+                        "p_interval": list(fit.p_interval),
+                        "failure_rate_hat": fit.failure_rate_hat,
+                        "failure_rate_interval": list(fit.failure_rate_interval),
+                        "recovery_rate_hat": fit.recovery_rate_hat,
+                        "recovery_rate_interval": list(fit.recovery_rate_interval),
+                        "lrt_statistic": stat, "lrt_p_value": fit.lrt_p_value,
+                        "confidence": fit.confidence}),
+            "bursts": burst_section(fit)}
 
 
 # ----------------------------------------------------------------------------- i.i.d. corners
@@ -146,16 +159,17 @@ def burst_corner(system: System, crit: vd.CriticalInputs, f: float, r: float, *,
     return vd.BurstInputs(r, f, True if suf else None, why), corner
 
 
-def _corner_row(p: float | None, f: float | None, r: float | None, facts: dict) -> dict:
-    return {"arrival_probability": p, "failure_rate": f, "recovery_rate": r,
-            "necessary": facts["necessary"], "sufficient": bool(facts["sufficient"]),
-            "basis": facts["basis"]}
+def _corner_row(p: float | None, f: float | None, r: float | None, facts: dict
+                ) -> RegionCorner:
+    return RegionCorner(arrival_probability=jsonable(p), failure_rate=jsonable(f),
+                        recovery_rate=jsonable(r), necessary=jsonable(facts["necessary"]),
+                        sufficient=bool(facts["sufficient"]), basis=facts["basis"])
 
 
-def _outcome(worst: dict, best: dict) -> str:
-    if worst["sufficient"]:
+def _outcome(worst: RegionCorner, best: RegionCorner) -> str:
+    if worst.sufficient:
         return "holds"
-    if best["necessary"] is False:
+    if best.necessary is False:
         return "fails"
     return "neither"
 
@@ -179,9 +193,16 @@ def ge_length(fit: ChannelFit, crit: vd.CriticalInputs, n_states: int) -> tuple[
 # ----------------------------------------------------------------------------- boundary
 
 def boundary_section(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *,
-                     curve: bool, structure: Any = None) -> dict[str, Any]:
+                     curve: bool, structure: Any = None) -> StabilityBoundary:
     """The stability boundary of the (f, r) plane: r = 1 − 1/ρ² and, for small vector plants,
     the sufficient curve of the coupled certificate (theory §10)."""
+    return StabilityBoundary(**jsonable(_boundary_fields(system, crit, fit, curve=curve,
+                                                         structure=structure)))
+
+
+def _boundary_fields(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *,
+                     curve: bool, structure: Any = None) -> dict[str, Any]:
+    """The fields of :func:`boundary_section` (the curve's numbers as the theory gives them)."""
     rho = plant_spectral_radius(system)
     nec = crit.p_low if crit.p_low else (max(0.0, 1.0 - 1.0 / rho ** 2) if rho > 1 else None)
     out = {"spectral_radius": rho, "necessary_recovery": nec, "failure_rates": [],
@@ -214,7 +235,6 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
               details: bool = True, structure: Any = None) -> MeasuredFit:
     """Fit a single trace channel and gather the facts at the corners of its region."""
     fit = fit_trace(arrivals, confidence)
-    out = {"subject": "the channel's trace", **fit_fields(fit, arrivals)}
     if fit.model == "bernoulli":
         lo, hi = fit.p_interval
         wn, ws, wb = iid_facts(lo, crit)
@@ -237,16 +257,18 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
                                    best_burst=b_in, length_to_decide=length,
                                    threshold_text=text)
     outcome = _outcome(worst, best)
-    out["region"] = {"model": fit.model, "confidence": fit.confidence, "worst": worst,
-                     "best": best, "outcome": outcome}
     decided = outcome != "neither"  # a decided region needs no longer trace
-    out["length_to_decide"] = None if decided else inputs.length_to_decide
-    out["length_to_decide_basis"] = ("decided: the whole confidence region is on one side"
-                                     if decided else inputs.threshold_text)
-    out["boundary"] = boundary_section(system, crit, fit, structure=structure,
-                                       curve=details and fit.model == "gilbert-elliott")
-    out["notes"] = model_notes(fit)
-    return MeasuredFit(out, inputs)
+    section = ChannelFitSection(
+        subject="the channel's trace", **fit_fields(fit, arrivals),
+        length_to_decide=None if decided else jsonable(inputs.length_to_decide),
+        length_to_decide_basis=("decided: the whole confidence region is on one side"
+                                if decided else inputs.threshold_text),
+        region=ConfidenceRegion(model=fit.model, confidence=jsonable(fit.confidence),
+                                worst=worst, best=best, outcome=outcome),
+        boundary=boundary_section(system, crit, fit, structure=structure,
+                                  curve=details and fit.model == "gilbert-elliott"),
+        notes=model_notes(fit))
+    return MeasuredFit(section, inputs)
 
 
 def model_notes(fit: ChannelFit) -> list[str]:

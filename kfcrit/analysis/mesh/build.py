@@ -35,9 +35,11 @@ from kfcrit.analysis.mesh.section import (
     MeshSmart,
     MeshSmartRow,
 )
+from kfcrit.analysis.network import lyapunov_only_bounds
 from kfcrit.analysis.records.channel import MeshChannel
-from kfcrit.analysis.records.contract import OperatingPoint
-from kfcrit.io.jsonio import jsonable
+from kfcrit.analysis.records.contract import OperatingPoint, VerificationCheck
+from kfcrit.analysis.records.covariance import CovarianceBounds
+from kfcrit.analysis.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
 from kfcrit.theory.facts import StabilityFacts
 
 RAW = "raw measurements (store-and-forward)"
@@ -271,26 +273,26 @@ def simulation_row(mfile: Any, opts: Any, verdict: vd.Verdict, facts: MeshFacts,
         all_lost=all_lost, consistent=consistent, statement=statement)
 
 
-def record_simulation(sim: MeshSimulation, opts: Any, sensors: Any) -> dict[str, Any]:
+def record_simulation(sim: MeshSimulation, opts: Any, sensors: Any) -> Simulation:
     """The record's ``simulation`` section of a mesh (the same run, in the network form)."""
-    summary: dict[str, Any] = {"paths": sim.paths, "steps": sim.steps, "seed": sim.seed,
-                               "sensors": list(sensors), "statement": sim.statement}
     if sim.mean_trace is None:
-        summary.update(mean_exists=False, sample_mean_trace=None)
+        mean: dict[str, Any] = {"mean_exists": False, "sample_mean_trace": None}
     else:
         band = sim.mean_trace_band or [None, None]
-        summary.update(mean_exists=True, mean_trace={"mean": sim.mean_trace, "lower": band[0],
-                                                     "upper": band[1]})
-    return {"seed": opts.seed, "quick": opts.quick, "network": summary,
-            "reason": "mesh: received sets drawn from the hop outcomes (theory §13)",
-            "checks": [simulation_check(sim)]}
+        mean = {"mean_exists": True, "mean_trace": NetworkMeanTrace(
+            mean=sim.mean_trace, lower=band[0], upper=band[1])}
+    summary = NetworkSimulation(paths=sim.paths, steps=sim.steps, seed=sim.seed,
+                                sensors=list(sensors), statement=sim.statement, **mean)
+    return Simulation(seed=opts.seed, quick=opts.quick, network=summary,
+                      reason="mesh: received sets drawn from the hop outcomes (theory §13)",
+                      checks=[simulation_check(sim)])
 
 
-def simulation_check(sim: MeshSimulation) -> dict[str, Any]:
+def simulation_check(sim: MeshSimulation) -> VerificationCheck:
     """The verification entry of the mesh Monte Carlo (inconclusive when the band holds 1)."""
     status = {True: "passed", False: "failed", None: "inconclusive"}[sim.consistent]
-    return {"check": "mesh Monte Carlo: tail exponent of tr P on the verdict's side of 1",
-            "passed": sim.consistent, "status": status, "detail": sim.statement}
+    return VerificationCheck("mesh Monte Carlo: tail exponent of tr P on the verdict's side of 1",
+                             sim.consistent, status, detail=sim.statement)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -363,22 +365,16 @@ def mesh_operating_point(section: MeshSection) -> OperatingPoint:
         verdict=section.verdict, basis=section.basis)
 
 
-def mesh_lower_bound(mfile: Any, all_lost: float) -> dict[str, Any]:
+def mesh_lower_bound(mfile: Any, all_lost: float) -> CovarianceBounds:
     r"""Lyapunov lower bound of lim E[P_t] under the mesh's law (theory §13):
 
     .. math:: \bar S = \pi(\emptyset) A \bar S A' + Q
 
     (with every packet lost the filter only predicts)."""
-    from kfcrit.theory.covariance import bounds
-
-    s = mfile.network.stacked_system()
-    S = bounds.lower_covariance(s.a, s.q, 1.0 - all_lost)
-    return {"p": 1.0 - all_lost, "lower": bounds.covariance_summary(S),
-            "upper": {**bounds.covariance_summary(None), "computed": False,
-                      "method": "not computed for a mesh"},
-            "ordered": None, "applicable": True,
-            "reason": "mesh: S̄ solves S = π(∅) A S A' + Q; p is 1 − π(∅), the probability that "
-                      "at least one packet arrives; V̄ is not computed"}
+    return lyapunov_only_bounds(
+        mfile.network.stacked_system(), all_lost, "not computed for a mesh",
+        "mesh: S̄ solves S = π(∅) A S A' + Q; p is 1 − π(∅), the probability that at least one "
+        "packet arrives; V̄ is not computed")
 
 
 def hop_link_reasons(mfile: Any, section: MeshSection) -> list[vd.Reason]:
@@ -413,10 +409,9 @@ def mesh_sections(spec: Any, opts: Any, sec: dict[str, Any], warnings: list[str]
     sec["operating_point"] = mesh_operating_point(section)
     sec["covariance_bounds"] = mesh_lower_bound(mfile, section.all_lost.value)
     if section.simulation is not None:
-        sec["simulation"] = jsonable(record_simulation(section.simulation, opts,
-                                                       mfile.mesh.sensors))
+        sec["simulation"] = record_simulation(section.simulation, opts, mfile.mesh.sensors)
     else:
-        sec["simulation"] = {"skipped": True, "reason": "simulation disabled"}
+        sec["simulation"] = Simulation(skipped=True, reason="simulation disabled")
     if len(mfile.mesh.sensors) > 1:
         warnings.append("mesh: the top-level critical value and p_up are those of the stacked "
                         "system (every packet arriving together); the mesh's joint law, facts "

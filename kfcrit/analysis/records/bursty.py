@@ -5,6 +5,7 @@ certificate, the critical curve and the simulation check.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from kfcrit.analysis.records.bounds import CertificateCheck
 from kfcrit.io.typed import opt_key
@@ -172,3 +173,13 @@ class GilbertElliottSection:
     certificate: BurstCertificateRecord = opt_key()
     critical_curve: BurstCurveRecord = opt_key()
     facts: StabilityFactsRecord = opt_key()
+
+
+def facts_record(facts: Any) -> StabilityFactsRecord:
+    """The record form of the theory's :class:`kfcrit.theory.facts.StabilityFacts`."""
+    necessary = facts.necessary
+    return StabilityFactsRecord(necessary=None if necessary is None else bool(necessary),
+                                sufficient=bool(facts.sufficient),
+                                exact_region=bool(facts.exact_region),
+                                necessary_basis=str(facts.necessary_basis),
+                                sufficient_basis=str(facts.sufficient_basis))
