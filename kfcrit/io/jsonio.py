@@ -21,6 +21,13 @@ def jsonable(obj: Any) -> Any:
     tuples become lists, and any non-finite float becomes ``None`` (the record carries a warning
     or a flag saying why; JSON never holds NaN or Infinity).
     """
+    kind = type(obj)    # the plain types first, by exact type (most of a record)
+    if kind is str or kind is int or kind is bool or obj is None:
+        return obj
+    if kind is float:
+        return obj if math.isfinite(obj) else None
+    if kind is dict:
+        return {k if type(k) is str else str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, enum.Enum):
         return jsonable(obj.value)
     if obj is None or isinstance(obj, (bool, str)):

@@ -12,12 +12,15 @@ from __future__ import annotations
 import dataclasses
 import enum
 import functools
+import math
 import typing
 from typing import Any
 
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.typed import RecordError, from_json
 
+_PLAIN_SCALARS = frozenset({str, bool, int})
+"""Types whose values are their own JSON form (a finite float is too)."""
 TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
 """Keys of a lower layer's result that hold wall-clock seconds (kept out of the record)."""
 
@@ -25,15 +28,20 @@ TIMING_KEYS = frozenset({"seconds", "runtime_seconds"})
 def split_timings(obj: Any, path: str, found: dict[str, float]) -> Any:
     """Copy of ``obj`` without the keys in :data:`TIMING_KEYS`; those go into ``found``
     (keyed by their dotted path under ``path``)."""
-    if isinstance(obj, dict):
+    kind = type(obj)
+    if kind is dict:
         out = {}
         for k, v in obj.items():
             if k in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
                 found[f"{path}.{k}".lstrip(".")] = v
-            else:
+            elif type(v) is dict or type(v) is list:
                 out[k] = split_timings(v, f"{path}.{k}", found)
+            else:
+                out[k] = v
         return out
-    if isinstance(obj, list):
+    if kind is list:
+        if all(type(v) is not dict and type(v) is not list for v in obj):
+            return list(obj)
         return [split_timings(v, f"{path}[{i}]", found) for i, v in enumerate(obj)]
     return obj
 
@@ -59,6 +67,9 @@ def read_plain(tp: Any, value: Any, path: str, timings: dict[str, float] | None 
     kfcrit.io.typed.RecordError
         A key the record does not declare, a missing key or a mistyped value (names its path).
     """
+    if type(value) in _PLAIN_SCALARS or value is None or \
+            type(value) is float and math.isfinite(value):
+        return from_json(tp, value, f"record.{path}")   # already its JSON form
     if dataclasses.is_dataclass(value) or isinstance(value, enum.Enum):
         return value
     plain = split_timings(jsonable(value), f".{path}", timings if timings is not None else {})
