@@ -1,5 +1,5 @@
 """The large-block path of p_up (matrix-free Newton, Stein certificate, verified float64 check)
-at a moderate size, against an independent MARE iteration written here (docs/theory.md §3)."""
+at a moderate size, against an independent MARE iteration (tests/theory/mare_oracle.py; docs/theory.md §3)."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,28 +8,7 @@ import pytest
 from kfcrit.model.system import System
 from kfcrit.theory.upper import bracket, floatcheck, newton
 
-
-def _system(n: int, m: int, seed: int) -> System:
-    rng = np.random.default_rng(seed)
-    A = rng.normal(size=(n, n))
-    A *= 1.3 / max(abs(np.linalg.eigvals(A)))
-    return System(A, rng.normal(size=(m, n)), np.eye(n), np.eye(m))
-
-
-def _mare_bounded(A: np.ndarray, C: np.ndarray, p: float, steps: int = 4000) -> bool:
-    """X ← A X A' + I − p A X C'(C X C' + I)⁻¹ C X A' from 0: bounded (converged) or not."""
-    n, m = A.shape[0], C.shape[0]
-    X = np.zeros((n, n))
-    for _ in range(steps):
-        AXC = A @ X @ C.T
-        Y = A @ X @ A.T + np.eye(n) - p * AXC @ np.linalg.solve(C @ X @ C.T + np.eye(m), AXC.T)
-        Y = 0.5 * (Y + Y.T)
-        if np.trace(Y) > 1e9:
-            return False
-        if np.abs(Y - X).max() <= 1e-10 * np.abs(Y).max():
-            return True
-        X = Y
-    return False
+from .mare_oracle import mare_bounded, random_unstable_system
 
 
 @pytest.fixture
@@ -41,7 +20,7 @@ def large_path(monkeypatch):
 
 
 def test_large_path_contains_an_independent_mare_estimate(large_path):
-    s = _system(60, 12, 3)
+    s = random_unstable_system(60, 12, 3)
     ub = bracket.upper_bound(s, tol=1e-4, method="newton")
     assert ub.solver["reduced_states"] > 8 and "operator_applications" in ub.solver
     assert ub.certified
@@ -49,8 +28,8 @@ def test_large_path_contains_an_independent_mare_estimate(large_path):
     assert "float64" in ub.certificate["verified_by"]
     # independent MARE iteration: bounded just above hi, growing without bound just below lo
     # (3e-3 away: near the threshold the iteration needs ~1/(p - p_up) steps either way)
-    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
-    assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
+    assert mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert not mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
 
 
 def _certificate(s: System):
@@ -59,7 +38,7 @@ def _certificate(s: System):
 
 
 def test_float_check_accepts_the_certificate_and_rejects_perturbed_ones(large_path):
-    s = _system(60, 12, 3)
+    s = random_unstable_system(60, 12, 3)
     ub, X, K = _certificate(s)
     p = ub.interval[1]
     X = np.triu(X) + np.triu(X, 1).T
@@ -113,7 +92,7 @@ def test_a_large_block_record_is_typed_end_to_end(large_path, tmp_path):
     from kfcrit.analysis.record import AnalysisOptions, analyze_system
     from kfcrit.analysis.sections import record_from_json
 
-    s = _system(30, 6, 3)
+    s = random_unstable_system(30, 6, 3)
     rec = analyze_system(s, AnalysisOptions(simulate=False, quick=True))
     solver = rec["upper_bound"]["solver"]
     assert solver["reduced_states"] > 8 and "operator_applications" in solver
@@ -128,7 +107,7 @@ def test_face_root_bracket_is_certified_at_both_ends_beyond_the_ball_limit(large
     """n = 70 > 60: p_low comes from float eigenvalues (not rigorous) unless the face-root path
     proves ρ(A)² from below; both ends must then be labelled certified, and the bracket must
     contain p_low = 1 − 1/ρ(A)² and be consistent with an independent MARE iteration."""
-    s = _system(70, 14, 3)
+    s = random_unstable_system(70, 14, 3)
     tol = 1e-6
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     assert "face root" in ub.solver.get("certificate_from", "")
@@ -138,15 +117,15 @@ def test_face_root_bracket_is_certified_at_both_ends_beyond_the_ball_limit(large
     assert hi - lo <= tol * (1 + 1e-9)
     p_low = 1 - 1 / _spectral_radius2(s.a)
     assert lo <= p_low <= hi
-    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
-    assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
+    assert mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert not mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
 
 
 def test_face_certificate_is_rejected_when_tampered(large_path):
     from kfcrit.theory.upper import stein
     from kfcrit.theory.upper.cone import reduce_system
 
-    s = _system(60, 12, 3)
+    s = random_unstable_system(60, 12, 3)
     red_d, d = stein.dominant_split(reduce_system(s))
     p_low = 1 - 1 / _spectral_radius2(s.a)
     hi = p_low + 5e-7
@@ -174,7 +153,7 @@ def test_dominant_radius_lower_bound_is_below_and_close_to_numpy():
     from kfcrit.theory.upper.cone import reduce_system
 
     for n, m, seed in ((40, 8, 1), (70, 14, 3)):
-        s = _system(n, m, seed)
+        s = random_unstable_system(n, m, seed)
         red_d, d = stein.dominant_split(reduce_system(s))
         low = floatcheck.dominant_radius_lower(s.a, red_d.Z, d)
         rho2 = _spectral_radius2(s.a)
@@ -182,7 +161,7 @@ def test_dominant_radius_lower_bound_is_below_and_close_to_numpy():
 
 
 def test_dominant_radius_lower_bound_refuses_a_wrong_basis():
-    s = _system(40, 8, 1)
+    s = random_unstable_system(40, 8, 1)
     rng = np.random.default_rng(5)
     Z, _ = np.linalg.qr(rng.normal(size=(40, 40)))      # not an invariant-subspace basis
     assert floatcheck.dominant_radius_lower(s.a, Z, 2) is None
@@ -249,8 +228,8 @@ def test_interior_root_upper_end_is_certified_and_matches_an_independent_mare(la
     lo, hi = ub.interval
     assert hi - lo <= tol * (1 + 1e-9)
     assert lo > 1 - 1 / _spectral_radius2(s.a) + 1e-3        # not a face root
-    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
-    assert not _mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
+    assert mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert not mare_bounded(s.a, s.c, lo - 3e-3, steps=20000)
 
 
 def test_certificate_widths_start_at_the_request_and_widen():
@@ -265,7 +244,7 @@ def test_a_too_narrow_request_gives_a_wider_certified_bracket_not_the_trivial_on
     """At a width far below float64's reach near the threshold the verified check fails; the
     bracket must then be certified at a wider width and say so, never fall back to [p_low, 1]
     (nor claim the requested width)."""
-    s = _system(70, 14, 3)
+    s = random_unstable_system(70, 14, 3)
     tol = 1e-13
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     lo, hi = ub.interval
@@ -274,7 +253,7 @@ def test_a_too_narrow_request_gives_a_wider_certified_bracket_not_the_trivial_on
     assert any("certified to width" in w for w in ub.warnings)
     p_low = 1 - 1 / _spectral_radius2(s.a)
     assert lo <= p_low <= hi <= p_low + 1e-4
-    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
 
 
 def test_stein_widths_widen_before_the_costly_fallback():
@@ -318,7 +297,7 @@ def test_an_interior_root_widens_with_the_stein_certificate_not_the_fallback(lar
     # 0.9·tol first, then 0.5·tol (skipped when the solve already failed at 0.9·tol), wider
     assert tried[0] == pytest.approx(p_star + 0.9 * tol, abs=1e-15)
     assert tried[1:] == sorted(tried[1:]) and len(tried) >= 2 and hi == tried[-1]
-    assert _mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
+    assert mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
 
 
 def test_gmres_gives_up_only_when_the_budget_cannot_suffice():

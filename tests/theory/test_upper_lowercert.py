@@ -1,6 +1,6 @@
 """The certified lower end of an interior p_up root for large unstable blocks (verified
 float64 enclosure of the exact unstable pair, docs/theory.md §3, "Certified lower end for large
-blocks"), against an independent MARE iteration written here."""
+blocks"), against an independent MARE iteration (tests/theory/mare_oracle.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,37 +9,16 @@ import pytest
 from kfcrit.model.system import System
 from kfcrit.theory.upper import bracket, floatcheck, krylov, lowercert, newton
 
-
-def _system(n: int, m: int, seed: int) -> System:
-    rng = np.random.default_rng(seed)
-    A = rng.normal(size=(n, n))
-    A *= 1.3 / max(abs(np.linalg.eigvals(A)))
-    return System(A, rng.normal(size=(m, n)), np.eye(n), np.eye(m))
-
-
-def _mare_bounded(A: np.ndarray, C: np.ndarray, p: float, steps: int = 40000) -> bool:
-    """P ← A P A' + I − p A P C'(C P C' + I)⁻¹ C P A' from P = 0: converged (bounded) or not."""
-    n, m = A.shape[0], C.shape[0]
-    P = np.zeros((n, n))
-    for _ in range(steps):
-        APC = A @ P @ C.T
-        Pn = A @ P @ A.T + np.eye(n) - p * APC @ np.linalg.solve(C @ P @ C.T + np.eye(m), APC.T)
-        Pn = 0.5 * (Pn + Pn.T)
-        if np.trace(Pn) > 1e9:
-            return False
-        if np.abs(Pn - P).max() <= 1e-10 * np.abs(Pn).max():
-            return True
-        P = Pn
-    return False
+from .mare_oracle import mare_bounded, random_unstable_system
 
 
 def _mare_threshold(A: np.ndarray, C: np.ndarray, lo: float, hi: float,
                     width: float) -> tuple[float, float]:
     """[a, b] with the MARE iteration unbounded at a and bounded at b, b − a ≤ width."""
-    assert not _mare_bounded(A, C, lo) and _mare_bounded(A, C, hi)
+    assert not mare_bounded(A, C, lo, steps=40000) and mare_bounded(A, C, hi, steps=40000)
     while hi - lo > width:
         mid = 0.5 * (lo + hi)
-        if _mare_bounded(A, C, mid):
+        if mare_bounded(A, C, mid, steps=40000):
             hi = mid
         else:
             lo = mid
@@ -58,7 +37,7 @@ def test_certified_lower_end_matches_an_independent_mare_iteration(large_path):
     """n = 40 with 19 unstable states and three outputs: an interior root (p* > p_low). Both
     ends are proven, and the bracket sits inside the MARE threshold estimated independently
     (P from 0 with Q = R = I diverges below p_up and converges above)."""
-    s = _system(40, 3, 2)
+    s = random_unstable_system(40, 3, 2)
     tol = 1e-6
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     low = ub.lower_evidence
@@ -96,7 +75,7 @@ def _ball_and_root(s: System):
 
 
 def test_a_lower_end_above_the_root_is_not_certified(large_path):
-    s = _system(40, 3, 2)
+    s = random_unstable_system(40, 3, 2)
     ub = bracket.upper_bound(s, tol=1e-6, method="newton")
     p_star = ub.extras["p_star"]
     ball, thr = _ball_and_root(s)
@@ -120,7 +99,7 @@ def test_a_wider_ball_is_refused_where_the_margin_is_small(large_path):
     of order (p* − lo) = 1e-7, while the true radii (~1e-14) do."""
     from dataclasses import replace
 
-    s = _system(40, 3, 2)
+    s = random_unstable_system(40, 3, 2)
     ball, thr = _ball_and_root(s)
     p = thr.value - 1e-7
     Y, _ = lowercert.lower_candidate(ball, thr.K, p)
@@ -130,7 +109,7 @@ def test_a_wider_ball_is_refused_where_the_margin_is_small(large_path):
 
 
 def test_enclosure_refuses_a_basis_that_is_not_invariant():
-    s = _system(30, 4, 1)
+    s = random_unstable_system(30, 4, 1)
     S, D, k = lowercert.real_eigenbasis(s.a, 1e-9)
     rng = np.random.default_rng(7)
     Q, _ = np.linalg.qr(rng.normal(size=S.shape))
@@ -141,7 +120,7 @@ def test_enclosure_refuses_a_basis_that_is_not_invariant():
 
 
 def test_real_eigenbasis_and_its_separation():
-    s = _system(30, 4, 1)
+    s = random_unstable_system(30, 4, 1)
     S, D, k = lowercert.real_eigenbasis(s.a, 1e-9)
     assert np.abs(s.a @ S - S @ D).max() < 1e-12
     lam = np.linalg.eigvals(s.a)
@@ -169,7 +148,7 @@ def test_an_interior_root_record_is_typed_end_to_end(large_path):
     from kfcrit.analysis.record import AnalysisOptions, analyze_system
     from kfcrit.analysis.sections import record_from_json
 
-    s = _system(40, 3, 2)
+    s = random_unstable_system(40, 3, 2)
     rec = analyze_system(s, AnalysisOptions(simulate=False, quick=True))
     section = rec["upper_bound"]
     assert section["lower_evidence"]["certified"]
@@ -221,7 +200,7 @@ def test_exact_offsets_enclose_decimal_entries():
 def test_decimal_input_is_certified_like_binary_input(large_path):
     """A file's decimals are exact rationals, not the binary floats: the offsets keep the
     enclosure as tight as for binary input (a one-ulp radius on A alone would not)."""
-    b = _system(40, 3, 2)
+    b = random_unstable_system(40, 3, 2)
     s = System([[repr(float(v)) for v in row] for row in b.a],
                [[repr(float(v)) for v in row] for row in b.c], 1, 1)
     assert s.exact
