@@ -229,14 +229,19 @@ def _distinct_row_spaces(rank, seen: Sequence[int]) -> list[int]:
     return reps
 
 
+EQUALITY_GUARD = 1e-12
+"""Float factors within this of 1 leave a necessary condition undecided (no exact value)."""
+
+
 def factor_sign(value: float, expr: sp.Expr | None) -> int | None:
-    """Sign of (value − 1): exact from ``expr`` when given, else float with a 1e-12 guard."""
+    """Sign of (value − 1): exact from ``expr`` when given, else float with a guard
+    (:data:`EQUALITY_GUARD`: within it of 1 the sign is left undecided)."""
     if expr is not None:
         try:
             return compare(expr, 1, "network", "necessary factor - 1")
         except KfcritError:
             pass
-    if abs(value - 1.0) <= 1e-12:
+    if abs(value - 1.0) <= EQUALITY_GUARD:
         return None
     return 1 if value > 1 else -1
 

@@ -44,14 +44,13 @@ import flint
 import numpy as np
 import sympy as sp
 
-from kfcrit.errors import InputError, KfcritError
-from kfcrit.model.exprparse import compare
+from kfcrit.errors import InputError
 from kfcrit.model.mesh import Mesh
 from kfcrit.model.network import Network
 from kfcrit.theory.covariance.riccati import symmetrize, unvech, vech
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.links import netkernels as nk
-from kfcrit.theory.links.network import Constraint, modal_one_step, necessary_constraints
+from kfcrit.theory.links.network import Constraint, factor_sign, modal_one_step, necessary_constraints
 from kfcrit.theory.mesh.law import JointLaw, mesh_law
 from kfcrit.theory.upper.certify import (
     PRECISION_BITS,
@@ -60,10 +59,6 @@ from kfcrit.theory.upper.certify import (
     arb_from_sympy,
     definite_margin,
 )
-
-EQUALITY_GUARD = 1e-12
-"""Float factors within this of 1 leave the necessary condition undecided (no exact value)."""
-
 
 # ---------------------------------------------------------------------------------------------
 # facts
@@ -156,24 +151,13 @@ def _within(pi: Sequence[Any], mask: int) -> Any:
     return out
 
 
-def _sign_minus_one(value: float, expr: sp.Expr | None) -> int | None:
-    if expr is not None:
-        try:
-            return compare(expr, 1, "mesh", "necessary value - 1")
-        except KfcritError:
-            pass
-    if abs(value - 1.0) <= EQUALITY_GUARD:
-        return None
-    return 1 if value > 1 else -1
-
-
 def _constraint_value(network: Network, c: Constraint, pi: Sequence[Any],
                       exact: bool) -> ConstraintValue:
     mask = sum(1 << i for i in c.blind)
     P = _within(pi, mask)
     value = float(P) * c.mod2
     expr = sp.sympify(P) * c.mod2_expr if exact and c.mod2_expr is not None else None
-    s = _sign_minus_one(value, expr)
+    s = factor_sign(value, expr)
     names = tuple(network.names[i] for i in sorted(c.blind))
     return ConstraintValue(names, c.eigenvalue, c.mod2, float(P), value, expr,
                            None if s is None else s < 0)
