@@ -15,7 +15,11 @@ from typing import Any
 import numpy as np
 
 from kfcrit.analysis import verdict as vd
-from kfcrit.analysis.records.bursty import (
+from kfcrit.io.jsonio import jsonable
+from kfcrit.io.typed import to_json
+from kfcrit.model.channels import Channel, GilbertElliott
+from kfcrit.model.system import System
+from kfcrit.records.bursty import (
     BurstCertificateRecord,
     BurstCondition,
     BurstCurveRecord,
@@ -23,11 +27,7 @@ from kfcrit.analysis.records.bursty import (
     GilbertElliottSection,
     LiteratureClaim,
 )
-from kfcrit.analysis.records.read import read_plain
-from kfcrit.io.jsonio import jsonable
-from kfcrit.io.typed import to_json
-from kfcrit.model.channels import Channel, GilbertElliott
-from kfcrit.model.system import System
+from kfcrit.records.read import read_plain
 from kfcrit.sim.montecarlo import simulate
 from kfcrit.theory.critical.section import critical_value
 from kfcrit.theory.links.markov import burst_necessary

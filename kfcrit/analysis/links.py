@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from kfcrit.analysis.records.link import (
+from kfcrit.io.jsonio import jsonable
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.io.typed import ABSENT
+from kfcrit.records.link import (
     ArrivalVsDistance,
     DesignCheck,
     LinkCurves,
     OutageVsDistance,
     PerVsSinr,
 )
-from kfcrit.analysis.records.read import read_plain
-from kfcrit.io.jsonio import jsonable
-from kfcrit.io.systemfile import SystemSpec
-from kfcrit.io.typed import ABSENT
+from kfcrit.records.read import read_plain
 
 
 def bursty_channel(channel: Any) -> Any:

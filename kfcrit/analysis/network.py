@@ -7,20 +7,20 @@ from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel, design_check
-from kfcrit.analysis.records.bursty import StabilityFactsRecord, facts_record
-from kfcrit.analysis.records.channel import NetworkChannel, NetworkChannelSensor, channel_record
-from kfcrit.analysis.records.contract import CriticalValueRecord, OperatingPoint, UpperBoundRecord
-from kfcrit.analysis.records.covariance import CovarianceBounds, CovarianceSummary
-from kfcrit.analysis.records.network import (
+from kfcrit.io.jsonio import jsonable
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.records.bursty import StabilityFactsRecord, facts_record
+from kfcrit.records.channel import NetworkChannel, NetworkChannelSensor, channel_record
+from kfcrit.records.contract import CriticalValueRecord, OperatingPoint, UpperBoundRecord
+from kfcrit.records.covariance import CovarianceBounds, CovarianceSummary
+from kfcrit.records.network import (
     DeadLinkBurst,
     NetworkBurstCondition,
     NetworkSection,
     SensorLink,
 )
-from kfcrit.analysis.records.read import read_fields, read_plain
-from kfcrit.analysis.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
-from kfcrit.io.jsonio import jsonable
-from kfcrit.io.systemfile import SystemSpec
+from kfcrit.records.read import read_fields, read_plain
+from kfcrit.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
 
 
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],

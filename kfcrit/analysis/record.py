@@ -34,15 +34,26 @@ from kfcrit.analysis.links import bursty_channel, design_check, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
-from kfcrit.analysis.records.bursty import BurstCurveRecord, GilbertElliottSection
-from kfcrit.analysis.records.channel import channel_record
-from kfcrit.analysis.records.contract import (
+from kfcrit.analysis.requirements import (
+    power_law_tail,
+    requirement_assessment,
+    tail_simulation_check,
+)
+from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
+from kfcrit.analysis.verification import section_value, verification
+from kfcrit.defaults import DEFAULT_TOLERANCE
+from kfcrit.io.systemfile import SystemSpec
+from kfcrit.io.typed import ABSENT, to_json
+from kfcrit.model.system import System, conditioning_warnings
+from kfcrit.records.bursty import BurstCurveRecord, GilbertElliottSection
+from kfcrit.records.channel import channel_record
+from kfcrit.records.contract import (
     OperatingPoint,
     Provenance,
     SystemSection,
     UpperBoundRecord,
 )
-from kfcrit.analysis.records.covariance import (
+from kfcrit.records.covariance import (
     AccuracyDesign,
     BestStaticGain,
     CovarianceBounds,
@@ -56,26 +67,15 @@ from kfcrit.analysis.records.covariance import (
     TailExponentRecord,
     TailSection,
 )
-from kfcrit.analysis.records.link import LinkBudgetRecord, LinkDesignRecord
-from kfcrit.analysis.records.read import TIMING_KEYS, read_fields, read_plain
-from kfcrit.analysis.records.simulation import Simulation
-from kfcrit.analysis.records.system import (
+from kfcrit.records.link import LinkBudgetRecord, LinkDesignRecord
+from kfcrit.records.read import TIMING_KEYS, read_fields, read_plain
+from kfcrit.records.simulation import Simulation
+from kfcrit.records.system import (
     AnalysisOptionsRecord,
     ContinuousModel,
     Matrices,
     SensorRecord,
 )
-from kfcrit.analysis.requirements import (
-    power_law_tail,
-    requirement_assessment,
-    tail_simulation_check,
-)
-from kfcrit.analysis.sections import SCHEMA_VERSION, AnalysisRecord
-from kfcrit.analysis.verification import section_value, verification
-from kfcrit.defaults import DEFAULT_TOLERANCE
-from kfcrit.io.systemfile import SystemSpec
-from kfcrit.io.typed import ABSENT, to_json
-from kfcrit.model.system import System, conditioning_warnings
 from kfcrit.version import __version__
 
 THEORY_KEYS = ("classification", "critical_value", "robust_critical_value", "lower_bound",
@@ -424,7 +424,7 @@ def typed_section(key: str, value: Any, timings: dict[str, float]) -> Any:
     """The theory's section ``key`` as its typed class (:class:`AnalysisRecord`'s field type).
 
     The theory layer states its result as plain data (``to_dict()``); it is read here, once,
-    where it enters the analysis (:func:`kfcrit.analysis.records.read.read_plain`: strict, its
+    where it enters the analysis (:func:`kfcrit.records.read.read_plain`: strict, its
     wall-clock seconds moved to ``timings``). A value that is already typed is returned as is.
     """
     return read_plain(record_hints()[key], value, key, timings)
@@ -485,7 +485,7 @@ TYPED_KEYS = frozenset(f.name for f in dataclasses.fields(AnalysisRecord)
                        if f.name != "timings")
 """The record's sections :func:`analysis_sections` builds as typed values: all of them (each
 where it is made; a lower layer's plain result is read strictly there,
-:mod:`kfcrit.analysis.records.read`)."""
+:mod:`kfcrit.records.read`)."""
 
 
 def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections, *,

@@ -2,7 +2,7 @@
 tail exponent beside it) and the accuracy requirement by the covariance bounds and the design.
 
 The assessments are built as the typed record's sections
-(:class:`~kfcrit.analysis.records.contract.RequirementsRecord`), never as dicts read back."""
+(:class:`~kfcrit.records.contract.RequirementsRecord`), never as dicts read back."""
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -10,20 +10,20 @@ from dataclasses import replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
-from kfcrit.analysis.records.contract import (
+from kfcrit.records.contract import (
     OperatingPoint,
     PowerLawEstimate,
     RequirementAssessment,
     RequirementsRecord,
     TailAssessment,
 )
-from kfcrit.analysis.records.covariance import (
+from kfcrit.records.covariance import (
     AccuracyDesign,
     CovarianceBounds,
     TailSection,
     TailSimulationCheck,
 )
-from kfcrit.analysis.records.simulation import Exceedance, Simulation, SimulationOperatingPoint
+from kfcrit.records.simulation import Exceedance, Simulation, SimulationOperatingPoint
 
 
 def simulated_horizon(simulation: Simulation | None) -> SimulationOperatingPoint | None:

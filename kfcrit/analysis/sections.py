@@ -2,7 +2,7 @@
 
 The record's JSON form (``--json``), its JSON Schema (``kfcrit schema record``) and the typed
 objects are generated from these classes by :mod:`kfcrit.io.typed`; views and tests build records
-through the same classes. The section classes live in :mod:`kfcrit.analysis.records` (one module
+through the same classes. The section classes live in :mod:`kfcrit.records` (below the theory, so the layer that computes a section builds it as its class; one module
 per group of sections); every payload — matrices, curves, per-eigenvalue tables, certificates — is
 a dataclass or a list/dict of typed values, so the schema and the strict reader check every key.
 
@@ -16,8 +16,10 @@ from typing import Any
 from kfcrit.analysis.loop.schema import LoopSection
 from kfcrit.analysis.measured.section import ChannelFitSection
 from kfcrit.analysis.mesh.section import MeshSection
-from kfcrit.analysis.records.bursty import GilbertElliottSection
-from kfcrit.analysis.records.contract import (
+from kfcrit.analysis.verdict import Reason, Review, exit_code_of
+from kfcrit.io.typed import from_json, internal, json_schema, opt_key, to_json
+from kfcrit.records.bursty import GilbertElliottSection
+from kfcrit.records.contract import (
     BlockLowerBound,
     Classification,
     CriticalValueRecord,
@@ -31,7 +33,7 @@ from kfcrit.analysis.records.contract import (
     UpperBoundRecord,
     VerificationCheck,
 )
-from kfcrit.analysis.records.covariance import (
+from kfcrit.records.covariance import (
     AccuracyDesign,
     CovarianceBounds,
     Invariant,
@@ -39,12 +41,10 @@ from kfcrit.analysis.records.covariance import (
     StaticGain,
     TailSection,
 )
-from kfcrit.analysis.records.link import LinkBudgetRecord
-from kfcrit.analysis.records.network import NetworkSection
-from kfcrit.analysis.records.simulation import Simulation
-from kfcrit.analysis.records.structure import StructureRecord, Theory
-from kfcrit.analysis.verdict import Reason, Review, exit_code_of
-from kfcrit.io.typed import from_json, internal, json_schema, opt_key, to_json
+from kfcrit.records.link import LinkBudgetRecord
+from kfcrit.records.network import NetworkSection
+from kfcrit.records.simulation import Simulation
+from kfcrit.records.structure import StructureRecord, Theory
 
 SCHEMA_VERSION = "2.0"
 """Version of the record's JSON contract (2.0: typed record with ``review``)."""

@@ -25,16 +25,9 @@ from typing import Any, Protocol
 
 from kfcrit.errors import ExitCode
 from kfcrit.io.typed import ABSENT
+from kfcrit.records.contract import Verdict
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.facts import StabilityFacts
-
-
-class Verdict(str, enum.Enum):
-    """Mean stability of the filter at the operating point."""
-
-    MEAN_STABLE = "mean-stable"
-    MEAN_UNSTABLE = "mean-unstable"
-    UNDETERMINED = "undetermined"
 
 
 def mean_bounded(verdict: Verdict | None) -> bool | None:
@@ -506,7 +499,7 @@ def condition_verdict(holds: bool | None, *, necessary: bool) -> Verdict:
 
 def facts_from_dict(data: Any) -> StabilityFacts:
     """:class:`StabilityFacts` from its JSON form (a mapping) or its record
-    (:class:`kfcrit.analysis.records.bursty.StabilityFactsRecord`)."""
+    (:class:`kfcrit.records.bursty.StabilityFactsRecord`)."""
     if not isinstance(data, Mapping):
         data = {k: getattr(data, k, None) for k in ("necessary", "sufficient", "exact_region",
                                                      "necessary_basis", "sufficient_basis")}
@@ -641,7 +634,7 @@ def requirement_reasons(assessments: Iterable[Assessed]) -> list[Reason]:
 def link_reasons(design_check: Any, link: str | None = None) -> list[Reason]:
     """The link policy of a link-budget channel: the margin and the shadowing outage (of the
     named sensor's link in a network). ``design_check`` is the typed
-    :class:`~kfcrit.analysis.records.link.DesignCheck` (None: no link budget)."""
+    :class:`~kfcrit.records.link.DesignCheck` (None: no link budget)."""
     if not design_check:
         return []
     suffix = f" ({link})" if link else ""

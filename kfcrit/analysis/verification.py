@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from kfcrit.analysis.records.contract import VerificationCheck
-from kfcrit.analysis.records.covariance import CovarianceBounds
-from kfcrit.analysis.records.simulation import SimulationOperatingPoint
 from kfcrit.analysis.requirements import simulated_horizon
 from kfcrit.io.typed import ABSENT
+from kfcrit.records.contract import VerificationCheck
+from kfcrit.records.covariance import CovarianceBounds
+from kfcrit.records.simulation import SimulationOperatingPoint
 
 
 def _simulated_mean_between_bounds(cb: CovarianceBounds | None,

@@ -16,17 +16,17 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from kfcrit.analysis.records.covariance import (
+from kfcrit.analysis.requirements import mean_assessment
+from kfcrit.cli.main import main
+from kfcrit.io.typed import ABSENT
+from kfcrit.records.contract import Verdict
+from kfcrit.records.covariance import (
     CovarianceBounds,
     CovarianceSummary,
     MarkovJumpLower,
     MarkovJumpRecord,
     MarkovJumpUpper,
 )
-from kfcrit.analysis.requirements import mean_assessment
-from kfcrit.analysis.verdict import Verdict
-from kfcrit.cli.main import main
-from kfcrit.io.typed import ABSENT
 
 PLANT = ("name: Sinopoli general over a bursty link\nA: [[1.25, 0], [1, 1.1]]\nC: [[1, 1]]\n"
          "Q: 20\nR: 2.5\nchannel: {model: gilbert-elliott, failure_rate: 0.1, "

@@ -359,8 +359,8 @@ def test_undecided_p_up_width_does_not_undo_a_decided_verdict(tmp_path: Path) ->
 def test_requirement_assessment_reads_the_wilson_interval() -> None:
     """met iff the interval's upper end ≤ allowed; not met iff its lower end > allowed; else
     not demonstrated. Wilson interval for 0 of 300 at 95 %: [0, z²/(N + z²)] = [0, 0.01264]."""
-    from kfcrit.analysis.records.simulation import Exceedance
     from kfcrit.analysis.requirements import requirement_assessment, tail_assessment
+    from kfcrit.records.simulation import Exceedance
     from kfcrit.sim.stats import proportion
 
     def tail(k, n):

@@ -20,13 +20,13 @@ from kfcrit.analysis.record import (
     analyze_system,
     theory_sections,
 )
-from kfcrit.analysis.records import read
-from kfcrit.analysis.records.bursty import BurstCondition, StabilityFactsRecord
-from kfcrit.analysis.records.network import DeadLinkBurst
 from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.analysis.spec import load_spec
 from kfcrit.io import typed
 from kfcrit.io.typed import ABSENT, RecordError
+from kfcrit.records import read
+from kfcrit.records.bursty import BurstCondition, StabilityFactsRecord
+from kfcrit.records.network import DeadLinkBurst
 
 REPORTS = Path(__file__).resolve().parents[2] / "reports"
 

@@ -10,9 +10,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
-from kfcrit.analysis.records.bursty import RatesPoint
-from kfcrit.analysis.records.network import SensorMargin
 from kfcrit.analysis.sections import AnalysisRecord
+from kfcrit.records.bursty import RatesPoint
+from kfcrit.records.network import SensorMargin
 from kfcrit.views.figures.burst import draw_critical_curve
 from kfcrit.views.figures.network import draw_network_region
 from kfcrit.views.figures.style import HEIGHT_IN, MIN_PRINT_PT, WIDTH_IN, print_scale

@@ -16,7 +16,7 @@ import re
 
 import pytest
 
-from kfcrit.analysis.records.network import SensorMargin
+from kfcrit.records.network import SensorMargin
 from kfcrit.views.figures import record as figures
 from kfcrit.views.report import render as report
 from kfcrit.views.report.theory import covariance_view, static_gain_view

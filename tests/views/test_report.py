@@ -500,7 +500,7 @@ def test_no_internal_names_in_the_page(records):
 
 
 def test_seed_rules_in_words():
-    from kfcrit.analysis.records.simulation import OperatingPointSeeds, SimulationSeeds
+    from kfcrit.records.simulation import OperatingPointSeeds, SimulationSeeds
 
     text = seeds_text(SimulationSeeds(operating_point=OperatingPointSeeds(
         seed=0, paths="SeedSequence(seed, spawn_key=(0, i))",

@@ -289,7 +289,7 @@ def test_irrational_eigenvalues_are_shown_as_numbers_not_root_objects():
 # ----------------------------------------------------------------------------- design wording
 
 def _bound(quantity, unit, sense, suf, nec, suf_status="value", nec_status="value"):
-    from kfcrit.analysis.records.link import LinkDesignBound, LinkDesignDistance
+    from kfcrit.records.link import LinkDesignBound, LinkDesignDistance
 
     return LinkDesignDistance(quantity=quantity, unit=unit, sense=sense, interval=[suf, nec],
                               sufficient=LinkDesignBound(value=suf, status=suf_status),
@@ -323,7 +323,7 @@ def test_radio_bounds_fail_on_the_side_their_sense_says():
 def test_network_margin_rows_are_labelled_as_the_uniform_margin():
     """A network's operating_point.margin is the uniform margin δ (every link degraded by δ),
     not p − p_c: every place that shows it says so."""
-    from kfcrit.analysis.records.network import NetworkSection
+    from kfcrit.records.network import NetworkSection
     from kfcrit.views.report.summary import markdown_summary
 
     rec = record("network-redundant-gauges")
@@ -365,7 +365,7 @@ def test_reports_show_no_internal_names(stem):
 def test_network_simulation_summary_is_shown() -> None:
     """A network's per-sensor-arrival simulation is a row of the simulation table (not
     "not computed"): its paths and the simulated mean with its band, read from the record."""
-    from kfcrit.analysis.records.simulation import (
+    from kfcrit.records.simulation import (
         NetworkMeanTrace,
         NetworkSimulation,
         Simulation,
@@ -385,7 +385,7 @@ def test_network_simulation_summary_is_shown() -> None:
 def test_absent_keys_read_as_none_and_are_not_listed():
     """An opt_key field the record lacks reads as None (the JSON form has no such key); the
     fields listed for a generic table are the JSON form's keys, in its order."""
-    from kfcrit.analysis.records.simulation import OperatingPointSeeds, SimulationSeeds
+    from kfcrit.records.simulation import OperatingPointSeeds, SimulationSeeds
     from kfcrit.views.report.parts import stated, stated_fields
 
     seeds = SimulationSeeds(phase_demo=[4, 5])

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from kfcrit.analysis.records.contract import VerificationCheck
+from kfcrit.records.contract import VerificationCheck
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.loop.curve import loop_critical_curve
 from kfcrit.theory.loop.filter_mean import FilterMoments, filter_moments, rre_mean_monte_carlo

@@ -45,11 +45,11 @@ from kfcrit.analysis.loop.schema import (
     LoopStability,
     LoopThreshold,
 )
-from kfcrit.analysis.records.contract import RequirementAssessment
-from kfcrit.analysis.records.link import DesignCheck
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import to_float
+from kfcrit.records.contract import RequirementAssessment
+from kfcrit.records.link import DesignCheck
 from kfcrit.theory.facts import StabilityFacts
 from kfcrit.theory.loop.fixed import fixed_loop
 from kfcrit.theory.loop.stack import FixedDesign, fixed_design

@@ -36,10 +36,10 @@ from kfcrit.analysis.mesh.section import (
     MeshSmartRow,
 )
 from kfcrit.analysis.network import lyapunov_only_bounds
-from kfcrit.analysis.records.channel import MeshChannel
-from kfcrit.analysis.records.contract import OperatingPoint, VerificationCheck
-from kfcrit.analysis.records.covariance import CovarianceBounds
-from kfcrit.analysis.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
+from kfcrit.records.channel import MeshChannel
+from kfcrit.records.contract import OperatingPoint, VerificationCheck
+from kfcrit.records.covariance import CovarianceBounds
+from kfcrit.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
 from kfcrit.theory.facts import StabilityFacts
 
 RAW = "raw measurements (store-and-forward)"

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.verdict import Verdict
 from kfcrit.io.typed import opt
+from kfcrit.records.contract import Verdict
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Bursty-link figure: the critical curve in the (failure rate, recovery rate) plane (theory §10).
 
 Reads the typed ``link_budget.critical_curve``
-(:class:`~kfcrit.analysis.records.bursty.BurstCurveRecord`):
+(:class:`~kfcrit.records.bursty.BurstCurveRecord`):
 on a grid of failure rates f, the necessary recovery rate r_nec(f) (at or below it E[P_t]
 diverges, proven) and the sufficient one r_suf(f) (at or above it the coupled fixed-gain
 certificate proves E[P_t] bounded),
@@ -18,9 +18,9 @@ from __future__ import annotations
 import matplotlib
 from matplotlib.figure import Figure
 
-from kfcrit.analysis.records.bursty import BurstCurveRecord, GilbertElliottSection
-from kfcrit.analysis.records.link import LinkBudgetRecord
 from kfcrit.analysis.sections import AnalysisRecord
+from kfcrit.records.bursty import BurstCurveRecord, GilbertElliottSection
+from kfcrit.records.link import LinkBudgetRecord
 from kfcrit.views.figures.style import (
     COLORS,
     finite,

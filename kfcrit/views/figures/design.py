@@ -4,7 +4,7 @@
   lim E[tr P] ≤ L and the required interval [p_S, p_V] of ``design.required_arrival_probability``
   shaded (theory §11: p ≤ p_S fails since tr S̄(p) > L; p ≥ p_V meets it since tr V̄(p) ≤ L);
 * ``arrival_distance``, ``per_sinr``, ``outage_distance``: the link layer's curves from
-  ``link_budget.curves`` (:class:`~kfcrit.analysis.records.link.LinkCurves`, the record forms of
+  ``link_budget.curves`` (:class:`~kfcrit.records.link.LinkCurves`, the record forms of
   :mod:`kfcrit.link.curves`), drawn by
   :mod:`kfcrit.views.figures.link` with p_c, the requirement and the design distance marked.
 
@@ -19,10 +19,10 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from kfcrit.analysis.records.channel import RadioRecord
-from kfcrit.analysis.records.link import LinkBudgetRecord, LinkCurves
 from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.link.curves import ArrivalCurve, OutageCurve, PerCurve
+from kfcrit.records.channel import RadioRecord
+from kfcrit.records.link import LinkBudgetRecord, LinkCurves
 from kfcrit.views.figures.link import arrival_distance_figure, outage_distance_figure, per_sinr_figure
 from kfcrit.views.figures.style import (
     COLORS,

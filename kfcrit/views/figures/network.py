@@ -1,7 +1,7 @@
 """Sensor-network figures: the stability region of the two weakest links, and the node map.
 
 Both read the typed record's ``network`` section
-(:class:`~kfcrit.analysis.records.network.NetworkSection`) and ``system.sensors``; nothing is
+(:class:`~kfcrit.records.network.NetworkSection`) and ``system.sensors``; nothing is
 computed beyond drawing record values. The region figure evaluates the record's closed-form
 necessary constraints (theory §9)
 
@@ -23,8 +23,8 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from kfcrit.analysis.records.network import NetworkSensor
 from kfcrit.analysis.sections import AnalysisRecord
+from kfcrit.records.network import NetworkSensor
 from kfcrit.views.figures.style import (
     COLORS,
     FIG_RC,

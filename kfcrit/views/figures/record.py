@@ -43,13 +43,13 @@ matplotlib.use("Agg")
 
 from matplotlib.figure import Figure  # noqa: E402 - after choosing the backend
 
-from kfcrit.analysis.records.covariance import Invariant  # noqa: E402
-from kfcrit.analysis.records.simulation import (  # noqa: E402
+from kfcrit.analysis.sections import AnalysisRecord  # noqa: E402
+from kfcrit.records.covariance import Invariant  # noqa: E402
+from kfcrit.records.simulation import (  # noqa: E402
     MeanTraceStatistics,
     PhaseDemoCurve,
     SimulationOperatingPoint,
 )
-from kfcrit.analysis.sections import AnalysisRecord  # noqa: E402
 from kfcrit.views.figures.burst import draw_critical_curve  # noqa: E402
 from kfcrit.views.figures.design import (  # noqa: E402
     draw_accuracy,

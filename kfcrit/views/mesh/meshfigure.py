@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 
 from kfcrit.analysis.mesh.section import MeshSection
 from kfcrit.analysis.sections import AnalysisRecord
-from kfcrit.analysis.verdict import Verdict
+from kfcrit.records.contract import Verdict
 from kfcrit.views.figures.style import FIG_RC, new_figure, present
 
 ROLE_STYLE = {"sensor": ("o", "#2563eb"), "relay": ("D", "#f59e0b"), "gateway": ("s", "#111827")}

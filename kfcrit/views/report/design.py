@@ -19,15 +19,15 @@ from kfcrit.views.report.parts import (
 )
 
 if TYPE_CHECKING:
-    from kfcrit.analysis.records.covariance import RequiredArrivalEnd
-    from kfcrit.analysis.records.link import (
+    from kfcrit.analysis.sections import AnalysisRecord
+    from kfcrit.records.covariance import RequiredArrivalEnd
+    from kfcrit.records.link import (
         LinkDesignBound,
         LinkDesignDistance,
         LinkDesignPayload,
         LinkDesignPayloadBound,
         LinkDesignRecord,
     )
-    from kfcrit.analysis.sections import AnalysisRecord
 
 UNITS = {"m": "m", "dBm": "dBm", "bytes": "bytes", "retries": ""}
 

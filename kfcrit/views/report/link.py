@@ -6,9 +6,9 @@ from typing import TYPE_CHECKING, Any
 
 from markupsafe import Markup
 
-from kfcrit.analysis.records.bursty import GilbertElliottSection
-from kfcrit.analysis.records.channel import ChannelRecord
-from kfcrit.analysis.records.link import LinkBudgetRecord
+from kfcrit.records.bursty import GilbertElliottSection
+from kfcrit.records.channel import ChannelRecord
+from kfcrit.records.link import LinkBudgetRecord
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures import mathsvg
 from kfcrit.views.report.parts import (
@@ -22,10 +22,10 @@ from kfcrit.views.report.parts import (
 )
 
 if TYPE_CHECKING:
-    from kfcrit.analysis.records.bursty import BurstCertificateRecord
-    from kfcrit.analysis.records.channel import MeshChannel, NetworkChannel
-    from kfcrit.analysis.records.link import LinkState, RadioRecord
     from kfcrit.analysis.sections import AnalysisRecord
+    from kfcrit.records.bursty import BurstCertificateRecord
+    from kfcrit.records.channel import MeshChannel, NetworkChannel
+    from kfcrit.records.link import LinkState, RadioRecord
 
     AnyChannel = ChannelRecord | NetworkChannel | MeshChannel
 

@@ -1,7 +1,7 @@
 """View model of the sensor-network section (theory §9): the table of nodes, the uniform margin,
 the bottleneck, the necessary constraints and the two network figures.
 
-Reads the typed ``network`` section (:class:`~kfcrit.analysis.records.network.NetworkSection`)
+Reads the typed ``network`` section (:class:`~kfcrit.records.network.NetworkSection`)
 and ``system.sensors``; every number is the record's. Intervals stand where the necessary and
 sufficient surfaces do not meet.
 """
@@ -21,8 +21,8 @@ from kfcrit.views.text.netmargin import (
 )
 
 if TYPE_CHECKING:
-    from kfcrit.analysis.records.network import NetworkSection
     from kfcrit.analysis.sections import AnalysisRecord
+    from kfcrit.records.network import NetworkSection
 
 VERDICT_CSS = {"mean-stable": "ok", "mean-unstable": "no", "undetermined": "none"}
 

@@ -22,7 +22,8 @@ from kfcrit.views.report.parts import (
 )
 
 if TYPE_CHECKING:
-    from kfcrit.analysis.records.simulation import (
+    from kfcrit.analysis.sections import AnalysisRecord, VerificationCheck
+    from kfcrit.records.simulation import (
         ErgodicAverages,
         NetworkSimulation,
         PooledMeanTrace,
@@ -31,7 +32,6 @@ if TYPE_CHECKING:
         SimulationSeeds,
         UpperSolver,
     )
-    from kfcrit.analysis.sections import AnalysisRecord, VerificationCheck
 
 FIGURE_CAPTIONS = {
     "phase_transition": ("Phase transition",

@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING, Any
 
 from markupsafe import Markup
 
-from kfcrit.analysis.records.covariance import BestStaticGain
 from kfcrit.errors import ExpressionError
 from kfcrit.model.exprparse import parse_with_float
+from kfcrit.records.covariance import BestStaticGain
 from kfcrit.theory.critical.numtext import modulus_from_p_low
 from kfcrit.views import formatting as filters
 from kfcrit.views.figures import mathsvg
@@ -39,15 +39,15 @@ from kfcrit.views.report.parts import (
 from kfcrit.views.text.netmargin import NETWORK_P_MEANING
 
 if TYPE_CHECKING:
-    from kfcrit.analysis.records.contract import RobustCriticalValue
-    from kfcrit.analysis.records.covariance import CovarianceSummary, ValueExpression
-    from kfcrit.analysis.records.structure import Eigenvalue, StandardForm, StructureRecord
     from kfcrit.analysis.sections import (
         AnalysisRecord,
         CriticalValueRecord,
         SystemSection,
         UpperBoundRecord,
     )
+    from kfcrit.records.contract import RobustCriticalValue
+    from kfcrit.records.covariance import CovarianceSummary, ValueExpression
+    from kfcrit.records.structure import Eigenvalue, StandardForm, StructureRecord
 
 THEOREMS: tuple[tuple[str, str, str, str], ...] = (
     ("non-degenerate", "Mo–Sinopoli, Theorem 4",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from kfcrit.analysis.records.channel import ChannelRecord
+from kfcrit.records.channel import ChannelRecord
 from kfcrit.views.figures.record import tail_of
 from kfcrit.views.report.link import (
     CHANNEL_NAMES,

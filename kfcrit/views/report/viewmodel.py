@@ -9,7 +9,7 @@ from __future__ import annotations
 import datetime
 from typing import TYPE_CHECKING, Any
 
-from kfcrit.analysis.records.bursty import GilbertElliottSection
+from kfcrit.records.bursty import GilbertElliottSection
 from kfcrit.version import __version__
 from kfcrit.views.mesh.meshreport import mesh_view
 from kfcrit.views.report.design import design_view, link_figures

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from kfcrit.analysis.records.network import NetworkBottleneck, NetworkSensor
+from kfcrit.records.network import NetworkBottleneck, NetworkSensor
 from kfcrit.views import formatting as filters
 
 NETWORK_P_MEANING = ("1 − Π(1 − p_i), the probability that at least one sensor's packet "

@@ -5,11 +5,11 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from kfcrit.analysis.records.covariance import AccuracyDesign, CovarianceBounds
-from kfcrit.analysis.records.link import LinkBudgetRecord
-from kfcrit.analysis.records.network import NetworkSection
 from kfcrit.analysis.sections import AnalysisRecord
 from kfcrit.io.typed import ABSENT
+from kfcrit.records.covariance import AccuracyDesign, CovarianceBounds
+from kfcrit.records.link import LinkBudgetRecord
+from kfcrit.records.network import NetworkSection
 from kfcrit.views.formatting import counted
 from kfcrit.views.mesh.meshtext import mesh_lines
 from kfcrit.views.text.looptext import loop_lines

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.channel import ChannelRecord
+from kfcrit.records.channel import ChannelRecord
 
 
 @dataclass(frozen=True, kw_only=True)

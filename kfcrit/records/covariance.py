@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.link import LinkDesignRecord
 from kfcrit.io.typed import opt_key
+from kfcrit.records.link import LinkDesignRecord
 
 
 @dataclass(frozen=True, kw_only=True)

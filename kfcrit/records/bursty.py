@@ -7,8 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from kfcrit.analysis.records.bounds import CertificateCheck
 from kfcrit.io.typed import opt_key
+from kfcrit.records.bounds import CertificateCheck
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.bursty import GilbertElliottSection
-from kfcrit.analysis.records.channel import FrameRecord, RadioRecord, ShadowingMarkovRecord
 from kfcrit.io.typed import opt_key
+from kfcrit.records.bursty import GilbertElliottSection
+from kfcrit.records.channel import FrameRecord, RadioRecord, ShadowingMarkovRecord
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.bursty import StabilityFactsRecord
-from kfcrit.analysis.records.contract import CriticalValueRecord, UpperBoundRecord
-from kfcrit.analysis.records.link import DesignCheck, LinkState, MarginPolicy, Shadowing
 from kfcrit.io.typed import opt_key
+from kfcrit.records.bursty import StabilityFactsRecord
+from kfcrit.records.contract import CriticalValueRecord, UpperBoundRecord
+from kfcrit.records.link import DesignCheck, LinkState, MarginPolicy, Shadowing
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,20 +11,27 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
-from kfcrit.analysis.records.bounds import (
+from kfcrit.io.typed import opt, opt_key
+from kfcrit.records.bounds import (
     UpperCertificate,
     UpperLowerEvidence,
     UpperSolver,
 )
-from kfcrit.analysis.records.channel import ChannelRecord, MeshChannel, NetworkChannel
-from kfcrit.analysis.records.system import (
+from kfcrit.records.channel import ChannelRecord, MeshChannel, NetworkChannel
+from kfcrit.records.system import (
     AnalysisOptionsRecord,
     ContinuousModel,
     Matrices,
     SensorRecord,
 )
-from kfcrit.analysis.verdict import Verdict
-from kfcrit.io.typed import opt, opt_key
+
+
+class Verdict(str, enum.Enum):
+    """Mean stability of the filter at the operating point."""
+
+    MEAN_STABLE = "mean-stable"
+    MEAN_UNSTABLE = "mean-unstable"
+    UNDETERMINED = "undetermined"
 
 
 class Classification(str, enum.Enum):

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfcrit.analysis.records.channel import ChannelRecord
-from kfcrit.analysis.records.contract import VerificationCheck
 from kfcrit.io.typed import opt_key
+from kfcrit.records.channel import ChannelRecord
+from kfcrit.records.contract import VerificationCheck
 
 
 @dataclass(frozen=True, kw_only=True)
