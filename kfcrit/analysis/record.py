@@ -72,9 +72,9 @@ from kfcrit.records.read import TIMING_KEYS, read_fields, read_plain
 from kfcrit.records.simulation import Simulation
 from kfcrit.records.system import (
     AnalysisOptionsRecord,
-    ContinuousModel,
     Matrices,
-    SensorRecord,
+    continuous_record,
+    sensor_records,
 )
 from kfcrit.version import __version__
 
@@ -204,13 +204,11 @@ def system_section(spec: SystemSpec) -> SystemSection:
     s = spec.system
     extra: dict[str, Any] = {}
     if spec.continuous is not None:
-        extra["continuous"] = read_plain(ContinuousModel, spec.continuous.to_dict(),
-                                           "system.continuous")
+        extra["continuous"] = continuous_record(spec.continuous)
     if spec.network is not None:
-        net = spec.network.to_dict()
-        extra["sensors"] = read_plain(list[SensorRecord] | None, net.get("sensors"),
-                                        "system.sensors")
-        extra["sink_position_m"] = net.get("sink_position_m")
+        extra["sensors"] = sensor_records(spec.network)
+        sink = spec.network.sink_position
+        extra["sink_position_m"] = None if sink is None else [float(x) for x in sink]
     return SystemSection(n=s.n, m=s.m, exact_input=s.exact, matrices=Matrices(**s.matrices_text()),
                          channel=channel_record(spec.channel), **extra)
 

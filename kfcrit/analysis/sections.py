@@ -2,9 +2,10 @@
 
 The record's JSON form (``--json``), its JSON Schema (``kfcrit schema record``) and the typed
 objects are generated from these classes by :mod:`kfcrit.io.typed`; views and tests build records
-through the same classes. The section classes live in :mod:`kfcrit.records` (below the theory, so the layer that computes a section builds it as its class; one module
-per group of sections); every payload — matrices, curves, per-eigenvalue tables, certificates — is
-a dataclass or a list/dict of typed values, so the schema and the strict reader check every key.
+through the same classes. The section classes live in :mod:`kfcrit.records` (one module per group
+of sections), below the theory, so the layer that computes a section builds it as its class;
+every payload — matrices, curves, per-eigenvalue tables, certificates — is a dataclass or a
+list/dict of typed values, so the schema and the strict reader check every key.
 
 ``schema_version`` changes when a key is renamed or removed (never for an added key).
 """

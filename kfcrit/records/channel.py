@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import sympy as sp
+
 from kfcrit.io.jsonio import jsonable
 from kfcrit.io.typed import from_json, opt_key
 
@@ -194,12 +196,43 @@ class MeshChannel:
 
 
 def channel_record(channel: Any) -> ChannelRecord | None:
-    """The record's typed form of a model channel (``None`` for none).
+    r"""The record's typed form of a model channel (``None`` for none), built field by field.
 
-    The model layer states a channel as plain data (``Channel.to_dict()``, exact numbers as
-    text or floats); it is typed here, once, where it enters the record (strict: a key the
-    record does not declare is an error, not dropped).
+    A Bernoulli, Gilbert–Elliott or trace channel is a model object (the layer below); a link
+    budget states its own record (``channel.record()``, the link layer). Exact numbers are
+    written as floats and as exact text (``arrival_probability_expression``).
+
+    .. math::  \bar p = r / (f + r) \quad\text{(Gilbert–Elliott, stationary)}
+
+    Raises
+    ------
+    TypeError
+        A channel of a kind the record does not know.
     """
     if channel is None:
         return None
-    return from_json(ChannelRecord, jsonable(channel.to_dict()), "channel")
+    if hasattr(channel, "record"):
+        return channel.record()
+    if channel.model == "link-budget":   # the link layer's plain record form, read strictly
+        return from_json(ChannelRecord, jsonable(channel.to_dict()), "channel")
+    model = channel.model
+    p = channel.arrival_probability
+    common = {"model": model, "arrival_probability": float(p),
+              "arrival_probability_expression": sp.sstr(p)}
+    if model == "bernoulli":
+        return ChannelRecord(**common)
+    if model == "gilbert-elliott":
+        return ChannelRecord(**common, failure_rate=float(channel.failure_rate),
+                             recovery_rate=float(channel.recovery_rate),
+                             mean_burst_length=float(1 / channel.recovery_rate))
+    if model == "trace":
+        extra = {k: getattr(channel, k) for k in ("sensor", "period_s")
+                 if getattr(channel, k) is not None}
+        return ChannelRecord(**common, path=channel.path, length=int(channel.arrivals.size),
+                             format=channel.format, confidence=_float_or_none(
+                                 channel.confidence), **extra)
+    raise TypeError(f"channel model {model!r} has no record form")
+
+
+def _float_or_none(value: Any) -> float | None:
+    return None if value is None else float(value)

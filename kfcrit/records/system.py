@@ -4,8 +4,11 @@ model, the sensors of a network file, the analysis options.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from kfcrit.records.channel import ChannelRecord
+import sympy as sp
+
+from kfcrit.records.channel import ChannelRecord, channel_record
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,3 +59,29 @@ class AnalysisOptionsRecord:
     paths: int | None
     steps: int | None
     details: bool
+
+
+def _text(M: Any) -> list[list[str]]:
+    """An exact sympy matrix as rows of exact text."""
+    return [[sp.sstr(e) for e in M.row(i)] for i in range(M.shape[0])]
+
+
+def continuous_record(model: Any) -> ContinuousModel:
+    r"""``system.continuous``: how a continuous-time model was sampled (exact text).
+
+    .. math::  A = e^{A_c T}, \quad Q = \int_0^T e^{A_c s} Q_c e^{A_c' s}\,ds
+    """
+    return ContinuousModel(A=_text(model.A_c), Q=_text(model.Q_c),
+                           sampling_time=sp.sstr(model.sampling_time), method=model.method,
+                           exact=bool(model.exact), reason=model.reason,
+                           error_bound=None if model.error_bound is None
+                           else float(model.error_bound))
+
+
+def sensor_records(network: Any) -> list[SensorRecord]:
+    """``system.sensors``: each sensor of a network file with exact C, R and its channel."""
+    return [SensorRecord(name=s.name, m=int(s.m), C=_text(s.C), R=_text(s.R),
+                         channel=channel_record(s.channel),
+                         position_m=None if s.position is None
+                         else [float(x) for x in s.position])
+            for s in network.sensors]
