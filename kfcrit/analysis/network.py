@@ -7,7 +7,6 @@ from typing import Any
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel, design_check
-from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.records.bursty import StabilityFactsRecord, facts_record
 from kfcrit.records.channel import NetworkChannel, NetworkChannelSensor, channel_record
@@ -217,17 +216,14 @@ def network_simulation(spec: SystemSpec, opts: Any, op: OperatingPoint) -> Simul
     sensors = [(list(range(sl.start, sl.stop)), s.channel)
                for sl, s in zip(net.row_slices(), net.sensors)]
     res = simulate(spec.system, paths, budget.steps, opts.seed, sensors=sensors,
-                   track_lambda_max=False).to_dict()
-    mt = res.get("mean_trace") or {}
-    last = {k: (mt.get(k) or [None])[-1] for k in ("mean", "lower", "upper")}
-    horizon = res.get("horizon") or {}
+                   track_lambda_max=False)
+    mt = res.mean_trace_statistics()
+    horizon = res.horizon_distribution()
     summary = NetworkSimulation(
         paths=paths, steps=budget.steps, seed=opts.seed, sensors=[s.name for s in net.sensors],
-        mean_exists=None, **jsonable({
-            "diverged_paths": (res.get("divergence") or {}).get("diverged_paths"),
-            "horizon_quantiles": horizon.get("quantiles"),
-            "horizon_levels": horizon.get("levels")}))
-    mean = NetworkMeanTrace(**jsonable(last))
+        mean_exists=None, diverged_paths=res.diverged_paths,
+        horizon_quantiles=horizon.quantiles, horizon_levels=horizon.levels)
+    mean = NetworkMeanTrace(mean=mt.mean[-1], lower=mt.lower[-1], upper=mt.upper[-1])
     if op.verdict is vd.Verdict.MEAN_UNSTABLE:
         summary = replace(summary, mean_exists=False, sample_mean_trace=mean.mean,
                           statement="E[tr P_t] diverges (the network is mean-unstable): the "

@@ -148,8 +148,8 @@ def ergodic_text(erg: ErgodicResult) -> str:
         lines.append("time average of tr P: none (every long path crossed the divergence "
                      "threshold)")
     for t in erg.tail_probabilities():
-        lines.append(f"P(tr P > {t['level']:g}) by time average: {_fmt(t['probability'])} "
-                     f"({t['count']} of {t['steps']} path-steps of {t['replicas']} long paths "
+        lines.append(f"P(tr P > {t.level:g}) by time average: {_fmt(t.probability)} "
+                     f"({t.count} of {t.steps} path-steps of {t.replicas} long paths "
                      "that stayed below the divergence threshold; steps are correlated, no "
                      "interval)")
     div = d["divergence"]
@@ -223,8 +223,8 @@ def summary_text(result: SimulationResult, level: float | None = None) -> str:
         for k in (0.05, 0.5, 0.95, 0.99)))
     if level is not None:
         e = result.exceedance(level)
-        lines.append(f"P(tr P > {level:g}) at the horizon: {e['estimate']:.4g} "
-                     f"(95% CI {e['lower']:.4g} .. {e['upper']:.4g})")
+        lines.append(f"P(tr P > {level:g}) at the horizon: {e.estimate:.4g} "
+                     f"(95% CI {e.lower:.4g} .. {e.upper:.4g})")
     lines.append(f"diverged paths: {result.diverged_paths} (crossed tr P > "
                  f"{result.divergence_threshold:.3g}; continued in scaled form)")
     lines.extend(f"warning: {w}" for w in result.warnings)

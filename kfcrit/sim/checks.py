@@ -6,12 +6,13 @@ statistical check that misses its tolerance is a failure or only inconclusive.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from kfcrit.model.channels import Channel
 from kfcrit.model.system import System
+from kfcrit.records.contract import VerificationCheck
+from kfcrit.records.simulation import MeanBasis, SimulationReliability
 from kfcrit.sim.engine import initial_covariance
 from kfcrit.sim.results import ErgodicResult, SimulationResult
 from kfcrit.sim.stats import finite_or_none, quiet_numerics
@@ -55,7 +56,7 @@ def _loss_factor(channel: Channel) -> tuple[float | None, str | None]:
 def tail_regime(system: System, channel: Channel, steps: int, *,
                 critical_value: float | None = None,
                 critical_bracket: tuple[float | None, float | None] | None = None,
-                upper_bound: float | None = None) -> dict[str, Any]:
+                upper_bound: float | None = None) -> SimulationReliability:
     r"""How far sample means of tr P_t can be trusted at this operating point.
 
     * ``heavy_tailed``: a loss burst of length k has probability ∝ q^k (q = 1 − p for i.i.d.
@@ -89,14 +90,10 @@ def tail_regime(system: System, channel: Channel, steps: int, *,
             gap = np.float64(1.0 - min(max(hi, 0.0), 1.0)) ** 2   # (1 − p_c)²
             value = float(q / gap) if gap > 0 else math.inf
             basis, p2 = f"({q_name}) / (1 - p_c)^2", float(1.0 - gap)
-    out: dict[str, Any] = {
-        "variance_condition": basis,
-        "variance_value": finite_or_none(value) if value is not None else None,
-        "heavy_tailed": None if value is None else bool(not value < 1),
-        "variance_threshold_p2": p2,
-        "variance_critical_value": hi, "variance_critical_source": source,
-        "variance_basis": VARIANCE_CLAIM if q is not None else None,
-        "lyapunov_trace_at_horizon": None, "lyapunov_trace_limit": None, "settled": None}
+    heavy = None if value is None else bool(not value < 1)
+    at_horizon: float | None = None
+    limit: float | None = None
+    settled: bool | None = None
     if channel.arrival_process().kind == "iid" and q * rho * rho < 1:
         from kfcrit.theory.covariance.bounds import lower_covariance
 
@@ -105,14 +102,19 @@ def tail_regime(system: System, channel: Channel, steps: int, *,
             Sbar = lower_covariance(system.a, system.q, 1.0 - q)
         lim = float(np.trace(Sbar)) if Sbar is not None else None
         if S_T is not None and lim is not None and math.isfinite(lim):
-            out.update(lyapunov_trace_at_horizon=S_T, lyapunov_trace_limit=lim,
-                       settled=bool(S_T >= 0.95 * lim))
-    return out
+            at_horizon, limit, settled = S_T, lim, bool(S_T >= 0.95 * lim)
+    return SimulationReliability(
+        variance_condition=basis,
+        variance_value=finite_or_none(value) if value is not None else None,
+        heavy_tailed=heavy, variance_threshold_p2=p2, variance_critical_value=hi,
+        variance_critical_source=source,
+        variance_basis=VARIANCE_CLAIM if q is not None else None,
+        lyapunov_trace_at_horizon=at_horizon, lyapunov_trace_limit=limit, settled=settled)
 
 
 def mean_regime(system: System, channel: Channel, *, critical_value: float | None = None,
                 critical_bracket: tuple[float | None, float | None] | None = None,
-                upper_bound: float | None = None) -> dict[str, Any]:
+                upper_bound: float | None = None) -> MeanBasis:
     """Whether E[tr P_t] stays bounded at this operating point: ``exists`` True/False/None.
 
     i.i.d. losses (theory §3–§4): bounded iff p > p_c, so False when p ≤ p_c (or ≤ the lower end
@@ -132,14 +134,14 @@ def mean_regime(system: System, channel: Channel, *, critical_value: float | Non
         with quiet_numerics():
             burst = float((1.0 - r) * np.float64(rho) ** 2)
         if not burst < 1:
-            return {"exists": False, "basis": "theorem: (1 - r) rho(A)^2 >= 1 makes E[P_t] "
-                    "unbounded for any system (docs/theory.md §10, necessary burst condition)",
-                    "value": finite_or_none(burst), "critical_source": source}
+            return MeanBasis(exists=False, basis="theorem: (1 - r) rho(A)^2 >= 1 makes E[P_t] "
+                             "unbounded for any system (docs/theory.md §10, necessary burst "
+                             "condition)", value=finite_or_none(burst), critical_source=source)
         x, name = r, "r"
         basis = ("claim: E[P_t] bounded iff r > p_c (loss bursts with the i.i.d. growth rate "
                  "1/(1 - p_c); You-Fu-Xie 2011 for non-degenerate systems, docs/theory.md §7, §10)")
     else:
-        return {"exists": None, "basis": "a measured trace: no model", "critical_source": source}
+        return MeanBasis(exists=None, basis="a measured trace: no model", critical_source=source)
     exists = None
     if rho < 1:   # a stable plant: E[P_t] bounded even without arrivals (Lyapunov)
         exists = True
@@ -147,8 +149,8 @@ def mean_regime(system: System, channel: Channel, *, critical_value: float | Non
         exists = False
     elif hi is not None and x > hi:
         exists = True
-    return {"exists": exists, "basis": basis, "compared": name, "value": x,
-            "critical_lower": lo, "critical_upper": hi, "critical_source": source}
+    return MeanBasis(exists=exists, basis=basis, compared=name, value=x, critical_lower=lo,
+                     critical_upper=hi, critical_source=source)
 
 
 def lyapunov_traces(system: System, p: float, times: np.ndarray) -> list[float | None]:
@@ -175,19 +177,18 @@ def lyapunov_traces(system: System, p: float, times: np.ndarray) -> list[float |
 
 
 def _check(check: str, passed: bool | None, detail: str, *, reason: str | None = None,
-           status: str | None = None) -> dict[str, Any]:
+           status: str | None = None) -> VerificationCheck:
     """One verification entry; ``status`` is passed / failed / inconclusive / not applicable."""
     st = status or {True: "passed", False: "failed", None: "not applicable"}[passed]
-    out = {"check": check, "passed": passed, "status": st, "detail": detail}
     if reason:
-        out["reason"] = reason
-    return out
+        return VerificationCheck(check, passed, st, detail=detail, reason=reason)
+    return VerificationCheck(check, passed, st, detail=detail)
 
 
 def simulation_checks(system: System, channel: Channel, res: SimulationResult,
-                      erg: ErgodicResult, regime: dict[str, Any] | None = None
-                      ) -> list[dict[str, Any]]:
-    """Self-checks of the operating-point simulation: ``{check, passed, status, detail}``.
+                      erg: ErgodicResult, regime: SimulationReliability | None = None
+                      ) -> list[VerificationCheck]:
+    """Self-checks of the operating-point simulation (``check, passed, status, detail``).
 
     * every statistic is finite (divergence is flagged, never NaN/inf);
     * the mean loss-burst length matches the channel (1/r Gilbert–Elliott, 1/p i.i.d.) within
@@ -202,7 +203,7 @@ def simulation_checks(system: System, channel: Channel, res: SimulationResult,
     need not settle within any affordable horizon.
     """
     regime = regime if regime is not None else tail_regime(system, channel, res.steps)
-    out: list[dict[str, Any]] = []
+    out: list[VerificationCheck] = []
     # plain values may exceed float64 (then inf, with a finite log10 beside them); never NaN
     plain = [res.mean_trace, res.std_trace, res.horizon_traces]
     logs = [a for a in (res.log10_mean_trace, res.horizon_log10_traces) if a is not None]
@@ -240,10 +241,10 @@ def simulation_checks(system: System, channel: Channel, res: SimulationResult,
                   "(>= −5 required)")
         if zmin >= -5:
             out.append(_check(name, True, detail))
-        elif regime.get("heavy_tailed") or res.failed_paths:
+        elif regime.heavy_tailed or res.failed_paths:
             why = (f"{res.failed_paths} paths were frozen after a numerical failure, so "
                    "the simulated means are approximate" if res.failed_paths else
-                   f"{regime['variance_condition']} = {regime['variance_value']:.4g} >= 1: the "
+                   f"{regime.variance_condition} = {regime.variance_value:.4g} >= 1: the "
                    "variance of tr P diverges (heavy tails just above p_c), so the sample mean "
                    "and its standard error are unreliable at this horizon")
             out.append(_check(name, None, detail, reason=why, status="inconclusive"))

@@ -7,6 +7,24 @@ from typing import Any
 
 import numpy as np
 
+from kfcrit.io.typed import to_json
+from kfcrit.records.simulation import (
+    AlmostSureSample,
+    BurstStatistics,
+    ErgodicAverages,
+    ErgodicDivergence,
+    Exceedance,
+    HorizonCdf,
+    HorizonDistribution,
+    MeanLambdaMaxStatistics,
+    MeanTraceStatistics,
+    PathTimeAverages,
+    PooledMeanTrace,
+    PooledTailLevel,
+    SimulationDivergence,
+    TailLevel,
+    TimeAverages,
+)
 from kfcrit.sim.arrivals import STREAM_ERGODIC
 from kfcrit.sim.stats import LN10, Z95, finite_or_none, json_array, proportion, quiet_numerics
 
@@ -85,7 +103,7 @@ class SimulationResult:
     log10_mean_lambda_max: np.ndarray | None = field(repr=False, default=None)
     log10_std_lambda_max: np.ndarray | None = field(repr=False, default=None)
     horizon_log10_traces: np.ndarray | None = field(repr=False, default=None)
-    above_threshold_fraction: np.ndarray | None = field(repr=False, default=None)
+    above_threshold_fraction: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     failure_times: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     lambda_max_times: np.ndarray | None = field(repr=False, default=None)
 
@@ -178,12 +196,14 @@ class SimulationResult:
         return [finite_or_none(float(np.quantile(x, q, method="inverted_cdf")))
                 for q in levels]
 
-    def exceedance(self, level: float) -> dict[str, Any]:
+    def exceedance(self, level: float) -> Exceedance:
         """P(tr P_steps > level) with a 95 % Wilson interval."""
         k = int(np.count_nonzero(self.horizon_traces > level))
-        return {"level": float(level), **proportion(k, self.paths)}
+        p = proportion(k, int(self.paths))
+        return Exceedance(level=float(level), estimate=p["estimate"], lower=p["lower"],
+                          upper=p["upper"], count=p["count"], total=p["total"])
 
-    def cdf_points(self, points: int = DEFAULT_SAMPLES) -> dict[str, list]:
+    def cdf_points(self, points: int = DEFAULT_SAMPLES) -> HorizonCdf:
         """The empirical CDF of tr P at the horizon: points (x_(k), k/N) of the sorted traces.
 
         Up to ``max(points, 2000)`` paths it is the exact ECDF (every order statistic). Beyond,
@@ -195,7 +215,7 @@ class SimulationResult:
         x = np.sort(self.horizon_traces)
         n = x.size
         if n == 0:
-            return {"trace": [], "probability": []}
+            return HorizonCdf(trace=[], probability=[])
         if n <= max(points, 2000):
             ranks = np.arange(n)
         else:
@@ -204,61 +224,74 @@ class SimulationResult:
                 np.round(np.linspace(0, n - 1, points)).astype(np.int64), geo, n - 1 - geo]))
         xs, u = x[ranks], (ranks + 1) / n
         keep = xs < self.divergence_threshold
-        return {"trace": xs[keep].tolist(), "probability": u[keep].tolist()}
+        return HorizonCdf(trace=xs[keep].tolist(), probability=u[keep].tolist())
 
-    def to_dict(self) -> dict[str, Any]:
+    def mean_trace_statistics(self) -> MeanTraceStatistics:
+        """E[tr P_t] at the sample times: mean, 95 % band (:meth:`band`), sd and their log10
+        (finite where the plain values overflow float64, which are then None)."""
         lo, hi = self.band("trace")
         llm, lls = self._log10("trace")
         llo, lhi = self.log10_band("trace")
-        out: dict[str, Any] = {
+        return MeanTraceStatistics(
+            mean=json_array(self.mean_trace), lower=json_array(lo), upper=json_array(hi),
+            std=json_array(self.std_trace), confidence=0.95,
+            overflow=bool(not np.all(np.isfinite(self.mean_trace))),
+            log10_mean=json_array(llm), log10_lower=json_array(llo),
+            log10_upper=json_array(lhi), log10_std=json_array(lls))
+
+    def mean_lambda_max_statistics(self) -> MeanLambdaMaxStatistics | None:
+        """E[λ_max(P_t)] at its sample times with its 95 % band (None when not tracked)."""
+        if self.mean_lambda_max is None:
+            return None
+        lo, hi = self.band("lambda_max")
+        l10, _ = self._log10("lambda_max")
+        lt = self.times if self.lambda_max_times is None else self.lambda_max_times
+        return MeanLambdaMaxStatistics(
+            mean=json_array(self.mean_lambda_max), lower=json_array(lo), upper=json_array(hi),
+            std=json_array(self.std_lambda_max), confidence=0.95, log10_mean=json_array(l10),
+            times=[int(x) for x in lt], method=self.lambda_max_method())
+
+    def horizon_distribution(self) -> HorizonDistribution:
+        """The law of tr P at the horizon: quantiles (and their log10), mean, empirical CDF."""
+        llm, _ = self._log10("trace")
+        return HorizonDistribution(
+            time=int(self.steps), levels=list(QUANTILE_LEVELS),
+            quantiles=self.horizon_quantiles(), log10_quantiles=self.horizon_log10_quantiles(),
+            mean=finite_or_none(float(self.mean_trace[-1])),
+            log10_mean=finite_or_none(float(llm[-1])), cdf=self.cdf_points())
+
+    def divergence_record(self) -> SimulationDivergence:
+        """Which paths crossed the divergence threshold, when, and whether any was frozen."""
+        crossed = self.divergence_times[self.divergence_times >= 0]
+        return SimulationDivergence(
+            threshold=finite_or_none(self.divergence_threshold),
+            diverged_paths=self.diverged_paths,
+            first_time=int(crossed.min()) if crossed.size else None,
+            diverged_fraction=json_array(self.diverged_fraction),
+            above_threshold_fraction=json_array(self.above_threshold_fraction),
+            continued=True,
+            note=("diverged = crossed the threshold at least once; such paths are continued in "
+                  "scaled form P = e^l X, so the statistics are true values"),
+            failed_paths=self.failed_paths, mean_is_lower_bound=self.mean_is_lower_bound)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The plain JSON form (``kfcrit simulate --json``): the statistics of the record
+        (:meth:`mean_trace_statistics` …) with the system, the kept traces and the timing."""
+        lm = self.mean_lambda_max_statistics()
+        return {
             "system": self.system_name, "n": self.n, "m": self.m, "paths": self.paths,
             "steps": self.steps, "seed": self.seed, "channel": self.channel,
             "arrival_probability": self.arrival_probability,
             "times": self.times.tolist(),
-            "mean_trace": {"mean": json_array(self.mean_trace), "lower": json_array(lo),
-                           "upper": json_array(hi), "std": json_array(self.std_trace),
-                           "confidence": 0.95,
-                           "overflow": bool(not np.all(np.isfinite(self.mean_trace))),
-                           "log10_mean": json_array(llm), "log10_lower": json_array(llo),
-                           "log10_upper": json_array(lhi), "log10_std": json_array(lls)},
-            "mean_lambda_max": None,
-            "horizon": {"time": self.steps, "levels": list(QUANTILE_LEVELS),
-                        "quantiles": self.horizon_quantiles(),
-                        "log10_quantiles": self.horizon_log10_quantiles(),
-                        "mean": finite_or_none(float(self.mean_trace[-1])),
-                        "log10_mean": finite_or_none(float(llm[-1])),
-                        "cdf": self.cdf_points()},
-            "divergence": {"threshold": finite_or_none(self.divergence_threshold),
-                           "diverged_paths": self.diverged_paths,
-                           "first_time": (int(self.divergence_times[
-                               self.divergence_times >= 0].min())
-                               if self.diverged_paths else None),
-                           "diverged_fraction": self.diverged_fraction.tolist(),
-                           "above_threshold_fraction": (
-                               None if self.above_threshold_fraction is None
-                               else self.above_threshold_fraction.tolist()),
-                           "continued": True,
-                           "note": ("diverged = crossed the threshold at least once; such "
-                                    "paths are continued in scaled form P = e^l X, so the "
-                                    "statistics are true values"),
-                           "failed_paths": self.failed_paths,
-                           "mean_is_lower_bound": self.mean_is_lower_bound},
+            "mean_trace": to_json(self.mean_trace_statistics()),
+            "mean_lambda_max": None if lm is None else to_json(lm),
+            "horizon": to_json(self.horizon_distribution()),
+            "divergence": to_json(self.divergence_record()),
             "traces": None if self.traces is None else json_array(self.traces),
             "full_state": None if self.full_state is None else self.full_state.to_dict(),
             "runtime_seconds": self.runtime_seconds,
             "warnings": list(self.warnings),
         }
-        if self.mean_lambda_max is not None:
-            lm_lo, lm_hi = self.band("lambda_max")
-            l10, _ = self._log10("lambda_max")
-            lt = self.times if self.lambda_max_times is None else self.lambda_max_times
-            out["mean_lambda_max"] = {"mean": json_array(self.mean_lambda_max),
-                                      "lower": json_array(lm_lo), "upper": json_array(lm_hi),
-                                      "std": json_array(self.std_lambda_max), "confidence": 0.95,
-                                      "log10_mean": json_array(l10),
-                                      "times": [int(x) for x in lt],
-                                      "method": self.lambda_max_method()}
-        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -298,20 +331,20 @@ class ErgodicResult:
         with np.errstate(invalid="ignore", divide="ignore"):
             return self.sums[:, 0] / self.used_steps
 
-    def pooled(self) -> dict[str, Any]:
+    def pooled(self) -> PooledMeanTrace:
         """Pooled time mean over all replicas with a 95 % batch-means interval."""
         ok = (self.divergence_times < 0) & (self.used_steps > 0)
         if not ok.any():
-            return {"mean": None, "lower": None, "upper": None, "batches": 0}
+            return PooledMeanTrace(mean=None, lower=None, upper=None, batches=0)
         nb = self.batch_sums.shape[1]
         per_batch = self.used_steps[ok, None] / nb
         bm = (self.batch_sums[ok] / per_batch).ravel()
         mean = float(self.sums[ok, 0].sum() / self.used_steps[ok].sum())
         half = Z95 * float(bm.std(ddof=1)) / math.sqrt(bm.size) if bm.size > 1 else math.inf
-        return {"mean": mean, "lower": finite_or_none(mean - half),
-                "upper": finite_or_none(mean + half), "batches": int(bm.size)}
+        return PooledMeanTrace(mean=mean, lower=finite_or_none(mean - half),
+                               upper=finite_or_none(mean + half), batches=int(bm.size))
 
-    def tail_probabilities(self) -> list[dict[str, Any]]:
+    def tail_probabilities(self) -> list[PooledTailLevel]:
         """P_μ(tr P > M) for every level, pooled over the replicas that never crossed the
         divergence threshold (a crossed path's counts stop at the crossing)."""
         ok = (self.divergence_times < 0) & (self.used_steps > 0)
@@ -319,68 +352,89 @@ class ErgodicResult:
         out = []
         for q, lv in enumerate(self.levels):
             k = int(self.exceed[ok, q].sum())
-            out.append({"level": float(lv), "probability": k / total if total else None,
-                        "count": k, "steps": total, "replicas": int(ok.sum())})
+            out.append(PooledTailLevel(level=float(lv), probability=k / total if total else None,
+                                       count=k, steps=total, replicas=int(ok.sum())))
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def path_averages(self) -> PathTimeAverages:
+        """Time averages along replica 0 ("the" long path): tr P, its square, the tails (None
+        once it crossed the divergence threshold)."""
         used = self.used_steps
-        tm = self.time_mean()
         with np.errstate(invalid="ignore", divide="ignore"):
-            second = self.sums[:, 1] / used
-            tails = self.exceed / used[:, None]
+            mean = self.sums[0, 0] / used[0]
+            second = self.sums[0, 1] / used[0]
+            tails = self.exceed[0] / used[0]
+        diverged = bool(self.divergence_times[0] >= 0)
+        return PathTimeAverages(
+            mean_trace=None if diverged else finite_or_none(mean),
+            second_moment=None if diverged else finite_or_none(second),
+            tail=[TailLevel(level=float(lv), probability=finite_or_none(tails[q]))
+                  for q, lv in enumerate(self.levels)],
+            diverged=diverged)
+
+    def averages(self) -> ErgodicAverages:
+        """The time averages of every replica, pooled, and the replicas' divergence."""
+        tm = self.time_mean()
         diverged = self.divergence_times >= 0
-        path0 = {"mean_trace": None if diverged[0] else finite_or_none(tm[0]),
-                 "second_moment": None if diverged[0] else finite_or_none(second[0]),
-                 "tail": [{"level": float(lv), "probability": finite_or_none(tails[0, q])}
-                          for q, lv in enumerate(self.levels)],
-                 "diverged": bool(diverged[0])}
+        return ErgodicAverages(
+            steps=int(self.steps), burn_in=int(self.burn_in), replicas=self.replicas,
+            seed=int(self.seed),
+            streams=[[int(self.seed), STREAM_ERGODIC, j] for j in range(self.replicas)],
+            time_averages=TimeAverages(
+                path=self.path_averages(), pooled_mean_trace=self.pooled(),
+                pooled_tail=self.tail_probabilities(),
+                replica_mean_trace=[None if d else finite_or_none(x)
+                                    for x, d in zip(tm, diverged, strict=True)],
+                used_steps=self.used_steps.astype(int).tolist()),
+            divergence=ErgodicDivergence(
+                threshold=finite_or_none(self.divergence_threshold),
+                diverged_replicas=int(diverged.sum()),
+                times=[int(t) if t >= 0 else None for t in self.divergence_times]))
+
+    def burst_statistics(self) -> BurstStatistics:
+        """Loss bursts over all replicas: their lengths' histogram (the last bin collects the
+        longer ones), mean length against the channel's, and the mean tr P after each length."""
         counts = self.burst_count.sum(axis=0)
         trace_sum = self.burst_trace.sum(axis=0)
         lengths = np.arange(counts.size)
         total_bursts = int(counts[1:].sum())
-        mean_burst = (float(self.losses.sum() / total_bursts) if total_bursts else None)
         obs = int(self.observed_steps.sum())
         top = int(np.flatnonzero(counts)[-1]) if counts[1:].any() else 0
-        bursts = {
-            "loss_fraction": float(self.losses.sum() / obs) if obs else None,
-            "bursts": total_bursts, "mean_length": mean_burst,
-            "expected_mean_length": self.expected_mean_burst,
-            "longest": int(self.longest.max()) if self.longest.size else 0,
-            "length": lengths[1:top + 1].tolist(),
-            "count": counts[1:top + 1].astype(int).tolist(),
-            "last_bin": counts.size - 1, "last_bin_collects_longer": True,
-            "mean_trace_after": [(float(trace_sum[j] / counts[j]) if counts[j] else None)
-                                 for j in range(1, top + 1)],
-        }
+        expected = self.expected_mean_burst
+        return BurstStatistics(
+            loss_fraction=float(self.losses.sum() / obs) if obs else None,
+            bursts=total_bursts,
+            mean_length=float(self.losses.sum() / total_bursts) if total_bursts else None,
+            expected_mean_length=None if expected is None else float(expected),
+            longest=int(self.longest.max()) if self.longest.size else 0,
+            length=lengths[1:top + 1].tolist(),
+            count=counts[1:top + 1].astype(int).tolist(),
+            last_bin=int(counts.size - 1), last_bin_collects_longer=True,
+            mean_trace_after=[(float(trace_sum[j] / counts[j]) if counts[j] else None)
+                              for j in range(1, top + 1)])
+
+    def almost_sure_sample(self) -> AlmostSureSample:
+        """Maxima and minima of tr P over the blocks [2^k, 2^(k+1)) of replica 0 (theory §6)."""
         k_full = int(math.floor(math.log2(self.steps + 1)))  # blocks [2^k, 2^{k+1}) inside 1..steps
         bmax = self.block_max[0, :k_full]
         bmin = self.block_min[0, :k_full]
         valid = np.isfinite(bmax) & np.isfinite(bmin)
-        almost = {
-            "block_start": [int(2 ** k) for k in range(k_full)],
-            "block_max": [float(x) if v else None for x, v in zip(bmax, valid, strict=True)],
-            "block_min": [float(x) if v else None for x, v in zip(bmin, valid, strict=True)],
-            "running_max": finite_or_none(float(np.nanmax(np.where(valid, bmax, np.nan))))
+        return AlmostSureSample(
+            block_start=[int(2 ** k) for k in range(k_full)],
+            block_max=[float(x) if v else None for x, v in zip(bmax, valid, strict=True)],
+            block_min=[float(x) if v else None for x, v in zip(bmin, valid, strict=True)],
+            running_max=finite_or_none(float(np.nanmax(np.where(valid, bmax, np.nan))))
             if valid.any() else None,
-            "last_block_min": float(bmin[valid][-1]) if valid.any() else None,
-            "last_block_max": float(bmax[valid][-1]) if valid.any() else None,
-            "note": ("block k covers t in [2^k, 2^(k+1)) of replica 0; growing block maxima "
-                     "indicate limsup tr P = ∞ (upper a.s. unstable), bounded block minima "
-                     "indicate liminf tr P < inf (lower a.s. stable), docs/theory.md §6"),
-        }
-        return {
-            "steps": self.steps, "burn_in": self.burn_in, "replicas": self.replicas,
-            "seed": self.seed,
-            "streams": [[self.seed, STREAM_ERGODIC, j] for j in range(self.replicas)],
-            "time_averages": {"path": path0, "pooled_mean_trace": self.pooled(),
-                              "pooled_tail": self.tail_probabilities(),
-                              "replica_mean_trace": [None if d else finite_or_none(x)
-                                                     for x, d in zip(tm, diverged, strict=True)],
-                              "used_steps": used.astype(int).tolist()},
-            "bursts": bursts, "almost_sure": almost,
-            "divergence": {"threshold": finite_or_none(self.divergence_threshold),
-                           "diverged_replicas": int(diverged.sum()),
-                           "times": [int(t) if t >= 0 else None
-                                     for t in self.divergence_times]},
-        }
+            last_block_min=float(bmin[valid][-1]) if valid.any() else None,
+            last_block_max=float(bmax[valid][-1]) if valid.any() else None,
+            note=("block k covers t in [2^k, 2^(k+1)) of replica 0; growing block maxima "
+                  "indicate limsup tr P = ∞ (upper a.s. unstable), bounded block minima "
+                  "indicate liminf tr P < inf (lower a.s. stable), docs/theory.md §6"))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The plain JSON form (``kfcrit simulate --ergodic-steps --json``): the record's
+        :meth:`averages` with :meth:`burst_statistics` and :meth:`almost_sure_sample`."""
+        avg = to_json(self.averages())
+        div = avg.pop("divergence")
+        return {**avg, "bursts": to_json(self.burst_statistics()),
+                "almost_sure": to_json(self.almost_sure_sample()), "divergence": div}

@@ -5,16 +5,33 @@ Streams: the operating point uses ``SeedSequence(seed, spawn_key=(0, i))`` for i
 """
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from kfcrit.io.systemfile import SystemSpec
+from kfcrit.io.typed import ABSENT
 from kfcrit.model.system import System
+from kfcrit.records.channel import channel_record
+from kfcrit.records.contract import VerificationCheck
+from kfcrit.records.simulation import (
+    MeanBasis,
+    MeanLambdaMaxStatistics,
+    MeanTraceStatistics,
+    OperatingPointSeeds,
+    PhaseDemo,
+    PhaseDemoCurve,
+    PooledMeanTrace,
+    SampleMeanLambdaMax,
+    SampleMeanTrace,
+    Simulation,
+    SimulationBudget,
+    SimulationOperatingPoint,
+    SimulationSeeds,
+)
 from kfcrit.sim.checks import mean_regime, simulation_checks, tail_regime
 from kfcrit.sim.engine import ergodic, simulate
 from kfcrit.sim.results import DEFAULT_SAMPLES
-from kfcrit.sim.stats import quiet_numerics
+from kfcrit.sim.stats import json_array, quiet_numerics
 
 LARGE_STATES = 40
 """Above this many states the simulation has fixed, smaller sizes (:meth:`Budget.for_system`):
@@ -74,12 +91,12 @@ def phase_probabilities(reference: float) -> list[tuple[str, float]]:
 def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: float | None,
                        seed: int, quick: bool,
                        critical_bracket: tuple[float | None, float | None] | None = None,
-                       mean_decision: tuple[bool | None, str] | None = None) -> dict[str, Any]:
+                       mean_decision: tuple[bool | None, str] | None = None) -> Simulation:
     """The ``simulation`` section of the analysis record.
 
-    Keys: ``seed``, ``quick``, ``budget``, ``seeds``, ``operating_point`` (None without a
-    channel), ``phase_demo`` (None when the reference value is unknown or 0),
-    ``runtime_seconds``, ``warnings``. See the module docstring for the streams.
+    Fields: ``seed``, ``quick``, ``budget``, ``seeds``, ``operating_point`` (None without a
+    channel), ``checks``, ``warnings``, ``phase_demo`` (None when the reference value is unknown
+    or 0). See the module docstring for the streams.
 
     ``critical_value`` is p_c when known exactly; otherwise ``critical_bracket`` = (lo, hi)
     brackets it (either end may be None) and ``upper_bound`` is p_up ≥ p_c. They decide whether
@@ -90,50 +107,40 @@ def simulation_section(spec: Any, *, critical_value: float | None, upper_bound: 
     has decided the mean's existence exactly (the analysis's verdict at the operating point),
     is the one that counts: the float comparison of :func:`mean_regime` then only describes.
     """
-    t0 = time.perf_counter()
     if not isinstance(spec, SystemSpec):
         spec = SystemSpec(system=spec)
     system = spec.system
     budget = Budget.for_system(system.n, quick)
     warnings: list[str] = []
-    out: dict[str, Any] = {"seed": int(seed), "quick": bool(quick),
-                           "budget": dict(budget.__dict__), "seeds": {},
-                           "operating_point": None, "phase_demo": None}
-    checks: list[dict[str, Any]] = []
+    checks: list[VerificationCheck] = []
     note = large_budget_note(system.n, budget)
     if note:
         warnings.append(note)
+    op = op_seeds = None
     with quiet_numerics():
-        _simulation_parts(spec, system, budget, seed, critical_value, upper_bound,
-                          critical_bracket, out, warnings, checks, mean_decision)
-    out["checks"] = checks
-    out["runtime_seconds"] = time.perf_counter() - t0
-    out["warnings"] = warnings
-    return out
-
-
-def _simulation_parts(spec: Any, system: System, budget: Budget, seed: int,
-                      critical_value: float | None, upper_bound: float | None,
-                      critical_bracket: tuple[float | None, float | None] | None,
-                      out: dict[str, Any], warnings: list[str],
-                      checks: list[dict[str, Any]],
-                      mean_decision: tuple[bool | None, str] | None = None) -> None:
-    if spec.channel is not None:
-        known = {"critical_value": critical_value, "critical_bracket": critical_bracket,
-                 "upper_bound": upper_bound}
-        out["operating_point"] = _operating_point(spec, budget, seed, known, warnings, checks,
-                                                  mean_decision)
-        out["seeds"]["operating_point"] = {
-            "seed": int(seed), "paths": "SeedSequence(seed, spawn_key=(0, i))",
-            "ergodic": "SeedSequence(seed, spawn_key=(2, j))"}
-    out["phase_demo"] = _phase_demo(system, critical_value, upper_bound, budget, seed, warnings)
-    if out["phase_demo"] is not None:
-        out["seeds"]["phase_demo"] = [c["seed"] for c in out["phase_demo"]["curves"]]
+        if spec.channel is not None:
+            known = {"critical_value": critical_value, "critical_bracket": critical_bracket,
+                     "upper_bound": upper_bound}
+            op = _operating_point(spec, budget, seed, known, warnings, checks, mean_decision)
+            op_seeds = OperatingPointSeeds(seed=int(seed),
+                                           paths="SeedSequence(seed, spawn_key=(0, i))",
+                                           ergodic="SeedSequence(seed, spawn_key=(2, j))")
+        demo = _phase_demo(system, critical_value, upper_bound, budget, seed, warnings)
+    seeds = SimulationSeeds(
+        operating_point=ABSENT if op_seeds is None else op_seeds,
+        phase_demo=ABSENT if demo is None else [c.seed for c in demo.curves])
+    return Simulation(
+        seed=int(seed), quick=bool(quick),
+        budget=SimulationBudget(paths=budget.paths, steps=budget.steps,
+                                ergodic_steps=budget.ergodic_steps, replicas=budget.replicas,
+                                demo_paths=budget.demo_paths, demo_steps=budget.demo_steps),
+        seeds=seeds, operating_point=op, checks=checks, warnings=warnings, phase_demo=demo)
 
 
 def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any],
-                     warnings: list[str], checks: list[dict[str, Any]],
-                     mean_decision: tuple[bool | None, str] | None = None) -> dict:
+                     warnings: list[str], checks: list[VerificationCheck],
+                     mean_decision: tuple[bool | None, str] | None = None
+                     ) -> SimulationOperatingPoint:
     system, chan = spec.system, spec.channel
     samples = DEFAULT_SAMPLES if system.n <= 10 else 50  # λ_max costs ~n³ per sample
     # λ_max costs a dense eigenproblem per path and sample time: fewer times for large n
@@ -143,93 +150,92 @@ def _operating_point(spec: Any, budget: Budget, seed: int, known: dict[str, Any]
     level = spec.requirements.max_error_trace
     erg = ergodic(system, budget.ergodic_steps, seed, chan, replicas=budget.replicas,
                   levels=(level,) if level is not None else ())
-    d = res.to_dict()
-    e = erg.to_dict()
-    warnings.extend(d["warnings"])
-    if e["divergence"]["diverged_replicas"]:
-        warnings.append(f"{e['divergence']['diverged_replicas']} of {erg.replicas} long paths "
+    averages = erg.averages()
+    warnings.extend(res.warnings)
+    if averages.divergence.diverged_replicas:
+        warnings.append(f"{averages.divergence.diverged_replicas} of {erg.replicas} long paths "
                         "exceeded the divergence threshold (time averages stop there)")
     regime = tail_regime(system, chan, res.steps, **known)
     mean = decided_mean(mean_regime(system, chan, **known), mean_decision)
     found = simulation_checks(system, chan, res, erg, regime)
     for c in found:
-        if c.get("status") == "inconclusive":
-            warnings.append(f"Monte Carlo check inconclusive: {c['check']} ({c['reason']})")
+        if c.status == "inconclusive":
+            warnings.append(f"Monte Carlo check inconclusive: {c.check} ({c.reason})")
     checks.extend(found)
-    op = {
-        "channel": d["channel"], "arrival_probability": d["arrival_probability"],
-        "iid": bool(chan.iid), "paths": res.paths, "steps": res.steps, "seed": res.seed,
-        "times": d["times"], "mean_trace": d["mean_trace"],
-        "mean_lambda_max": d["mean_lambda_max"], "horizon": d["horizon"],
-        "exceedance": res.exceedance(level) if level is not None else None,
-        "ergodic": {k: e[k] for k in ("steps", "burn_in", "replicas", "seed", "streams",
-                                      "time_averages", "divergence")},
-        "bursts": e["bursts"], "almost_sure": e["almost_sure"],
-        "divergence": d["divergence"], "runtime_seconds": res.runtime_seconds,
-        "reliability": regime, "mean_exists": mean["exists"], "mean_basis": mean,
-    }
-    if mean["exists"] is False:
-        _withhold_means(op, warnings)
+    op = SimulationOperatingPoint(
+        channel=channel_record(chan), arrival_probability=float(res.arrival_probability),
+        iid=bool(chan.iid), paths=int(res.paths), steps=int(res.steps), seed=int(res.seed),
+        times=res.times.tolist(), mean_trace=res.mean_trace_statistics(),
+        mean_lambda_max=res.mean_lambda_max_statistics(), horizon=res.horizon_distribution(),
+        exceedance=res.exceedance(level) if level is not None else None, ergodic=averages,
+        bursts=erg.burst_statistics(), almost_sure=erg.almost_sure_sample(),
+        divergence=res.divergence_record(), reliability=regime, mean_exists=mean.exists,
+        mean_basis=mean)
+    if mean.exists is False:
+        op = _withhold_means(op, warnings)
     return op
 
 
-def decided_mean(mean: dict[str, Any], decision: tuple[bool | None, str] | None
-                 ) -> dict[str, Any]:
+def decided_mean(mean: MeanBasis, decision: tuple[bool | None, str] | None) -> MeanBasis:
     """:func:`mean_regime`'s answer, with ``exists`` (and, where it differs, the basis) taken
     from the caller's ``decision`` = (exists, basis) when there is one: the analysis's verdict
     at the operating point, exact; ``exists`` None when that verdict is undetermined (a float
     comparison here must not decide what the verdict could not)."""
-    if decision is None or mean.get("exists") is None and mean.get("basis") == \
-            "a measured trace: no model":
+    if decision is None or mean.exists is None and mean.basis == "a measured trace: no model":
         return mean
     exists, basis = decision
-    if mean.get("exists") is exists:
+    if mean.exists is exists:
         return mean
-    return {**mean, "exists": exists, "basis": f"the verdict at the operating point: {basis}"}
+    return replace(mean, exists=exists, basis=f"the verdict at the operating point: {basis}")
 
 
 DIVERGES = ("E[tr P_t] diverges at this operating point (sup_t E[tr P_t] = ∞: {basis}); a "
             "sample mean over finitely many paths and steps is finite but estimates nothing, "
             "so no mean and no confidence interval is given")
 
+SAMPLE_LABEL = ("sample mean and sd over the simulated paths (not an estimate: the mean "
+                "diverges)")
 
-def _withhold_means(op: dict[str, Any], warnings: list[str]) -> None:
-    """Replace every mean (and its interval) of a divergent operating point by a statement;
-    the raw sample statistics stay, under keys that say what they are."""
-    statement = DIVERGES.format(basis=op["mean_basis"]["basis"])
-    for key in ("mean_trace", "mean_lambda_max"):
-        raw = op.get(key)
-        if raw is None:
-            continue
-        op[f"sample_{key}"] = {
-            "label": "sample mean and sd over the simulated paths (not an estimate: the mean "
-                     "diverges)",
-            **{k: raw.get(k) for k in ("mean", "std", "log10_mean", "log10_std", "times")
-               if k in raw}}
-        op[key] = {"exists": False, "diverges": True, "statement": statement,
-                   "mean": None, "lower": None, "upper": None, "std": None, "confidence": None,
-                   "log10_mean": None, "log10_lower": None, "log10_upper": None}
-    hz = op.get("horizon") or {}
-    if hz:
-        hz["sample_mean"], hz["sample_log10_mean"] = hz.get("mean"), hz.get("log10_mean")
-        hz["mean"], hz["log10_mean"], hz["mean_diverges"] = None, None, True
-    ta = (op.get("ergodic") or {}).get("time_averages") or {}
-    pooled = ta.get("pooled_mean_trace")
-    if pooled:
-        ta["pooled_mean_trace"] = {"mean": None, "lower": None, "upper": None,
-                                   "batches": pooled.get("batches"), "diverges": True,
-                                   "sample_time_average": pooled.get("mean"),
-                                   "statement": "the invariant law has an infinite mean "
-                                                "(p <= p_c): time averages grow without bound"}
-    path = ta.get("path") or {}
-    if path:
-        path["sample_mean_trace"], path["mean_trace"] = path.get("mean_trace"), None
-        path["sample_second_moment"], path["second_moment"] = path.get("second_moment"), None
+
+def _withhold_means(op: SimulationOperatingPoint, warnings: list[str]
+                    ) -> SimulationOperatingPoint:
+    """The operating point of a divergent mean: every mean (and its interval) replaced by a
+    statement; the raw sample statistics stay, under fields that say what they are."""
+    statement = DIVERGES.format(basis=op.mean_basis.basis)
+    mt, ml, hz = op.mean_trace, op.mean_lambda_max, op.horizon
+    ta = op.ergodic.time_averages
+    pooled, path = ta.pooled_mean_trace, ta.path
     warnings.append(statement)
+    return replace(
+        op,
+        sample_mean_trace=SampleMeanTrace(label=SAMPLE_LABEL, mean=mt.mean, std=mt.std,
+                                          log10_mean=mt.log10_mean, log10_std=mt.log10_std),
+        mean_trace=MeanTraceStatistics(
+            mean=None, lower=None, upper=None, std=None, confidence=None, log10_mean=None,
+            log10_lower=None, log10_upper=None, exists=False, diverges=True,
+            statement=statement),
+        sample_mean_lambda_max=ABSENT if ml is None else SampleMeanLambdaMax(
+            label=SAMPLE_LABEL, mean=ml.mean, std=ml.std, log10_mean=ml.log10_mean,
+            times=ml.times),
+        mean_lambda_max=None if ml is None else MeanLambdaMaxStatistics(
+            mean=None, lower=None, upper=None, std=None, confidence=None, log10_mean=None,
+            exists=False, diverges=True, statement=statement, log10_lower=None,
+            log10_upper=None),
+        horizon=replace(hz, sample_mean=hz.mean, sample_log10_mean=hz.log10_mean, mean=None,
+                        log10_mean=None, mean_diverges=True),
+        ergodic=replace(op.ergodic, time_averages=replace(
+            ta,
+            pooled_mean_trace=PooledMeanTrace(
+                mean=None, lower=None, upper=None, batches=pooled.batches, diverges=True,
+                sample_time_average=pooled.mean,
+                statement="the invariant law has an infinite mean (p <= p_c): time averages "
+                          "grow without bound"),
+            path=replace(path, sample_mean_trace=path.mean_trace, mean_trace=None,
+                         sample_second_moment=path.second_moment, second_moment=None))))
 
 
 def _phase_demo(system: System, critical_value: float | None, upper_bound: float | None,
-                budget: Budget, seed: int, warnings: list[str]) -> dict | None:
+                budget: Budget, seed: int, warnings: list[str]) -> PhaseDemo | None:
     if critical_value is not None:
         ref, source = float(critical_value), "critical_value"
     elif upper_bound is not None:
@@ -244,10 +250,10 @@ def _phase_demo(system: System, critical_value: float | None, upper_bound: float
         res = simulate(system, budget.demo_paths, budget.demo_steps, s, arrival_probability=p,
                        track_lambda_max=False, horizon_samples=100)
         lo, hi = res.band()
-        curves.append({"arrival_probability": p, "side": side, "seed": s,
-                       "times": res.times.tolist(), "mean_trace": res.mean_trace.tolist(),
-                       "lower": lo.tolist(), "upper": hi.tolist(),
-                       "diverged_fraction": res.diverged_fraction.tolist(),
-                       "mean_is_lower_bound": res.mean_is_lower_bound})
-    return {"reference_value": ref, "reference": source, "paths": budget.demo_paths,
-            "steps": budget.demo_steps, "curves": curves}
+        curves.append(PhaseDemoCurve(
+            arrival_probability=p, side=side, seed=s, times=res.times.tolist(),
+            mean_trace=json_array(res.mean_trace), lower=json_array(lo), upper=json_array(hi),
+            diverged_fraction=json_array(res.diverged_fraction),
+            mean_is_lower_bound=res.mean_is_lower_bound))
+    return PhaseDemo(reference_value=ref, reference=source, paths=budget.demo_paths,
+                     steps=budget.demo_steps, curves=curves)

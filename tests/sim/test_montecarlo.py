@@ -14,6 +14,7 @@ plausibly be.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -29,8 +30,10 @@ from kfcrit.cli.simulate import simulate_command, summary_text, with_progress
 from kfcrit.errors import InputError
 from kfcrit.io.jsonio import dumps
 from kfcrit.io.systemfile import Requirements, SystemSpec
+from kfcrit.io.typed import ABSENT, from_json, to_json
 from kfcrit.model.channels import GilbertElliott, Trace
 from kfcrit.model.system import System
+from kfcrit.records.simulation import Simulation
 from kfcrit.sim.kernels import LANES, lambda_max_lanes, riccati_lanes
 from kfcrit.sim.montecarlo import ergodic, path_keys, simulate, simulation_section
 from kfcrit.sim.stats import accumulate_log, column_stats
@@ -493,8 +496,8 @@ def test_ergodic_time_average_matches_the_ensemble_mean():
     pooled = erg.pooled()
     ens = simulate(SCALAR, 20_000, 200, 5, arrival_probability=0.8)
     se_ens = ens.std_trace[-1] / math.sqrt(ens.paths)
-    half = (pooled["upper"] - pooled["lower"]) / 2
-    assert abs(pooled["mean"] - ens.mean_trace[-1]) < 2.5 * math.hypot(half, 1.96 * se_ens)
+    half = (pooled.upper - pooled.lower) / 2
+    assert abs(pooled.mean - ens.mean_trace[-1]) < 2.5 * math.hypot(half, 1.96 * se_ens)
     d = erg.to_dict()
     json.dumps(d, allow_nan=False)
     b = d["bursts"]
@@ -538,41 +541,72 @@ def test_almost_sure_indicators_below_critical():
 def test_simulation_section_keys_and_json():
     spec = SystemSpec(system=SCALAR, channel=GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
                       requirements=Requirements(max_error_trace=20.0))
-    d = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=3, quick=True)
+    sim = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=3, quick=True)
+    assert isinstance(sim, Simulation)
+    d = to_json(sim)
+    # wall-clock seconds are no record field
     assert set(d) == {"seed", "quick", "budget", "seeds", "operating_point", "phase_demo",
-                      "checks", "runtime_seconds", "warnings"}
-    assert d["checks"] and all(c["passed"] for c in d["checks"])
+                      "checks", "warnings"}
+    assert sim.checks and all(c.passed for c in sim.checks)
     assert {"check", "passed", "status", "detail"} == set(d["checks"][0])
     # p_c = 9/25 is given: the variance condition is the general one, q / (1 - p_c)^2
-    assert d["operating_point"]["reliability"]["variance_condition"] == "(1 - r) / (1 - p_c)^2"
-    assert d["operating_point"]["mean_exists"] is True   # r = 1/2 > p_c (burst claim)
-    op = d["operating_point"]
+    op = sim.operating_point
+    assert op.reliability.variance_condition == "(1 - r) / (1 - p_c)^2"
+    assert op.mean_exists is True   # r = 1/2 > p_c (burst claim)
     for key in ("channel", "arrival_probability", "iid", "times", "mean_trace",
                 "mean_lambda_max", "horizon", "exceedance", "ergodic", "bursts", "almost_sure",
                 "divergence"):
-        assert key in op
-    assert len(op["times"]) <= 200 and op["exceedance"]["level"] == 20.0
-    assert op["ergodic"]["time_averages"]["path"]["tail"][0]["level"] == 20.0
-    demo = d["phase_demo"]
-    assert demo["reference"] == "critical_value" and len(demo["curves"]) == 4
-    below = [c for c in demo["curves"] if c["side"] == "below"]
-    above = [c for c in demo["curves"] if c["side"] == "above"]
-    assert min(c["mean_trace"][-1] for c in below) > max(c["mean_trace"][-1] for c in above)
-    assert d["seeds"]["phase_demo"] == [4, 5, 6, 7]
+        assert key in d["operating_point"]
+    assert "runtime_seconds" not in d["operating_point"]
+    assert len(op.times) <= 200 and op.exceedance.level == 20.0
+    assert op.ergodic.time_averages.path.tail[0].level == 20.0
+    demo = sim.phase_demo
+    assert demo.reference == "critical_value" and len(demo.curves) == 4
+    below = [c for c in demo.curves if c.side == "below"]
+    above = [c for c in demo.curves if c.side == "above"]
+    assert min(c.mean_trace[-1] for c in below) > max(c.mean_trace[-1] for c in above)
+    assert sim.seeds.phase_demo == [4, 5, 6, 7]
     text = dumps(d)
     assert "NaN" not in text and "Infinity" not in text
+
+
+def _native_leaves(value, path="simulation"):
+    """(path, type name) of every leaf of a typed record that is not a plain Python value."""
+    if dataclasses.is_dataclass(value):
+        for f in dataclasses.fields(value):
+            yield from _native_leaves(getattr(value, f.name), f"{path}.{f.name}")
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            yield from _native_leaves(v, f"{path}[{i}]")
+    elif value is not None and value is not ABSENT and type(value) not in (bool, int, float, str):
+        yield path, type(value).__name__
+    elif type(value) is float and not math.isfinite(value):
+        yield path, repr(value)
+
+
+@pytest.mark.parametrize("p", [sp.Rational(3, 10), sp.Rational(7, 10)])
+def test_simulation_section_is_built_typed_with_plain_values(p):
+    """Every leaf is a plain finite Python value (no NumPy or sympy number), so the section
+    survives its JSON round trip unchanged: below p_c (means withheld) and above."""
+    from kfcrit.model.channels import Bernoulli
+
+    spec = SystemSpec(system=SCALAR, channel=Bernoulli(p),
+                      requirements=Requirements(max_error_trace=20.0))
+    sim = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=2, quick=True)
+    assert list(_native_leaves(sim)) == []
+    assert from_json(Simulation, to_json(sim)) == sim
 
 
 def test_simulation_section_without_channel_or_reference():
     d = simulation_section(SystemSpec(system=SCALAR), critical_value=None, upper_bound=None,
                            seed=0, quick=True)
-    assert d["operating_point"] is None and d["phase_demo"] is None
+    assert d.operating_point is None and d.phase_demo is None
     d0 = simulation_section(SystemSpec(system=SCALAR), critical_value=0.0, upper_bound=0.5,
                             seed=0, quick=True)
-    assert d0["phase_demo"] is None
+    assert d0.phase_demo is None
     du = simulation_section(SystemSpec(system=SCALAR), critical_value=None, upper_bound=0.36,
                             seed=0, quick=True)
-    assert du["phase_demo"]["reference"] == "upper_bound"
+    assert du.phase_demo.reference == "upper_bound"
 
 
 def test_simulate_command_json_text_and_plot(tmp_path, capsys):
@@ -687,16 +721,16 @@ def test_lyapunov_check_fails_when_valid_and_is_inconclusive_near_pc():
         res = simulate(SCALAR, 400, 100, 1, ch)
         erg = ergodic(SCALAR, 2000, 1, ch, replicas=2)
         reg = tail_regime(SCALAR, ch, 100)
-        assert reg["heavy_tailed"] is heavy
-        assert reg["variance_value"] == pytest.approx((1 - float(p)) * 1.25**4)
-        honest = {c["check"]: c for c in simulation_checks(SCALAR, ch, res, erg)}
-        assert honest[name]["passed"] in (True, None)   # never a false failure
-        broken = {c["check"]: c for c in simulation_checks(SCALAR, ch, _doctored(res, 0.2), erg)}
+        assert reg.heavy_tailed is heavy
+        assert reg.variance_value == pytest.approx((1 - float(p)) * 1.25**4)
+        honest = {c.check: c for c in simulation_checks(SCALAR, ch, res, erg)}
+        assert honest[name].passed in (True, None)   # never a false failure
+        broken = {c.check: c for c in simulation_checks(SCALAR, ch, _doctored(res, 0.2), erg)}
         if heavy:   # below the tolerance, but the tolerance is not valid there
-            assert broken[name]["passed"] is None and broken[name]["status"] == "inconclusive"
-            assert "variance" in broken[name]["reason"]
+            assert broken[name].passed is None and broken[name].status == "inconclusive"
+            assert "variance" in broken[name].reason
         else:       # finite variance: a mean 5x too small is a failure
-            assert broken[name]["passed"] is False and broken[name]["status"] == "failed"
+            assert broken[name].passed is False and broken[name].status == "failed"
 
 
 def test_lyapunov_settling_is_reported():
@@ -706,11 +740,11 @@ def test_lyapunov_settling_is_reported():
     # (1 - p) a^2 = 0.64 * 1.5625 = 1 - 1.5625e-10: S_t grows by ~1 per step for 500 steps while
     # its limit is 1/(1.5625e-10) ≈ 6.4e9, so the horizon is far from settled
     reg = tail_regime(SCALAR, Bernoulli(sp.Rational(3600000001, 10**10)), 500)
-    assert reg["settled"] is False
-    assert reg["lyapunov_trace_limit"] == pytest.approx(1 / (1 - 0.6399999999 * 1.5625),
+    assert reg.settled is False
+    assert reg.lyapunov_trace_limit == pytest.approx(1 / (1 - 0.6399999999 * 1.5625),
                                                         rel=1e-4)
     reg = tail_regime(SCALAR, Bernoulli(sp.Rational(9, 10)), 500)
-    assert reg["settled"] is True and reg["heavy_tailed"] is False
+    assert reg.settled is True and reg.heavy_tailed is False
 
 
 # --------------------------------------------------------------------------------------------
@@ -789,14 +823,14 @@ def test_variance_condition_uses_the_critical_value_degenerate_case():
     system = System(np.diag([2.0, -2.0]), [[1.0, 1.0]], 1, 1)
     ch = Bernoulli(sp.Rational(99, 100))
     plain = tail_regime(system, ch, 100)
-    assert plain["heavy_tailed"] is False and plain["variance_value"] == pytest.approx(0.16)
+    assert plain.heavy_tailed is False and plain.variance_value == pytest.approx(0.16)
     reg = tail_regime(system, ch, 100, critical_value=15 / 16)
-    assert reg["heavy_tailed"] is True
-    assert reg["variance_threshold_p2"] == pytest.approx(255 / 256, abs=1e-15)
-    assert reg["variance_value"] == pytest.approx(0.01 * 256)
-    assert reg["variance_basis"].startswith("claim")
+    assert reg.heavy_tailed is True
+    assert reg.variance_threshold_p2 == pytest.approx(255 / 256, abs=1e-15)
+    assert reg.variance_value == pytest.approx(0.01 * 256)
+    assert reg.variance_basis.startswith("claim")
     above = tail_regime(system, Bernoulli(sp.Rational(997, 1000)), 100, critical_value=15 / 16)
-    assert above["heavy_tailed"] is False        # 0.003 · 256 = 0.768 < 1
+    assert above.heavy_tailed is False        # 0.003 · 256 = 0.768 < 1
 
 
 def test_variance_condition_takes_the_upper_end_of_a_bracket():
@@ -808,10 +842,10 @@ def test_variance_condition_takes_the_upper_end_of_a_bracket():
     from kfcrit.sim.checks import tail_regime
 
     reg = tail_regime(SCALAR, Bernoulli(sp.Rational(3, 5)), 50, critical_bracket=(0.3, 0.4))
-    assert reg["heavy_tailed"] is True and reg["variance_threshold_p2"] == pytest.approx(0.64)
-    assert reg["variance_critical_source"] == "critical_bracket"
+    assert reg.heavy_tailed is True and reg.variance_threshold_p2 == pytest.approx(0.64)
+    assert reg.variance_critical_source == "critical_bracket"
     up = tail_regime(SCALAR, Bernoulli(sp.Rational(3, 5)), 50, upper_bound=0.4)
-    assert up["heavy_tailed"] is True and up["variance_critical_value"] == 0.4
+    assert up.heavy_tailed is True and up.variance_critical_value == 0.4
 
 
 def test_below_critical_the_section_gives_no_mean():
@@ -821,28 +855,28 @@ def test_below_critical_the_section_gives_no_mean():
 
     spec = SystemSpec(system=SCALAR, channel=Bernoulli(sp.Rational(3, 10)))
     d = simulation_section(spec, critical_value=0.36, upper_bound=0.36, seed=2, quick=True)
-    op = d["operating_point"]
-    assert op["mean_exists"] is False
-    assert op["mean_trace"]["mean"] is None and op["mean_trace"]["lower"] is None
-    assert op["mean_trace"]["diverges"] is True and "diverges" in op["mean_trace"]["statement"]
-    assert op["mean_lambda_max"]["mean"] is None
-    assert op["horizon"]["mean"] is None and op["horizon"]["mean_diverges"] is True
-    sample = op["sample_mean_trace"]
-    assert "not an estimate" in sample["label"] and len(sample["mean"]) == len(op["times"])
-    assert sample["mean"][0] == pytest.approx(float(np.trace(SCALAR.sigma0)))
-    pooled = op["ergodic"]["time_averages"]["pooled_mean_trace"]
-    assert pooled["mean"] is None and pooled["diverges"] is True
-    assert any("diverges" in w for w in d["warnings"])
-    json.loads(dumps(d))
+    op = d.operating_point
+    assert op.mean_exists is False
+    assert op.mean_trace.mean is None and op.mean_trace.lower is None
+    assert op.mean_trace.diverges is True and "diverges" in op.mean_trace.statement
+    assert op.mean_lambda_max.mean is None
+    assert op.horizon.mean is None and op.horizon.mean_diverges is True
+    sample = op.sample_mean_trace
+    assert "not an estimate" in sample.label and len(sample.mean) == len(op.times)
+    assert sample.mean[0] == pytest.approx(float(np.trace(SCALAR.sigma0)))
+    pooled = op.ergodic.time_averages.pooled_mean_trace
+    assert pooled.mean is None and pooled.diverges is True
+    assert any("diverges" in w for w in d.warnings)
+    json.loads(dumps(to_json(d)))
     # the same operating point with only a bracket above p: still divergent
     d2 = simulation_section(spec, critical_value=None, upper_bound=0.5, seed=2, quick=True,
                             critical_bracket=(0.32, 0.4))
-    assert d2["operating_point"]["mean_exists"] is False
+    assert d2.operating_point.mean_exists is False
     # inside the bracket: unknown, the mean is given (with the flag)
     d3 = simulation_section(spec, critical_value=None, upper_bound=0.5, seed=2, quick=True,
                             critical_bracket=(0.2, 0.4))
-    assert d3["operating_point"]["mean_exists"] is None
-    assert d3["operating_point"]["mean_trace"]["mean"] is not None
+    assert d3.operating_point.mean_exists is None
+    assert d3.operating_point.mean_trace.mean is not None
 
 
 def test_gilbert_elliott_burst_condition_decides_divergence():
@@ -850,10 +884,10 @@ def test_gilbert_elliott_burst_condition_decides_divergence():
     from kfcrit.sim.checks import mean_regime
 
     bad = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 4)))
-    assert bad["exists"] is False and bad["value"] == pytest.approx(0.75 * 1.5625)
+    assert bad.exists is False and bad.value == pytest.approx(0.75 * 1.5625)
     ok = mean_regime(SCALAR, GilbertElliott(sp.Rational(1, 10), sp.Rational(1, 2)),
                      critical_value=0.36)
-    assert ok["exists"] is True and ok["basis"].startswith("claim")
+    assert ok.exists is True and ok.basis.startswith("claim")
 
 
 # --------------------------------------------------------------------------------------------
