@@ -244,10 +244,16 @@ def simulation_checks(system: System, channel: Channel, res: SimulationResult,
         elif regime.heavy_tailed or res.failed_paths:
             why = (f"{res.failed_paths} paths were frozen after a numerical failure, so "
                    "the simulated means are approximate" if res.failed_paths else
-                   f"{regime.variance_condition} = {regime.variance_value:.4g} >= 1: the "
+                   f"{regime.variance_condition} = {_ratio_text(regime.variance_value)} >= 1: the "
                    "variance of tr P diverges (heavy tails just above p_c), so the sample mean "
                    "and its standard error are unreliable at this horizon")
             out.append(_check(name, None, detail, reason=why, status="inconclusive"))
         else:
             out.append(_check(name, False, detail))
     return out
+
+
+def _ratio_text(value: float | None) -> str:
+    """A variance ratio as text; None stands for an unbounded ratio (the upper end of p_c's
+    bracket is 1), which is ≥ 1 all the same."""
+    return "∞" if value is None else f"{value:.4g}"
