@@ -250,7 +250,8 @@ def critical_value(system: System, tolerance: float = DEFAULT_TOLERANCE, channel
     Returns
     -------
     CriticalValue
-        Record; ``.to_dict()`` gives plain JSON data (see :class:`CriticalValue`).
+        Record; ``.sections()`` gives the record's sections as their classes,
+        ``.to_dict()`` their plain JSON data (see :class:`CriticalValue`).
         ``classification`` is one of ``not-detectable``, ``stable``, ``non-diagonalizable``,
         ``non-degenerate``, ``degenerate-second-order``, ``degenerate``; ``value`` is p_c as a
         ``Num`` (``.value`` float, ``.expr`` exact) or None where no closed form applies.
