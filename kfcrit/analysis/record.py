@@ -393,9 +393,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
         crit = critical.critical_value(system, opts.tolerance, channel=channel,
                                        structure=structure, robust=not (
                                            opts.quick and system.n > QUICK_ROBUST_MAX_STATES))
-    d = crit.to_dict()
-    sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
-    warnings = list(d.get("warnings") or [])
+    sec: dict[str, Any] = crit.sections()
+    warnings = list(crit.warnings)
     ub_result = None
     if sec.get("classification") == "not-detectable":
         sec["upper_bound"] = not_detectable_upper()
@@ -405,8 +404,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
             sec["upper_bound"] = ub_result.to_dict()
         else:
             sec["upper_bound"] = upper_bound
-    timings: dict[str, float] = {}
-    typed = {k: typed_section(k, v, timings) for k, v in sec.items()}
+    timings: dict[str, float] = {"structure.seconds": round(crit.structure.seconds, 4)}
+    typed = {**sec, "upper_bound": typed_section("upper_bound", sec["upper_bound"], timings)}
     if typed["upper_bound"] is not None:
         warnings.extend(typed["upper_bound"].warnings)
     close_bracket(typed)
@@ -421,8 +420,8 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
 def typed_section(key: str, value: Any, timings: dict[str, float]) -> Any:
     """The theory's section ``key`` as its typed class (:class:`AnalysisRecord`'s field type).
 
-    The theory layer states its result as plain data (``to_dict()``); it is read here, once,
-    where it enters the analysis (:func:`kfcrit.records.read.read_plain`: strict, its
+    A section the theory states as plain data (``upper_bound``'s ``to_dict()``) is read here,
+    once, where it enters the analysis (:func:`kfcrit.records.read.read_plain`: strict, its
     wall-clock seconds moved to ``timings``). A value that is already typed is returned as is.
     """
     return read_plain(record_hints()[key], value, key, timings)

@@ -10,7 +10,9 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from kfcrit.io.typed import ABSENT
 from kfcrit.model.system import System
+from kfcrit.records.contract import LowCase, NearbyCase, RobustCriticalValue
 from kfcrit.theory.critical.classify import (
     block_lower,
     classify_structure,
@@ -310,9 +312,9 @@ def headline_structure(system: System, st: Structure) -> tuple[Structure, Struct
 
 
 def _tolerance_alternative(system: System, st_tol: Structure | None, value: Num | None,
-                           blow: Num | None, classification: str) -> dict[str, Any] | None:
+                           blow: Num | None, classification: str) -> NearbyCase | None:
     """Numeric path: the case decided with the user's tolerance, when it differs from the
-    headline (decided at float64 resolution): {value, expression, classification, case}."""
+    headline (decided at float64 resolution)."""
     if st_tol is None:
         return None
     low2 = lower_of(st_tol)
@@ -325,13 +327,13 @@ def _tolerance_alternative(system: System, st_tol: Structure | None, value: Num 
     if cls2 == classification and alt is not None and mine is not None \
             and abs(alt.value - mine.value) <= 1e-12:
         return None
-    return {"value": alt.value if alt is not None else None,
-            "expression": alt.expression if alt is not None else None,
-            "classification": cls2,
-            "case": (f"decisions at the tolerance {mtol(st_tol):g} (moduli, ranks and angles "
-                     f"equal within it are merged): {cls2}"
-                     + ("" if val2 is not None or cls2 == "not-detectable"
-                        else " (block lower bound)") + f"; {reason2}")}
+    return NearbyCase(
+        value=float(alt.value) if alt is not None else None,
+        expression=alt.expression if alt is not None else None, classification=cls2,
+        case=(f"decisions at the tolerance {mtol(st_tol):g} (moduli, ranks and angles "
+              f"equal within it are merged): {cls2}"
+              + ("" if val2 is not None or cls2 == "not-detectable"
+                 else " (block lower bound)") + f"; {reason2}"))
 
 
 def _turn_of(z: complex) -> float:
@@ -341,7 +343,7 @@ def _turn_of(z: complex) -> float:
 
 def robust_value(system: System, st: Structure, st_tol: Structure | None, tolerance: float,
             value: Num | None, blow: Num, classification: str,
-            warnings: list[str]) -> dict[str, Any] | None:
+            warnings: list[str]) -> RobustCriticalValue | None:
     """The robust critical value: the worst case within ``tolerance`` (``value``, ≥ the
     headline) and, when some case within it is lower, the least one (``low``); every differing
     case decided at the user's tolerance in ``alternatives``. ``warnings`` is extended."""
@@ -358,21 +360,28 @@ def robust_value(system: System, st: Structure, st_tol: Structure | None, tolera
                         f"{classification} with "
                         f"{'p_c' if value is not None else 'block lower bound'} = "
                         f"{base.expression}; on the other side of the tolerance decisions, "
-                        f"{alt['case']} gives {alt['expression']}")
-        if alt["value"] is not None:
-            num = Num(alt["value"]) if alt["expression"] is None else Num(
-                alt["value"], None, alt["expression"])
-            (worse if alt["value"] > base.value + 1e-15 else
-             lower if alt["value"] < base.value - 1e-15 else []).append((num, alt["case"]))
+                        f"{alt.case} gives {alt.expression}")
+        if alt.value is not None:
+            num = Num(alt.value) if alt.expression is None else Num(
+                alt.value, None, alt.expression)
+            (worse if alt.value > base.value + 1e-15 else
+             lower if alt.value < base.value - 1e-15 else []).append((num, alt.case))
     if not (worse or lower or alt):
         return None
     top, top_case = max(worse, key=lambda vd: vd[0].value) if worse else (base, "the headline "
                                                                           "case")
-    robust: dict[str, Any] = {"value": top.value, "tolerance": tolerance,
-                              "expression": num_text(top), "nearby_case": top_case}
+    low: LowCase = ABSENT
     if lower:
         v, d = min(lower, key=lambda vd: vd[0].value)
-        robust["low"] = {"value": v.value, "expression": num_text(v), "case": d}
-    if alt is not None:
-        robust["alternatives"] = [alt]
-    return robust
+        low = LowCase(value=float(v.value), expression=num_text(v), case=d)
+    return RobustCriticalValue(value=float(top.value), tolerance=_plain_number(tolerance),
+                               expression=num_text(top), nearby_case=top_case, low=low,
+                               alternatives=[alt] if alt is not None else ABSENT)
+
+
+def _plain_number(x: float) -> float:
+    """``x`` as a Python number: an integer stays an integer (its JSON form is kept: ``0``,
+    not ``0.0``), anything else becomes a float."""
+    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
+        return int(x)
+    return float(x)

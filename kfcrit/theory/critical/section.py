@@ -32,6 +32,7 @@ import sympy as sp
 from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.errors import InputError
 from kfcrit.model.system import System
+from kfcrit.records.structure import MomentThreshold, Theory
 from kfcrit.theory.critical.classify import block_lower, c_full_rank, classify_structure, lower_of
 from kfcrit.theory.critical.numtext import (
     p_c_text,
@@ -56,7 +57,9 @@ from kfcrit.theory.structure.eigen import (
 # --------------------------------------------------------------------------- theory
 
 def _theory(system: System, st: Structure, classification: str, pc: Num | None,
-            channel: Any) -> dict[str, Any]:
+            channel: Any) -> Theory:
+    """The ``theory`` section: the moment thresholds (Mo–Sinopoli Cor. 2), stochastic
+    boundedness (Kar–Sinopoli–Moura Thm 9) and the almost-sure statements (§6)."""
     top = st.eigen[0]
     all_unstable = all(st.relevant(i) for i in range(len(st.eigen))) and not any(
         on_circle(e, st) for e in st.eigen)
@@ -69,8 +72,8 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
             v = num_of(1 - top.mod2_expr ** (-q))
         else:
             v = Num(1 - top.mod2 ** (-q))
-        moments.append({"q": q, "value": v.value, "expression": v.expression,
-                        "applies": applies})
+        moments.append(MomentThreshold(q=q, value=float(v.value), expression=v.expression,
+                                       applies=bool(applies)))
     pc_text = "p_c (not known in closed form)" if pc is None else p_c_text(
         pc.value, pc.expression if pc.expr is not None else None, system.exact)
     if st.detectable:
@@ -83,13 +86,13 @@ def _theory(system: System, st: Structure, classification: str, pc: Num | None,
                    "controllability, which failed.)")
     else:
         sb = ("Kar–Sinopoli–Moura Thm 9 needs (C, A) detectable, which fails: no statement.")
-    return {"moment_thresholds": moments,
-            "moment_thresholds_note": ("Mo–Sinopoli Cor. 2: supₖ E[Pₖ^q] < ∞ iff "
-                                       "p > 1 − |λ₁|^(−2q); applies to non-degenerate systems "
-                                       "whose eigenvalues are all unstable"),
-            "stochastic_boundedness": sb,
-            "almost_sure": _almost_sure(st, channel),
-            "observability_index": st.observability_index}
+    io = st.observability_index
+    return Theory(moment_thresholds=moments,
+                  moment_thresholds_note=("Mo–Sinopoli Cor. 2: supₖ E[Pₖ^q] < ∞ iff "
+                                          "p > 1 − |λ₁|^(−2q); applies to non-degenerate "
+                                          "systems whose eigenvalues are all unstable"),
+                  stochastic_boundedness=sb, almost_sure=_almost_sure(st, channel),
+                  observability_index=int(io) if io is not None else None)
 
 
 def _almost_sure(st: Structure, channel: Any) -> list[str]:
@@ -247,7 +250,8 @@ def critical_value(system: System, tolerance: float = DEFAULT_TOLERANCE, channel
     Returns
     -------
     CriticalValue
-        Record; ``.to_dict()`` gives plain JSON data (see :class:`CriticalValue`).
+        Record; ``.sections()`` gives the record's sections as their classes,
+        ``.to_dict()`` their plain JSON data (see :class:`CriticalValue`).
         ``classification`` is one of ``not-detectable``, ``stable``, ``non-diagonalizable``,
         ``non-degenerate``, ``degenerate-second-order``, ``degenerate``; ``value`` is p_c as a
         ``Num`` (``.value`` float, ``.expr`` exact) or None where no closed form applies.

@@ -8,7 +8,16 @@ from typing import Any
 
 import sympy as sp
 
+from kfcrit.io.typed import to_json
 from kfcrit.model.exprparse import MAX_DIGITS, exact_text
+from kfcrit.records.contract import (
+    BlockLowerBound,
+    Classification,
+    CriticalValueRecord,
+    LowerBound,
+    RobustCriticalValue,
+)
+from kfcrit.records.structure import Theory
 from kfcrit.theory.structure.eigen import (
     NUMERIC_TOLERANCES,
     Structure,
@@ -126,10 +135,10 @@ def pair_value(mod2: float, q: int | None, mod2_expr: sp.Expr | None = None,
 class CriticalValue:
     """The critical value of one system and everything that decided it.
 
-    ``to_dict()`` keys: classification, critical_value {value, exact, expression, latex, reason},
-    robust_critical_value {value, tolerance, expression, nearby_case} | None,
-    lower_bound {value, expression}, block_lower_bound {value, expression},
-    structure {...}, theory {...}, warnings [str].
+    :meth:`sections` gives the record's sections as their classes (classification,
+    critical_value, robust_critical_value, lower_bound, block_lower_bound, structure, theory);
+    ``to_dict()`` their plain JSON data with ``warnings`` [str] (and the structure's wall-clock
+    ``seconds``).
     """
 
     classification: str
@@ -138,36 +147,49 @@ class CriticalValue:
     lower: Num
     block_lower: Num | None
     block_reason: str
-    robust: dict[str, Any] | None
+    robust: RobustCriticalValue | None
     structure: Structure
-    theory: dict[str, Any]
+    theory: Theory
     warnings: tuple[str, ...] = field(default=())
     basis: str | None = None
     """For a value from coinciding bounds: "theorem" or "claim" (a [beyond] identity)."""
 
-    def to_dict(self) -> dict[str, Any]:
+    def critical_record(self) -> CriticalValueRecord:
+        """The ``critical_value`` section: p_c, whether it is exact, its expression and why."""
+        if self.value is None:
+            return CriticalValueRecord(value=None, exact=None, expression=None, latex=None,
+                                       reason=self.reason)
         exact = self.structure.path == "exact"
-        if self.value is not None:
-            reason = self.reason
-            if exact and self.value.expr is None:
-                reason += (" (every decision exact; |λ₁|² is an algebraic number of degree ≥ 3, "
-                           "so the value is given in double precision)")
-            cv = {"value": self.value.value, "exact": exact and self.value.expr is not None,
-                  "expression": self.value.expression, "latex": self.value.latex,
-                  "reason": reason}
-            if self.basis is not None:
-                cv["basis"] = self.basis
-        else:
-            cv = {"value": None, "exact": None, "expression": None, "latex": None,
-                  "reason": self.reason}
-        blb = ({**self.block_lower.to_dict(), "reason": self.block_reason}
-               if self.block_lower is not None
-               else {"value": None, "expression": None, "reason": self.block_reason})
-        return {"classification": self.classification, "critical_value": cv,
-                "robust_critical_value": dict(self.robust) if self.robust else None,
-                "lower_bound": self.lower.to_dict(), "block_lower_bound": blb,
-                "structure": self.structure.to_dict(), "theory": self.theory,
-                "warnings": list(self.warnings)}
+        reason = self.reason
+        if exact and self.value.expr is None:
+            reason += (" (every decision exact; |λ₁|² is an algebraic number of degree ≥ 3, "
+                       "so the value is given in double precision)")
+        return CriticalValueRecord(value=float(self.value.value),
+                                   exact=exact and self.value.expr is not None,
+                                   expression=self.value.expression, latex=self.value.latex,
+                                   reason=reason, basis=self.basis)
+
+    def sections(self) -> dict[str, Any]:
+        """The record's sections of the critical value, each as its class, by record key."""
+        blow = self.block_lower
+        return {"classification": Classification(self.classification),
+                "critical_value": self.critical_record(),
+                "robust_critical_value": self.robust,
+                "lower_bound": LowerBound(value=float(self.lower.value),
+                                          expression=self.lower.expression),
+                "block_lower_bound": BlockLowerBound(
+                    value=float(blow.value) if blow is not None else None,
+                    expression=blow.expression if blow is not None else None,
+                    reason=self.block_reason),
+                "structure": self.structure.record(), "theory": self.theory}
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON data of :meth:`sections`, with ``warnings`` and the structure's
+        wall-clock ``seconds``."""
+        out = {k: self.structure.to_dict(v) if k == "structure" else to_json(v)
+               for k, v in self.sections().items()}
+        out["warnings"] = list(self.warnings)
+        return out
 
 
 def num_text(v: Num) -> str:

@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.records.structure import StandardForm, StandardFormBlock
 from kfcrit.theory.structure.budget import field_degree_bound
 from kfcrit.theory.structure.cyclotomic import MAX_FIELD_DEGREE as CYCLO_MAX_DEGREE
 from kfcrit.theory.structure.cyclotomic import (
@@ -282,14 +283,15 @@ def _certified_at(system: System, A: sp.Matrix, C: sp.Matrix, prec: int, q_max: 
     if time_left(start) < 0:
         raise Fallback(f"exceeded the {EXACT_TIME_BUDGET:g} s budget")
     controllable, how = _certified_controllable(system)
-    form = {"eigenvalues": [e.text for e in eigen],
-            "basis": (f"V: certified eigenvector enclosures (python-flint acb_mat.eig, {prec} "
-                      "bits); C·V entries as balls"),
-            "equi_blocks": [{
-                "indices": [pos[i] for i in g],
-                "eigenvalues": [eigen[pos[i]].text for i in g],
-                "C_columns": [[CV[r, i].str(radius=True) for r in range(m)] for i in g]}
-                for g in groups]}
+    form = StandardForm(
+        eigenvalues=[e.text for e in eigen],
+        basis=(f"V: certified eigenvector enclosures (python-flint acb_mat.eig, {prec} "
+               "bits); C·V entries as balls"),
+        equi_blocks=[StandardFormBlock(
+            indices=[int(pos[i]) for i in g],
+            eigenvalues=[eigen[pos[i]].text for i in g],
+            C_columns=[[CV[r, i].str(radius=True) for r in range(m)] for i in g])
+            for g in groups])
     return Structure(
         path="exact",
         path_reason=(f"certified enclosures (python-flint arb, {prec} bits): {prior}; all "

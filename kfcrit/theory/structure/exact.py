@@ -32,6 +32,7 @@ import sympy as sp
 from sympy.polys.matrices import DomainMatrix
 
 from kfcrit.model.system import System
+from kfcrit.records.structure import StandardForm, StandardFormBlock
 from kfcrit.theory.structure.budget import exact_refusal
 from kfcrit.theory.structure.records import (
     EXACT_MAX_FIELD_DEGREE,
@@ -622,17 +623,19 @@ def exact_structure(system: System, start: float) -> Structure:
                                   q=q, turn=turn, turn_text=text))
                 work.check_time("equal-modulus pairs")
     controllable, how = controllability(system, work)
-    form = {"eigenvalues": [sp.sstr(e.expr) if e.expr is not None else e.text for e in eigen],
-            "basis": "V: exact bases of ker(A − λI) (exact linear algebra), C·V over ℂ",
-            "equi_blocks": []}
+    labels = [sp.sstr(e.expr) if e.expr is not None else e.text for e in eigen]
+    form_blocks = []
     for grp in groups:
         _, CV = work.images(xeigs, grp)
         M = CV.to_Matrix()
-        form["equi_blocks"].append({
-            "indices": list(eigen_indices(eigen, grp)),
-            "eigenvalues": [form["eigenvalues"][i] for i in grp],
-            "C_columns": [[sp.sstr(M[r, k]) for r in range(M.shape[0])]
-                          for k in range(M.shape[1])]})
+        form_blocks.append(StandardFormBlock(
+            indices=[int(i) for i in eigen_indices(eigen, grp)],
+            eigenvalues=[labels[i] for i in grp],
+            C_columns=[[sp.sstr(M[r, k]) for r in range(M.shape[0])]
+                       for k in range(M.shape[1])]))
+    form = StandardForm(eigenvalues=labels,
+                        basis="V: exact bases of ker(A − λI) (exact linear algebra), C·V over ℂ",
+                        equi_blocks=form_blocks)
     work.check_time("standard form")
     return Structure(
         path="exact",

@@ -14,6 +14,7 @@ from fractions import Fraction
 import numpy as np
 
 from kfcrit.model.system import System
+from kfcrit.records.structure import StandardForm, StandardFormBlock
 from kfcrit.theory.structure.records import (
     MAX_DENOMINATOR,
     Eigen,
@@ -164,15 +165,16 @@ def numeric_structure(system: System, start: float, reason: str,
                                   turn_text=(str(frac) if q else
                                              f"no r/q with q <= {MAX_DENOMINATOR} within "
                                              f"{tol['turn_absolute']:g}")))
-    form = {"eigenvalues": [[float(e.value.real), float(e.value.imag)] for e in eigen],
-            "basis": "V: orthonormal float bases of ker(A − λI); entries of C·V as [re, im]",
-            "equi_blocks": [{
-                "indices": list(eigen_indices(eigen, grp)),
-                "eigenvalues": [[float(eigen[i].value.real), float(eigen[i].value.imag)]
-                                for i in grp],
-                "C_columns": [[[float(z.real), float(z.imag)] for z in col]
-                              for col in (c @ np.hstack([eigen[i].basis for i in grp])).T]}
-                for grp in groups]}
+    form = StandardForm(
+        eigenvalues=[[float(e.value.real), float(e.value.imag)] for e in eigen],
+        basis="V: orthonormal float bases of ker(A − λI); entries of C·V as [re, im]",
+        equi_blocks=[StandardFormBlock(
+            indices=[int(i) for i in eigen_indices(eigen, grp)],
+            eigenvalues=[[float(eigen[i].value.real), float(eigen[i].value.imag)]
+                         for i in grp],
+            C_columns=[[[float(z.real), float(z.imag)] for z in col]
+                       for col in (c @ np.hstack([eigen[i].basis for i in grp])).T])
+            for grp in groups])
     return Structure(
         standard_form=form, path="numeric", path_reason=reason, tolerances=dict(tol),
         eigen=tuple(eigen),

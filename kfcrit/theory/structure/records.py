@@ -24,6 +24,15 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.defaults import DEFAULT_TOLERANCE
+from kfcrit.io.typed import ABSENT, to_json
+from kfcrit.records.structure import (
+    Eigenvalue,
+    EqualModulusPair,
+    EquiBlockRecord,
+    StandardForm,
+    StructureRecord,
+    StructureTolerances,
+)
 
 EXACT_MAX_STATES = 6
 """Largest n for the exact path (beyond it the number-field arithmetic grows too fast)."""
@@ -170,7 +179,7 @@ class Structure:
     norm_A: float
     norm_C: float
     seconds: float
-    standard_form: dict[str, Any] | None = None
+    standard_form: StandardForm | None = None
     """Diagonal standard form (Mo–Sinopoli): eigenvalues and the columns of C·V per equi-block
     (exact strings on the exact path, [re, im] float pairs on the numeric path)."""
     unresolved: tuple[str, ...] = ()
@@ -185,37 +194,65 @@ class Structure:
         """ρ(A) < 1."""
         return not any(self.relevant(i) for i in range(len(self.eigen)))
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON data: eigenvalues in modulus order, equi-blocks, the decided facts."""
-        eigs = []
-        for e in self.eigen:
-            for _ in range(e.multiplicity):
-                eigs.append({
-                    "value": (sp.sstr(e.expr) if e.expr is not None else
-                              e.text if e.text is not None else complex_sympy_text(e.value)),
-                    "re": float(e.value.real), "im": float(e.value.imag),
-                    "modulus": e.modulus,
-                    "modulus_expression": (sp.sstr(_modulus_expr(e.mod2_expr))
-                                           if e.mod2_expr is not None else repr(e.modulus)),
-                })
-        blocks = [{"indices": list(b.indices), "modulus": math.sqrt(b.mod2),
-                   "modulus_expression": (sp.sstr(_modulus_expr(b.mod2_expr))
-                                          if b.mod2_expr is not None else repr(math.sqrt(b.mod2))),
-                   "one_step_observable": b.one_step_observable, "rank": b.rank, "size": b.size,
-                   "unstable_or_critical": b.relevant} for b in self.blocks]
-        pairs = [{"indices": [self._first_index(p.a), self._first_index(p.b)],
-                  "rank": p.rank, "size": p.size, "degenerate": p.degenerate, "q": p.q,
-                  "turn": p.turn, "turn_expression": p.turn_text} for p in self.pairs]
-        return {"path": self.path, "path_reason": self.path_reason,
-                "tolerances": dict(self.tolerances), "eigenvalues": eigs, "equi_blocks": blocks,
-                "equal_modulus_pairs": pairs, "diagonalizable": self.diagonalizable,
-                "detectable": self.detectable, "controllable_Q": self.controllable_Q,
-                "observability_index": self.observability_index, "observable": self.observable,
-                "seconds": round(self.seconds, 4), "standard_form": self.standard_form,
-                "unresolved": list(self.unresolved)}
+    def record(self) -> StructureRecord:
+        """The record's ``structure`` section: eigenvalues in modulus order (each repeated by
+        its multiplicity), equi-blocks, equal-modulus pairs and the decided facts."""
+        eigs = [Eigenvalue(
+            value=(sp.sstr(e.expr) if e.expr is not None else
+                   e.text if e.text is not None else complex_sympy_text(e.value)),
+            re=float(e.value.real), im=float(e.value.imag), modulus=float(e.modulus),
+            modulus_expression=(sp.sstr(_modulus_expr(e.mod2_expr))
+                                if e.mod2_expr is not None else repr(e.modulus)))
+            for e in self.eigen for _ in range(e.multiplicity)]
+        blocks = [EquiBlockRecord(
+            indices=[int(i) for i in b.indices], modulus=math.sqrt(b.mod2),
+            modulus_expression=(sp.sstr(_modulus_expr(b.mod2_expr))
+                                if b.mod2_expr is not None else repr(math.sqrt(b.mod2))),
+            one_step_observable=bool(b.one_step_observable), rank=int(b.rank),
+            size=int(b.size), unstable_or_critical=bool(b.relevant)) for b in self.blocks]
+        pairs = [EqualModulusPair(
+            indices=[self._first_index(p.a), self._first_index(p.b)], rank=int(p.rank),
+            size=int(p.size), degenerate=bool(p.degenerate),
+            q=int(p.q) if p.q is not None else None, turn=float(p.turn),
+            turn_expression=p.turn_text) for p in self.pairs]
+        return StructureRecord(
+            path=self.path, path_reason=self.path_reason,
+            tolerances=_tolerances_record(self.tolerances), eigenvalues=eigs,
+            equi_blocks=blocks, equal_modulus_pairs=pairs,
+            diagonalizable=bool(self.diagonalizable), detectable=bool(self.detectable),
+            controllable_Q=bool(self.controllable_Q),
+            observability_index=(int(self.observability_index)
+                                 if self.observability_index is not None else None),
+            observable=bool(self.observable), standard_form=self.standard_form,
+            unresolved=list(self.unresolved))
+
+    def to_dict(self, record: StructureRecord | None = None) -> dict[str, Any]:
+        """Plain JSON data: :meth:`record` (``record`` when already built) with the wall-clock
+        ``seconds`` the analysis took (before ``standard_form``)."""
+        d = to_json(record if record is not None else self.record())
+        tail = {k: d.pop(k) for k in ("standard_form", "unresolved")}
+        return {**d, "seconds": round(self.seconds, 4), **tail}
 
     def _first_index(self, i: int) -> int:
         return sum(e.multiplicity for e in self.eigen[:i])
+
+
+def _tolerances_record(tol: dict[str, Any]) -> StructureTolerances:
+    """The decision tolerances a path states (each key only when that path uses it)."""
+    def get(key: str, kind: type) -> Any:
+        if key not in tol:
+            return ABSENT
+        return None if tol[key] is None else kind(tol[key])
+
+    return StructureTolerances(
+        exact=get("exact", bool), time_budget_seconds=get("time_budget_seconds", float),
+        max_states=get("max_states", int), modulus_relative=get("modulus_relative", float),
+        rank_relative=get("rank_relative", float), turn_absolute=get("turn_absolute", float),
+        eigenvalue_cluster_relative=get("eigenvalue_cluster_relative", float),
+        geometric_multiplicity_relative=get("geometric_multiplicity_relative", float),
+        max_denominator=get("max_denominator", int),
+        certified_enclosures=get("certified_enclosures", bool),
+        precision_bits=get("precision_bits", int))
 
 
 def _modulus_expr(mod2: sp.Expr) -> sp.Expr:
