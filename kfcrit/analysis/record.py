@@ -376,13 +376,15 @@ def exact_difference(a: Any, b: Any, fallback: float) -> float:
 
 def theory_sections(system: System, options: AnalysisOptions | None = None,
                     channel: Any = None, *,
-                    upper_bound: Any = None) -> TheorySections:
+                    upper_bound: UpperBoundRecord | None = None) -> TheorySections:
     """Critical value, its bounds and robust value, the structure, and p_up of one system.
 
     These depend on the system and the tolerances only; compute them once per system and pass
     them to :func:`analyze_system` (``theory=``) when only the channel changes. ``upper_bound`` is the
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
-    enter Ψ_p, theory §3), so a sweep over noise parameters computes it once.
+    enter Ψ_p, theory §3), so a sweep over noise parameters computes it once. The p_up bracket
+    is built as its record class (:meth:`kfcrit.theory.upper.record.UpperBound.record`); its
+    wall-clock seconds go to ``timings``.
     """
     from kfcrit.theory.covariance.riccati import single_blas_thread
     from kfcrit.theory.critical import section as critical
@@ -399,16 +401,17 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     sec = {k: d.get(k) for k in THEORY_KEYS if k != "upper_bound"}
     warnings = list(d.get("warnings") or [])
     ub_result = None
-    if sec.get("classification") == "not-detectable":
-        sec["upper_bound"] = not_detectable_upper()
-    else:
-        if upper_bound is None:
-            ub_result = upper.upper_result(system, tol=opts.upper_tol, structure=structure)
-            sec["upper_bound"] = ub_result.to_dict()
-        else:
-            sec["upper_bound"] = upper_bound
     timings: dict[str, float] = {}
     typed = {k: typed_section(k, v, timings) for k, v in sec.items()}
+    if sec.get("classification") == "not-detectable":
+        typed["upper_bound"] = not_detectable_upper()
+    elif upper_bound is None:
+        ub_result = upper.upper_result(system, tol=opts.upper_tol, structure=structure)
+        typed["upper_bound"] = ub_result.record()
+        if "seconds" in ub_result.solver:
+            timings["upper_bound.solver.seconds"] = ub_result.solver["seconds"]
+    else:
+        typed["upper_bound"] = upper_bound
     if typed["upper_bound"] is not None:
         warnings.extend(typed["upper_bound"].warnings)
     close_bracket(typed)
