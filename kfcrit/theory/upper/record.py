@@ -106,14 +106,8 @@ def check_record(check: certify.CheckResult) -> CertificateCheck:
     return CertificateCheck(
         ok=bool(check.ok), kind=check.kind, p=native_number(check.p),
         min_eig_x_lower=native_number(check.min_eig_x), margin_lower=native_number(check.margin),
-        reason=check.reason, margin_meaning=CHECK_MARGIN_MEANING,
-        verified_by=check.verified_by or BALL_CHECK)
-
-
-CHECK_MARGIN_MEANING = ("rigorous lower bound on the least eigenvalue of D M D, "
-                        "D = diag(M)^(-1/2) (the equilibrated matrix)")
-BALL_CHECK = (f"python-flint arb ball arithmetic ({certify.PRECISION_BITS} bits) on the exact "
-              "system matrices and the float certificate taken exactly")
+        reason=check.reason, margin_meaning=certify.MARGIN_MEANING,
+        verified_by=check.verified_by or certify.BALL_CHECK)
 
 
 def evidence_p_low(p_low: float, note: str = "") -> UpperLowerEvidence:
