@@ -78,8 +78,6 @@ from kfcrit.records.system import (
 )
 from kfcrit.version import __version__
 
-THEORY_KEYS = ("classification", "critical_value", "robust_critical_value", "lower_bound",
-               "block_lower_bound", "structure", "theory", "upper_bound")
 DETAIL_KEYS = ("description", "system", "structure", "theory", "covariance_bounds",
                "static_gain", "phase_transition", "simulation", "invariant", "link_budget",
                "requirements", "verification", "provenance")
@@ -374,13 +372,15 @@ def exact_difference(a: Any, b: Any, fallback: float) -> float:
 
 def theory_sections(system: System, options: AnalysisOptions | None = None,
                     channel: Any = None, *,
-                    upper_bound: Any = None) -> TheorySections:
+                    upper_bound: UpperBoundRecord | None = None) -> TheorySections:
     """Critical value, its bounds and robust value, the structure, and p_up of one system.
 
     These depend on the system and the tolerances only; compute them once per system and pass
     them to :func:`analyze_system` (``theory=``) when only the channel changes. ``upper_bound`` is the
     ``upper_bound`` section when already known: p_up depends on (A, C) only (Q and R do not
-    enter Ψ_p, theory §3), so a sweep over noise parameters computes it once.
+    enter Ψ_p, theory §3), so a sweep over noise parameters computes it once. The p_up bracket
+    is built as its record class (:meth:`kfcrit.theory.upper.record.UpperBound.record`); its
+    wall-clock seconds go to ``timings``.
     """
     from kfcrit.theory.covariance.riccati import single_blas_thread
     from kfcrit.theory.critical import section as critical
@@ -396,16 +396,17 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
     sec: dict[str, Any] = crit.sections()
     warnings = list(crit.warnings)
     ub_result = None
-    if sec.get("classification") == "not-detectable":
-        sec["upper_bound"] = not_detectable_upper()
-    else:
-        if upper_bound is None:
-            ub_result = upper.upper_result(system, tol=opts.upper_tol, structure=structure)
-            sec["upper_bound"] = ub_result.to_dict()
-        else:
-            sec["upper_bound"] = upper_bound
     timings: dict[str, float] = {"structure.seconds": round(crit.structure.seconds, 4)}
-    typed = {**sec, "upper_bound": typed_section("upper_bound", sec["upper_bound"], timings)}
+    typed = dict(sec)
+    if sec.get("classification") == "not-detectable":
+        typed["upper_bound"] = not_detectable_upper()
+    elif upper_bound is None:
+        ub_result = upper.upper_result(system, tol=opts.upper_tol, structure=structure)
+        typed["upper_bound"] = ub_result.record()
+        if "seconds" in ub_result.solver:
+            timings["upper_bound.solver.seconds"] = ub_result.solver["seconds"]
+    else:
+        typed["upper_bound"] = upper_bound
     if typed["upper_bound"] is not None:
         warnings.extend(typed["upper_bound"].warnings)
     close_bracket(typed)
@@ -415,16 +416,6 @@ def theory_sections(system: System, options: AnalysisOptions | None = None,
                           critical_exact=getattr(value, "expr", None),
                           p_low_exact=getattr(lower, "expr", None), structure=structure,
                           upper=ub_result, timings=timings)
-
-
-def typed_section(key: str, value: Any, timings: dict[str, float]) -> Any:
-    """The theory's section ``key`` as its typed class (:class:`AnalysisRecord`'s field type).
-
-    A section the theory states as plain data (``upper_bound``'s ``to_dict()``) is read here,
-    once, where it enters the analysis (:func:`kfcrit.records.read.read_plain`: strict, its
-    wall-clock seconds moved to ``timings``). A value that is already typed is returned as is.
-    """
-    return read_plain(record_hints()[key], value, key, timings)
 
 
 def analyze_system(system: System | SystemSpec, options: AnalysisOptions | None = None, *,

@@ -73,7 +73,7 @@ def scaling_table(tol: float = 1e-6) -> list[dict]:
         cpu = time.process_time() - cpu
         after = os.getloadavg()[0]
         lo, hi = res.interval
-        lower = bool(res.lower_evidence.get("certified"))
+        lower = bool(res.lower_evidence.certified)
         rows.append({"n": n, "m": m, "seconds": med, "cpu_seconds": cpu, "width": hi - lo,
                      "certified": res.certified, "lower_certified": lower,
                      "status": res.status})
@@ -104,8 +104,8 @@ def lower_table() -> list[dict]:
         enc = res.solver.get("lower_enclosure") or {}
         row = {"n": n, "m": m, "tol": tol, "seconds": wall, "cpu_seconds": cpu,
                "width": hi - lo, "upper": res.certified,
-               "lower": bool(res.lower_evidence.get("certified")),
-               "lower_kind": res.lower_evidence.get("kind"), "status": res.status, **enc}
+               "lower": bool(res.lower_evidence.certified),
+               "lower_kind": res.lower_evidence.kind, "status": res.status, **enc}
         rows.append(row)
         print(f"({n}, {m}) tol {tol:g}: [{lo:.15f}, {hi:.15f}] width {hi - lo:.2e} "
               f"wall {wall:.2f} s cpu {cpu:.2f} s upper={res.certified} "
@@ -160,7 +160,7 @@ def upper_benchmark(argv: list[str] | None = None) -> int:
         results_interval[(n, m, tol)] = res.interval
         lo, hi = res.interval
         print(f"kfcrit     ({n}, {m}) tol {tol:g}: [{lo:.12f}, {hi:.12f}] width={hi - lo:.2e} "
-              f"certified={res.certified} status={res.status} lower={res.lower_evidence['kind']}"
+              f"certified={res.certified} status={res.status} lower={res.lower_evidence.kind}"
               f" time median={med:.3f} s min={best:.3f} s")
     if ref_br is not None:
         ours = results_interval[(20, 6, 1e-6)]

@@ -302,12 +302,13 @@ def _upper_shifted_down(system, tol=1e-9, method="auto"):
 
 def _upper_gain_perturbed(system, tol=1e-9, method="auto"):
     rec = _REAL_UPPER(system, tol, method)
-    if rec.certificate is None or "K" not in rec.certificate:
+    if rec.certificate is None or not rec.certificate.K:
         return rec
-    cert = dict(rec.certificate)
+    cert = rec.certificate
     for key in ("K", "K_basis"):
-        if key in cert:
-            cert[key] = [[v + 0.05 for v in row] for row in cert[key]]
+        if getattr(cert, key):
+            cert = dataclasses.replace(cert, **{key: [[v + 0.05 for v in row]
+                                                      for row in getattr(cert, key)]})
     return dataclasses.replace(rec, certificate=cert)
 
 

@@ -16,6 +16,7 @@ from click.testing import CliRunner
 
 from kfcrit.cli.main import main
 from kfcrit.model.system import System
+from kfcrit.records.bounds import UpperCertificate
 from kfcrit.theory.upper.bracket import upper_bound
 
 R_ = sp.Rational
@@ -41,13 +42,13 @@ def positive_definite(M: sp.Matrix) -> bool:
     return all(M[:k, :k].det() > 0 for k in range(1, M.shape[0] + 1))
 
 
-def recheck(system: System, certificate: dict, p: float) -> bool:
+def recheck(system: System, certificate: UpperCertificate, p: float) -> bool:
     """X ≻ 0 and X − (1−p) A X A' − p F X F' ≻ 0 with X = Z X_z Z', K = Z K_z (M), exactly."""
-    Z = exact(certificate["basis"])
-    X = Z * exact(certificate["X_basis"]) * Z.T
-    K = Z * exact(certificate["K_basis"])
-    if certificate.get("output_map") is not None:
-        K = K * exact(certificate["output_map"])
+    Z = exact(certificate.basis)
+    X = Z * exact(certificate.X_basis) * Z.T
+    K = Z * exact(certificate.K_basis)
+    if certificate.output_map:
+        K = K * exact(certificate.output_map)
     A, C, q = sp.Matrix(system.A), sp.Matrix(system.C), R_(p)
     F = A + K * C
     return positive_definite(X) and positive_definite(X - (1 - q) * A * X * A.T
@@ -79,7 +80,7 @@ def test_unstable_system_keeps_its_newton_bracket() -> None:
     ub = upper_bound(system, tol=1e-9)
     expected = 1 - 1 / (1.25 * 1.1) ** 2
     assert ub.status == "determined" and ub.interval[0] - 1e-9 <= expected <= ub.interval[1]
-    assert "slow observer" not in ub.certificate["origin"]
+    assert "slow observer" not in ub.certificate.origin
 
 
 def test_continuous_double_integrator_without_channel_passes(tmp_path) -> None:

@@ -152,7 +152,7 @@ def test_invertible_c_gives_p_low():
     p_low = 1 - 1 / max(abs(np.linalg.eigvals(A))) ** 2
     assert ub.certified and ub.interval[0] == pytest.approx(p_low, abs=1e-15)
     assert ub.interval[1] - p_low <= 1e-9
-    assert ub.lower_evidence["kind"] == "theorem"
+    assert ub.lower_evidence.kind == "theorem"
 
 
 def test_undetectable_is_undetermined_not_an_error():
@@ -283,7 +283,7 @@ def test_invertible_ill_conditioned_c_is_exact(A, C):
     for method in ("auto", "newton"):
         ub = upper_bound(s, tol=1e-9, method=method)
         assert ub.interval == (0.75, 0.75) and ub.certified and ub.status == "determined"
-        assert ub.method == "exact" and "K = −A C⁻¹" in ub.certificate["statement"]
+        assert ub.method == "exact" and "K = −A C⁻¹" in ub.certificate.statement
 
 
 def test_lmi_with_ill_conditioned_c_contains_true_value():
@@ -387,9 +387,9 @@ def test_lmi_random_20_6_lower_end_is_not_above_the_proven_p_up():
         assert "ends" in lmi.solver and lmi.warnings
     # the lower end is the theorem p_low or an independently confirmed point, never the
     # solver's word alone
-    assert lmi.lower_evidence["kind"] in ("theorem", "certificate", "numerical")
-    if lmi.lower_evidence["kind"] != "theorem":
-        assert "cone spectral radius" in lmi.lower_evidence["statement"]
+    assert lmi.lower_evidence.kind in ("theorem", "certificate", "numerical")
+    if lmi.lower_evidence.kind != "theorem":
+        assert "cone spectral radius" in lmi.lower_evidence.statement
 
 
 def test_lmi_infeasible_needs_an_independent_confirmation(monkeypatch):
@@ -428,9 +428,9 @@ def test_lmi_lower_end_is_confirmed_on_the_paper_example():
     ub = upper_bound(s, tol=1e-6, method="lmi")
     assert ub.interval[0] <= 57 / 121 <= ub.interval[1]
     ev = ub.lower_evidence
-    assert ev["kind"] in ("certificate", "theorem", "numerical")
-    if ev["kind"] == "certificate":
-        assert ev["certified"] and ev["check"]["ok"]
+    assert ev.kind in ("certificate", "theorem", "numerical")
+    if ev.kind == "certificate":
+        assert ev.certified and ev.check.ok
 
 
 # ---------------------------------------------------------------------------------------------
@@ -454,17 +454,17 @@ def test_lower_end_proven_with_stable_modes():
     assert_contains(ub, want, slack=1e-10)
     ev = ub.lower_evidence
     assert ub.interval[0] > p_low + 1e-3
-    assert ev["kind"] == "certificate" and ev["certified"] and ev["check"]["ok"]
-    assert ev["reduced_states"] < s.n
+    assert ev.kind == "certificate" and ev.certified and ev.check.ok
+    assert ev.reduced_states < s.n
     # the same X_u re-verifies on the exactly invariant block, and is rejected above p_up
     red = reduce_system(s)
     block = invariant_block_of(s, red)
-    Xu = np.array(ev["X_u"])
+    Xu = np.array(ev.X_u)
     assert certify.verify_lower_block(block, ub.interval[0], Xu).ok
     assert not certify.verify_lower_block(block, want + 1e-4, Xu).ok
     assert not certify.verify_lower_block(block, 0.9, Xu).ok
     # a basis whose leading columns are not an invariant subspace gives no block
-    Z = np.array(ev["basis"])
+    Z = np.array(ev.basis)
     assert certify.invariant_block(s, Z[:, ::-1], red.k) is None
     # independent: the MARE iteration from 0 diverges just below the lower end
     V, _ = bounds.mare_iteration(A, C, np.eye(5), np.eye(1), ub.interval[0] - 1e-3,
@@ -492,9 +492,9 @@ def test_previously_undetermined_systems_reach_width_1e9(n, m, seed):
     assert hi - lo <= 1e-9 + 4 * math.ulp(hi)
     # the certificate re-verifies on its own, exactly as recorded; it fails just below lo
     ex = ub.extras
-    check = certify.verify_upper(s, ub.certificate["p"], ex["X_basis"], ex["K_basis"],
+    check = certify.verify_upper(s, ub.certificate.p, ex["X_basis"], ex["K_basis"],
                                  basis=ex["basis"], output_map=ex["output_map"])
-    assert check.ok and ub.certificate["p"] == hi
+    assert check.ok and ub.certificate.p == hi
     assert not certify.verify_upper(s, lo - 1e-6, ex["X_basis"], ex["K_basis"],
                                     basis=ex["basis"], output_map=ex["output_map"]).ok
     if m == 1:
@@ -646,7 +646,7 @@ def test_upper_bound_does_not_depend_on_call_order(tmp_path):
     given_st = upper_bound(second, tol=1e-9, structure=st)
     lo, hi = given_st.interval
     assert Fraction(lo) <= Fraction(2, 3) <= Fraction(hi) and hi - lo <= 1e-9
-    assert given_st.lower_evidence.get("expression") == "2/3"
+    assert given_st.lower_evidence.expression == "2/3"
     d = upper_section(second, tol=1e-9, structure=st)
     assert d["interval"] == [lo, hi]
 

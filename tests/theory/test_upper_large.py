@@ -25,7 +25,7 @@ def test_large_path_contains_an_independent_mare_estimate(large_path):
     assert ub.solver["reduced_states"] > 8 and "operator_applications" in ub.solver
     assert ub.certified
     lo, hi = ub.interval
-    assert "float64" in ub.certificate["verified_by"]
+    assert "float64" in ub.certificate.verified_by
     # independent MARE iteration: bounded just above hi, growing without bound just below lo
     # (3e-3 away: near the threshold the iteration needs ~1/(p - p_up) steps either way)
     assert mare_bounded(s.a, s.c, min(1.0, hi + 3e-3), steps=20000)
@@ -112,7 +112,7 @@ def test_face_root_bracket_is_certified_at_both_ends_beyond_the_ball_limit(large
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     assert "face root" in ub.solver.get("certificate_from", "")
     assert ub.certified and ub.status == "determined"
-    assert ub.lower_evidence["certified"] and ub.lower_evidence["kind"] == "theorem"
+    assert ub.lower_evidence.certified and ub.lower_evidence.kind == "theorem"
     lo, hi = ub.interval
     assert hi - lo <= tol * (1 + 1e-9)
     p_low = 1 - 1 / _spectral_radius2(s.a)
@@ -224,7 +224,7 @@ def test_interior_root_upper_end_is_certified_and_matches_an_independent_mare(la
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     assert ub.solver["certificate_from"].startswith("stein")
     assert ub.certified and ub.status == "determined"
-    assert ub.lower_evidence["certified"] and ub.lower_evidence["kind"] == "certificate"
+    assert ub.lower_evidence.certified and ub.lower_evidence.kind == "certificate"
     lo, hi = ub.interval
     assert hi - lo <= tol * (1 + 1e-9)
     assert lo > 1 - 1 / _spectral_radius2(s.a) + 1e-3        # not a face root
@@ -293,7 +293,7 @@ def test_an_interior_root_widens_with_the_stein_certificate_not_the_fallback(lar
     p_star = ub.extras["p_star"]
     assert lo <= p_star < hi and hi - lo > tol
     # the lower end is the Newton root, or a proven point just below it
-    assert lo == p_star or (ub.lower_evidence["certified"] and p_star - lo <= hi - p_star)
+    assert lo == p_star or (ub.lower_evidence.certified and p_star - lo <= hi - p_star)
     # 0.9·tol first, then 0.5·tol (skipped when the solve already failed at 0.9·tol), wider
     assert tried[0] == pytest.approx(p_star + 0.9 * tol, abs=1e-15)
     assert tried[1:] == sorted(tried[1:]) and len(tried) >= 2 and hi == tried[-1]

@@ -42,10 +42,10 @@ def test_certified_lower_end_matches_an_independent_mare_iteration(large_path):
     ub = bracket.upper_bound(s, tol=tol, method="newton")
     low = ub.lower_evidence
     assert ub.certified and ub.status == "determined"
-    assert low["kind"] == "certificate" and low["certified"]
-    assert low["check"]["ok"] and "Stewart" in low["check"]["verified_by"]
+    assert low.kind == "certificate" and low.certified
+    assert low.check.ok and "Stewart" in low.check.verified_by
     lo, hi = ub.interval
-    assert lo == low["value"] and 0 < hi - lo <= tol * (1 + 1e-9)
+    assert lo == low.value and 0 < hi - lo <= tol * (1 + 1e-9)
     p_low = 1 - 1 / max(abs(np.linalg.eigvals(s.a))) ** 2
     assert lo > p_low + 1e-3                                          # not a face root
     a, b = _mare_threshold(s.a, s.c, lo - 0.05, hi + 0.05, 4e-3)
@@ -172,7 +172,7 @@ def test_every_mode_unstable_uses_the_pair_itself(large_path):
     s = System(A, rng.normal(size=(2, 12)), np.eye(12), np.eye(2))
     assert min(abs(np.linalg.eigvals(s.a))) > 1
     ub = bracket.upper_bound(s, tol=1e-6, method="newton")
-    assert ub.lower_evidence["certified"] and "whole space" in ub.lower_evidence["statement"]
+    assert ub.lower_evidence.certified and "whole space" in ub.lower_evidence.statement
     enc = ub.solver["lower_enclosure"]
     assert enc["eigen_gap"] is None and enc["state_radius"] < 1e-250
     lo, hi = ub.interval
@@ -205,9 +205,9 @@ def test_decimal_input_is_certified_like_binary_input(large_path):
                [[repr(float(v)) for v in row] for row in b.c], 1, 1)
     assert s.exact
     ub = bracket.upper_bound(s, tol=1e-6, method="newton")
-    assert ub.certified and ub.lower_evidence["certified"] and ub.status == "determined"
+    assert ub.certified and ub.lower_evidence.certified and ub.status == "determined"
     assert ub.solver["lower_enclosure"]["output_radius"] < 1e-12
-    assert "offset" in ub.certificate["verified_by"]
+    assert "offset" in ub.certificate.verified_by
 
 
 def test_offset_product_encloses_the_exact_product():

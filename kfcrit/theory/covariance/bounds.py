@@ -388,8 +388,8 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
         The system.
     p : float
         Arrival probability.
-    upper : dict, optional
-        ``upper.upper_section(system)`` if already computed (its interval decides where V̄
+    upper : kfcrit.theory.upper.record.UpperBound, optional
+        ``upper.upper_bound(system)`` if already computed (its interval decides where V̄
         cannot exist, and its certificate gain warm-starts Newton).
 
     Returns

@@ -147,7 +147,7 @@ def _from_upper(dual: System, tol: float) -> tuple[tuple[float, float], bool, st
     if ub.extras.get("not_applicable"):
         return None, False, str(ub.extras["not_applicable"]), ub
     lo, hi = ub.interval
-    certified = bool(ub.certified and ub.lower_evidence.get("certified", False))
+    certified = bool(ub.certified and ub.lower_evidence.certified)
     return (float(lo), float(hi)), certified, f"p_up of the dual pair (A', B'): {ub.method}, " \
         f"status {ub.status}", ub
 

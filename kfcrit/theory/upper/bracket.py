@@ -50,6 +50,7 @@ import scipy.linalg as sla
 
 from kfcrit.defaults import DEFAULT_TOLERANCE
 from kfcrit.model.system import System
+from kfcrit.records.bounds import UpperCertificate, UpperLowerEvidence
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.critical.plow import PLow, c_invertible, p_low_bounds, p_low_from_structure, p_low_of
 from kfcrit.theory.upper import lmi
@@ -57,7 +58,12 @@ from kfcrit.theory.upper.certs import invariant_block_of, lower_end, stein_certi
 from kfcrit.theory.upper.cone import NEWTON_MAX_REDUCED, full_gain, reduce_system
 from kfcrit.theory.upper.large import P_LOW_VERIFIED, verified_p_low
 from kfcrit.theory.upper.newton import newton_method
-from kfcrit.theory.upper.record import UpperBound, certificate_summary, evidence_p_low
+from kfcrit.theory.upper.record import (
+    UpperBound,
+    certificate_summary,
+    evidence_p_low,
+    native_number,
+)
 
 __all__ = ["METHODS", "PLow", "UpperBound", "c_invertible", "invariant_block_of",
            "is_numerical_failure", "marginal_certificate", "numerical_failure_types",
@@ -81,15 +87,17 @@ def _c_invertible_bound(system: System, how: str, known: PLow | None) -> UpperBo
                     f"ill-conditioned: cond₂(C) ≈ {kappa:.3g}, so a relative change of about "
                     f"{1 / kappa:.1g} in C can make it singular and raise p_up")
     interval = (pl.down, pl.up)
-    cert = {"kind": "theorem: C invertible, F = A + K C = 0 with K = −A C⁻¹",
-            "origin": "exact decision, no numerical certificate needed", "ok": pl.rigorous,
-            "p": pl.up, "statement": statement, "reason": "proven" if pl.rigorous else
-            "p_low from float eigenvalues (not rigorous)",
-            "verified_by": f"{how}; p_low by {pl.how}", "condition_number_C": kappa}
-    lower = {"kind": "theorem", "value": pl.down, "certified": pl.rigorous,
-             "expression": pl.expression,
-             "statement": "p_up ≥ p_c ≥ p_low = 1 − 1/ρ(A)² (Sinopoli Thm 3); here "
-                          "p_up = p_low exactly (C invertible)"}
+    cert = UpperCertificate(
+        kind="theorem: C invertible, F = A + K C = 0 with K = −A C⁻¹",
+        origin="exact decision, no numerical certificate needed", ok=bool(pl.rigorous),
+        p=native_number(pl.up), statement=statement, reason="proven" if pl.rigorous else
+        "p_low from float eigenvalues (not rigorous)",
+        verified_by=f"{how}; p_low by {pl.how}", condition_number_C=kappa)
+    lower = UpperLowerEvidence(
+        kind="theorem", value=native_number(pl.down), certified=bool(pl.rigorous),
+        expression=pl.expression,
+        statement="p_up ≥ p_c ≥ p_low = 1 − 1/ρ(A)² (Sinopoli Thm 3); here "
+                  "p_up = p_low exactly (C invertible)")
     solver = {"seconds": time.perf_counter() - t0, "solves": 0, "special_case": "C invertible",
               "p_low": pl.how}
     return UpperBound(pl.up, interval, pl.rigorous, "determined" if pl.rigorous else
@@ -251,11 +259,11 @@ def _failure_record(system: System, tol: float, method: str, exc: BaseException,
     hi = float(progress.get("hi", 1.0))
     if not (np.isfinite(lo) and np.isfinite(hi) and p_low <= lo <= hi <= 1.0):
         lo, hi = p_low, 1.0
-    lower = evidence_p_low(p_low) if lo <= p_low else {
-        "kind": "numerical", "value": lo, "certified": False,
-        "statement": "power-iteration bracket reached before the numerical failure (cone "
-                     "spectral radius r(lo) >= 1 of the noise-free MARE map, numerically)",
-        "p_low_theorem": p_low}
+    lower = evidence_p_low(p_low) if lo <= p_low else UpperLowerEvidence(
+        kind="numerical", value=lo, certified=False,
+        statement="power-iteration bracket reached before the numerical failure (cone "
+                  "spectral radius r(lo) >= 1 of the noise-free MARE map, numerically)",
+        p_low_theorem=native_number(p_low))
     name = type(exc).__name__
     text = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else "(no message)"
     stage = progress.get("stage", "start")
@@ -274,7 +282,7 @@ def _exact_lower_end(system: System, result: UpperBound, tol: float,
     """Invariant: a lower end that rests on Sinopoli's p_low (evidence kind "theorem") is the
     exact p_low rounded down, and the interval always contains p_up (the upper end, when it
     is p_low itself, is rounded up)."""
-    if result.lower_evidence.get("kind") != "theorem" or result.method == "exact":
+    if result.lower_evidence.kind != "theorem" or result.method == "exact":
         return result
     pl = known if known is not None else p_low_bounds(system)
     verified = result.extras.get("p_low_verified")
@@ -286,10 +294,12 @@ def _exact_lower_end(system: System, result: UpperBound, tol: float,
                      how=P_LOW_VERIFIED + "; the upper value is " + pl.how)
     lo, hi = result.interval
     hi = max(hi, pl.up)
-    lower = {**result.lower_evidence, "value": pl.down, "certified": pl.rigorous,
-             "p_low_enclosure": [pl.down, pl.up], "p_low_how": pl.how}
+    lower = replace(result.lower_evidence, value=native_number(pl.down),
+                    certified=bool(pl.rigorous),
+                    p_low_enclosure=[native_number(pl.down), native_number(pl.up)],
+                    p_low_how=pl.how)
     if pl.expression is not None:
-        lower["expression"] = pl.expression
+        lower = replace(lower, expression=pl.expression)
     status = result.status
     # the rounding moves the lower end by a few ulps at most: allowed beyond tol
     if status == "determined" and hi - pl.down > tol + 8 * math.ulp(max(hi, 1e-300)) \
@@ -422,5 +432,6 @@ def upper_result(system: System, tol: float = DEFAULT_TOLERANCE,
 
 def upper_section(system: System, tol: float = DEFAULT_TOLERANCE,
                   structure: Any | None = None) -> dict[str, Any]:
-    """The record's ``upper_bound`` section: :func:`upper_result` as JSON data."""
+    """The record's ``upper_bound`` section: :func:`upper_result` as JSON data (its
+    :meth:`~kfcrit.theory.upper.record.UpperBound.to_dict`)."""
     return upper_result(system, tol, structure).to_dict()

@@ -54,11 +54,17 @@ class CheckResult:
     def to_dict(self) -> dict[str, Any]:
         return {"ok": self.ok, "kind": self.kind, "p": self.p, "min_eig_x_lower": self.min_eig_x,
                 "margin_lower": self.margin, "reason": self.reason,
-                "margin_meaning": "rigorous lower bound on the least eigenvalue of D M D, "
-                                  "D = diag(M)^(-1/2) (the equilibrated matrix)",
-                "verified_by": self.verified_by or (
-                    f"python-flint arb ball arithmetic ({PRECISION_BITS} bits) on the exact "
-                    "system matrices and the float certificate taken exactly")}
+                "margin_meaning": MARGIN_MEANING,
+                "verified_by": self.verified_by or BALL_CHECK}
+
+
+MARGIN_MEANING = ("rigorous lower bound on the least eigenvalue of D M D, "
+                  "D = diag(M)^(-1/2) (the equilibrated matrix)")
+"""What a check's ``margin_lower`` bounds (the record's ``margin_meaning``)."""
+BALL_CHECK = (f"python-flint arb ball arithmetic ({PRECISION_BITS} bits) on the exact "
+              "system matrices and the float certificate taken exactly")
+"""How :func:`verify_upper` and its kin check (a check's ``verified_by`` unless it says
+otherwise)."""
 
 
 def _arb_number(x: sp.Expr) -> flint.arb:

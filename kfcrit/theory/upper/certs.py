@@ -13,12 +13,14 @@ exactly A-invariant subspace (:func:`cone_lower_check`).
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.records.bounds import ProvenLowerEnd, UpperLowerEvidence
 from kfcrit.theory.covariance.riccati import stein_matrix, symmetrize, unvech, vech
 from kfcrit.theory.upper import certify
 from kfcrit.theory.upper.cone import (
@@ -33,7 +35,13 @@ from kfcrit.theory.upper.cone import (
     perron_newton,
     threshold_newton,
 )
-from kfcrit.theory.upper.record import RECORD_MATRIX_MAX, evidence_p_low, matrix_list
+from kfcrit.theory.upper.record import (
+    RECORD_MATRIX_MAX,
+    check_record,
+    evidence_p_low,
+    matrix_list,
+    native_number,
+)
 
 
 def lower_end(hi: float, tol: float, p_low: float) -> float:
@@ -285,7 +293,7 @@ def cone_lower_check(system: System, red: Reduced, p: float, X0: np.ndarray | No
 
 
 def lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float, p_low: float,
-                    stats: dict[str, Any], tol: float | None = None) -> dict[str, Any]:
+                    stats: dict[str, Any], tol: float | None = None) -> UpperLowerEvidence | str:
     """The strongest evidence for p_up ≥ lo that we can check, labelled.
 
     p_low (theorem) when lo ≤ p_low; else the cone eigenpair (X, r) of G_lo on the unstable
@@ -295,49 +303,51 @@ def lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float,
     included: see :func:`cone_lower_check`). When the proof fails at lo itself (its margin
     (r − 1)·λ_min(X_u) is below the ball widths), the largest of a few points lo − δ where it
     passes is reported as ``proven_lower`` (a proven p_up ≥ lo − δ beside the numerical lo).
-    An eigenvalue r < 1 contradicts lo: the evidence is then marked ``inconsistent``.
+    An eigenvalue r < 1 contradicts lo: the result is then the text saying why (a warning),
+    not evidence.
     """
     if lo <= p_low:
         return evidence_p_low(p_low)
     memo: dict[str, Any] = {}
     conf = cone_lower_check(system, red, lo, plain.X, stats, memo)
     r = conf["r"]
-    evidence: dict[str, Any] = {
-        "kind": "numerical", "value": lo, "certified": False,
-        "statement": ("Newton root p* of the cone spectral radius r(p) = 1 of the noise-free "
-                      f"MARE map (p* = {plain.p:.15g}, residual {plain.residual:.2g}); at lo "
-                      f"the cone eigenvalue of the unstable block is r(lo) = {r:.15g} >= 1, so "
-                      "no X > 0 has X > G_lo(X) (numerically; " + conf["how"] + ")"),
-        "p_low_theorem": p_low}
     if r is None or not np.isfinite(r):
-        evidence["statement"] = (f"Newton root p* = {plain.p:.15g} of r(p) = 1 (residual "
-                                 f"{plain.residual:.2g}); the eigenpair at lo did not converge")
-        return evidence
+        return UpperLowerEvidence(
+            kind="numerical", value=native_number(lo), certified=False,
+            statement=(f"Newton root p* = {plain.p:.15g} of r(p) = 1 (residual "
+                       f"{plain.residual:.2g}); the eigenpair at lo did not converge"),
+            p_low_theorem=native_number(p_low))
+    evidence = UpperLowerEvidence(
+        kind="numerical", value=native_number(lo), certified=False,
+        statement=("Newton root p* of the cone spectral radius r(p) = 1 of the noise-free "
+                   f"MARE map (p* = {plain.p:.15g}, residual {plain.residual:.2g}); at lo "
+                   f"the cone eigenvalue of the unstable block is r(lo) = {r:.15g} >= 1, so "
+                   "no X > 0 has X > G_lo(X) (numerically; " + conf["how"] + ")"),
+        p_low_theorem=native_number(p_low))
     if r < 1 - 1e-12:
-        return {"inconsistent": f"cone eigenvalue r({lo:.12g}) = {r:.15g} < 1 contradicts the "
-                                "Newton root; the lower end falls back to p_low"}
+        return (f"cone eigenvalue r({lo:.12g}) = {r:.15g} < 1 contradicts the "
+                "Newton root; the lower end falls back to p_low")
     marginal = np.abs(np.abs(np.linalg.eigvals(red.Au)) - 1.0) <= MARGINAL_TOL
     if not conf["certified"] and np.any(marginal):
         # a mode on the unit circle makes the cone eigenvector nearly singular, and the
         # homogeneous regulariser then biases r(p) upward by more than tol (seen: r(lo) =
         # 1 + 2e-8 at a lo 1.7e-8 above a p_up proven by a certificate of the similar system)
-        return {"inconsistent": f"r({lo:.12g}) = {r:.15g} ≥ 1 is not evidence here: A has a "
-                                "mode with |λ| ≈ 1 in the unstable block, where the "
-                                "regularised cone eigenvalue is biased upward; the lower end "
-                                "falls back to p_low"}
+        return (f"r({lo:.12g}) = {r:.15g} ≥ 1 is not evidence here: A has a "
+                "mode with |λ| ≈ 1 in the unstable block, where the "
+                "regularised cone eigenvalue is biased upward; the lower end "
+                "falls back to p_low")
     if conf["certified"]:
-        check = conf["check"]
-        evidence.update({"kind": "certificate", "certified": True,
-                         "statement": "X_u > 0 with G_lo(X_u) - X_u > 0 (cone eigenvalue "
-                                      f"{r:.15g} > 1 of the noise-free MARE map) on the "
-                                      f"{red.k}-dimensional unstable invariant subspace, proven "
-                                      "in ball arithmetic; valid for the full system because "
-                                      "G_p maps the cone of that subspace into itself",
-                         "check": check.to_dict()})
+        evidence = replace(
+            evidence, kind="certificate", certified=True,
+            statement="X_u > 0 with G_lo(X_u) - X_u > 0 (cone eigenvalue "
+                      f"{r:.15g} > 1 of the noise-free MARE map) on the "
+                      f"{red.k}-dimensional unstable invariant subspace, proven "
+                      "in ball arithmetic; valid for the full system because "
+                      "G_p maps the cone of that subspace into itself",
+            check=check_record(conf["check"]))
         if system.n <= RECORD_MATRIX_MAX:
-            evidence["X_u"] = matrix_list(conf["X"])
-            evidence["basis"] = matrix_list(red.Z)
-            evidence["reduced_states"] = red.k
+            evidence = replace(evidence, X_u=matrix_list(conf["X"]), basis=matrix_list(red.Z),
+                               reduced_states=int(red.k))
     elif conf["numerical"] and conf["check"] is not None:
         step = max(tol if tol is not None else 1e-9, 1e-12)
         for mult in (1, 10, 100, 1000):
@@ -346,12 +356,12 @@ def lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float,
                 break
             c2 = cone_lower_check(system, red, p, conf["X"], stats, memo)
             if c2["certified"]:
-                evidence["proven_lower"] = {
-                    "value": p, "check": c2["check"].to_dict(),
-                    "statement": f"p_up >= {p!r} proven: X_u > 0 with G_p(X_u) - X_u > 0 on "
-                                 "the unstable invariant subspace, ball arithmetic (at lo "
-                                 "itself the margin was below the ball widths: "
-                                 f"{conf['check'].reason})"}
+                evidence = replace(evidence, proven_lower=ProvenLowerEnd(
+                    value=native_number(p), check=check_record(c2["check"]),
+                    statement=f"p_up >= {p!r} proven: X_u > 0 with G_p(X_u) - X_u > 0 on "
+                              "the unstable invariant subspace, ball arithmetic (at lo "
+                              "itself the margin was below the ball widths: "
+                              f"{conf['check'].reason})"))
                 break
     return evidence
 

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from kfcrit.model.system import System
+from kfcrit.records.bounds import UpperLowerEvidence
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.upper import certify, floatcheck, krylov, lowercert, stein
 from kfcrit.theory.upper.certs import lower_end
@@ -45,7 +46,12 @@ from kfcrit.theory.upper.cone import (
     reduce_system,
     stable_gramian,
 )
-from kfcrit.theory.upper.record import certificate_summary, evidence_p_low
+from kfcrit.theory.upper.record import (
+    certificate_summary,
+    check_record,
+    evidence_p_low,
+    native_number,
+)
 
 START_OFFSETS = (0.02, 0.1, 0.3, 1.0)
 """p − p_low tried (clipped to 1) for the MARE start, until its fixed point converges."""
@@ -316,7 +322,7 @@ LOWER_CHECK = ("verified float64 on the exact A, C: real eigenbasis S of A with 
 def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low: float,
                    lo: float, hi: float,
                    offsets: tuple[floatcheck.Offsets, floatcheck.Offsets],
-                   stats: dict[str, Any], warnings: list[str]) -> tuple[float, dict[str, Any]]:
+                   stats: dict[str, Any], warnings: list[str]) -> tuple[float, UpperLowerEvidence]:
     """The lower end of an interior root: proven by
     :func:`kfcrit.theory.upper.lowercert.prove_lower_end` at lo (or, when lo is the Newton
     root itself, at the points of :data:`LOWER_FRACTIONS` below it), else the numerical Newton
@@ -345,16 +351,19 @@ def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low
             f"||C - C0|| <= {ball.gamma:.2g}; Weyl shift {ck.perturbation:.2g}); then "
             "L_{K,lo}(Y) >= G_lo(Y) >= Y for every gain K, so no X > 0 has X > L_{K,lo}(X) "
             f"(Newton root p* = {p_star:.15g})")
-        return ck.p, {"kind": "certificate", "value": ck.p, "certified": True,
-                      "statement": statement, "check": check.to_dict(), "p_low_theorem": p_low}
+        return ck.p, UpperLowerEvidence(kind="certificate", value=native_number(ck.p),
+                                        certified=True, statement=statement,
+                                        check=check_record(check),
+                                        p_low_theorem=native_number(p_low))
     warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
                     "end is certified")
-    return lo, {"kind": "numerical", "value": lo, "certified": False,
-                "statement": (f"Newton root p* = {p_star:.15g} of r(p) = 1 (matrix-free "
-                              f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
-                              "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
-                              f"ball proof: {proof.reason})"),
-                "p_low_theorem": p_low}
+    return lo, UpperLowerEvidence(
+        kind="numerical", value=native_number(lo), certified=False,
+        statement=(f"Newton root p* = {p_star:.15g} of r(p) = 1 (matrix-free "
+                   f"Newton, residual < {krylov.NEWTON_RESIDUAL:.0e}): G_lo(X*) = X* "
+                   "+ (p* - lo) P >= X* with X* > 0 numerically, so r(lo) >= 1 (no "
+                   f"ball proof: {proof.reason})"),
+        p_low_theorem=native_number(p_low))
 
 
 def large_method(system: System, red: Reduced, p_low: float, tol: float,
@@ -371,9 +380,8 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
                   "X = Z X_z Z', K = Z K_z" + (" M" if red.M is not None else "")
                   + " (X, K in the record are rounded copies)")
         cert = certificate_summary(system, check, X, K, origin, None, None)
-        lower = evidence_p_low(p_low)
-        lower["statement"] += ("; the upper end is certified at p_low + tol/2 (face root: "
-                               "p_up = p_low)")
+        lower = evidence_p_low(p_low, "; the upper end is certified at p_low + tol/2 (face "
+                                      "root: p_up = p_low)")
         status = "determined" if hi - p_low <= tol else "undetermined"
         if status == "undetermined":
             warnings.append(widened_warning(hi - p_low, tol))
@@ -410,9 +418,9 @@ def large_method(system: System, red: Reduced, p_low: float, tol: float,
     cert = certificate_summary(system, check, X, K, origin, None, None)
     lo = lower_end(hi, tol, p_low)
     if face:
-        lo, lower = p_low, evidence_p_low(p_low)
-        lower["statement"] += ("; the threshold Newton ran into p_low with a singular "
-                               "eigenvector (face root), so p_up = p_low within the bracket")
+        lo, lower = p_low, evidence_p_low(
+            p_low, "; the threshold Newton ran into p_low with a singular eigenvector (face "
+                   "root), so p_up = p_low within the bracket")
     else:
         # a widened hi must not lift lo above the Newton root
         lo = max(min(lo, thr.value), p_low)

@@ -43,12 +43,14 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
 from kfcrit.model.system import System
+from kfcrit.records.bounds import UpperLowerEvidence
 from kfcrit.theory.critical.plow import p_low_of
 from kfcrit.theory.upper import certify
 from kfcrit.theory.upper.certs import cone_lower_check
@@ -58,9 +60,11 @@ from kfcrit.theory.upper.record import (
     RECORD_MATRIX_MAX,
     UpperBound,
     certificate_summary,
+    check_record,
     compression_note,
     evidence_p_low,
     matrix_list,
+    native_number,
 )
 
 INFEASIBLE_MARGIN = 1e-10
@@ -301,35 +305,35 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
             "LMI solution (Y, Z) of the balanced unstable block, X_u = D Y^-1 D, "
             "K_u = D Y^-1 Z, lifted to the full state",
             (best["basis"], best["X_basis"], best["K_basis"]), red.M)
-        cert["lmi_margin"] = best["margin"]
+        cert = replace(cert, lmi_margin=native_number(best["margin"]))
     if last_infeasible is None:
         lower = evidence_p_low(p_low)
     else:
         conf = last_infeasible["confirmation"]
         proven = last_infeasible["evidence"] == "certificate"
-        lower = {"kind": "certificate" if proven else "numerical", "value": lo,
-                 "certified": proven,
-                 "statement": (f"LMI margin t* = {last_infeasible['margin']:.3g} <= "
-                               f"{INFEASIBLE_MARGIN:g} at p = {lo:.12g} (Clarabel's status for "
-                               f"Psi_p >= I: {last_infeasible.get('unit_status')}, not trusted "
-                               "alone), confirmed independently: cone spectral radius r(p) = "
-                               f"{conf['r']:.15g} >= 1 of the noise-free MARE map on the "
-                               f"unstable block ({conf['how']})"
-                               + ("; X_u > 0 with G_p(X_u) - X_u > 0 proven in ball arithmetic "
-                                  "on an exactly A-invariant subspace" if proven else
-                                  "; numerical, not proven")),
-                 "p_low_theorem": p_low}
+        lower = UpperLowerEvidence(
+            kind="certificate" if proven else "numerical", value=native_number(lo),
+            certified=bool(proven),
+            statement=(f"LMI margin t* = {last_infeasible['margin']:.3g} <= "
+                       f"{INFEASIBLE_MARGIN:g} at p = {lo:.12g} (Clarabel's status for "
+                       f"Psi_p >= I: {last_infeasible.get('unit_status')}, not trusted "
+                       "alone), confirmed independently: cone spectral radius r(p) = "
+                       f"{conf['r']:.15g} >= 1 of the noise-free MARE map on the "
+                       f"unstable block ({conf['how']})"
+                       + ("; X_u > 0 with G_p(X_u) - X_u > 0 proven in ball arithmetic "
+                          "on an exactly A-invariant subspace" if proven else
+                          "; numerical, not proven")),
+            p_low_theorem=native_number(p_low))
         if proven:
-            lower["check"] = conf["check"].to_dict()
+            lower = replace(lower, check=check_record(conf["check"]))
             if system.n <= RECORD_MATRIX_MAX:
-                lower["X_u"] = matrix_list(conf["X"])
-                lower["basis"] = matrix_list(red.Z)
-                lower["reduced_states"] = red.k
+                lower = replace(lower, X_u=matrix_list(conf["X"]), basis=matrix_list(red.Z),
+                                reduced_states=int(red.k))
     ends = ("upper end proven (ball-checked certificate)" if best is not None else
             "upper end not proven (no verified feasible point)")
     ends += "; lower end " + (
-        "proven (ball-checked cone certificate)" if lower["kind"] == "certificate" else
-        "the theorem p_low (no confirmed infeasible point above it)" if lower["kind"] == "theorem"
+        "proven (ball-checked cone certificate)" if lower.kind == "certificate" else
+        "the theorem p_low (no confirmed infeasible point above it)" if lower.kind == "theorem"
         else "numerical (cone spectral radius >= 1, not proven)")
     solver["ends"] = ends
     if status != "determined":

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from kfcrit.model.system import System
+from kfcrit.records.bounds import UpperLowerEvidence
 from kfcrit.theory.covariance.riccati import symmetrize
 from kfcrit.theory.critical.plow import p_low_of
 from kfcrit.theory.upper import certify
@@ -45,6 +46,7 @@ from kfcrit.theory.upper.record import (
     certificate_summary,
     compression_note,
     evidence_p_low,
+    native_number,
 )
 
 KRYLOV_MIN_REDUCED = 61
@@ -82,8 +84,9 @@ def newton_method(system: System, tol: float,
         check = certify.verify_upper(system, 0.0, X, K)
         stats["certificate_checks"] += 1
         cert = certificate_summary(system, check, X, K, "Lyapunov X = A X A' + I, K = 0")
-        lower = {"kind": "trivial", "value": 0.0, "certified": True,
-                 "statement": "p ≥ 0; ρ(A) < 1, so p = 0 is already mean-square stable"}
+        lower = UpperLowerEvidence(
+            kind="trivial", value=0.0, certified=True,
+            statement="p ≥ 0; ρ(A) < 1, so p = 0 is already mean-square stable")
         return done(0.0, (0.0, 0.0), check.ok, "determined", cert, lower)
 
     Au, Cu = red.Au, red.Cu
@@ -170,10 +173,11 @@ def newton_method(system: System, tol: float,
     if best is None:
         warnings.append("no certificate could be verified; the upper end is a numerical "
                         "power-iteration estimate")
-        lower = evidence_p_low(p_low) if lo_seen <= p_low else {
-            "kind": "numerical", "value": lo_seen, "certified": False,
-            "statement": "a cone eigenvector with eigenvalue >= 1 (Newton root or "
-                         "Collatz-Wielandt bound of the power iterate)", "p_low_theorem": p_low}
+        lower = evidence_p_low(p_low) if lo_seen <= p_low else UpperLowerEvidence(
+            kind="numerical", value=native_number(lo_seen), certified=False,
+            statement="a cone eigenvector with eigenvalue >= 1 (Newton root or "
+                      "Collatz-Wielandt bound of the power iterate)",
+            p_low_theorem=native_number(p_low))
         return done(None, (lo_seen, hi), False, "undetermined", None, lower)
     hi_p, (Z, Xz, Kz), check, eps_used = best
     progress.update(stage="lower-end evidence", hi=hi_p)
@@ -200,8 +204,8 @@ def newton_method(system: System, tol: float,
         lo_p = max(p_low, p_star)
     lower = lower_evidence(system, red, plain, lo_p, p_low, stats, tol) if plain_ok else \
         evidence_p_low(p_low)
-    if lower.get("inconsistent"):
-        warnings.append(lower["inconsistent"])
+    if isinstance(lower, str):       # the evidence contradicts lo
+        warnings.append(lower)
         lo_p = p_low
         lower = evidence_p_low(p_low)
     status = "determined" if hi_p - lo_p <= tol else "undetermined"
@@ -261,8 +265,9 @@ def power_bisection(system: System, red: Reduced, lo: float, hi: float, Xh: np.n
     warnings.append(f"unstable block of {red.k} states: power-iteration bisection to width "
                     f"{width:g} (Newton is used up to {NEWTON_MAX_REDUCED}); the lower end is "
                     "numerical (power iteration r(lo) >= 1 or no certificate found)")
-    lower = {"kind": "numerical", "value": lo, "certified": False,
-             "statement": "power iteration: r(lo) >= 1, or no certificate could be verified"}
+    lower = UpperLowerEvidence(
+        kind="numerical", value=native_number(lo), certified=False,
+        statement="power iteration: r(lo) >= 1, or no certificate could be verified")
     best, certified = None, False
     if candidates and system.n > BALL_CHECK_MAX_STATES:
         hi_p, basis, margin = candidates[-1]
