@@ -58,13 +58,10 @@ from kfcrit.records.covariance import (
     BestStaticGain,
     CovarianceBounds,
     CovarianceSummary,
-    Invariant,
     Markers,
     PhaseTransition,
-    RequiredArrivalProbability,
     StaticGain,
     StaticGainEstimate,
-    TailExponentRecord,
     TailSection,
 )
 from kfcrit.records.link import LinkBudgetRecord, LinkDesignRecord
@@ -726,8 +723,7 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
 
     try:  # these recompute p_up: a solver failure there is the upper section's "undetermined"
         with single_blas_thread():
-            pt = _bounds_and_curves(spec, s, sec, markers, warnings, timings, curves, quick,
-                                    upper)
+            pt = _bounds_and_curves(spec, s, sec, markers, warnings, curves, quick, upper)
     except (np.linalg.LinAlgError, ArithmeticError, ValueError, RuntimeError) as exc:
         warnings.append("covariance bounds and phase transition not computed: numerical "
                         f"failure ({type(exc).__name__}: {str(exc)[:120]})")
@@ -744,56 +740,46 @@ def not_detectable_bounds(s: System, p: float) -> CovarianceBounds:
     (theory §3) and no V̄ (E[P_t] diverges for every p)."""
     from kfcrit.theory.covariance import bounds
 
-    path = "covariance_bounds"
-    lower = read_plain(CovarianceSummary,
-                       bounds.covariance_summary(bounds.lower_covariance(s.a, s.q, p)),
-                       f"{path}.lower")
-    upper = replace(read_plain(CovarianceSummary, bounds.covariance_summary(None),
-                               f"{path}.upper"),
-                    residual=None, method=NOT_DETECTABLE, iterations=0)
+    lower = bounds.covariance_summary(bounds.lower_covariance(s.a, s.q, p))
+    upper = replace(bounds.covariance_summary(None), residual=None, method=NOT_DETECTABLE,
+                    iterations=0)
     return CovarianceBounds(p=p, lower=lower, upper=upper, ordered=None, applicable=False,
                             reason=NOT_DETECTABLE)
 
 
 def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any], markers: Markers,
-                       warnings: list[str], timings: dict[str, float], curves: bool,
-                       quick: bool, upper: Any) -> PhaseTransition | None:
+                       warnings: list[str], curves: bool, quick: bool,
+                       upper: Any) -> PhaseTransition | None:
     """Covariance bounds at the operating point (and static gains) into ``sec``; the
     phase-transition curve returned (None without ``curves``)."""
     from kfcrit.theory.covariance import bounds
 
-    plain_markers = to_json(markers)    # the theory layer reads plain data
     if markers.operating is not None:
-        cb = bounds.covariance_bounds(s, markers.operating, upper=upper)
+        cb = bounds.covariance_bounds_record(s, markers.operating, upper=upper)
         if spec.channel is not None and spec.channel.model == "gilbert-elliott":
             from kfcrit.theory.links.burstcov import markov_jump_bounds
             from kfcrit.theory.links.markov import burst_necessary
 
             ge = spec.channel
-            cb["markov_jump"] = markov_jump_bounds(
+            cb = replace(cb, markov_jump=markov_jump_bounds(
                 s, float(ge.failure_rate), float(ge.recovery_rate),
-                necessary_holds=burst_necessary(s, ge.recovery_rate).holds).to_dict()
-        typed = read_plain(CovarianceBounds, cb, "covariance_bounds", timings)
-        typed = replace(typed, lower=_lower_exists_exactly(typed.lower, spec.channel, sec),
-                        upper=_upper_exists_exactly(typed.upper, spec.channel, sec))
-        sec["covariance_bounds"] = typed
-        warnings.extend(typed.warnings or [])
+                necessary_holds=burst_necessary(s, ge.recovery_rate).holds).record())
+        cb = replace(cb, lower=_lower_exists_exactly(cb.lower, spec.channel, sec),
+                     upper=_upper_exists_exactly(cb.upper, spec.channel, sec))
+        sec["covariance_bounds"] = cb
+        warnings.extend(cb.warnings or [])
         if curves:
-            sec["static_gain"] = read_plain(
-                StaticGain, bounds.static_gain(s, markers.operating, upper=upper),
-                "static_gain", timings)
+            sec["static_gain"] = bounds.static_gain(s, markers.operating, upper=upper)
     if not curves:
         return None
     if quick and s.n > bounds.LARGE_STATES:   # iteration budgets, stated in the curve
-        pt = bounds.phase_transition(s, plain_markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
-                                     time_budget=QUICK_PHASE_SECONDS, upper=upper,
-                                     iteration_budget=bounds.LARGE_QUICK_PHASE_ITERATIONS)
-    elif quick and s.n > 20:
-        pt = bounds.phase_transition(s, plain_markers, points=40,
-                                     time_budget=QUICK_PHASE_SECONDS, upper=upper)
-    else:
-        pt = bounds.phase_transition(s, plain_markers, upper=upper)
-    return read_plain(PhaseTransition, pt, "phase_transition", timings)
+        return bounds.phase_transition(s, markers, points=bounds.LARGE_QUICK_PHASE_POINTS,
+                                       time_budget=QUICK_PHASE_SECONDS, upper=upper,
+                                       iteration_budget=bounds.LARGE_QUICK_PHASE_ITERATIONS)
+    if quick and s.n > 20:
+        return bounds.phase_transition(s, markers, points=40, time_budget=QUICK_PHASE_SECONDS,
+                                       upper=upper)
+    return bounds.phase_transition(s, markers, upper=upper)
 
 
 def _lower_exists_exactly(lower: CovarianceSummary, channel: Any,
@@ -837,8 +823,7 @@ def _simulation_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str,
                          estimator: OperatingPoint | None = None) -> None:
     from kfcrit.theory.covariance import invariant
 
-    inv = read_plain(Invariant | None, invariant.invariant_section(spec.system), "invariant",
-                     timings)
+    inv = invariant.invariant_section(spec.system)
     sec["invariant"] = inv
     warnings.extend((inv.warnings or []) if inv is not None else [])
     if not opts.simulate:
@@ -919,9 +904,7 @@ def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, An
         return
     from kfcrit.theory.covariance.design import required_arrival
 
-    req = read_plain(RequiredArrivalProbability,
-                     required_arrival(spec.system, level, structure=theory.structure).to_dict(),
-                     "design.required_arrival_probability", timings)
+    req = required_arrival(spec.system, level, structure=theory.structure).record()
     radio: Any = ABSENT
     ch = spec.channel
     if ch is not None and ch.model == "link-budget" and req.status == "interval":
@@ -944,10 +927,9 @@ def _tail_section(spec: SystemSpec, theory: TheorySections, sec: dict[str, Any],
         return
     from kfcrit.theory.covariance.tails import tail_exponent
 
-    sec["tail"] = TailSection(exponent=read_plain(TailExponentRecord, tail_exponent(
+    sec["tail"] = TailSection(exponent=tail_exponent(
         spec.system, spec.channel.arrival_probability,
-        classification=theory.classification, structure=theory.structure).to_dict(),
-        "tail.exponent", timings))
+        classification=theory.classification, structure=theory.structure))
 
 
 @functools.lru_cache(maxsize=1)

@@ -830,9 +830,10 @@ def test_covariance_bounds(case: SystemCase, u: float, below: bool) -> None:
 def check_static_gains(system: System, p: float) -> int:
     """Journal §V: a static gain's mean-square critical value is never below p_up, and the best
     static gain attains p_up (a third characterisation of p_up, MATH §3)."""
+    from kfcrit.io.typed import to_json
     from kfcrit.theory.covariance.bounds import static_gain
 
-    rec = static_gain(system, p)
+    rec = to_json(static_gain(system, p))
     lo, hi = rec["p_up_interval"]
     for name in ("kalman", "best"):
         entry = rec[name]

@@ -12,7 +12,9 @@ import math
 import numpy as np
 import pytest
 
+from kfcrit.io.typed import to_json
 from kfcrit.model.system import System
+from kfcrit.records.covariance import Markers
 from kfcrit.theory.covariance import bounds
 from kfcrit.theory.covariance.riccati import g
 
@@ -103,7 +105,8 @@ def test_bounds_absent_below_thresholds():
 
 
 def test_phase_transition_resolves_both_blow_ups():
-    out = bounds.phase_transition(GENERAL, {"operating": 0.6}, points=60)
+    out = to_json(bounds.phase_transition(
+        GENERAL, Markers(p_low=None, p_c=None, p_up=None, operating=0.6), points=60))
     p = np.array(out["p"])
     assert np.all(np.diff(p) > 0) and p[0] == 0.0 and p[-1] == 1.0
     p_low, p_up = 9 / 25, 57 / 121
@@ -136,7 +139,7 @@ def test_ms_critical_value_scalar_hand_derivation():
 
 
 def test_static_gain_best_equals_p_up_and_kalman_is_not_better():
-    out = bounds.static_gain(GENERAL, 0.6)
+    out = to_json(bounds.static_gain(GENERAL, 0.6))
     best, kalman = out["best"], out["kalman"]
     assert best["equals_p_up"] and abs(best["critical_value"] - 57 / 121) < 1e-9
     assert kalman["critical_value"] >= out["p_up_interval"][0] - 1e-12
@@ -174,7 +177,7 @@ def test_phase_transition_200_state_diagonal_is_right_within_its_budget():
     a = np.linspace(0.5, 1.3, n)
     s = System(np.diag(a).tolist(), np.eye(n).tolist(), 1, 1, max_states=1000)
     clock = CountingClock()
-    pt = bounds.phase_transition(s, time_budget=400, clock=clock)
+    pt = to_json(bounds.phase_transition(s, time_budget=400, clock=clock))
     assert clock.readings > 0
     assert len(pt["p"]) <= 40 and pt["limits"]["points"] == len(pt["p"])
     p_up = 1 - 1 / 1.3**2                 # C = I: every mode is seen, p_up = p_low (Thm 3)
@@ -195,7 +198,7 @@ def test_phase_transition_200_state_diagonal_is_right_within_its_budget():
 def test_phase_transition_time_budget_is_a_warning_not_a_failure():
     a = np.linspace(0.5, 1.3, 40)
     s = System(np.diag(a).tolist(), np.eye(40).tolist(), 1, 1)
-    pt = bounds.phase_transition(s, time_budget=0.0)
+    pt = to_json(bounds.phase_transition(s, time_budget=0.0))
     assert all(v is None for v in pt["trace_upper"])
     assert "time budget" in pt["limits"]["stopped"]
     assert any("time budget" in w for w in pt["warnings"])
@@ -209,7 +212,7 @@ def test_static_gain_section_is_skipped_with_a_reason_beyond_its_size_cap() -> N
     n = bounds.STATIC_GAIN_MAX_STATES + 1
     A = np.diag([1.2] + [0.5] * (n - 1))
     s = System(A, np.ones((1, n)), Q=1, R=1)
-    sg = bounds.static_gain(s, 0.9)
+    sg = to_json(bounds.static_gain(s, 0.9))
     for key in ("kalman", "best"):
         assert sg[key]["available"] is False and "496" in sg[key]["reason"]
 
@@ -244,7 +247,7 @@ def test_best_static_gain_critical_value_within_p_up_bracket(case):
     s = System(case.A, case.C, case.Q, case.R)
     ub = upper_bound(s, tol=1e-9)
     assume(ub.certified and ub.status == "determined" and ub.method == "newton")
-    out = bounds.static_gain(s, min(1.0, ub.interval[1] + 0.05))
+    out = to_json(bounds.static_gain(s, min(1.0, ub.interval[1] + 0.05)))
     best = out["best"]
     assert best["available"]
     lo, hi = ub.interval

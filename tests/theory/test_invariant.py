@@ -12,6 +12,7 @@ import sympy as sp
 
 from kfcrit.errors import InputError
 from kfcrit.io.systemfile import read_system_file
+from kfcrit.io.typed import to_json
 from kfcrit.model.system import System
 from kfcrit.sim.montecarlo import ergodic, simulate
 from kfcrit.theory.covariance.invariant import ScalarMaps, gap_levels, invariant_section, support_points
@@ -106,7 +107,7 @@ def test_simulated_paths_from_p_star_never_enter_a_hole(kar):
 
 
 def test_invariant_section_kar(kar):
-    d = invariant_section(kar)
+    d = to_json(invariant_section(kar))
     assert d["fixed_point"]["expression"] in ("1 + sqrt(2)", "sqrt(2) + 1")
     assert d["first_gap"]["lower"] == 3.0
     assert d["first_gap"]["upper"] == pytest.approx(3 + 2 * 2 ** 0.5, rel=1e-15)
@@ -119,9 +120,9 @@ def test_invariant_section_kar(kar):
 
 
 def test_invariant_section_scalar_only_and_overlapping_images():
-    assert invariant_section(System([[1, 1], [0, 1]], [[1, 0]], 1, 1)) is None
+    assert to_json(invariant_section(System([[1, 1], [0, 1]], [[1, 0]], 1, 1))) is None
     # r/c² = 100 ≥ P*: the images of f_0 and f_1 overlap, so there is no first-level hole
-    d = invariant_section(System([["1/2"]], [[1]], 1, 100))
+    d = to_json(invariant_section(System([["1/2"]], [[1]], 1, 100)))
     assert d["first_gap"] is None and d["gap_levels"] == [] and d["holes"] == []
     with pytest.raises(InputError):
         support_points(System([[2]], [[1]], 1, 1), 99)
@@ -136,7 +137,7 @@ def test_tiny_scalar_a_is_decided_by_a_certified_comparison() -> None:
     from kfcrit.theory.covariance.invariant import gap_is_open
 
     s = System([["1e-200"]], 1, 1, 1)
-    sec = invariant_section(s)
+    sec = to_json(invariant_section(s))
     assert sec is not None and sec["first_gap"] is not None  # hi - lo ≈ 5e-801 > 0, certified
     assert len(gap_levels(s)) == 5
     maps = ScalarMaps.of(s)
@@ -172,7 +173,7 @@ def test_undecidable_first_hole_skips_the_holes_with_a_note(monkeypatch) -> None
     assert gap_levels(s) == []
     sup = support_points(s, 4)
     assert sup.first_gap is None and sup.holes == () and not sup.gap_decided
-    sec = invariant_section(s)
+    sec = to_json(invariant_section(s))
     assert sec["first_gap"] is None and sec["gap_levels"] == [] and sec["holes"] == []
     assert sec["note"] == inv.UNDECIDED_GAP
     assert any("cannot decide" in w for w in sec["warnings"])
@@ -189,7 +190,7 @@ def test_huge_values_warn_in_the_record_and_print_nothing(tmp_path) -> None:  # 
     s = System([["2**64"]], 1, 1, "1e250")
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a NumPy RuntimeWarning fails the test
-        sec = invariant_section(s)
+        sec = to_json(invariant_section(s))
     assert any(OVERFLOW in w for w in sec["warnings"])
     assert np.isfinite(support_points(s, 6).points).all()
     assert sec["first_gap"]["upper"] is None and sec["first_gap"]["upper_expression"]

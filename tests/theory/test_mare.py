@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from kfcrit.model.system import System
+from kfcrit.records.covariance import Markers
 from kfcrit.theory.covariance import bounds
 from kfcrit.theory.covariance.mare import mare_enclosure
 
@@ -92,11 +93,12 @@ def _large_system(n: int = bounds.LARGE_STATES + 1) -> System:
 def test_large_phase_curve_stops_at_its_iteration_budget():
     s = _large_system()
     ticks = iter(range(10**9))  # a counting clock: never reaches the time budget
-    pt = bounds.phase_transition(s, {"p_low": 1 - 1 / 1.3**2, "p_up": None}, points=12,
+    pt = bounds.phase_transition(s, Markers(p_low=1 - 1 / 1.3**2, p_c=None, p_up=None,
+                                            operating=None), points=12,
                                  clock=lambda: float(next(ticks)) * 1e-9, upper=_Upper(0.4, 0.45),
                                  iteration_budget=40)
-    assert "budget of 40 fixed-point iterations" in (pt["limits"]["stopped"] or "")
-    assert any(v is None for v in pt["trace_upper"])
+    assert "budget of 40 fixed-point iterations" in (pt.limits.stopped or "")
+    assert any(v is None for v in pt.trace_upper)
 
 
 class _Upper:

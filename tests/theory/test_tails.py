@@ -8,6 +8,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+from kfcrit.io.typed import to_json
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.tails import tail_exponent
 
@@ -20,7 +21,7 @@ def test_scalar_exponent_by_hand():
     assert t.expression is not None and "log" in t.expression
     assert t.finite_mean and t.finite_variance          # β ≈ 3.106
     assert "claim" in t.label and "Mo & Sinopoli" in t.source
-    json.dumps(t.to_dict(), allow_nan=False)
+    json.dumps(to_json(t), allow_nan=False)
 
 
 def test_exponent_one_at_the_critical_value():

@@ -612,9 +612,11 @@ def test_bounds_sections_survive_a_failing_upper_bound(monkeypatch):
     cb = bounds.covariance_bounds(s, 0.9)
     assert cb["lower"]["exists"]
     pt = bounds.phase_transition(s, time_budget=5)
-    assert len(pt["p"]) == len(pt["trace_upper"])
+    assert len(pt.p) == len(pt.trace_upper)
     sg = bounds.static_gain(s, 0.9)
-    assert sg["best"] == {"available": False}
+    from kfcrit.records.covariance import BestStaticGain
+
+    assert sg.best == BestStaticGain(available=False)
 
 
 SQRT3_SYSTEM = """name: exact sqrt(3)

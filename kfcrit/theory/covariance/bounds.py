@@ -21,12 +21,25 @@ import os
 import time
 import warnings as _warnings
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
+from kfcrit.io.typed import ABSENT, to_json
 from kfcrit.model.system import System
+from kfcrit.records.covariance import (
+    BestStaticGain,
+    CovarianceBounds,
+    CovarianceSummary,
+    Limits,
+    MareEnclosure,
+    Markers,
+    PhaseTransition,
+    StaticGain,
+    StaticGainEstimate,
+)
 from kfcrit.theory.covariance.mare import mare_enclosure
 from kfcrit.theory.covariance.riccati import (
     g,
@@ -66,9 +79,32 @@ def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
     return None if M is None else [[float(v) for v in row] for row in M]
 
 
-def covariance_summary(M: np.ndarray | None) -> dict[str, Any]:
+def native_number(x: Any) -> int | float | None:
+    """``x`` as a native number of the record: an integer stays an integer (its JSON form is
+    ``1``, not ``1.0``), any other real becomes a float, None stays None."""
+    if x is None:
+        return None
+    if isinstance(x, int | np.integer) and not isinstance(x, bool | np.bool_):
+        return int(x)
+    return float(x)
+
+
+def covariance_summary(M: np.ndarray | None) -> CovarianceSummary:
+    """Trace, largest eigenvalue and entries of a covariance bound (``exists`` False for None).
+
+    Parameters
+    ----------
+    M : numpy.ndarray or None
+        The bound (S̄, V̄ or a fixed-gain covariance), None where it does not exist.
+
+    Returns
+    -------
+    CovarianceSummary
+        A value beyond the float64 range is None and ``beyond_float64`` is set; the matrix is
+        None unless every entry is finite.
+    """
     if M is None:
-        return {"exists": False, "trace": None, "max_eig": None, "matrix": None}
+        return CovarianceSummary(exists=False, trace=None, max_eig=None, matrix=None)
     with np.errstate(all="ignore"):
         tr = float(np.trace(M))
         try:
@@ -76,12 +112,21 @@ def covariance_summary(M: np.ndarray | None) -> dict[str, Any]:
         except np.linalg.LinAlgError:
             top = float("nan")
     finite = bool(np.all(np.isfinite(M)))
-    out = {"exists": True, "trace": tr if np.isfinite(tr) else None,
-           "max_eig": top if np.isfinite(top) else None,
-           "matrix": _matrix(M) if finite else None}
-    if not (finite and np.isfinite(tr) and np.isfinite(top)):
-        out["beyond_float64"] = True
-    return out
+    within = finite and bool(np.isfinite(tr)) and bool(np.isfinite(top))
+    return CovarianceSummary(exists=True, trace=tr if np.isfinite(tr) else None,
+                             max_eig=top if np.isfinite(top) else None,
+                             matrix=_matrix(M) if finite else None,
+                             beyond_float64=ABSENT if within else True)
+
+
+def _enclosure(enc: dict[str, Any]) -> MareEnclosure:
+    """The verified enclosure of :func:`kfcrit.theory.covariance.mare.mare_enclosure` as its
+    record class."""
+    return MareEnclosure(relative_width=float(enc["relative_width"]),
+                         trace_interval=[float(v) for v in enc["trace_interval"]],
+                         proves_p_above_p_up=bool(enc["proves_p_above_p_up"]),
+                         margins=[native_number(v) for v in enc["margins"]],
+                         method=str(enc["method"]))
 
 
 def _scaled_norm_ratio(D: np.ndarray, V: np.ndarray) -> float | None:
@@ -371,6 +416,51 @@ def upper_of(system: System, upper: Any = None) -> Any:
 
 
 def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, Any]:
+    r"""S̄ and V̄ at arrival probability p (Sinopoli Thm 4, 6), as plain JSON data.
+
+    The JSON form of :func:`covariance_bounds_record` (the record's ``covariance_bounds``):
+
+    .. math::
+
+        \bar S \preceq \lim_t E[P_t] \preceq \bar V
+
+    Parameters
+    ----------
+    system : System
+        The system.
+    p : float
+        Arrival probability.
+    upper : optional
+        The p_up bracket if already computed (see :func:`covariance_bounds_record`).
+
+    Returns
+    -------
+    dict
+        ``{"p", "lower": {exists, trace, max_eig, matrix}, "upper": {exists, trace, max_eig,
+        matrix, residual, method, iterations, ...}, "ordered", "warnings"}``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        ``p`` not convertible to float.
+
+    References
+    ----------
+    Sinopoli et al. (2004), Theorems 4 and 6; docs/theory.md §3.
+
+    Examples
+    --------
+    >>> from kfcrit import System, covariance_bounds
+    >>> b = covariance_bounds(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.5)
+    >>> round(b["lower"]["trace"], 6), round(b["upper"]["trace"], 6), b["ordered"]
+    (4.571429, 7.733944, True)
+    >>> covariance_bounds(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.3)["upper"]["exists"]
+    False
+    """
+    return to_json(covariance_bounds_record(system, p, upper))
+
+
+def covariance_bounds_record(system: System, p: float, upper: Any = None) -> CovarianceBounds:
     r"""S̄ and V̄ at arrival probability p (Sinopoli Thm 4, 6).
 
     For p > p_up the limit of the mean error covariance is bracketed:
@@ -394,11 +484,11 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
 
     Returns
     -------
-    dict
-        ``{"p", "lower": {exists, trace, max_eig, matrix}, "upper": {exists, trace, max_eig,
-        matrix, residual, method, iterations}, "ordered", "warnings"}``; ``ordered`` is True/False
-        when both bounds exist (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9 ‖V̄‖), None otherwise.
-        ``residual`` is the relative MARE residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
+    CovarianceBounds
+        ``lower`` (S̄) and ``upper`` (V̄ with ``residual``, ``method``, ``iterations`` and, when
+        reached, its verified enclosure), ``ordered`` (S̄ ⪯ V̄ checked: λ_min(V̄ − S̄) ≥ −1e-9
+        ‖V̄‖; None unless both exist) and ``warnings``. ``residual`` is the relative MARE
+        residual ‖g_p(V̄) − V̄‖_F / ‖V̄‖_F.
 
     Raises
     ------
@@ -413,12 +503,11 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
 
     Examples
     --------
-    >>> from kfcrit import System, covariance_bounds
-    >>> b = covariance_bounds(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.5)
-    >>> round(b["lower"]["trace"], 6), round(b["upper"]["trace"], 6), b["ordered"]
-    (4.571429, 7.733944, True)
-    >>> covariance_bounds(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.3)["upper"]["exists"]
-    False
+    >>> from kfcrit import System
+    >>> from kfcrit.theory.covariance.bounds import covariance_bounds_record
+    >>> b = covariance_bounds_record(System(A=[[1.25]], C=[[1]], Q=1, R=1), 0.5)
+    >>> round(b.upper.trace, 6), b.upper.certified
+    (7.733944, True)
     """
     p = float(p)
     S = lower_covariance(system.a, system.q, p)
@@ -428,19 +517,20 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
     else:
         lo_up, gains = float(upper["interval"][0]), []
     if p <= lo_up:
-        out_up = {**covariance_summary(None), "residual": None, "method": "none: p <= p_up (Thm 3)",
-                  "iterations": 0}
+        out_up = replace(covariance_summary(None), residual=None,
+                         method="none: p <= p_up (Thm 3)", iterations=0)
         V = None
     else:
         res = upper_covariance(system, p, gains)
         V = res["V"]
-        out_up = {**covariance_summary(V), "residual": res["residual"], "method": res["method"],
-                  "iterations": res["iterations"]}
+        out_up = replace(covariance_summary(V), residual=native_number(res["residual"]),
+                         method=res["method"], iterations=int(res["iterations"]))
         if V is None:
-            out_up["not_reached"] = True
+            out_up = replace(out_up, not_reached=True)
         else:
             enc = mare_enclosure(system.a, system.c, system.q, system.r, p, V)
-            out_up["certified"], out_up["certificate"] = enc is not None, enc
+            out_up = replace(out_up, certified=enc is not None,
+                             certificate=None if enc is None else _enclosure(enc))
     ordered = None
     warnings: list[str] = []
     if S is not None and V is not None:
@@ -451,25 +541,24 @@ def covariance_bounds(system: System, p: float, upper: Any = None) -> dict[str, 
                                >= -1e-9 * np.linalg.norm(V / scale))
     low = covariance_summary(S)
     for name, summ in (("S̄ (lower bound)", low), ("V̄ (upper bound)", out_up)):
-        if summ.get("beyond_float64"):
+        if summ.beyond_float64:
             warnings.append(f"covariance bound {name} at p = {p:.6g}: its trace or largest "
                             "eigenvalue (or an entry) is beyond the float64 range (about "
                             "1.8e308) and is given as null")
-    if V is not None and out_up.get("residual") is None:
+    if V is not None and out_up.residual is None:
         warnings.append(f"covariance bound V̄ at p = {p:.6g}: the MARE residual could not be "
                         "evaluated in float64 (entries of V̄ or g_p(V̄) beyond its range); "
                         "V̄ is unverified and its residual is given as null")
-    if out_up.get("not_reached"):
+    if out_up.not_reached:
         warnings.append(f"covariance bound V̄ at p = {p:.6g} not computed: p is above the "
-                        f"lower end {lo_up:.12g} of the p_up bracket, but {out_up['method']} "
-                        f"did not reach the MARE fixed point ({out_up['iterations']} "
+                        f"lower end {lo_up:.12g} of the p_up bracket, but {out_up.method} "
+                        f"did not reach the MARE fixed point ({out_up.iterations} "
                         "iterations; overflow, a blow-up or the iteration budget); V̄ is "
                         "given as null")
     if S is None and V is None and not np.all(np.isfinite(system.a)):
         warnings.append("covariance bounds not computed: the system matrices are not finite "
                         "in float64")
-    return {"p": p, "lower": low, "upper": out_up, "ordered": ordered, "warnings": warnings}
-
+    return CovarianceBounds(p=p, lower=low, upper=out_up, ordered=ordered, warnings=warnings)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -520,10 +609,10 @@ def phase_grid(p_low: float, p_up: float | None, points: int = 120) -> np.ndarra
     return grid
 
 
-def phase_transition(system: System, markers: dict[str, float | None] | None = None,
+def phase_transition(system: System, markers: Markers | None = None,
                      points: int = 120, time_budget: float | None = None,
                      clock: Callable[[], float] = time.perf_counter,
-                     upper: Any = None, iteration_budget: int | None = None) -> dict[str, Any]:
+                     upper: Any = None, iteration_budget: int | None = None) -> PhaseTransition:
     """tr S̄(p) and tr V̄(p) on a grid resolving the blow-ups at p_low and p_up.
 
     ``iteration_budget`` bounds the fixed-point iterations of the whole V̄ curve (n above
@@ -534,8 +623,8 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     ``clock`` measures the time budget (injectable, so that tests count work instead of
     reading the wall clock).
 
-    ``markers`` (e.g. p_low, p_c, p_up, operating point) are echoed; p_low and p_up are computed
-    when absent. Entries are None where the bound does not exist (or V̄ was not reached).
+    ``markers`` (p_low, p_c, p_up, operating point) are echoed; p_low and p_up are computed
+    where None. Entries are None where the bound does not exist (or V̄ was not reached).
 
     Cost control (large n): the grid has :func:`phase_points` points; V̄ is computed from p = 1
     downwards, by Newton warm-started with the previous gain for n ≤
@@ -546,12 +635,11 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
     in ``warnings`` and ``limits``.
     """
     budget = PHASE_TIME_BUDGET if time_budget is None else float(time_budget)
-    markers = dict(markers or {})
-    p_low = markers.get("p_low")
-    p_low = plow.p_low_of(system.a) if p_low is None else float(p_low)
+    if markers is None:
+        markers = Markers(p_low=None, p_c=None, p_up=None, operating=None)
+    p_low = plow.p_low_of(system.a) if markers.p_low is None else float(markers.p_low)
     ub = upper_of(system, upper)
-    p_up = markers.get("p_up")
-    p_up = (ub.value if p_up is None else float(p_up))
+    p_up = native_number(ub.value) if markers.p_up is None else float(markers.p_up)
     lo_up = ub.interval[0] if ub.value is not None else 1.0
     n_points = phase_points(system.n, points)
     grid = phase_grid(p_low, p_up, n_points)
@@ -622,12 +710,12 @@ def phase_transition(system: System, markers: dict[str, float | None] | None = N
         warnings.append("V̄ curve not computed: p_up has no value (its bracket "
                         f"[{ub.interval[0]:.12g}, {ub.interval[1]:.12g}] was not narrowed), so "
                         "where V̄ exists is not known")
-    return {"p": [float(v) for v in grid], "trace_lower": trace_lower,
-            "trace_upper": trace_upper, "markers": {**markers, "p_low": p_low, "p_up": p_up},
-            "warnings": warnings,
-            "limits": {"points": int(len(grid)), "requested_points": int(points),
-                       "method": "newton-kleinman" if newton else "warm-started fixed point",
-                       "time_budget_seconds": budget, "stopped": stopped}}
+    return PhaseTransition(
+        p=[float(v) for v in grid], trace_lower=trace_lower, trace_upper=trace_upper,
+        markers=replace(markers, p_low=p_low, p_up=p_up), warnings=warnings,
+        limits=Limits(points=int(len(grid)), requested_points=int(points),
+                      method="newton-kleinman" if newton else "warm-started fixed point",
+                      time_budget_seconds=budget, stopped=stopped))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -682,24 +770,38 @@ STATIC_GAIN_MAX_STATES = 30
 """Largest n for the fixed-gain section (its vech eigenproblems cost O(n⁶); n = 60 took 46 s)."""
 
 
-def static_gain(system: System, p: float, upper: Any = None) -> dict[str, Any]:
+def static_gain(system: System, p: float, upper: Any = None) -> StaticGain:
     """Steady Kalman gain and best static gain: mean-square critical values and covariances.
 
     * steady Kalman gain K_∞ = −A P C'(C P C' + R)^{-1}, P the stabilising DARE solution (the
       filter with no losses); its critical value p_{K_∞} ≥ p_up, covariance Σ_∞(p) if p > p_{K_∞}.
     * best static gain: the gain K* of the p_up certificate (:mod:`kfcrit.theory.upper.bracket`); its
       critical value equals p_up to within the certificate's width — shown by ``difference``.
+
+    Parameters
+    ----------
+    system : System
+        The system.
+    p : float
+        Arrival probability at which the fixed-gain covariances are computed.
+    upper : optional
+        The p_up bracket if already computed (its certificate gain is the best static gain).
+
+    Returns
+    -------
+    StaticGain
+        Both gains (``available`` False where there is none), with p_up and its bracket;
+        ``skipped`` says why nothing was computed above :data:`STATIC_GAIN_MAX_STATES` states.
     """
     A, C, Q, R = system.a, system.c, system.q, system.r
     p = float(p)
-    out: dict[str, Any] = {"p": p}
     if system.n > STATIC_GAIN_MAX_STATES:
         reason = (f"not computed for n = {system.n} > {STATIC_GAIN_MAX_STATES} states: the "
                   f"mean-square critical value of a fixed gain needs an eigenproblem of size "
                   f"n(n+1)/2 = {system.n * (system.n + 1) // 2} (O(n⁶) time, O(n⁴) memory)")
-        na = {"available": False, "reason": reason}
-        return {**out, "kalman": na, "best": dict(na), "p_up": None, "p_up_interval": None,
-                "skipped": reason}
+        return StaticGain(p=p, kalman=StaticGainEstimate(available=False, reason=reason),
+                          best=BestStaticGain(available=False, reason=reason), p_up=None,
+                          p_up_interval=None, skipped=reason)
     try:
         # scipy's balancing warns (and may fail) on extreme scales such as Q = 1e-250·I: the
         # result is checked for finiteness instead of letting a RuntimeWarning reach stderr
@@ -710,28 +812,29 @@ def static_gain(system: System, p: float, upper: Any = None) -> dict[str, Any]:
     except (np.linalg.LinAlgError, ValueError):
         K_kf = None
     ub = upper_of(system, upper)
-    rows = [("kalman", K_kf)]
-    rows.append(("best", ub.extras.get("K")))
-    for name, K in rows:
-        if K is None:
-            out[name] = {"available": False}
-            continue
-        crit = ms_critical_value(A, C, K)
-        Sigma = stabilising_solution(A, C, Q, R, K, p)
-        entry = {"available": True, **crit, **{f"covariance_{k}": v for k, v in
-                                              covariance_summary(Sigma).items()}}
-        if system.n <= 6:
-            entry["gain"] = _matrix(K)
-        out[name] = entry
-    best = out["best"]
-    out["p_up"] = ub.value
-    out["p_up_interval"] = list(ub.interval)
-    if best.get("available") and best.get("critical_value") is not None and ub.value is not None:
-        best["difference"] = float(best["critical_value"] - ub.value)
-        best["equals_p_up"] = bool(ub.interval[0] - 1e-9 <= best["critical_value"]
-                                   <= ub.interval[1] + 1e-9)
-    return out
+    kalman = StaticGainEstimate(available=False) if K_kf is None else \
+        _fixed_gain(StaticGainEstimate, system, K_kf, p)
+    K_best = ub.extras.get("K")
+    best = BestStaticGain(available=False) if K_best is None else \
+        _fixed_gain(BestStaticGain, system, K_best, p)
+    if best.available and best.critical_value is not None and ub.value is not None:
+        best = replace(best, difference=float(best.critical_value - ub.value),
+                       equals_p_up=bool(ub.interval[0] - 1e-9 <= best.critical_value
+                                        <= ub.interval[1] + 1e-9))
+    return StaticGain(p=p, kalman=kalman, best=best, p_up=native_number(ub.value),
+                      p_up_interval=[native_number(v) for v in ub.interval])
 
 
-_summary = covariance_summary
-"""Alias kept until :mod:`kfcrit.analysis.record` calls :func:`covariance_summary`."""
+def _fixed_gain(cls: type, system: System, K: np.ndarray, p: float) -> Any:
+    """The fixed gain ``K`` as ``cls`` (:class:`StaticGainEstimate` or
+    :class:`BestStaticGain`): its mean-square critical value (:func:`ms_critical_value`) and
+    its steady covariance at ``p`` (:func:`stabilising_solution`); the gain itself for n ≤ 6."""
+    A, C, Q, R = system.a, system.c, system.q, system.r
+    crit = ms_critical_value(A, C, K)
+    cov = covariance_summary(stabilising_solution(A, C, Q, R, K, p))
+    return cls(available=True, critical_value=native_number(crit["critical_value"]),
+               stable_up_to_one=bool(crit["stable_up_to_one"]),
+               crossings=[float(c) for c in crit["crossings"]],
+               covariance_exists=cov.exists, covariance_trace=cov.trace,
+               covariance_max_eig=cov.max_eig, covariance_matrix=cov.matrix,
+               gain=_matrix(K) if system.n <= 6 else ABSENT)

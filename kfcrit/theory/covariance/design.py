@@ -26,7 +26,13 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from kfcrit.io.typed import to_json
 from kfcrit.model.system import System
+from kfcrit.records.covariance import (
+    RequiredArrivalCheck,
+    RequiredArrivalEnd,
+    RequiredArrivalProbability,
+)
 from kfcrit.theory.covariance import bounds
 from kfcrit.theory.covariance.riccati import optimal_gain, solve_generalized_stein, symmetrize
 from kfcrit.theory.critical import plow
@@ -41,6 +47,11 @@ CERTIFY_TRIES = 6
 """Steps (each doubling the distance) taken outwards when a ball check fails at an end."""
 
 
+MEANING = ("p <= p_S: lim E[tr P] > L (proven when p_S.certified); "
+           "p >= p_V: lim E[tr P] <= L (proven when p_V.certified)")
+"""What the two ends of the required-probability interval state."""
+
+
 @dataclass(frozen=True)
 class DesignEnd:
     """One end of the required-probability interval."""
@@ -48,11 +59,13 @@ class DesignEnd:
     value: float | None
     certified: bool
     how: str
-    check: dict[str, Any] | None = None
+    check: RequiredArrivalCheck | None = None
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "certified": self.certified, "how": self.how,
-                "check": self.check}
+    def record(self) -> RequiredArrivalEnd:
+        """The end as its record class (``design.required_arrival_probability.p_S``/``p_V``)."""
+        return RequiredArrivalEnd(value=bounds.native_number(self.value),
+                                  certified=bool(self.certified), how=self.how,
+                                  check=self.check)
 
 
 @dataclass(frozen=True)
@@ -73,14 +86,30 @@ class RequiredArrival:
     reason: str
     seconds: float
 
+    def record(self) -> RequiredArrivalProbability:
+        """The interval as its record class (``design.required_arrival_probability``; the
+        wall-clock ``seconds`` are not part of it)."""
+        return RequiredArrivalProbability(
+            status=self.status, level=float(self.level),
+            interval=None if self.interval is None else [float(v) for v in self.interval],
+            p_S=self.p_s.record(), p_V=self.p_v.record(),
+            floor_trace=bounds.native_number(self.floor_trace),
+            floor_certified=bool(self.floor_certified), reason=self.reason, meaning=MEANING)
+
     def to_dict(self) -> dict[str, Any]:
-        return {"status": self.status, "level": self.level,
-                "interval": None if self.interval is None else list(self.interval),
-                "p_S": self.p_s.to_dict(), "p_V": self.p_v.to_dict(),
-                "floor_trace": self.floor_trace, "floor_certified": self.floor_certified,
-                "reason": self.reason, "seconds": self.seconds,
-                "meaning": "p <= p_S: lim E[tr P] > L (proven when p_S.certified); "
-                           "p >= p_V: lim E[tr P] <= L (proven when p_V.certified)"}
+        """Plain JSON data: the record's form and the wall-clock ``seconds``."""
+        return {**to_json(self.record()), "seconds": self.seconds}
+
+
+def _check_record(check: certify.CheckResult) -> RequiredArrivalCheck:
+    """A passed ball check of an end as its record class (``p_S.check``/``p_V.check``)."""
+    stated = check.to_dict()   # the meaning of the margin and the method, worded by the check
+    return RequiredArrivalCheck(
+        ok=bool(check.ok), kind=check.kind, p=float(check.p),
+        min_eig_x_lower=None if check.min_eig_x is None else float(check.min_eig_x),
+        margin_lower=None if check.margin is None else float(check.margin),
+        reason=check.reason, margin_meaning=stated["margin_meaning"],
+        verified_by=stated["verified_by"])
 
 
 def _exact_level(level: Any) -> Fraction:
@@ -152,7 +181,7 @@ def _certify_p_s(system: System, p: float, level: Fraction, p_low_down: float) -
         if check.ok:
             return DesignEnd(q, True, "tr S_bar(p_S) >= L proven in ball arithmetic "
                                       "(sub-solution of the Lyapunov equation)",
-                             check.to_dict())
+                             _check_record(check))
         q = max(q - step, 0.0)
         step *= 2
         if q <= p_low_down:
@@ -188,7 +217,7 @@ def _certify_p_v(system: System, p: float, level: Fraction,
                 check = certify.verify_mare_above(system, Fraction(q), symmetrize(Ve), K, level)
                 if check.ok:
                     return DesignEnd(q, True, "tr V_bar(p_V) <= L proven in ball arithmetic "
-                                              "(super-solution V >= phi(K, V))", check.to_dict())
+                                              "(super-solution V >= phi(K, V))", _check_record(check))
         q = min(q + step, 1.0)
         step *= 2
     return DesignEnd(p, False, "bisection on tr V_bar (numerical; the ball check did not pass)")

@@ -26,8 +26,18 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import ExpressionError, InputError
+from kfcrit.io.typed import ABSENT
 from kfcrit.model.exprparse import compare
 from kfcrit.model.system import System
+from kfcrit.records.covariance import (
+    Invariant,
+    InvariantGap,
+    InvariantGapLevel,
+    InvariantMaps,
+    SelfSimilarity,
+    SupportPointsRecord,
+    ValueExpression,
+)
 
 MAX_DEPTH = 20
 """Largest word length for the numeric support points (2^(depth+1) − 1 compositions)."""
@@ -204,16 +214,23 @@ def gap_levels(system: System, levels: int = GAP_LEVELS) -> list[dict[str, Any]]
     return out
 
 
-def invariant_section(system: System) -> dict[str, Any] | None:
+def invariant_section(system: System) -> Invariant | None:
     """The ``invariant`` record section for scalar systems; None otherwise.
 
-    Keys: ``fixed_point`` {value, expression}, ``maps`` {loss, arrival}, ``arrival_limit``
-    {value, expression}, ``first_gap`` {lower, upper, lower_expression, upper_expression,
-    width} | None, ``gap_levels`` [{n, lower, upper, lower_expression, upper_expression}],
-    ``self_similarity`` {scale, offset, statement}, ``support_points`` {depth, count, min,
-    largest_gaps}, ``holes``, ``note``, and ``warnings`` (only when there are some: values
-    beyond the float64 range, an undecidable first hole). Numbers beyond the float64 range are
-    None (their expressions stay exact); nothing here prints a NumPy warning.
+    Parameters
+    ----------
+    system : System
+        The system (the section exists for n = m = 1 with C ≠ 0).
+
+    Returns
+    -------
+    Invariant or None
+        ``fixed_point`` P*, the two ``maps``, ``arrival_limit`` f_1(∞), ``first_gap`` G_0
+        (None without a first-level hole), ``gap_levels`` G_n, ``self_similarity``,
+        ``support_points``, ``holes``, ``note``, and ``warnings`` (only when there are some:
+        values beyond the float64 range, an undecidable first hole). Numbers beyond the
+        float64 range are None (their expressions stay exact); nothing here prints a NumPy
+        warning.
     """
     if system.n != 1 or system.m != 1 or system.C[0, 0] == 0:
         return None
@@ -226,14 +243,16 @@ def invariant_section(system: System) -> dict[str, Any] | None:
     gap = None
     if sup.first_gap is not None:
         lo, hi = sup.first_gap
-        gap = {"lower": _finite(lo), "upper": _finite(hi), "lower_expression": sp.sstr(lo),
-               "upper_expression": sp.sstr(hi), "width": _finite(hi - lo)}
+        gap = InvariantGap(lower=_finite(lo), upper=_finite(hi), lower_expression=sp.sstr(lo),
+                           upper_expression=sp.sstr(hi), width=_finite(hi - lo))
     window = _finite(maps.f0(maps.f0(limit)))  # the pieces S_0, S_1, S_2
-    levels = [{k: v for k, v in g.items() if not k.endswith("_exact")}
+    levels = [InvariantGapLevel(n=g["n"], lower=g["lower"], upper=g["upper"],
+                                lower_expression=g["lower_expression"],
+                                upper_expression=g["upper_expression"])
               for g in gap_levels(system)] if sup.gap_decided else []
     exact_values = (pstar, limit, *(sup.first_gap or ()))
     overflow = sup.overflow or window is None or any(_finite(v) is None for v in exact_values) \
-        or any(g["lower"] is None or g["upper"] is None for g in levels)
+        or any(g.lower is None or g.upper is None for g in levels)
     warnings = [f"invariant support: {OVERFLOW}"] if overflow else []
     if not sup.gap_decided:
         warnings.append(f"invariant support: {UNDECIDED_GAP}")
@@ -244,23 +263,23 @@ def invariant_section(system: System) -> dict[str, Any] | None:
         note = UNDECIDED_GAP
     else:
         note = "the images of f0 and f1 overlap (r/c^2 >= P*): no first-level hole"
-    out = {
-        "fixed_point": {"value": _finite(pstar), "expression": sp.sstr(pstar)},
-        "maps": {"loss": f"f0(X) = {sp.sstr(a2 * X + q)}",
-                 "arrival": f"f1(X) = {sp.sstr(a2 * r * X / (c2 * X + r) + q)}"},
-        "arrival_limit": {"value": _finite(limit), "expression": sp.sstr(limit)},
-        "first_gap": gap,
-        "gap_levels": levels,
-        "self_similarity": {"scale": _finite(a2), "offset": _finite(q),
-                            "statement": f"S_n = {sp.sstr(a2)}*S_(n-1) + {sp.sstr(q)}",
-                            "pieces": "S_n = supp(mu) within [f0^n(P*), f0^n(f1(inf))]"},
-        "support_points": {"depth": sup.depth, "count": int(sup.points.size),
-                           "min": float(sup.points[0]) if sup.points.size else None,
-                           "window": [_finite(pstar), window],
-                           "largest_gaps": [list(g) for g in sup.largest_gaps(upto=window)]},
-        "holes": [list(h) for h in sup.holes],
-        "note": note,
-    }
-    if warnings:  # also copied into the record's warnings by the analysis
-        out["warnings"] = warnings
-    return out
+    return Invariant(
+        fixed_point=ValueExpression(value=_finite(pstar), expression=sp.sstr(pstar)),
+        maps=InvariantMaps(loss=f"f0(X) = {sp.sstr(a2 * X + q)}",
+                           arrival=f"f1(X) = {sp.sstr(a2 * r * X / (c2 * X + r) + q)}"),
+        arrival_limit=ValueExpression(value=_finite(limit), expression=sp.sstr(limit)),
+        first_gap=gap,
+        gap_levels=levels,
+        self_similarity=SelfSimilarity(scale=_finite(a2), offset=_finite(q),
+                                       statement=f"S_n = {sp.sstr(a2)}*S_(n-1) + {sp.sstr(q)}",
+                                       pieces="S_n = supp(mu) within [f0^n(P*), f0^n(f1(inf))]"),
+        support_points=SupportPointsRecord(
+            depth=int(sup.depth), count=int(sup.points.size),
+            min=float(sup.points[0]) if sup.points.size else None,
+            window=[_finite(pstar), window],
+            largest_gaps=[[float(v) for v in g] for g in sup.largest_gaps(upto=window)]),
+        holes=[[float(v) for v in h] for h in sup.holes],
+        note=note,
+        # also copied into the record's warnings by the analysis
+        warnings=warnings if warnings else ABSENT,
+    )

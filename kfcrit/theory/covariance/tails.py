@@ -14,42 +14,33 @@ finite iff β > 2 ((1 − p)|λ_1|⁴ < 1). kfcrit reports β as a claim with it
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.records.covariance import TailExponentRecord
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.links.markov import Rho2, exact_rate, spectral_radius2
 
 SOURCE = ("Mo & Sinopoli, 'Kalman filtering with intermittent observations: tail distribution "
           "and critical value', IEEE Transactions on Automatic Control 57(3), 2012")
+LABEL = "claim (literature, not proven here)"
+FORMULA = "beta = log(1 - p) / (-2 log|lambda_1|)"
 
 
-@dataclass(frozen=True)
-class TailExponent:
-    """β with its exact expression, or why it does not apply."""
-
-    value: float | None
-    expression: str | None
-    applicable: bool
-    finite_mean: bool | None
-    finite_variance: bool | None
-    statement: str
-    label: str = "claim (literature, not proven here)"
-    source: str = SOURCE
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "expression": self.expression,
-                "applicable": self.applicable, "finite_mean": self.finite_mean,
-                "finite_variance": self.finite_variance, "statement": self.statement,
-                "label": self.label, "source": self.source,
-                "formula": "beta = log(1 - p) / (-2 log|lambda_1|)"}
+def _exponent(value: float | None, expression: str | None, applicable: bool,
+              finite_mean: bool | None, finite_variance: bool | None,
+              statement: str) -> TailExponentRecord:
+    """β with its exact expression, or why it does not apply, labelled as a claim with its
+    source."""
+    return TailExponentRecord(value=value, expression=expression, applicable=applicable,
+                              finite_mean=finite_mean, finite_variance=finite_variance,
+                              statement=statement, label=LABEL, source=SOURCE, formula=FORMULA)
 
 
 def tail_exponent(system: System, p: Any, classification: str | None = None,
-                  structure: Any | None = None) -> TailExponent:
+                  structure: Any | None = None) -> TailExponentRecord:
     """β = log(1 − p)/(−2 log|λ_1|) for a non-degenerate system at arrival probability p.
 
     Parameters
@@ -65,21 +56,21 @@ def tail_exponent(system: System, p: Any, classification: str | None = None,
     """
     pe = exact_rate(p, "arrival_probability")
     if classification is not None and classification != "non-degenerate":
-        return TailExponent(None, None, False, None, None,
-                            f"the tail exponent formula is stated for non-degenerate systems; "
-                            f"this system is {classification}")
+        return _exponent(None, None, False, None, None,
+                         f"the tail exponent formula is stated for non-degenerate systems; "
+                         f"this system is {classification}")
     rho = spectral_radius2(system, structure)
     at_most_one = (rho.hi <= 1 if rho.exact is None
                    else sp.sympify(rho.exact - 1).is_nonpositive)
     if at_most_one:
-        return TailExponent(None, "oo", True, True, True,
-                            "rho(A) <= 1: no power-law tail from unstable modes")
+        return _exponent(None, "oo", True, True, True,
+                         "rho(A) <= 1: no power-law tail from unstable modes")
     if rho.exact is None and rho.lo <= 1 or at_most_one is None:
-        return TailExponent(None, None, False, None, None,
-                            "rho(A) is not separated from 1 by its enclosure: the tail exponent "
-                            "log(1 - p) / (-2 log rho(A)) is not determined")
+        return _exponent(None, None, False, None, None,
+                         "rho(A) is not separated from 1 by its enclosure: the tail exponent "
+                         "log(1 - p) / (-2 log rho(A)) is not determined")
     if pe == 1:
-        return TailExponent(None, "oo", True, True, True, "p = 1: no losses, no tail")
+        return _exponent(None, "oo", True, True, True, "p = 1: no losses, no tail")
     if rho.exact is not None:
         expr = sp.log(1 / (1 - pe)) / sp.log(rho.exact)
         value = float(sp.N(expr, 30))
@@ -89,10 +80,10 @@ def tail_exponent(system: System, p: Any, classification: str | None = None,
         value = float(sp.N(sp.log(1 / (1 - pe)) / sp.log(sp.Rational(mid.numerator,
                                                                         mid.denominator)), 30))
         text = None
-    return TailExponent(value, text, True, _beta_exceeds(pe, rho, 1, value),
-                        _beta_exceeds(pe, rho, 2, value),
-                        f"P(tr P > M) ~ M^(-{value:.6g}) for large M (non-degenerate system, "
-                        "i.i.d. losses); E[tr P] finite iff beta > 1, variance iff beta > 2")
+    return _exponent(value, text, True, _beta_exceeds(pe, rho, 1, value),
+                     _beta_exceeds(pe, rho, 2, value),
+                     f"P(tr P > M) ~ M^(-{value:.6g}) for large M (non-degenerate system, "
+                     "i.i.d. losses); E[tr P] finite iff beta > 1, variance iff beta > 2")
 
 
 def _beta_exceeds(p: sp.Expr, rho: Rho2, k: int, value: float) -> bool:

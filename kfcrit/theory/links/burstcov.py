@@ -40,7 +40,9 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from kfcrit.io.typed import to_json
 from kfcrit.model.system import System
+from kfcrit.records.covariance import MarkovJumpLower, MarkovJumpRecord, MarkovJumpUpper
 from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
 
 RICCATI_MAX_ITERATIONS = 20000
@@ -74,20 +76,26 @@ class MarkovJumpBounds:
     """Whether the lower bound exists when that is decided beyond its float trace (exactly:
     (1 − r)ρ(A)² < 1 with a float that rounds onto 1); None: it exists iff it has a trace."""
 
+    def record(self) -> MarkovJumpRecord:
+        """The bounds as their record class (``covariance_bounds.markov_jump``)."""
+        return MarkovJumpRecord(
+            failure_rate=self.failure_rate, recovery_rate=self.recovery_rate,
+            lower=MarkovJumpLower(
+                trace=self.lower_trace,
+                exists=(self.lower_trace is not None if self.lower_exists is None
+                        else bool(self.lower_exists)),
+                basis=self.lower_reason),
+            upper=MarkovJumpUpper(
+                trace=self.upper_trace, exists=self.upper_trace is not None,
+                basis=self.upper_reason, spectral_radius=self.spectral_radius,
+                gains=None if self.gains is None else [list(g) for g in self.gains]),
+            method="Markov-jump bounds for the Gilbert-Elliott chain (theory §10): "
+                   "upper = fixed point of the fixed-gain second-moment recursion, "
+                   "lower = losses-only recursion with the reception floor A u(Q) A' + Q")
+
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON data (``covariance_bounds.markov_jump`` of the record)."""
-        return {"failure_rate": self.failure_rate, "recovery_rate": self.recovery_rate,
-                "lower": {"trace": self.lower_trace,
-                          "exists": (self.lower_trace is not None if self.lower_exists is None
-                                     else self.lower_exists),
-                          "basis": self.lower_reason},
-                "upper": {"trace": self.upper_trace, "exists": self.upper_trace is not None,
-                          "basis": self.upper_reason,
-                          "spectral_radius": self.spectral_radius,
-                          "gains": None if self.gains is None else [list(g) for g in self.gains]},
-                "method": "Markov-jump bounds for the Gilbert-Elliott chain (theory §10): "
-                          "upper = fixed point of the fixed-gain second-moment recursion, "
-                          "lower = losses-only recursion with the reception floor A u(Q) A' + Q"}
+        return to_json(self.record())
 
 
 def _stationary(f: float, r: float) -> np.ndarray:
