@@ -39,7 +39,8 @@ Shadowing X (``path_loss.shadowing``):
   the arrivals are the two-state Markov (Gilbert–Elliott) approximation of
   :mod:`kfcrit.link.shadowing`, with stationary arrival probability p̄ — a bursty channel.
 
-Design outputs: :func:`design_section`.
+Design outputs: :func:`kfcrit.link.budgetsection.link_budget_record` (the ``link_budget`` section
+of the record) and its JSON form :func:`design_section`.
 """
 from __future__ import annotations
 
