@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
-from kfcrit.analysis.links import bursty_channel, design_check, link_curves
+from kfcrit.analysis.links import bursty_channel, link_curves
 from kfcrit.analysis.measured import measured_channel
 from kfcrit.analysis.mesh.build import mesh_sections
 from kfcrit.analysis.network import network_lower_bound, network_sections, network_simulation
@@ -64,8 +64,8 @@ from kfcrit.records.covariance import (
     StaticGainEstimate,
     TailSection,
 )
-from kfcrit.records.link import LinkBudgetRecord, LinkDesignRecord
-from kfcrit.records.read import TIMING_KEYS, read_fields, read_plain
+from kfcrit.records.link import LinkBudgetRecord
+from kfcrit.records.read import TIMING_KEYS, read_plain
 from kfcrit.records.simulation import Simulation
 from kfcrit.records.system import (
     AnalysisOptionsRecord,
@@ -867,7 +867,7 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
     if ch is None or ch.model not in ("link-budget", "gilbert-elliott"):
         return
     from kfcrit.analysis.bursty import bursty_link_section
-    from kfcrit.link import linkbudget
+    from kfcrit.link.budgetsection import link_budget_record
 
     if ch.model == "gilbert-elliott":
         sec["link_budget"] = bursty_link_section(spec, opts, theory, ch, timings)
@@ -877,20 +877,19 @@ def _link_sections(spec: SystemSpec, opts: AnalysisOptions, sec: dict[str, Any],
     bracket = (None, None) if section_value(sec, "critical_value") is not None or \
         classification_of(sec) in ("stable", "not-detectable") else \
         (low if low is not None else 0.0, section_value(sec, "upper_bound"))
-    design = sec.get("design")
-    plain = linkbudget.design_section(
+    lb = link_budget_record(
         ch, critical_value=section_value(sec, "critical_value"),
         robust_value=section_value(sec, "robust_critical_value"),
         bracket=bracket, upper_bound=section_value(sec, "upper_bound"),
-        accuracy=to_json(design) if design is not None else None)
-    typed: dict[str, Any] = {"design_check": plain.get("design_check") or design_check(plain)}
+        accuracy=sec.get("design"))
+    typed: dict[str, Any] = {}
     if opts.details:
-        typed["curves"] = link_curves(ch, sec, spec, plain.get("required_sinr_db"))
+        typed["curves"] = link_curves(ch, sec, spec, lb.required_sinr_db)
     ge = bursty_channel(ch)
     if ge is not None:
         typed["bursty"] = bursty_link_section(spec, opts, theory, ge, timings,
                                               "link_budget.bursty")
-    lb = read_fields(LinkBudgetRecord, plain, "link_budget", timings, **typed)
+    lb = replace(lb, **typed)
     sec["link_budget"] = lb
     warnings.extend(lb.warnings or [])
 
@@ -912,8 +911,7 @@ def _design_sections(spec: SystemSpec, theory: TheorySections, sec: dict[str, An
 
         p_s, p_v = req.interval
         try:
-            radio = read_plain(LinkDesignRecord, link_design(ch, p_s, p_v).to_dict(),
-                               "design.radio", timings)
+            radio = link_design(ch, p_s, p_v).record()
         except (ValueError, ArithmeticError) as exc:
             warnings.append(f"link design for the accuracy requirement not computed: {exc}")
     sec["design"] = AccuracyDesign(requirement=f"lim E[tr P] ≤ {level:g}",

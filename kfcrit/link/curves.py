@@ -1,7 +1,7 @@
 """Curves of the link layer for the figures: arrays computed here, drawn in kfcrit.views.
 
 Every curve is a frozen dataclass of NumPy arrays with the formula it evaluates; the views only
-plot them.
+plot them. ``record()`` states a curve as its section of the record (``link_budget.curves``).
 """
 from __future__ import annotations
 
@@ -11,8 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from kfcrit.io.typed import to_json
 from kfcrit.link.linkbudget import LinkBudget
 from kfcrit.link.radios import SINR_SEARCH_DB, Radio
+from kfcrit.records.link import ArrivalVsDistance, OutageVsDistance, PerVsSinr
 
 
 @dataclass(frozen=True)
@@ -26,12 +28,15 @@ class ArrivalCurve:
     max_retries: int
     psdu_bytes: int
 
+    def record(self) -> ArrivalVsDistance:
+        return ArrivalVsDistance(
+            distance_m=self.distance_m.tolist(), arrival=self.arrival.tolist(),
+            mean_arrival=None if self.mean_arrival is None else self.mean_arrival.tolist(),
+            configured_distance_m=self.configured_distance_m, max_retries=self.max_retries,
+            psdu_bytes=self.psdu_bytes)
+
     def to_dict(self) -> dict[str, Any]:
-        return {"distance_m": self.distance_m.tolist(), "arrival": self.arrival.tolist(),
-                "mean_arrival": (None if self.mean_arrival is None
-                                 else self.mean_arrival.tolist()),
-                "configured_distance_m": self.configured_distance_m,
-                "max_retries": self.max_retries, "psdu_bytes": self.psdu_bytes}
+        return to_json(self.record())
 
 
 @dataclass(frozen=True)
@@ -49,10 +54,13 @@ class PerCurve:
     """Shape (len(psdu_bytes), len(sinr_db))."""
     header_bytes: int = 0
 
+    def record(self) -> PerVsSinr:
+        return PerVsSinr(radio=self.radio, sinr_db=self.sinr_db.tolist(),
+                         psdu_bytes=list(self.psdu_bytes), per=self.per.tolist(),
+                         header_bytes=self.header_bytes)
+
     def to_dict(self) -> dict[str, Any]:
-        return {"radio": self.radio, "sinr_db": self.sinr_db.tolist(),
-                "psdu_bytes": list(self.psdu_bytes), "header_bytes": self.header_bytes,
-                "per": self.per.tolist()}
+        return to_json(self.record())
 
 
 @dataclass(frozen=True)
@@ -67,12 +75,15 @@ class OutageCurve:
     max_outage: float | None
     configured_distance_m: float
 
+    def record(self) -> OutageVsDistance:
+        return OutageVsDistance(distance_m=self.distance_m.tolist(),
+                                requirements=[list(r) for r in self.requirements],
+                                outage=self.outage.tolist(), sigma_db=self.sigma_db,
+                                max_outage=self.max_outage,
+                                configured_distance_m=self.configured_distance_m)
+
     def to_dict(self) -> dict[str, Any]:
-        return {"distance_m": self.distance_m.tolist(),
-                "requirements": [list(r) for r in self.requirements],
-                "outage": self.outage.tolist(), "sigma_db": self.sigma_db,
-                "max_outage": self.max_outage,
-                "configured_distance_m": self.configured_distance_m}
+        return to_json(self.record())
 
 
 def distance_grid(link: LinkBudget, factor: float = 4.0, points: int = 200) -> np.ndarray:
@@ -137,7 +148,7 @@ def per_vs_sinr(radio: Radio, psdu_bytes: tuple[int, ...] = (20, 60, 127),
     s = (sinr_grid(radio, psdu_bytes, include_db, header_bytes=header_bytes) if sinr_db is None
          else np.asarray(sinr_db, dtype=float))
     per = np.vstack([radio.per(s, int(L) + header_bytes) for L in psdu_bytes])
-    return PerCurve(radio.to_dict().get("model", "radio"), s, tuple(int(L) for L in psdu_bytes),
+    return PerCurve(radio.record().model, s, tuple(int(L) for L in psdu_bytes),
                     per, int(header_bytes))
 
 

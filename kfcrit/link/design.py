@@ -25,7 +25,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from kfcrit.io.typed import to_json
 from kfcrit.link.linkbudget import MAX_PAYLOAD_BYTES, LinkBudget
+from kfcrit.records.link import (
+    LinkDesignBound,
+    LinkDesignDistance,
+    LinkDesignPayload,
+    LinkDesignPayloadBound,
+    LinkDesignRecord,
+    LinkDesignRequirement,
+)
 
 STATUSES = ("value", "unbounded", "unreachable", "phy-limit")
 """``value``: a finite bound; ``unbounded``: no limit (any distance, any power is enough);
@@ -45,9 +54,12 @@ class RequirementInterval:
         if not (0.0 <= lo <= hi <= 1.0):
             raise ValueError(f"need 0 <= p_S <= p_V <= 1, got [{lo!r}, {hi!r}]")
 
+    def record(self) -> LinkDesignRequirement:
+        return LinkDesignRequirement(interval=[self.necessary, self.sufficient],
+                                     necessary=self.necessary, sufficient=self.sufficient)
+
     def to_dict(self) -> dict[str, Any]:
-        return {"interval": [self.necessary, self.sufficient], "necessary": self.necessary,
-                "sufficient": self.sufficient}
+        return to_json(self.record())
 
 
 @dataclass(frozen=True)
@@ -56,9 +68,6 @@ class Bound:
 
     value: float | int | None
     status: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "status": self.status}
 
 
 @dataclass(frozen=True)
@@ -81,10 +90,23 @@ class RadioBound:
     def interval(self) -> list[float | int | None]:
         return [self.sufficient.value, self.necessary.value]
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"quantity": self.quantity, "unit": self.unit, "sense": self.sense,
-                "interval": self.interval, "sufficient": self.sufficient.to_dict(),
-                "necessary": self.necessary.to_dict(), "method": self.method}
+    def distance_record(self) -> LinkDesignDistance:
+        """The bound as the record states a real-valued one (distance, transmit power)."""
+        return LinkDesignDistance(
+            quantity=self.quantity, unit=self.unit, sense=self.sense, interval=self.interval,
+            sufficient=LinkDesignBound(value=self.sufficient.value, status=self.sufficient.status),
+            necessary=LinkDesignBound(value=self.necessary.value, status=self.necessary.status),
+            method=self.method)
+
+    def count_record(self) -> LinkDesignPayload:
+        """The bound as the record states a whole-number one (payload bytes, retries)."""
+        return LinkDesignPayload(
+            quantity=self.quantity, unit=self.unit, sense=self.sense, interval=self.interval,
+            sufficient=LinkDesignPayloadBound(value=self.sufficient.value,
+                                              status=self.sufficient.status),
+            necessary=LinkDesignPayloadBound(value=self.necessary.value,
+                                             status=self.necessary.status),
+            method=self.method)
 
 
 @dataclass(frozen=True)
@@ -99,14 +121,18 @@ class LinkDesign:
     retries_needed: RadioBound
     notes: tuple[str, ...] = field(default=())
 
+    def record(self) -> LinkDesignRecord:
+        """The design as the record states it (``design.radio``)."""
+        return LinkDesignRecord(required_arrival_probability=self.requirement.record(),
+                                margin_db=self.margin_db,
+                                max_distance_m=self.max_distance.distance_record(),
+                                min_tx_power_dbm=self.min_tx_power.distance_record(),
+                                max_payload_bytes=self.max_payload.count_record(),
+                                retries_needed=self.retries_needed.count_record(),
+                                notes=list(self.notes))
+
     def to_dict(self) -> dict[str, Any]:
-        return {"required_arrival_probability": self.requirement.to_dict(),
-                "margin_db": self.margin_db,
-                "max_distance_m": self.max_distance.to_dict(),
-                "min_tx_power_dbm": self.min_tx_power.to_dict(),
-                "max_payload_bytes": self.max_payload.to_dict(),
-                "retries_needed": self.retries_needed.to_dict(),
-                "notes": list(self.notes)}
+        return to_json(self.record())
 
 
 def _margin(link: LinkBudget, margin_db: float | None) -> float:

@@ -48,6 +48,8 @@ from typing import Any
 import numpy as np
 
 from kfcrit.errors import InputError
+from kfcrit.io.typed import to_json
+from kfcrit.records.channel import RadioFrameRecord
 
 PER_OVER = ("ppdu", "psdu")
 """Conventions for the bits the packet error rate covers (default first)."""
@@ -140,11 +142,15 @@ class FrameFormat:
             return None
         return (retries + 1) * (air + self.ack_wait_s)
 
+    def record(self) -> RadioFrameRecord:
+        """The framing as the record states it (``radio.frame``)."""
+        return RadioFrameRecord(standard=self.standard, mac_overhead_bytes=self.mac_overhead_bytes,
+                                phy_header_bytes=self.phy_header_bytes,
+                                max_psdu_bytes=self.max_psdu_bytes, bit_rate_bps=self.bit_rate_bps,
+                                max_retries=self.max_retries, ack_wait_s=self.ack_wait_s)
+
     def to_dict(self) -> dict[str, Any]:
-        return {"standard": self.standard, "mac_overhead_bytes": self.mac_overhead_bytes,
-                "phy_header_bytes": self.phy_header_bytes, "max_psdu_bytes": self.max_psdu_bytes,
-                "bit_rate_bps": self.bit_rate_bps, "max_retries": self.max_retries,
-                "ack_wait_s": self.ack_wait_s}
+        return to_json(self.record())
 
 
 IEEE802154_2450 = FrameFormat(

@@ -39,13 +39,13 @@ Shadowing X (``path_loss.shadowing``):
   the arrivals are the two-state Markov (Gilbert–Elliott) approximation of
   :mod:`kfcrit.link.shadowing`, with stationary arrival probability p̄ — a bursty channel.
 
-Design outputs: :func:`design_section`.
+Design outputs: :func:`kfcrit.link.budgetsection.link_budget_record` (the ``link_budget`` section
+of the record) and its JSON form :func:`design_section`.
 """
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -55,7 +55,9 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
-from kfcrit.link.fading import NO_FADING, FastFading, correlated_all_fail, fading_note
+from kfcrit.io.typed import to_json
+from kfcrit.link.budgetsection import frame_record, link_budget_record
+from kfcrit.link.fading import NO_FADING, FastFading, correlated_all_fail
 from kfcrit.link.fields import choice_field, exact_field_number, integer_field, real_field
 from kfcrit.link.frames import PER_OVER, arrival_with_retries, attempt_probability
 from kfcrit.link.propagation import (
@@ -68,13 +70,11 @@ from kfcrit.link.propagation import (
     thermal_noise_dbm,
 )
 from kfcrit.link.radios import (
-    CalibratedOqpsk,
     Radio,
     certain_arrival_sinr_db,
     db_to_linear,
     radio_from_mapping,
 )
-from kfcrit.link.requirement import binding_requirement, stability_requirement
 from kfcrit.link.shadowing import (
     Z_RANGE,
     ShadowingCorrelation,
@@ -104,6 +104,12 @@ MAX_PAYLOAD_BYTES = 65535
 FADING_PER_ATTEMPT = ("shared", "independent", "correlated")
 """How the retries of one period see the shadowing: one value per period, one per attempt, or
 a Gauss–Markov value per attempt correlated by exp(−Δ/T_c) (``coherence_time_s`` T_c)."""
+FRAME_KEYS = ("payload_bytes", "mac_overhead_bytes", "psdu_bytes", "phy_header_bytes",
+              "ppdu_bytes", "max_psdu_bytes", "max_payload_bytes", "standard", "per_over",
+              "per_bytes", "per_covers", "definition", "airtime_s", "max_retries",
+              "max_retries_allowed", "attempts_duration_s", "retry_formula", "fading_per_attempt",
+              "retry_assumption")
+"""The keys of a channel's ``frame`` (:meth:`LinkBudget.frame_dict`), in their order."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -598,63 +604,10 @@ class LinkBudget(Channel):
         return self.path_loss.distance_m(allowed)
 
     def frame_dict(self) -> dict[str, Any]:
-        """The frame on the air: payload, overheads, PHY limit, airtime and retries."""
-        frame = self.radio.frame
-        psdu = self.psdu_bytes
-        return {"payload_bytes": self.packet_bytes,
-                "mac_overhead_bytes": psdu - self.packet_bytes,
-                "psdu_bytes": psdu, "phy_header_bytes": frame.phy_header_bytes,
-                "ppdu_bytes": psdu + frame.phy_header_bytes,
-                "max_psdu_bytes": frame.max_psdu_bytes,
-                "max_payload_bytes": frame.max_payload_bytes(self.mac_overhead_bytes),
-                "standard": frame.standard, "per_over": self.per_over,
-                "per_bytes": self.per_bytes,
-                "per_covers": ("PPDU (PHY header + MAC header + payload + FCS)"
-                               if self.per_over == "ppdu" and frame.phy_header_bytes
-                               else "PSDU (MAC header + payload + FCS)"),
-                "definition": "packet_bytes is the application payload; PSDU = MAC header + "
-                              "payload + FCS; PPDU = PHY header (preamble, SFD, PHR) + PSDU",
-                "airtime_s": frame.airtime_s(psdu),
-                "max_retries": self.max_retries, "max_retries_allowed": frame.max_retries,
-                "attempts_duration_s": frame.attempts_duration_s(psdu, self.max_retries),
-                "retry_formula": "p = 1 - PER^(k+1)",
-                "fading_per_attempt": self.fading_per_attempt,
-                "retry_assumption": (
-                    "the k + 1 attempts fit in the sample period and fail independently, "
-                    + ("each with its own shadowing value (p = 1 - E[PER]^(k+1))"
-                       if self.fading_per_attempt == "independent" else
-                       (f"given shadowing values that follow a Gauss-Markov sequence, "
-                        f"correlated by rho = exp(-Delta/T_c) = {self.attempt_correlation:.4g} "
-                        f"between attempts (Delta = {self.attempt_spacing_s:.4g} s, T_c = "
-                        f"{self.coherence_time_s:g} s)")
-                       if self.fading_per_attempt == "correlated" else
-                       "given the shadowing value of the period, which they share")
-                    + ("; fast fading redrawn per attempt (PER averaged over it)"
-                       if self.fading.active else "")
-                    + "; acknowledgement losses cause needless retries, not lost updates; "
-                    "CSMA-CA backoffs are not included in attempts_duration_s")}
-
-    def link_dict(self) -> dict[str, Any]:
-        """The configured link, step by step."""
-        sinr = self.sinr_db
-        ber = self.median_ber
-        log_arrival = self.median_log_arrival
-        # without fading the PER is −expm1 of the same log(1 − PER) (Radio.per); with fading
-        # it is the averaged PER, which log(1 − PER) was computed from
-        per = (float(self.attempt_per(sinr)) if self.fading.active
-               else float(-np.expm1(log_arrival)))
-        return {"tx_power_dbm": self.tx_power_dbm, "antenna_gain_db": self.antenna_gain_db,
-                "distance_m": self.distance_m, "packet_bytes": self.packet_bytes,
-                "psdu_bytes": self.psdu_bytes, "per_bytes": self.per_bytes,
-                "max_retries": self.max_retries,
-                "path_loss_db": self.path_loss_db, "rx_power_dbm": self.rx_power_dbm,
-                **self.noise.to_dict(), "sinr_db": sinr,
-                "sinr_linear": float(db_to_linear(sinr)), "bit_error_rate": ber,
-                "packet_error_rate": per,
-                "attempt_arrival_probability": float(np.exp(log_arrival)),
-                "arrival_probability_nominal": self.median_nominal_arrival,
-                "arrival_probability_mean": self.median_mean_arrival,
-                "arrival_probability": self.arrival_value}
+        """The frame on the air (:func:`~kfcrit.link.budgetsection.frame_record`) as plain data,
+        in the key order of the channel's ``frame``."""
+        frame = to_json(frame_record(self))
+        return {k: frame[k] for k in FRAME_KEYS}
 
     def to_dict(self) -> dict[str, Any]:
         chain = self.shadowing_markov()
@@ -771,195 +724,25 @@ def _warm_group(group: list[LinkBudget]) -> None:
 # Design outputs for the analysis record
 # ---------------------------------------------------------------------------------------------
 
-def _threshold_row(channel: LinkBudget, label: str, p: float,
-                   outage: Any = None) -> dict[str, Any]:
-    """Required SINR / received power / distance and the link margin for one requirement p
-    (``outage``: the channel's :meth:`LinkBudget.outage_probability`, or a memo of it)."""
-    outage = outage or channel.outage_probability
-    row: dict[str, Any] = {"label": label, "arrival_probability": p, "required_sinr_db": None,
-                           "required_rx_power_dbm": None, "link_margin_db": None,
-                           "max_distance_m": None, "max_distance_unbounded": False,
-                           "outage_probability": None, "reachable": True}
-    if p >= 1.0:
-        row["reachable"] = False
-        row["outage_probability"] = 1.0
-        return row
-    try:
-        s_req = channel.required_sinr_db(p)
-    except ValueError:
-        row["reachable"] = False
-        return row
-    row["outage_probability"] = outage(p)
-    if s_req is None:
-        row["max_distance_unbounded"] = True
-        return row
-    d = channel.max_distance_m(s_req, channel.effective_margin_db)
-    row.update(required_sinr_db=s_req, required_rx_power_dbm=s_req + channel.noise.total_dbm,
-               link_margin_db=channel.sinr_db - s_req, max_distance_m=d,
-               max_distance_unbounded=d is None)
-    return row
-
-
-def _frame_notes(channel: LinkBudget, frame: dict[str, Any]) -> list[str]:
-    """What the frame (``channel.frame_dict()``) and radio model assume, in words for the
-    record."""
-    head = frame["phy_header_bytes"]
-    if channel.per_over == "ppdu" and head:
-        covers = (f"the PPDU of {frame['per_bytes']} bytes (PHY header {head} bytes + PSDU "
-                  f"{frame['psdu_bytes']} bytes, MAC header and FCS "
-                  f"{frame['mac_overhead_bytes']} bytes added), as ns-3 counts it; per_over = psdu "
-                  f"excludes the header")
-    else:
-        covers = (f"the PSDU of {frame['psdu_bytes']} bytes (MAC header and FCS "
-                  f"{frame['mac_overhead_bytes']} bytes added)"
-                  + (f"; the PHY header ({head} bytes) counts in the airtime only"
-                     if head else ""))
-    notes = [f"packet_bytes = {frame['payload_bytes']} is the application payload; the packet "
-             f"error rate covers {covers}"]
-    if channel.max_retries:
-        notes.append(f"{channel.max_retries} MAC retries: p = 1 - PER^{channel.max_retries + 1}"
-                     " within the sample period " + (
-                         "(each attempt draws its own shadowing value: p = 1 - E[PER]^"
-                         f"{channel.max_retries + 1})" if channel.independent_attempts else
-                         "(attempts independent given the period's shadowing value, which "
-                         "they share)"))
-    note = fading_note(channel.fading)
-    if note:
-        notes.append(note)
-    if isinstance(channel.radio, CalibratedOqpsk) and (channel.noise.noise_figure_db or 0) > 0:
-        notes.append("the radio's implementation loss is calibrated from its datasheet "
-                     "sensitivity and already contains the receiver noise figure; the noise "
-                     f"figure of {channel.noise.noise_figure_db:g} dB given under noise is "
-                     "counted in addition")
-    return notes
-
-
 def design_section(channel: Channel, *, critical_value: float | None,
                    robust_value: float | None,
                    bracket: tuple[float | None, float | None],
                    upper_bound: float | None,
-                   accuracy: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The ``link_budget`` section of the analysis record.
-
-    The design value is the binding requirement of :func:`kfcrit.link.requirement.
-    binding_requirement`: max(p_stab, p_V) with an accuracy requirement, p_stab otherwise; the
-    required SINR, link margin, maximum distance and outage are read against it.
-
-    Parameters
-    ----------
-    channel : Channel
-        The configured channel; anything but a :class:`LinkBudget` gives ``{"applicable": False}``.
-    critical_value, robust_value : float or None
-        p_c and the robust critical value (None when unknown).
-    bracket : (float or None, float or None)
-        Lower and upper ends bracketing p_c when it is unknown.
-    upper_bound : float or None
-        p_up.
-    accuracy : mapping, optional
-        The record's ``design`` section of an accuracy requirement (``requirement`` and
-        ``required_arrival_probability`` with the interval [p_S, p_V]); None without one.
+                   accuracy: Any = None) -> dict[str, Any]:
+    """The ``link_budget`` section in its JSON form (the typed section:
+    :func:`kfcrit.link.budgetsection.link_budget_record`, parameters as there).
 
     Returns
     -------
     dict
-        ``applicable, radio, link, frame, gilbert_elliott | null, margin_policy,
-        required_arrival_probability {critical_value, robust_value, bracket, design_value,
-        basis[, binding, stability_value, stability_basis, accuracy, fails_below, determined,
-        short_basis]}, required_sinr_db, required_rx_power_dbm,
-        link_margin_db, max_distance_m, max_distance_unbounded, mean_stable_at_distance,
-        shadowing {sigma_db, mode, mean_arrival_probability, outage_below_critical,
-        outage_below_upper}, thresholds [rows], notes, warnings``.
+        ``to_json`` of the section; ``{"applicable": False, "reason": ...}`` for a channel that
+        is not a :class:`LinkBudget`.
     """
     if not isinstance(channel, LinkBudget):
         return {"applicable": False, "reason": "the channel is not a link-budget model"}
-    bracket = tuple(bracket) if bracket is not None else (None, None)
-    need = binding_requirement(
-        stability_requirement(critical_value, robust_value, bracket, upper_bound), accuracy)
-    p_design, basis = need.value, need.basis
-    # the design value repeats one of the thresholds, and the shadowing outages two of them:
-    # each requirement p is worked out once
-    outage = functools.lru_cache(maxsize=None)(channel.outage_probability)
-    computed: dict[tuple[float, float], dict[str, Any]] = {}
-
-    def threshold(label: str, p: float) -> dict[str, Any]:
-        key = (p, math.copysign(1.0, p))
-        if key not in computed:
-            computed[key] = _threshold_row(channel, label, p, outage)
-        return {**computed[key], "label": label, "arrival_probability": p}
-
-    rows = []
-    for label, value in (("critical_value", critical_value), ("robust_critical_value",
-                                                              robust_value),
-                         ("bracket_low", bracket[0] if critical_value is None else None),
-                         ("bracket_high", bracket[1] if critical_value is None else None),
-                         ("upper_bound", upper_bound)):
-        if value is not None:
-            rows.append(threshold(label, float(value)))
-    if need.accuracy is not None and need.accuracy.get("interval"):
-        p_s, p_v = need.accuracy["interval"]
-        rows.append(threshold("accuracy_necessary", float(p_s)))
-        rows.append(threshold("accuracy_sufficient", float(p_v)))
-    design = threshold("design", p_design) if p_design is not None else None
-    p_link = channel.arrival_value
-    notes = []
-    if channel.sigma_db > 0 and not channel.per_packet_shadowing:
-        notes.append("per-link shadowing: the arrival probability is the median link's; a "
-                     "deployed link falls below a requirement with the outage probability")
-    if channel.per_packet_shadowing and not channel.time_correlated:
-        notes.append("per-packet shadowing: arrivals are i.i.d. with the shadowing-averaged "
-                     "probability; outage probabilities describe per-link shadowing and are "
-                     "given for comparison")
-    if channel.time_correlated:
-        notes.append("time-correlated shadowing: arrivals are bursty (Gilbert-Elliott "
-                     "approximation, see gilbert_elliott); the i.i.d. requirements p_c, p_up "
-                     "below do not decide mean stability for this channel")
-    frame = channel.frame_dict()
-    notes.extend(_frame_notes(channel, frame))
-    if channel.path_loss.model == "log-distance" \
-            and channel.distance_m < channel.path_loss.reference_distance_m:
-        notes.append("the distance is below the reference distance of the log-distance model")
-    return {
-        "applicable": True,
-        "radio": channel.radio.to_dict(),
-        "link": channel.link_dict(),
-        "frame": frame,
-        "gilbert_elliott": (channel.shadowing_markov().to_dict()
-                            if channel.time_correlated else None),
-        "margin_policy": {"margin_db": channel.margin_db, "max_outage": channel.max_outage,
-                          "effective_margin_db": channel.effective_margin_db,
-                          "rule": ("keep margin_db dB of SINR above the requirement (per-packet "
-                                   "shadowing is averaged into the arrival probability)"
-                                   if channel.per_packet_shadowing
-                                   and not channel.time_correlated else
-                                   "keep max(margin_db, sigma * Phi^-1(1 - max_outage)) dB of "
-                                   "SINR above the requirement")},
-        "required_arrival_probability": {"critical_value": critical_value,
-                                         "robust_value": robust_value,
-                                         "bracket": list(bracket), "design_value": p_design,
-                                         "basis": basis, **need.record_fields()},
-        "required_sinr_db": design["required_sinr_db"] if design else None,
-        "required_rx_power_dbm": design["required_rx_power_dbm"] if design else None,
-        "link_margin_db": design["link_margin_db"] if design else None,
-        "max_distance_m": design["max_distance_m"] if design else None,
-        "max_distance_unbounded": bool(design["max_distance_unbounded"]) if design else False,
-        "mean_stable_at_distance": (p_link > need.stability_value)
-        if need.stability_value is not None else None,
-        "shadowing": {
-            "sigma_db": channel.sigma_db, "mode": channel.path_loss.shadowing,
-            "mean_arrival_probability": channel.median_mean_arrival,
-            "outage_below_critical": (outage(float(critical_value))
-                                      if critical_value is not None else None),
-            "outage_below_upper": (outage(float(upper_bound))
-                                   if upper_bound is not None else None)},
-        "thresholds": rows,
-        "notes": notes,
-        "warnings": ([] if not channel.time_correlated else [
-            "time-correlated shadowing makes the losses bursty (Gilbert-Elliott f = "
-            f"{channel.shadowing_markov().failure_rate:.4g}, r = "
-            f"{channel.shadowing_markov().recovery_rate:.4g}): comparing the stationary arrival "
-            "probability with the i.i.d. p_c does not decide mean stability; the burst "
-            "condition (1 - r) rho(A)^2 < 1 is necessary (docs/theory.md §10)"]),
-    }
+    return to_json(link_budget_record(channel, critical_value=critical_value,
+                                      robust_value=robust_value, bracket=bracket,
+                                      upper_bound=upper_bound, accuracy=accuracy))
 
 
 # ---------------------------------------------------------------------------------------------

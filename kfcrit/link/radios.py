@@ -41,6 +41,7 @@ from kfcrit.errors import InputError
 from kfcrit.link.fields import integer_field, real_field
 from kfcrit.link.frames import IEEE802154_2450, UNFRAMED, FrameFormat
 from kfcrit.link.propagation import db_to_linear, thermal_noise_dbm
+from kfcrit.records.channel import RadioRecord
 
 SINR_SEARCH_DB = (-40.0, 60.0)
 """Interval (dB) searched when inverting PER(SINR); error rates outside it are reported as edges."""
@@ -58,6 +59,10 @@ class Radio:
         raise NotImplementedError
 
     def to_dict(self) -> dict[str, Any]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def record(self) -> RadioRecord:  # pragma: no cover - abstract
+        """The radio as the record states it (``link_budget.radio``)."""
         raise NotImplementedError
 
     def log_arrival(self, sinr_db: Any, packet_bytes: int) -> np.ndarray:
@@ -262,6 +267,10 @@ class Ieee802154Oqpsk(Radio):
         return {"model": self.name, "formula": self.formula, "source": self.source,
                 "implementation_loss_db": 0.0, "frame": self.frame.to_dict()}
 
+    def record(self) -> RadioRecord:
+        return RadioRecord(model=self.name, formula=self.formula, source=self.source,
+                           implementation_loss_db=0.0, frame=self.frame.record())
+
 
 OQPSK_REFERENCE_BANDWIDTH_HZ = 2.0e6
 """Noise bandwidth of a 2450 MHz 802.15.4 channel (2 Mchip/s) used for the calibration."""
@@ -319,6 +328,15 @@ class CalibratedOqpsk(Radio):
                 "reference_noise_dbm": oqpsk_reference_noise_dbm(),
                 "implementation_loss_db": self.implementation_loss_db,
                 "datasheet": self.datasheet, "frame": self.frame.to_dict()}
+
+    def record(self) -> RadioRecord:
+        return RadioRecord(model=self.model_name, formula=self.formula, source=self.source,
+                           implementation_loss_db=self.implementation_loss_db,
+                           frame=self.frame.record(), sensitivity_dbm=self.sensitivity_dbm,
+                           reference_per=self.reference_per,
+                           reference_psdu_bytes=self.reference_psdu_bytes,
+                           reference_noise_dbm=oqpsk_reference_noise_dbm(),
+                           datasheet=self.datasheet)
 
 
 CUSTOM_OQPSK = "ieee802154-oqpsk-calibrated"
@@ -403,6 +421,10 @@ class CoherentBpsk(Radio):
     def to_dict(self) -> dict[str, Any]:
         return {"model": self.name, "processing_gain_db": self.processing_gain_db,
                 "formula": self.formula, "source": self.source, "frame": self.frame.to_dict()}
+
+    def record(self) -> RadioRecord:
+        return RadioRecord(model=self.name, formula=self.formula, source=self.source,
+                           frame=self.frame.record(), processing_gain_db=self.processing_gain_db)
 
 
 _RADIOS: dict[str, type[Radio]] = {

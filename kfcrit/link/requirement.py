@@ -23,6 +23,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from kfcrit.io.typed import ABSENT
+from kfcrit.records.link import Accuracy, RequiredArrivalDesign
+
 ACCURACY_BASIS = "accuracy requirement (p_V, sufficient)"
 """Short basis word (sweep tables) when p_V of the accuracy design binds."""
 ACCURACY_IMPOSSIBLE_BASIS = "accuracy requirement (unreachable)"
@@ -64,41 +67,56 @@ class BindingRequirement:
     binding: str
     stability_value: float | None
     stability_basis: str
-    accuracy: dict[str, Any] | None = None
+    accuracy: Accuracy | None = None
     fails_below: float | None = None
     determined: bool = True
 
-    def record_fields(self) -> dict[str, Any]:
-        """Fields added to ``link_budget.required_arrival_probability`` (none without an
-        accuracy requirement)."""
-        if self.accuracy is None:
-            return {}
-        return {"binding": self.binding, "stability_value": self.stability_value,
-                "stability_basis": self.stability_basis, "accuracy": self.accuracy,
-                "fails_below": self.fails_below, "determined": self.determined,
-                "short_basis": self.short_basis}
+    def record(self, critical_value: float | None, robust_value: float | None,
+               bracket: tuple[float | None, float | None]) -> RequiredArrivalDesign:
+        """``link_budget.required_arrival_probability``: the stability inputs, the design
+        value and its basis, and (with an accuracy requirement) how it binds."""
+        accuracy = self.accuracy is not None
+        return RequiredArrivalDesign(
+            critical_value=critical_value, robust_value=robust_value, bracket=list(bracket),
+            design_value=self.value, basis=self.basis,
+            binding=self.binding if accuracy else ABSENT,
+            stability_value=self.stability_value if accuracy else ABSENT,
+            stability_basis=self.stability_basis if accuracy else ABSENT,
+            accuracy=self.accuracy if accuracy else ABSENT,
+            fails_below=self.fails_below if accuracy else ABSENT,
+            determined=self.determined if accuracy else ABSENT,
+            short_basis=self.short_basis if accuracy else ABSENT)
 
 
-def _accuracy_summary(accuracy: Mapping[str, Any]) -> dict[str, Any]:
-    req = accuracy.get("required_arrival_probability") or {}
-    return {"requirement": accuracy.get("requirement"), "status": req.get("status"),
-            "interval": list(req["interval"]) if req.get("interval") else None,
-            "p_S_certified": (req.get("p_S") or {}).get("certified"),
-            "p_V_certified": (req.get("p_V") or {}).get("certified"),
-            "reason": req.get("reason")}
+def _accuracy_summary(accuracy: Any) -> Accuracy:
+    """The accuracy design's requirement and interval as the link section states it, from the
+    record's typed ``design`` section or its plain (JSON) form."""
+    if isinstance(accuracy, Mapping):
+        req = accuracy.get("required_arrival_probability") or {}
+        return Accuracy(requirement=accuracy.get("requirement"), status=req.get("status"),
+                        interval=list(req["interval"]) if req.get("interval") else None,
+                        p_S_certified=(req.get("p_S") or {}).get("certified"),
+                        p_V_certified=(req.get("p_V") or {}).get("certified"),
+                        reason=req.get("reason"))
+    req = accuracy.required_arrival_probability
+    return Accuracy(requirement=accuracy.requirement, status=req.status,
+                    interval=list(req.interval) if req.interval else None,
+                    p_S_certified=req.p_S.certified, p_V_certified=req.p_V.certified,
+                    reason=req.reason)
 
 
 def binding_requirement(stability: tuple[float | None, str],
-                        accuracy: Mapping[str, Any] | None = None) -> BindingRequirement:
+                        accuracy: Any = None) -> BindingRequirement:
     r"""The binding required arrival probability: max(p_stab, p_V).
 
     Parameters
     ----------
     stability : (float or None, str)
         The stability requirement and its basis (:func:`stability_requirement`).
-    accuracy : mapping, optional
-        The record's ``design`` section of an accuracy requirement: ``requirement`` (its text)
-        and ``required_arrival_probability`` {status, interval [p_S, p_V], p_S, p_V, reason}.
+    accuracy : AccuracyDesign or mapping, optional
+        The record's ``design`` section of an accuracy requirement (typed, or its JSON form):
+        ``requirement`` (its text) and ``required_arrival_probability`` {status, interval
+        [p_S, p_V], p_S, p_V, reason}.
 
     Returns
     -------
@@ -115,20 +133,20 @@ def binding_requirement(stability: tuple[float | None, str],
         return BindingRequirement(p_stab, stab_basis, stab_short,
                                   "none" if p_stab is None else "stability", p_stab, stab_basis)
     summary = _accuracy_summary(accuracy)
-    name = summary["requirement"] or "the accuracy requirement"
-    status = summary["status"]
+    name = summary.requirement or "the accuracy requirement"
+    status = summary.status
     if status == "impossible":
         return BindingRequirement(
             None, f"accuracy requirement {name}: no arrival probability meets it ("
-            f"{summary['reason'] or 'L is below the no-loss floor'})", ACCURACY_IMPOSSIBLE_BASIS,
+            f"{summary.reason or 'L is below the no-loss floor'})", ACCURACY_IMPOSSIBLE_BASIS,
             "accuracy", p_stab, stab_basis, summary, fails_below=1.0, determined=True)
-    if status != "interval" or not summary["interval"]:
+    if status != "interval" or not summary.interval:
         return BindingRequirement(
             p_stab, f"{stab_basis}; the accuracy requirement {name} is not included: its "
-            f"required interval was not computed ({summary['reason'] or status})", stab_short,
+            f"required interval was not computed ({summary.reason or status})", stab_short,
             "none" if p_stab is None else "stability", p_stab, stab_basis, summary,
             determined=False)
-    p_s, p_v = (float(v) for v in summary["interval"])
+    p_s, p_v = (float(v) for v in summary.interval)
     if p_stab is not None and p_stab >= p_v:
         return BindingRequirement(
             p_stab, f"{stab_basis} (binds: the accuracy requirement {name} is met from p_V = "

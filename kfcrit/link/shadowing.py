@@ -44,8 +44,10 @@ from typing import Any
 import numpy as np
 
 from kfcrit.errors import InputError
+from kfcrit.io.typed import to_json
 from kfcrit.link.fields import mapping_field, real_field
 from kfcrit.model.channels import check_keys
+from kfcrit.records.channel import ShadowingMarkovRecord
 
 
 @dataclass(frozen=True)
@@ -121,15 +123,22 @@ class ShadowingMarkov:
         """1 / r sample periods."""
         return 1.0 / self.recovery_rate if self.recovery_rate > 0 else math.inf
 
+    def record(self) -> ShadowingMarkovRecord:
+        """The chain as the record states it (``gilbert_elliott``; an infinite mean burst
+        length, r = 0, is null)."""
+        burst = self.mean_burst_length
+        return ShadowingMarkovRecord(
+            correlation=self.correlation, threshold_z=self.threshold_z,
+            failure_rate=self.failure_rate, recovery_rate=self.recovery_rate,
+            stationary_arrival_probability=self.stationary_arrival_probability,
+            mean_burst_length=burst if math.isfinite(burst) else None,
+            formula="q = 2 T(a*, sqrt((1 - rho)/(1 + rho))), f = q / (1 - Phi(a*)), "
+                    "r = q / Phi(a*), a* = Phi^-1(1 - p_mean)",
+            assumption="two-state Markov approximation of Gaussian AR(1) shadowing "
+                       "thresholded at the effective required SINR")
+
     def to_dict(self) -> dict[str, Any]:
-        return {"correlation": self.correlation, "threshold_z": self.threshold_z,
-                "failure_rate": self.failure_rate, "recovery_rate": self.recovery_rate,
-                "stationary_arrival_probability": self.stationary_arrival_probability,
-                "mean_burst_length": self.mean_burst_length,
-                "formula": "q = 2 T(a*, sqrt((1 - rho)/(1 + rho))), f = q / (1 - Phi(a*)), "
-                           "r = q / Phi(a*), a* = Phi^-1(1 - p_mean)",
-                "assumption": "two-state Markov approximation of Gaussian AR(1) shadowing "
-                              "thresholded at the effective required SINR"}
+        return to_json(self.record())
 
 
 def markov_from_threshold(correlation: float, threshold_z: float) -> ShadowingMarkov:

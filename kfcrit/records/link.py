@@ -150,7 +150,9 @@ class Accuracy:
 
     requirement: str
     status: str
-    interval: list[float | None]
+    interval: list[float | None] | None
+    """[p_S, p_V]; None when the accuracy design gives no interval (``impossible``, or not
+    computed)."""
     p_S_certified: bool
     p_V_certified: bool
     reason: str
