@@ -65,7 +65,7 @@ from kfcrit.records.covariance import (
     TailSection,
 )
 from kfcrit.records.link import LinkBudgetRecord
-from kfcrit.records.read import TIMING_KEYS, read_plain
+from kfcrit.records.read import TIMING_KEYS
 from kfcrit.records.simulation import Simulation
 from kfcrit.records.system import (
     AnalysisOptionsRecord,
