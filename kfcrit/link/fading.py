@@ -38,6 +38,7 @@ import numpy as np
 
 from kfcrit.errors import InputError
 from kfcrit.link.fields import mapping_field, real_field
+from kfcrit.records.channel import FadingRecord
 
 FADING_MODELS = ("none", "rayleigh", "nakagami")
 """Fast-fading models of a link budget (default first)."""
@@ -172,6 +173,10 @@ class FastFading:
 
     def to_dict(self) -> dict[str, Any]:
         return {"model": self.model, "m": self.shape}
+
+    def record(self) -> FadingRecord:
+        """The fast fading as the record states it (``channel.fading``)."""
+        return FadingRecord(model=self.model, m=self.shape)
 
 
 NO_FADING = FastFading()

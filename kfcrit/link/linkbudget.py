@@ -84,6 +84,7 @@ from kfcrit.link.shadowing import (
     shadowing_grid,
 )
 from kfcrit.model.channels import ArrivalProcess, Channel, GilbertElliott, check_keys
+from kfcrit.records.channel import ChannelRecord
 
 __all__ = [
     "BOLTZMANN", "SPEED_OF_LIGHT", "MAX_SIGMA_DB", "SHADOWING_MODES", "Z_RANGE", "LinkBudget",
@@ -625,11 +626,36 @@ class LinkBudget(Channel):
                 "gilbert_elliott": chain.to_dict() if chain else None,
                 "sinr_db": self.sinr_db, "arrival_probability": self.arrival_value,
                 "arrival_probability_expression": repr(self.arrival_value),
-                "arrival_probability_basis": (
-                    "stationary arrival probability of the Gilbert-Elliott approximation of "
-                    "time-correlated shadowing (= the shadowing average)" if chain else
-                    "shadowing average (per-packet shadowing)" if self.per_packet_shadowing
-                    else "median link (no shadowing draw)")}
+                "arrival_probability_basis": self.arrival_basis}
+
+    def record(self) -> ChannelRecord:
+        """The link as the record states it (``system.channel``, ``operating_point.channel``),
+        built field by field."""
+        chain = self.shadowing_markov()
+        return ChannelRecord(
+            model=self.model, arrival_probability=self.arrival_value,
+            arrival_probability_expression=repr(self.arrival_value),
+            radio=self.radio.record(), tx_power_dbm=self.tx_power_dbm,
+            distance_m=self.distance_m, packet_bytes=self.packet_bytes,
+            antenna_gain_db=self.antenna_gain_db, path_loss=self.path_loss.record(),
+            noise=self.noise.record(), margin_db=self.margin_db, max_outage=self.max_outage,
+            max_retries=self.max_retries, frame=frame_record(self),
+            shadowing_correlation=(self.shadowing_correlation.record()
+                                   if self.shadowing_correlation else None),
+            gilbert_elliott=chain.record() if chain else None, sinr_db=self.sinr_db,
+            arrival_probability_basis=self.arrival_basis, per_over=self.per_over,
+            fading_per_attempt=self.fading_per_attempt, fading=self.fading.record(),
+            coherence_time_s=self.coherence_time_s)
+
+    @property
+    def arrival_basis(self) -> str:
+        """Which arrival probability the link states: the shadowing average (per packet or of
+        the Gilbert–Elliott approximation of time-correlated shadowing) or the median link."""
+        if self.shadowing_markov() is not None:
+            return ("stationary arrival probability of the Gilbert-Elliott approximation of "
+                    "time-correlated shadowing (= the shadowing average)")
+        return ("shadowing average (per-packet shadowing)" if self.per_packet_shadowing
+                else "median link (no shadowing draw)")
 
 
 def warm_links(links: Iterable[Any]) -> int:

@@ -23,6 +23,7 @@ import numpy as np
 from kfcrit.errors import InputError
 from kfcrit.link.fields import mapping_field, real_field
 from kfcrit.model.channels import check_keys
+from kfcrit.records.channel import NoiseRecord, PathLossRecord
 
 SHADOWING_MODES = ("per-link", "per-packet", "time-correlated")
 MAX_SIGMA_DB = 30.0
@@ -136,6 +137,20 @@ class PathLoss:
         out.update(shadowing_sigma_db=self.shadowing_sigma_db, shadowing=self.shadowing)
         return out
 
+    def record(self) -> PathLossRecord:
+        """The path-loss model as the record states it (``channel.path_loss``)."""
+        if self.model == "log-distance":
+            return PathLossRecord(model=self.model, exponent=self.exponent,
+                                  reference_distance_m=self.reference_distance_m,
+                                  reference_loss_db=self.reference_loss_db,
+                                  formula="PL(d) = PL0 + 10 n log10(d/d0) + X",
+                                  shadowing_sigma_db=self.shadowing_sigma_db,
+                                  shadowing=self.shadowing)
+        return PathLossRecord(model=self.model, frequency_hz=self.frequency_hz,
+                              formula="PL(d) = 20 log10(4 pi d f / c) + X",
+                              shadowing_sigma_db=self.shadowing_sigma_db,
+                              shadowing=self.shadowing)
+
 
 @dataclass(frozen=True)
 class Noise:
@@ -184,3 +199,11 @@ class Noise:
                 "noise_figure_db": self.noise_figure_db, "temperature_k": self.temperature_k,
                 "interference_dbm": self.interference_dbm,
                 "noise_plus_interference_dbm": self.total_dbm}
+
+    def record(self) -> NoiseRecord:
+        """The noise as the record states it (``channel.noise``)."""
+        return NoiseRecord(noise_floor_dbm=self.floor_dbm, bandwidth_hz=self.bandwidth_hz,
+                           noise_figure_db=self.noise_figure_db,
+                           temperature_k=self.temperature_k,
+                           interference_dbm=self.interference_dbm,
+                           noise_plus_interference_dbm=self.total_dbm)

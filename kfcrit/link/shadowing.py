@@ -47,7 +47,7 @@ from kfcrit.errors import InputError
 from kfcrit.io.typed import to_json
 from kfcrit.link.fields import mapping_field, real_field
 from kfcrit.model.channels import check_keys
-from kfcrit.records.channel import ShadowingMarkovRecord
+from kfcrit.records.channel import ShadowingCorrelationRecord, ShadowingMarkovRecord
 
 
 @dataclass(frozen=True)
@@ -93,13 +93,16 @@ class ShadowingCorrelation:
         return math.exp(-self.speed_mps * self.sample_period_s / self.correlation_distance_m)
 
     def to_dict(self) -> dict[str, Any]:
+        return to_json(self.record())
+
+    def record(self) -> ShadowingCorrelationRecord:
+        """The shadowing correlation as the record states it (``channel.shadowing_correlation``)."""
         formula = ("rho = exp(-T_s / T_c)" if self.coherence_time_s is not None
                    else "rho = exp(-v T_s / d_c) (Gudmundson 1991)")
-        return {"sample_period_s": self.sample_period_s,
-                "coherence_time_s": self.coherence_time_s,
-                "correlation_distance_m": self.correlation_distance_m,
-                "speed_mps": self.speed_mps, "correlation": self.correlation,
-                "formula": formula}
+        return ShadowingCorrelationRecord(
+            sample_period_s=self.sample_period_s, coherence_time_s=self.coherence_time_s,
+            correlation_distance_m=self.correlation_distance_m, speed_mps=self.speed_mps,
+            correlation=self.correlation, formula=formula)
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,7 @@ from typing import Any
 
 import sympy as sp
 
-from kfcrit.io.jsonio import jsonable
-from kfcrit.io.typed import from_json, opt_key
+from kfcrit.io.typed import opt_key
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -213,8 +212,6 @@ def channel_record(channel: Any) -> ChannelRecord | None:
         return None
     if hasattr(channel, "record"):
         return channel.record()
-    if channel.model == "link-budget":   # the link layer's plain record form, read strictly
-        return from_json(ChannelRecord, jsonable(channel.to_dict()), "channel")
     model = channel.model
     p = channel.arrival_probability
     common = {"model": model, "arrival_probability": float(p),
