@@ -251,6 +251,29 @@ def necessary_recovery_threshold(system: System, structure: Any | None = None
     return (float(1 - 1 / mid) if mid > 1 else 0.0), None
 
 
+def recovery_margin(recovery_rate: Any, r_nec: float | None, r_nec_exact: Any = None) -> float:
+    r"""The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
+    r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
+    burst condition holds).
+
+    .. math::  \delta = r - r_{nec}, \qquad r_{nec} = \max(1 - \rho(A)^{-2}, 0)
+
+    Rounded once to a double when r and ``r_nec_exact`` are both exact (so 9/25 + 10⁻⁴⁰ − 9/25
+    is 1e-40, not 0.0); ``r_nec`` None reads as 0, and ``r_nec_exact`` counts only where
+    r_nec > 0.
+    """
+    threshold = r_nec if r_nec is not None else 0.0
+    fallback = float(recovery_rate) - threshold
+    exact = r_nec_exact if r_nec is not None and r_nec > 0 else None
+    if isinstance(recovery_rate, sp.Basic) and isinstance(exact, sp.Basic) and not (
+            recovery_rate.has(sp.Float) or exact.has(sp.Float)):
+        try:
+            return float(sp.N(recovery_rate - exact, 30))
+        except (TypeError, ValueError):
+            return fallback
+    return fallback
+
+
 # ---------------------------------------------------------------------------------------------
 # the sufficient coupled certificate
 # ---------------------------------------------------------------------------------------------

@@ -231,6 +231,10 @@ class NetworkResult:
     claims: tuple[str, ...]
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
+    single_lower: Any = None
+    """One sensor: the single-link lower bound p_low = max(1 − 1/ρ(A)², 0) (a
+    :class:`~kfcrit.theory.critical.values.Num`), the necessary recovery threshold r_nec of a
+    bursty link (not in the record)."""
 
     def sensor(self, name: str) -> SensorResult:
         """The row of the named sensor."""
@@ -293,6 +297,13 @@ def _probabilities(network: Network, p: Sequence[Any] | None
 
 def _expr_text(e: sp.Expr | None) -> str | None:
     return exact_text(e) if e is not None else None
+
+
+def bursty_iid_warning(names: Sequence[str]) -> str:
+    """The warning that the sensors ``names`` have bursty links, analysed here at their
+    stationary arrival probabilities (the i.i.d. theory of §9)."""
+    return (f"sensors {', '.join(names)} have bursty (Markov) links: the analysis uses their "
+            "stationary arrival probabilities (i.i.d. theory)")
 
 
 SEQUENTIAL = "sequential"
@@ -414,8 +425,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                         "conservative sufficient condition)")
     bursty = [s.name for s in network.sensors if s.channel is not None and not s.channel.iid]
     if bursty and p is None:
-        warnings.append(f"sensors {', '.join(bursty)} have bursty (Markov) links: the analysis "
-                        "uses their stationary arrival probabilities (i.i.d. theory)")
+        warnings.append(bursty_iid_warning(bursty))
     if not structure_of(st).controllable_Q:
         warnings.append("(A, Q^1/2) is not controllable: the necessary surface assumes "
                         "every unobserved unstable mode is excited by the noise")
@@ -656,7 +666,7 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
     system = network.stacked_system()
     p = float(pf[0])
     row = res.sensors[0]
-    klass, crit, pc_exact, cv = _single_link_critical(system, tol)
+    klass, crit, pc_exact, cvo = _single_link_critical(system, tol)
     facts, reason = _single_link_facts(klass, crit, pe[0], pc_exact)
     iv = crit["interval"]
     margin = {"value": p - crit["value"] if crit["value"] is not None else None,
@@ -680,14 +690,15 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                                                         "margin_interval": margin["interval"]},
                          constraints=res.constraints, exact_region=res.exact_region,
                          certificate=res.certificate, method=res.method, claims=res.claims,
-                         warnings=res.warnings + tuple(cv.get("warnings") or ()),
-                         seconds=res.seconds)
+                         warnings=res.warnings + tuple(cvo.warnings),
+                         seconds=res.seconds, single_lower=cvo.lower)
 
 
 def _single_link_critical(system: Any, tol: float
-                          ) -> tuple[str, dict[str, Any], sp.Expr | None, dict[str, Any]]:
+                          ) -> tuple[str, dict[str, Any], sp.Expr | None, Any]:
     """The single-link critical value of one system (theory §3–§4): (classification, the
-    ``crit`` dict of a sensor row, the exact p_c or None, the critical-value record)."""
+    ``crit`` dict of a sensor row, the exact p_c or None, the theory's
+    :class:`~kfcrit.theory.critical.values.CriticalValue`)."""
     cvo = critical_value(system)
     cv = cvo.to_dict()
     klass = cv["classification"]
@@ -711,7 +722,7 @@ def _single_link_critical(system: Any, tol: float
         crit = {"value": None, "interval": [lo, hi], "exact": False, "expression": None,
                 "basis": "single link: bracket [block lower bound, certified p_up]"}
     pc_exact = cvo.value.expr if cvo.value is not None and cvo.value.expr is not None else None
-    return klass, crit, pc_exact, cv
+    return klass, crit, pc_exact, cvo
 
 
 def _single_link_facts(klass: str, crit: dict[str, Any], p: sp.Expr | None,
