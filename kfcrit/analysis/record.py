@@ -338,7 +338,8 @@ def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalI
     """The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
     r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
     burst condition holds), and ``margin_to_sufficient`` r − r_suf(f) from the critical curve
-    when it was computed. The i.i.d. p − p_c stays under ``iid_margin``."""
+    when it was computed (the margin itself where the curve's sufficient end is its necessary
+    one: the scalar theorem of theory §7). The i.i.d. p − p_c stays under ``iid_margin``."""
     from kfcrit.theory.links.markov import recovery_margin
 
     r = burst.recovery
@@ -354,9 +355,10 @@ def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalI
     curve: BurstCurveRecord | None = link.critical_curve or None if link is not None else None
     if curve is not None:
         f = float(burst.failure)
-        for fi, rs in zip(curve.failure_rates or [], curve.sufficient_recovery or []):
+        for fi, rs, rn in zip(curve.failure_rates or [], curve.sufficient_recovery or [],
+                              curve.necessary_recovery or []):
             if rs is not None and abs(fi - f) <= 1e-12:
-                out["margin_to_sufficient"] = float(r) - rs
+                out["margin_to_sufficient"] = margin if rs == rn else float(r) - rs
                 break
 
 

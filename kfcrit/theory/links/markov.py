@@ -698,6 +698,21 @@ def scalar_theorem_applies(system: System) -> bool:
     return system.n == 1 and any(e != 0 for e in system.C)
 
 
+CURVE_MEANING = ("r <= necessary_recovery(f): mean-unstable (proven); r >= "
+                 "sufficient_recovery(f): mean-stable by the coupled fixed-gain certificate "
+                 "(curve found numerically); between: undetermined")
+"""``meaning`` of a critical curve whose sufficient end is the coupled certificate's."""
+SCALAR_CURVE_MEANING = ("r <= necessary_recovery(f): mean-unstable (proven); r > "
+                        "necessary_recovery(f) = sufficient_recovery(f): mean-stable (scalar "
+                        "theorem, docs/theory.md §7: for n = 1 the necessary threshold is also "
+                        "sufficient); no undetermined band")
+"""``meaning`` of the critical curve of a scalar plant seen by its sensor (theory §7)."""
+SCALAR_CURVE_METHOD = ("scalar theorem (docs/theory.md §7): for n = 1 and c != 0, (1 - r) a^2 < 1 "
+                       "is necessary and sufficient, so r_suf(f) = r_nec = max(1 - 1/a^2, 0) "
+                       "for every f (exact; no search)")
+"""``method`` of the critical curve of a scalar plant seen by its sensor (theory §7)."""
+
+
 @dataclass(frozen=True)
 class BurstCriticalCurve:
     """Both bounding curves of the critical curve in the (failure rate, recovery rate) plane:
@@ -714,6 +729,7 @@ class BurstCriticalCurve:
     operating_point: dict[str, float] | None
     notes: tuple[str, ...]
     seconds: float
+    meaning: str = CURVE_MEANING
 
     def to_dict(self) -> dict[str, Any]:
         return {"failure_rates": list(self.failure_rates),
@@ -722,10 +738,7 @@ class BurstCriticalCurve:
                 "sufficient_recovery": list(self.sufficient_recovery),
                 "tolerance": self.tolerance, "method": self.method,
                 "operating_point": self.operating_point, "notes": list(self.notes),
-                "seconds": self.seconds,
-                "meaning": "r <= necessary_recovery(f): mean-unstable (proven); "
-                           "r >= sufficient_recovery(f): mean-stable by the coupled fixed-gain "
-                           "certificate (curve found numerically); between: undetermined"}
+                "seconds": self.seconds, "meaning": self.meaning}
 
 
 CURVE_MAX_STATES = 12
@@ -776,8 +789,9 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     (r_nec, 1] and a bisection inside the first bracket where the grid changes from not
     certified to certified, to width ``tol`` (:func:`smallest_certified`: the certificate's
     feasibility is not assumed monotone in r, although stability is, Wu–Shi–Anderson–Johansson
-    TAC 2018). Grid: ``points``
-    values f = k/points (k = 1..points) unless ``failure_rates`` is given.
+    TAC 2018). For a scalar plant seen by its sensor (n = 1, c ≠ 0) the scalar theorem of
+    theory §7 makes the necessary threshold sufficient: r_suf(f) = r_nec, no search. Grid:
+    ``points`` values f = k/points (k = 1..points) unless ``failure_rates`` is given.
     """
     t0 = time.perf_counter()
     fs = (tuple(float(v) for v in failure_rates) if failure_rates is not None else
@@ -786,7 +800,10 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     notes: list[str] = []
     A, C = system.a, system.c
     suff: list[float | None] = []
-    if system.n > CURVE_MAX_STATES:
+    scalar = scalar_theorem_applies(system)
+    if scalar:
+        suff = [r_nec] * len(fs)
+    elif system.n > CURVE_MAX_STATES:
         notes.append(f"sufficient curve not computed for n = {system.n} > {CURVE_MAX_STATES}")
         suff = [None] * len(fs)
     else:
@@ -801,11 +818,13 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     if operating is not None:
         op = {"failure_rate": float(exact_rate(operating[0], "failure_rate")),
               "recovery_rate": float(exact_rate(operating[1], "recovery_rate"))}
+    method = SCALAR_CURVE_METHOD if scalar else (
+        "grid scan on r, then bisection inside the first not-certified → certified bracket, "
+        "of the coupled LMI / candidate-gain / previous-arrival-gain spectral radius "
+        "(numerical)")
     return BurstCriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
-                         "grid scan on r, then bisection inside the first not-certified → "
-                         "certified bracket, of the coupled LMI / candidate-gain / "
-                         "previous-arrival-gain spectral radius (numerical)", op, tuple(notes),
-                         time.perf_counter() - t0)
+                              method, op, tuple(notes), time.perf_counter() - t0,
+                              SCALAR_CURVE_MEANING if scalar else CURVE_MEANING)
 
 
 CURVE_GRID_POINTS = 12
