@@ -46,51 +46,50 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
 
     Every verdict of the section (the network's, each N − 1 case's) is read from the theory's
     facts by :mod:`kfcrit.analysis.verdict`; with bursty links the burst condition joins in.
-    The theory's result (plain data) is read strictly here, with those verdicts; the burst
-    condition, the links and the stacked sections are built typed.
+    The theory builds the section with those verdicts
+    (:meth:`~kfcrit.theory.links.network.NetworkResult.record`); the burst condition, the
+    links and the stacked sections join it here.
     """
     from kfcrit.theory.links.network import network_analysis
 
     result = network_analysis(spec.network, tol=opts.tolerance)
-    net = result.to_dict()
+    if timings is not None:
+        timings["network.seconds"] = round(result.seconds, 4)
     one_link = (bursty_channel(spec.network.sensors[0].channel)
                 if single is not None and spec.network.size == 1 else None)
+    notes = list(result.warnings)
     if one_link is not None:
-        net["warnings"] = one_bursty_link_warnings(net.get("warnings") or [],
-                                                   spec.network.names[0])
-    warnings.extend(net.get("warnings") or [])
+        notes = one_bursty_link_warnings(notes, spec.network.names[0])
+    warnings.extend(notes)
     if spec.network.size > 1:
         warnings.append("sensor network: the top-level critical value and p_up are those of the "
                         "stacked system (all sensors' packets arriving together); per-sensor "
                         "critical values, the uniform margin and N − 1 verdicts are in "
                         "`network`")
-    verdict, basis = vd.network_verdict(net)
+    verdict, basis = vd.verdict_of(result.facts)
     burst = network_burst_condition(spec.network)
     iid = all(s.channel is None or s.channel.iid for s in spec.network.sensors)
-    typed: dict[str, Any] = {}
     if burst is not None:
-        typed["burst_condition"] = burst
         verdict, basis = vd.network_burst_verdict(verdict, basis, burst.holds,
                                                   burst.statement, burst.facts)
     if single is not None:
         verdict, basis = single
-    if stacked is not None:
-        typed.update(stacked_critical_value=stacked[0], stacked_upper_bound=stacked[1],
-                     stacked_meaning=("the top-level critical_value and upper_bound: the "
-                                      "stacked system, every sensor's packet arriving together "
-                                      "as over one link (not any one sensor's critical value)"))
     holds = burst.holds if burst is not None else None
     dead_burst = burst.n_minus_1 or {} if burst is not None else {}
-    burst_facts: dict[str, StabilityFactsRecord] = {}
-    for row in list(net.get("sensors") or []) + list(net.get("n_minus_1") or []):
-        dead = row["n_minus_1"] if "n_minus_1" in row else row
-        bf = dead_burst[row["name"]].facts if row.get("name") in dead_burst else None
-        if bf is not None:
-            burst_facts[row["name"]] = bf
-        dead["verdict"] = vd.dead_link_verdict(dead.get("facts") or {}, iid=iid,
-                                               burst_holds=holds, burst_facts=bf).value
-    section = read_fields(NetworkSection, net, "network", timings, verdict=verdict.value,
-                          basis=basis, **typed)
+    burst_facts = {name: dead.facts for name, dead in dead_burst.items()}
+    dead_verdicts = [vd.dead_link_verdict(row.n_minus_1, iid=iid, burst_holds=holds,
+                                          burst_facts=burst_facts.get(row.name)).value
+                     for row in result.sensors]
+    section = replace(result.record(verdict.value, basis, dead_verdicts), warnings=notes)
+    if burst is not None:
+        section = replace(section, burst_condition=burst)
+    if stacked is not None:
+        section = replace(section, stacked_critical_value=stacked[0],
+                          stacked_upper_bound=stacked[1],
+                          stacked_meaning=("the top-level critical_value and upper_bound: the "
+                                           "stacked system, every sensor's packet arriving "
+                                           "together as over one link (not any one sensor's "
+                                           "critical value)"))
     links = network_link_designs(spec.network, section, warnings, timings)
     section = replace(section, sensors=[
         replace(row, link=links.get(row.name, row.link), n_minus_1=replace(

@@ -42,7 +42,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import Any
 
@@ -51,6 +51,17 @@ import scipy.linalg as sla
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.records.bounds import CertificateCheck
+from kfcrit.records.bursty import (
+    BurstCertificateRecord,
+    BurstClaim,
+    BurstCurveRecord,
+    CoupledCertificate,
+    CoupledCertificateMatrices,
+    NecessaryBurstCondition,
+    RatesPoint,
+    facts_record,
+)
 from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.plow import rational_rho2
@@ -157,6 +168,10 @@ def _rho2_of_expr(mod2: sp.Expr, how: str) -> Rho2:
     return Rho2(x - pad, x + pad, mod2, how, True)
 
 
+NECESSARY_CONDITION = "(1 - r) * rho(A)^2 < 1"
+"""The necessary burst condition in words (``condition`` of its record)."""
+
+
 @dataclass(frozen=True)
 class BurstNecessary:
     """The necessary burst condition (1 − r)·ρ(A)² < 1 at one recovery rate."""
@@ -171,12 +186,21 @@ class BurstNecessary:
     how: str
     statement: str
 
+    def record(self) -> NecessaryBurstCondition:
+        """The record of the condition (``certificate.necessary`` of the bursty section)."""
+        return NecessaryBurstCondition(
+            holds=self.holds, value=_number(self.value),
+            enclosure=[_number(v) for v in self.enclosure], rho2=_number(self.rho2),
+            rho2_expression=self.rho2_expression, recovery_rate=_number(self.recovery_rate),
+            rigorous=bool(self.rigorous), how=self.how, statement=self.statement,
+            condition=NECESSARY_CONDITION)
+
     def to_dict(self) -> dict[str, Any]:
         return {"holds": self.holds, "value": self.value, "enclosure": list(self.enclosure),
                 "rho2": self.rho2, "rho2_expression": self.rho2_expression,
                 "recovery_rate": self.recovery_rate, "rigorous": self.rigorous,
                 "how": self.how, "statement": self.statement,
-                "condition": "(1 - r) * rho(A)^2 < 1"}
+                "condition": NECESSARY_CONDITION}
 
 
 def burst_necessary(system: System, recovery_rate: Any,
@@ -416,19 +440,67 @@ class BurstCertificate:
     lmi_margin: float | None = None
     matrices: dict[str, Any] | None = field(default=None, compare=False)
 
+    def record(self) -> CoupledCertificate:
+        """The record of the certificate (``certificate.certificate`` of the bursty section;
+        its wall-clock seconds are not part of it)."""
+        m = self.matrices
+        mats = None
+        if m is not None:
+            mats = CoupledCertificateMatrices(K=_rows(m["K"]), X0=_rows(m["X0"]),
+                                              X1=_rows(m["X1"]))
+            if "K1" in m:
+                mats = replace(mats, K1=_rows(m["K1"]))
+        return CoupledCertificate(
+            certified=bool(self.certified), failure_rate=_number(self.failure_rate),
+            recovery_rate=_number(self.recovery_rate),
+            spectral_radius=_finite(self.spectral_radius), gain_origin=self.gain_origin,
+            check=_check_record(self.check), reason=self.reason,
+            lmi_margin=_finite(self.lmi_margin), matrices=mats, kind=COUPLED_KIND)
+
     def to_dict(self) -> dict[str, Any]:
         return {"certified": self.certified, "failure_rate": self.failure_rate,
                 "recovery_rate": self.recovery_rate,
                 "spectral_radius": _finite(self.spectral_radius),
                 "gain_origin": self.gain_origin, "check": self.check, "reason": self.reason,
                 "seconds": self.seconds, "lmi_margin": _finite(self.lmi_margin),
-                "matrices": self.matrices,
-                "kind": "coupled Lyapunov: X_i > 0, X_i - F_i' (sum_j T_ij X_j) F_i > 0, "
-                        "F_0 = A, F_1 = A + K C, T = [[1-r, r], [f, 1-f]]"}
+                "matrices": self.matrices, "kind": COUPLED_KIND}
+
+
+COUPLED_KIND = ("coupled Lyapunov: X_i > 0, X_i - F_i' (sum_j T_ij X_j) F_i > 0, F_0 = A, "
+                "F_1 = A + K C, T = [[1-r, r], [f, 1-f]]")
+"""``kind`` of the coupled fixed-gain certificate."""
 
 
 def _finite(x: float | None) -> float | None:
     return None if x is None or not np.isfinite(x) else float(x)
+
+
+def _number(x: Any) -> float | int | None:
+    """A number of the record: an int stays an int, a float (NumPy's too) becomes a Python
+    float, None where it is not finite."""
+    if x is None:
+        return None
+    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
+        return int(x)
+    f = float(x)
+    return f if np.isfinite(f) else None
+
+
+def _rows(M: Any) -> list[list[float | int | None]]:
+    """A matrix of the record, row by row (:func:`_number` of each entry)."""
+    return [[_number(v) for v in row] for row in M]
+
+
+def _check_record(check: dict[str, Any] | None) -> CertificateCheck | None:
+    """The record of a ball-arithmetic check
+    (:meth:`kfcrit.theory.upper.certify.CheckResult.to_dict`)."""
+    if check is None:
+        return None
+    return CertificateCheck(ok=bool(check["ok"]), kind=check["kind"], p=_number(check["p"]),
+                            min_eig_x_lower=_number(check["min_eig_x_lower"]),
+                            margin_lower=_number(check["margin_lower"]), reason=check["reason"],
+                            margin_meaning=check["margin_meaning"],
+                            verified_by=check["verified_by"])
 
 
 def _mat(M: np.ndarray) -> list[list[float]]:
@@ -573,6 +645,22 @@ class BurstFacts:
     necessary: BurstNecessary
     certificate: BurstCertificate | None
     claim: dict[str, Any] | None
+
+    def record(self, verdict: str, claim_verdict: str | None = None) -> BurstCertificateRecord:
+        """The ``certificate`` of the bursty section, judged ``verdict`` (read from
+        :attr:`facts` by the analysis); the literature's claim, when there is one, would give
+        ``claim_verdict`` were it true."""
+        c = self.claim
+        claim = None if c is None else BurstClaim(
+            label=c["label"], source=c["source"], statement=c["statement"],
+            verdict_if_true=str(claim_verdict), stable_if_true=bool(c["stable_if_true"]))
+        return BurstCertificateRecord(
+            verdict=verdict, basis=self.basis, failure_rate=_number(self.failure_rate),
+            recovery_rate=_number(self.recovery_rate),
+            stationary_arrival=_number(self.stationary_arrival),
+            necessary=self.necessary.record(),
+            certificate=None if self.certificate is None else self.certificate.record(),
+            claim=claim, facts=facts_record(self.facts))
 
     def to_dict(self) -> dict[str, Any]:
         return {"facts": self.facts.to_dict(), "basis": self.basis,
@@ -730,6 +818,20 @@ class BurstCriticalCurve:
     notes: tuple[str, ...]
     seconds: float
     meaning: str = CURVE_MEANING
+
+    def record(self) -> BurstCurveRecord:
+        """The ``critical_curve`` of the bursty section (its wall-clock seconds are not part
+        of it)."""
+        op = self.operating_point or {}
+        return BurstCurveRecord(
+            failure_rates=[_number(v) for v in self.failure_rates],
+            necessary_recovery=[_number(v) for v in self.necessary_recovery],
+            necessary_expression=self.necessary_expression,
+            sufficient_recovery=[_number(v) for v in self.sufficient_recovery],
+            tolerance=_number(self.tolerance), method=self.method,
+            operating_point=RatesPoint(failure_rate=_number(op.get("failure_rate")),
+                                       recovery_rate=_number(op.get("recovery_rate"))),
+            notes=list(self.notes), meaning=self.meaning)
 
     def to_dict(self) -> dict[str, Any]:
         return {"failure_rates": list(self.failure_rates),
