@@ -15,19 +15,15 @@ from typing import Any
 import numpy as np
 
 from kfcrit.analysis import verdict as vd
-from kfcrit.io.jsonio import jsonable
 from kfcrit.io.typed import to_json
 from kfcrit.model.channels import Channel, GilbertElliott
 from kfcrit.model.system import System
 from kfcrit.records.bursty import (
-    BurstCertificateRecord,
     BurstCondition,
-    BurstCurveRecord,
     BurstSimulationCheck,
     GilbertElliottSection,
     LiteratureClaim,
 )
-from kfcrit.records.read import read_plain
 from kfcrit.sim.montecarlo import simulate
 from kfcrit.theory.critical.section import critical_value
 from kfcrit.theory.links.markov import burst_necessary
@@ -123,6 +119,21 @@ def ge_simulation_check(system: System, channel: GilbertElliott, *, paths: int =
             "simulator": "kfcrit.sim.montecarlo.simulate"}
 
 
+def simulation_record(sim: dict[str, Any]) -> BurstSimulationCheck:
+    """The record of :func:`ge_simulation_check`'s result (non-finite means are None)."""
+    return BurstSimulationCheck(
+        paths=int(sim["paths"]), steps=int(sim["steps"]), seed=int(sim["seed"]),
+        horizon_rule=sim["horizon_rule"], mean_half=_finite(sim["mean_half"]),
+        mean_end=_finite(sim["mean_end"]), growth_ratio=_finite(sim["growth_ratio"]),
+        expected_growth_if_unbounded=_finite(sim["expected_growth_if_unbounded"]),
+        capped=bool(sim["capped"]), simulator=sim["simulator"])
+
+
+def _finite(x: float | None) -> float | None:
+    """A finite float, else None (the record holds no NaN or infinity)."""
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
 def ge_condition_status(system: Any, classification: str, c_nonzero: bool) -> tuple[str, bool]:
     """(label of the condition, whether it is a theorem that decides mean stability)."""
     if classification == "stable":
@@ -215,7 +226,7 @@ def gilbert_elliott_record(system: Any, channel: GilbertElliott, *, seed: int = 
     claim = classification == "non-degenerate" and system.n <= 6
     if simulate and (scalar and decides or claim) and classification != "stable":
         sim = ge_simulation_check(system, channel, seed=seed)
-        out["simulation"] = BurstSimulationCheck(**jsonable(sim))
+        out["simulation"] = simulation_record(sim)
         expected = sim["expected_growth_if_unbounded"]
         if abs(value - 1) < 0.15:
             out["simulation_note"] = ("(1 - r) a^2 is within 0.15 of 1: a simulation of this "
@@ -234,11 +245,12 @@ def gilbert_elliott_record(system: Any, channel: GilbertElliott, *, seed: int = 
         applicable=True, failure_rate=f, recovery_rate=r,
         stationary_arrival_probability=r / (f + r), mean_burst_length=1 / r, spectral_radius=a,
         classification=classification,
-        condition=BurstCondition(expression="(1 - r) a^2 < 1", value=jsonable(value),
+        condition=BurstCondition(expression="(1 - r) a^2 < 1", value=_finite(value),
                                  holds=_condition_holds(system, channel.recovery_rate, value),
                                  status=status, decides=decides),
         required_recovery_rate=r_min, max_mean_burst_length=(1 / r_min) if r_min > 0 else None,
-        claims=[LiteratureClaim(**c) for c in GE_CLAIMS], **out)
+        claims=[LiteratureClaim(statement=c["statement"], source=c["source"],
+                                status=c["status"]) for c in GE_CLAIMS], **out)
 
 
 def bursty_link_section(spec: Any, opts: Any, theory: Any, ge: GilbertElliott,
@@ -249,8 +261,8 @@ def bursty_link_section(spec: Any, opts: Any, theory: Any, ge: GilbertElliott,
     :func:`kfcrit.theory.links.markov.burst_facts`) and, with ``details``, the critical curve in the
     (failure rate, recovery rate) plane. ``theory`` is the system's
     :class:`~kfcrit.analysis.record.TheorySections`, ``opts`` the analysis options; the
-    theory's certificate and curve (plain data) are read where they enter, their seconds into
-    ``timings``."""
+    theory builds the certificate and the curve as their records (their wall-clock seconds go
+    into ``timings``)."""
     from kfcrit.theory.links import markov
 
     s = spec.system
@@ -261,9 +273,12 @@ def bursty_link_section(spec: Any, opts: Any, theory: Any, ge: GilbertElliott,
         return out
     bv = markov.burst_facts(s, ge.failure_rate, ge.recovery_rate, structure=theory.structure,
                             classification=cls)
-    out = replace(out, certificate=read_plain(BurstCertificateRecord,
-                                              vd.with_verdict(bv.to_dict()),
-                                              f"{path}.certificate", timings))
+    claim = (None if bv.claim is None else
+             (vd.Verdict.MEAN_STABLE if bv.claim["stable_if_true"] else
+              vd.Verdict.MEAN_UNSTABLE).value)
+    out = replace(out, certificate=bv.record(vd.verdict_of(bv.facts)[0].value, claim))
+    if timings is not None and bv.certificate is not None:
+        timings[f"{path}.certificate.certificate.seconds"] = bv.certificate.seconds
     if opts.details and s.n <= 12 and cls != "stable":
         points = 5 if opts.quick else 9
         grid = sorted({round(k / points, 12) for k in range(1, points + 1)}
@@ -272,6 +287,7 @@ def bursty_link_section(spec: Any, opts: Any, theory: Any, ge: GilbertElliott,
             s, failure_rates=grid, tol=1e-2 if opts.quick else 1e-3,
             operating=(float(ge.failure_rate), float(ge.recovery_rate)),
             structure=theory.structure)
-        out = replace(out, critical_curve=read_plain(BurstCurveRecord, curve.to_dict(),
-                                                     f"{path}.critical_curve", timings))
+        out = replace(out, critical_curve=curve.record())
+        if timings is not None:
+            timings[f"{path}.critical_curve.seconds"] = curve.seconds
     return out

@@ -14,12 +14,18 @@ from kfcrit.records.contract import CriticalValueRecord, OperatingPoint, UpperBo
 from kfcrit.records.covariance import CovarianceBounds, CovarianceSummary
 from kfcrit.records.network import (
     DeadLinkBurst,
+    ExactRegion,
     NetworkBurstCondition,
     NetworkSection,
+    SensorCriticalValue,
     SensorLink,
+    SensorMargin,
+    SensorSurfaces,
+    UniformMargin,
 )
 from kfcrit.records.read import read_fields, read_plain
 from kfcrit.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
+from kfcrit.theory.facts import StabilityFacts
 
 
 def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
@@ -39,45 +45,50 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
 
     Every verdict of the section (the network's, each N − 1 case's) is read from the theory's
     facts by :mod:`kfcrit.analysis.verdict`; with bursty links the burst condition joins in.
-    The theory's result (plain data) is read strictly here, with those verdicts; the burst
-    condition, the links and the stacked sections are built typed.
+    The theory builds the section with those verdicts
+    (:meth:`~kfcrit.theory.links.network.NetworkResult.record`); the burst condition, the
+    links and the stacked sections join it here.
     """
     from kfcrit.theory.links.network import network_analysis
 
-    net = network_analysis(spec.network, tol=opts.tolerance).to_dict()
-    warnings.extend(net.get("warnings") or [])
+    result = network_analysis(spec.network, tol=opts.tolerance)
+    if timings is not None:
+        timings["network.seconds"] = round(result.seconds, 4)
+    one_link = (bursty_channel(spec.network.sensors[0].channel)
+                if single is not None and spec.network.size == 1 else None)
+    notes = list(result.warnings)
+    if one_link is not None:
+        notes = one_bursty_link_warnings(notes, spec.network.names[0])
+    warnings.extend(notes)
     if spec.network.size > 1:
         warnings.append("sensor network: the top-level critical value and p_up are those of the "
                         "stacked system (all sensors' packets arriving together); per-sensor "
                         "critical values, the uniform margin and N − 1 verdicts are in "
                         "`network`")
-    verdict, basis = vd.network_verdict(net)
+    verdict, basis = vd.verdict_of(result.facts)
     burst = network_burst_condition(spec.network)
     iid = all(s.channel is None or s.channel.iid for s in spec.network.sensors)
-    typed: dict[str, Any] = {}
     if burst is not None:
-        typed["burst_condition"] = burst
         verdict, basis = vd.network_burst_verdict(verdict, basis, burst.holds,
                                                   burst.statement, burst.facts)
     if single is not None:
         verdict, basis = single
-    if stacked is not None:
-        typed.update(stacked_critical_value=stacked[0], stacked_upper_bound=stacked[1],
-                     stacked_meaning=("the top-level critical_value and upper_bound: the "
-                                      "stacked system, every sensor's packet arriving together "
-                                      "as over one link (not any one sensor's critical value)"))
     holds = burst.holds if burst is not None else None
     dead_burst = burst.n_minus_1 or {} if burst is not None else {}
-    burst_facts: dict[str, StabilityFactsRecord] = {}
-    for row in list(net.get("sensors") or []) + list(net.get("n_minus_1") or []):
-        dead = row["n_minus_1"] if "n_minus_1" in row else row
-        bf = dead_burst[row["name"]].facts if row.get("name") in dead_burst else None
-        if bf is not None:
-            burst_facts[row["name"]] = bf
-        dead["verdict"] = vd.dead_link_verdict(dead.get("facts") or {}, iid=iid,
-                                               burst_holds=holds, burst_facts=bf).value
-    section = read_fields(NetworkSection, net, "network", timings, verdict=verdict.value,
-                          basis=basis, **typed)
+    burst_facts = {name: dead.facts for name, dead in dead_burst.items()}
+    dead_verdicts = [vd.dead_link_verdict(row.n_minus_1, iid=iid, burst_holds=holds,
+                                          burst_facts=burst_facts.get(row.name)).value
+                     for row in result.sensors]
+    section = replace(result.record(verdict.value, basis, dead_verdicts), warnings=notes)
+    if burst is not None:
+        section = replace(section, burst_condition=burst)
+    if stacked is not None:
+        section = replace(section, stacked_critical_value=stacked[0],
+                          stacked_upper_bound=stacked[1],
+                          stacked_meaning=("the top-level critical_value and upper_bound: the "
+                                           "stacked system, every sensor's packet arriving "
+                                           "together as over one link (not any one sensor's "
+                                           "critical value)"))
     links = network_link_designs(spec.network, section, warnings, timings)
     section = replace(section, sensors=[
         replace(row, link=links.get(row.name, row.link), n_minus_1=replace(
@@ -85,6 +96,9 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
         for row in section.sensors], n_minus_1=[
         replace(row, burst_facts=burst_facts.get(row.name, row.burst_facts))
         for row in section.n_minus_1])
+    if one_link is not None:
+        section = one_bursty_link(section, spec.network, one_link, result.single_lower,
+                                  verdict, basis)
     sensors = section.sensors
     bottleneck = section.bottleneck.name
     row = next((s for s in sensors if s.name == bottleneck), sensors[0] if sensors else None)
@@ -102,6 +116,94 @@ def network_sections(spec: SystemSpec, opts: Any, warnings: list[str],
              "boundary)",
         verdict=verdict, basis=basis)
     return section, op
+
+
+ONE_BURSTY_LINK = ("one sensor over a bursty link: its burst facts decide (theory §7, §10), as "
+                   "for the same link without the network; the i.i.d. critical value, "
+                   "surfaces and received-set certificate at the stationary arrival "
+                   "probability do not apply to losses in bursts (null)")
+"""``network.reason`` of a one-sensor network over a bursty link."""
+
+
+def one_bursty_link_warnings(theory: list[str], name: str) -> list[str]:
+    """The network theory's warnings for one sensor over a bursty link: its note that the
+    link is analysed at its stationary arrival probability (i.i.d.) becomes what the section
+    states instead."""
+    from kfcrit.theory.links.network import bursty_iid_warning
+
+    iid = bursty_iid_warning([name])
+    return [w for w in theory if w != iid] + [
+        f"sensor {name} has a bursty (Markov) link: the network section states the link's "
+        "burst facts and its margin r − r_nec (theory §10), as the operating point does; the "
+        "per-sensor i.i.d. quantities (critical value, surfaces, certificate) are null"]
+
+
+def one_bursty_link(section: NetworkSection, network: Any, ge: Any, lower: Any,
+                    verdict: vd.Verdict, basis: str) -> NetworkSection:
+    r"""The network section of one sensor over a bursty link, stating what the record states
+    for that link (theory §7, §10): its facts (the necessary burst condition, and the
+    sufficient condition the link section proved, read from the operating point's
+    ``verdict`` and ``basis``) and the operating point's margin
+
+    .. math:: \delta = r - r_{nec}, \qquad r_{nec} = \max(1 - \rho(A)^{-2}, 0),
+
+    as the sensor's margin, the uniform margin and the bottleneck's. The i.i.d. quantities of
+    theory §9 at the stationary arrival probability (critical value, surfaces, received-set
+    certificate) mean nothing for losses in bursts: null, ``reason`` says why. ``lower`` is the
+    single-link lower bound max(1 − 1/ρ(A)², 0) of the network theory (value and exact form).
+    """
+    from kfcrit.theory.links.markov import (
+        burst_necessary,
+        recovery_margin,
+        scalar_theorem_applies,
+    )
+
+    system = network.stacked_system()
+    r_nec = lower.value if lower is not None else None
+    margin = recovery_margin(ge.recovery_rate, r_nec, lower.expr if lower is not None else None)
+    exact = scalar_theorem_applies(system)
+    interval: list[float | None] = [margin, margin] if exact else [None, margin]
+    nec = burst_necessary(system, ge.recovery_rate)
+    nec_basis = "necessary burst condition: " + nec.statement
+    if verdict is vd.Verdict.MEAN_UNSTABLE:
+        facts = StabilityFacts(False, False, exact, basis, "")
+    elif verdict is vd.Verdict.MEAN_STABLE:
+        facts = StabilityFacts(True, True, exact, nec_basis, basis)
+    else:
+        facts = StabilityFacts(nec.holds, False, False, nec_basis, "")
+    threshold = (f"r_nec = {r_nec:.6g}" if r_nec is not None else "r_nec")
+    rule = ("r − r_nec: the bursty link's recovery rate against the necessary threshold r_nec = "
+            "max(1 − 1/ρ(A)², 0) of the burst condition (1 − r)ρ(A)² < 1 (theory §10), the "
+            "operating point's margin; positive iff the necessary burst condition holds")
+    row = section.sensors[0]
+    row = replace(row, critical_value=SensorCriticalValue(
+        value=None, interval=None, exact=False, expression=None,
+        basis=(f"bursty link: mean stability depends on the recovery rate r, not on the "
+               f"arrival probability alone; the link's threshold is {threshold} (necessary "
+               "burst condition, theory §10) and its margin r − r_nec")),
+        surfaces=SensorSurfaces(necessary=None, sufficient=None),
+        margin=SensorMargin(value=margin, interval=list(interval)))
+    return replace(
+        section, reason=ONE_BURSTY_LINK, sensors=[row],
+        uniform_margin=UniformMargin(
+            value=margin, interval=list(interval), unbounded=None, rule=rule,
+            reason=("one sensor over a bursty link: δ = r − r_nec, the operating point's margin"
+                    + ("" if exact else "; only the necessary end is exact (theory §10)"))),
+        bottleneck=replace(section.bottleneck, name=row.name, margin=margin,
+                           margin_interval=list(interval)),
+        necessary_constraints=[replace(c, condition=(
+            "prod over sensors not blind of (1 - r_i) * modulus2 < 1 (bursty link: the burst "
+            "condition, c_i = 1 - r_i, theory §10)")) for c in section.necessary_constraints],
+        exact_region=ExactRegion(
+            holds=exact,
+            reason=("scalar plant seen by the sensor: (1 − r)a² < 1 is necessary and "
+                    "sufficient (theory §7)" if exact else
+                    "bursty link on a vector plant: only the necessary burst condition "
+                    "(1 − r)ρ(A)² < 1 is exact; sufficiency needs the coupled certificate of "
+                    "the link section (theory §10)"),
+            basis="scalar Gilbert–Elliott theorem (theory §7)" if exact else
+                  "necessary burst condition (theory §10)"),
+        certificate=None, facts=facts_record(facts))
 
 
 def network_lower_bound(network: Any, all_lost: float | None = None) -> CovarianceBounds:
@@ -257,7 +359,6 @@ def network_burst_condition(network: Any) -> NetworkBurstCondition | None:
     import numpy as np
     import sympy as sp
 
-    from kfcrit.theory.facts import StabilityFacts
     from kfcrit.theory.links.network import necessary_constraints, necessary_holds
 
     chains = [bursty_channel(s.channel) for s in network.sensors]

@@ -331,12 +331,13 @@ def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalI
     """The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
     r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
     burst condition holds), and ``margin_to_sufficient`` r − r_suf(f) from the critical curve
-    when it was computed. The i.i.d. p − p_c stays under ``iid_margin``."""
+    when it was computed (the margin itself where the curve's sufficient end is its necessary
+    one: the scalar theorem of theory §7). The i.i.d. p − p_c stays under ``iid_margin``."""
+    from kfcrit.theory.links.markov import recovery_margin
+
     r = burst.recovery
     r_nec = crit.p_low if crit.p_low is not None else 0.0
-    r_nec_exact = crit.p_low_exact if crit.p_low is not None and crit.p_low > 0 else None
-    fallback = float(r) - r_nec
-    margin = exact_difference(r, r_nec_exact, fallback) if r_nec_exact is not None else fallback
+    margin = recovery_margin(r, crit.p_low, crit.p_low_exact)
     out["note"] = ("p_c, p_up and the i.i.d. bounds S̄, V̄ assume i.i.d. losses; this link's "
                    "margin is its recovery rate against r_nec (the i.i.d. comparison p − p_c "
                    "is kept beside it), and the verdict follows the basis stated")
@@ -347,9 +348,10 @@ def _burst_margin(out: dict[str, Any], burst: vd.BurstInputs, crit: vd.CriticalI
     curve: BurstCurveRecord | None = link.critical_curve or None if link is not None else None
     if curve is not None:
         f = float(burst.failure)
-        for fi, rs in zip(curve.failure_rates or [], curve.sufficient_recovery or []):
+        for fi, rs, rn in zip(curve.failure_rates or [], curve.sufficient_recovery or [],
+                              curve.necessary_recovery or []):
             if rs is not None and abs(fi - f) <= 1e-12:
-                out["margin_to_sufficient"] = float(r) - rs
+                out["margin_to_sufficient"] = margin if rs == rn else float(r) - rs
                 break
 
 

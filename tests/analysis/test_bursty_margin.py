@@ -58,3 +58,34 @@ def test_report_labels_the_bursty_margin(tmp_path):
     assert r.exit_code == 0, r.output
     html = out.read_text()
     assert "margin r − r<sub>nec</sub>" in html and "+0.14" in html
+
+
+SCALAR = ("name: scalar\nA: [[-1.25]]\nC: [[1]]\nQ: 1\nR: 2.5\n"
+          "channel: {model: gilbert-elliott, failure_rate: 0.05, recovery_rate: 0.5}\n")
+
+
+def test_scalar_bursty_link_has_no_undetermined_band(tmp_path):
+    """Scalar theorem (theory §7): n = 1, c ≠ 0, E[P_t] bounded iff (1 − r)a² < 1, so the
+    sufficient threshold is the necessary one, 1 − 16/25 = 9/25 (by hand), at every f; at
+    r = 1/2 ((1 − r)a² = 25/32 < 1, mean-stable) both margins are 0.5 − 0.36 = +0.14."""
+    p = tmp_path / "scalar.yaml"
+    p.write_text(SCALAR)
+    r = CliRunner().invoke(main, ["analyze", str(p), "--json", "--quick", "--no-simulate"])
+    rec = json.loads(r.stdout)
+    op, curve = rec["operating_point"], rec["link_budget"]["critical_curve"]
+    assert op["verdict"] == "mean-stable"
+    assert op["margin"] == pytest.approx(0.5 - 9 / 25, abs=1e-12)
+    assert op["margin_to_sufficient"] == op["margin"]
+    assert curve["sufficient_recovery"] == curve["necessary_recovery"]
+    assert all(v == pytest.approx(9 / 25, abs=1e-15) for v in curve["sufficient_recovery"])
+    assert "undetermined" not in curve["meaning"].replace("no undetermined band", "")
+
+
+def test_scalar_bursty_report_names_no_undetermined_band(tmp_path):
+    p = tmp_path / "scalar.yaml"
+    p.write_text(SCALAR)
+    out = tmp_path / "review.html"
+    r = CliRunner().invoke(main, ["report", str(p), "-o", str(out), "--quick"])
+    assert r.exit_code == 0, r.output
+    html = out.read_text()
+    assert "no band is undetermined" in html and "between, undetermined" not in html

@@ -125,7 +125,9 @@ def test_bursty_link_in_a_network_uses_the_burst_condition() -> None:
 
 
 def test_one_bursty_sensor_equals_the_single_link() -> None:
-    """N = 1 over a Gilbert–Elliott link: (1 − r)a² = 0.9·25/16 ≥ 1, as ge-bursty-scalar."""
+    """N = 1 over a Gilbert–Elliott link: (1 − r)a² = 0.9·25/16 ≥ 1, as ge-bursty-scalar; the
+    network row states the link's own margin r − r_nec = 1/10 − 9/25 = −0.26 (by hand), and no
+    i.i.d. critical value (losses in bursts are not judged by their arrival probability)."""
     doc = {"name": "n1", "A": "-5/4", "Q": 1, "sensors": [
         {"name": "only", "C": 1, "R": "5/2",
          "channel": {"model": "gilbert-elliott", "failure_rate": "1/20",
@@ -133,7 +135,11 @@ def test_one_bursty_sensor_equals_the_single_link() -> None:
     row, rec = row_and_record(doc, [])
     assert rec["operating_point"]["verdict"] == "mean-unstable" == row["verdict"]
     assert rec["review"]["decision"] == "fail" == row["decision"]
-    assert rec["network"]["sensors"][0]["critical_value"]["expression"] == "9/25"
+    sensor = rec["network"]["sensors"][0]
+    assert sensor["critical_value"]["value"] is None
+    assert "r_nec = 0.36" in sensor["critical_value"]["basis"]
+    assert sensor["margin"]["value"] == pytest.approx(-0.26, abs=1e-12)
+    assert rec["operating_point"]["margin"] == pytest.approx(-0.26, abs=1e-12)
 
 
 def test_exact_margin_keeps_a_tiny_difference() -> None:

@@ -129,6 +129,65 @@ def test_bursty_link_at_the_burst_threshold(r: str, expected: str | None) -> Non
         assert verdict != "mean-unstable"
 
 
+def operating_margins(record: dict) -> list[tuple[str, float]]:
+    """Every margin of the record that measures the operating point against its stability
+    boundary (the labelled i.i.d. comparisons ``iid_*`` are not margins of a bursty link)."""
+    out = []
+    op = record.get("operating_point") or {}
+    for key in ("margin", "margin_robust"):
+        out.append((f"operating_point.{key}", op.get(key)))
+    net = record.get("network") or {}
+    um = net.get("uniform_margin") or {}
+    bn = net.get("bottleneck") or {}
+    out += [("network.uniform_margin.value", um.get("value")),
+            ("network.bottleneck.margin", bn.get("margin"))]
+    out += [(f"network.uniform_margin.interval[{i}]", v)
+            for i, v in enumerate(um.get("interval") or [])]
+    out += [(f"network.bottleneck.margin_interval[{i}]", v)
+            for i, v in enumerate(bn.get("margin_interval") or [])]
+    for row in net.get("sensors") or []:
+        m = row.get("margin") or {}
+        out.append((f"network.sensors.{row['name']}.margin.value", m.get("value")))
+        out += [(f"network.sensors.{row['name']}.margin.interval[{i}]", v)
+                for i, v in enumerate(m.get("interval") or [])]
+    return [(path, v) for path, v in out if v is not None]
+
+
+ONE_BURSTY = {"name": "one gauge", "A": [["-5/4"]], "Q": 1, "sensors": [
+    {"name": "gauge", "C": [[1]], "R": 2.5,
+     "channel": {"model": "gilbert-elliott", "failure_rate": "1/20", "recovery_rate": "1/10"}}]}
+
+
+@pytest.mark.parametrize("A, C, r, expected", [
+    ([["-5/4"]], [[1]], Fraction(1, 10), "mean-unstable"),
+    ([["-5/4"]], [[1]], Fraction(1, 2), "mean-stable"),
+    (GENERAL["A"], [[1, 1]], Fraction(1, 5), "mean-unstable")])
+def test_one_sensor_network_over_a_bursty_link(A, C, r, expected) -> None:
+    """A one-sensor network is its one link: over a Gilbert–Elliott link with ρ(A) = 5/4 the
+    burst condition (1 − r)·25/16 < 1 decides (necessary for any plant, and sufficient for a
+    scalar one, theory §7, §10): r = 1/10 gives 45/32, r = 1/5 gives 5/4 (unstable), r = 1/2
+    gives 25/32 (stable). Every verdict of the record agrees, and every margin is the link's
+    r − r_nec, r_nec = 1 − 16/25 = 9/25, with the verdict's sign (by hand)."""
+    doc = {**ONE_BURSTY, "A": A, "sensors": [
+        {**ONE_BURSTY["sensors"][0], "C": C,
+         "channel": {**ONE_BURSTY["sensors"][0]["channel"], "recovery_rate": str(r)}}]}
+    if len(A) > 1:
+        doc["Q"] = GENERAL["Q"]
+    record = analyze_doc(doc)
+    assert assert_one_verdict(record) == expected
+    net = record["network"]
+    assert net["verdict"] == expected
+    facts = net["facts"]
+    assert (facts["necessary"] is False) == (expected == "mean-unstable")
+    assert facts["sufficient"] is (expected == "mean-stable")
+    assert net["certificate"] is None   # the i.i.d. certificate proves nothing for bursts
+    margins = operating_margins(record)
+    assert len(margins) >= 6
+    for path, value in margins:
+        assert value == pytest.approx(float(r - Fraction(9, 25)), abs=1e-12), path
+        assert (value > 0) is (expected == "mean-stable"), path
+
+
 fractions = st.fractions(min_value=Fraction(1, 20), max_value=Fraction(19, 20),
                          max_denominator=20)
 

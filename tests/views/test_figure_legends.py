@@ -104,8 +104,12 @@ def test_coinciding_critical_curves_are_distinguishable() -> None:
     assert any(t.startswith("r = 9/25") for t in texts)
     exact = legend_texts(draw_critical_curve(critical_curve_record(0.0)))
     assert any("the critical curve is exact" in t for t in exact)
+    # r_suf = r_nec everywhere (the scalar theorem, theory §7): no band is left undetermined
+    assert any("mean-stable (exact)" in t for t in exact)
+    assert not any("(certificate)" in t for t in exact)
     apart = legend_texts(draw_critical_curve(critical_curve_record(0.2)))
     assert not any("within" in t or "exact" in t for t in apart)
+    assert any("mean-stable (certificate)" in t for t in apart)
 
 
 def region_record() -> AnalysisRecord:

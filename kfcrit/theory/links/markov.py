@@ -42,7 +42,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import Any
 
@@ -51,6 +51,17 @@ import scipy.linalg as sla
 import sympy as sp
 
 from kfcrit.model.system import System
+from kfcrit.records.bounds import CertificateCheck
+from kfcrit.records.bursty import (
+    BurstCertificateRecord,
+    BurstClaim,
+    BurstCurveRecord,
+    CoupledCertificate,
+    CoupledCertificateMatrices,
+    NecessaryBurstCondition,
+    RatesPoint,
+    facts_record,
+)
 from kfcrit.theory.covariance.riccati import congruence_matrix, symmetrize, unvech, vech
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.plow import rational_rho2
@@ -157,6 +168,10 @@ def _rho2_of_expr(mod2: sp.Expr, how: str) -> Rho2:
     return Rho2(x - pad, x + pad, mod2, how, True)
 
 
+NECESSARY_CONDITION = "(1 - r) * rho(A)^2 < 1"
+"""The necessary burst condition in words (``condition`` of its record)."""
+
+
 @dataclass(frozen=True)
 class BurstNecessary:
     """The necessary burst condition (1 − r)·ρ(A)² < 1 at one recovery rate."""
@@ -171,12 +186,21 @@ class BurstNecessary:
     how: str
     statement: str
 
+    def record(self) -> NecessaryBurstCondition:
+        """The record of the condition (``certificate.necessary`` of the bursty section)."""
+        return NecessaryBurstCondition(
+            holds=self.holds, value=_number(self.value),
+            enclosure=[_number(v) for v in self.enclosure], rho2=_number(self.rho2),
+            rho2_expression=self.rho2_expression, recovery_rate=_number(self.recovery_rate),
+            rigorous=bool(self.rigorous), how=self.how, statement=self.statement,
+            condition=NECESSARY_CONDITION)
+
     def to_dict(self) -> dict[str, Any]:
         return {"holds": self.holds, "value": self.value, "enclosure": list(self.enclosure),
                 "rho2": self.rho2, "rho2_expression": self.rho2_expression,
                 "recovery_rate": self.recovery_rate, "rigorous": self.rigorous,
                 "how": self.how, "statement": self.statement,
-                "condition": "(1 - r) * rho(A)^2 < 1"}
+                "condition": NECESSARY_CONDITION}
 
 
 def burst_necessary(system: System, recovery_rate: Any,
@@ -249,6 +273,29 @@ def necessary_recovery_threshold(system: System, structure: Any | None = None
         return float(sp.N(e, 30)), sp.sstr(e)
     mid = (rho.lo + rho.hi) / 2
     return (float(1 - 1 / mid) if mid > 1 else 0.0), None
+
+
+def recovery_margin(recovery_rate: Any, r_nec: float | None, r_nec_exact: Any = None) -> float:
+    r"""The margin of a bursty link against its own boundary (theory §10): r − r_nec, with
+    r_nec = max(1 − 1/ρ(A)², 0) the necessary recovery threshold (positive iff the necessary
+    burst condition holds).
+
+    .. math::  \delta = r - r_{nec}, \qquad r_{nec} = \max(1 - \rho(A)^{-2}, 0)
+
+    Rounded once to a double when r and ``r_nec_exact`` are both exact (so 9/25 + 10⁻⁴⁰ − 9/25
+    is 1e-40, not 0.0); ``r_nec`` None reads as 0, and ``r_nec_exact`` counts only where
+    r_nec > 0.
+    """
+    threshold = r_nec if r_nec is not None else 0.0
+    fallback = float(recovery_rate) - threshold
+    exact = r_nec_exact if r_nec is not None and r_nec > 0 else None
+    if isinstance(recovery_rate, sp.Basic) and isinstance(exact, sp.Basic) and not (
+            recovery_rate.has(sp.Float) or exact.has(sp.Float)):
+        try:
+            return float(sp.N(recovery_rate - exact, 30))
+        except (TypeError, ValueError):
+            return fallback
+    return fallback
 
 
 # ---------------------------------------------------------------------------------------------
@@ -393,19 +440,67 @@ class BurstCertificate:
     lmi_margin: float | None = None
     matrices: dict[str, Any] | None = field(default=None, compare=False)
 
+    def record(self) -> CoupledCertificate:
+        """The record of the certificate (``certificate.certificate`` of the bursty section;
+        its wall-clock seconds are not part of it)."""
+        m = self.matrices
+        mats = None
+        if m is not None:
+            mats = CoupledCertificateMatrices(K=_rows(m["K"]), X0=_rows(m["X0"]),
+                                              X1=_rows(m["X1"]))
+            if "K1" in m:
+                mats = replace(mats, K1=_rows(m["K1"]))
+        return CoupledCertificate(
+            certified=bool(self.certified), failure_rate=_number(self.failure_rate),
+            recovery_rate=_number(self.recovery_rate),
+            spectral_radius=_finite(self.spectral_radius), gain_origin=self.gain_origin,
+            check=_check_record(self.check), reason=self.reason,
+            lmi_margin=_finite(self.lmi_margin), matrices=mats, kind=COUPLED_KIND)
+
     def to_dict(self) -> dict[str, Any]:
         return {"certified": self.certified, "failure_rate": self.failure_rate,
                 "recovery_rate": self.recovery_rate,
                 "spectral_radius": _finite(self.spectral_radius),
                 "gain_origin": self.gain_origin, "check": self.check, "reason": self.reason,
                 "seconds": self.seconds, "lmi_margin": _finite(self.lmi_margin),
-                "matrices": self.matrices,
-                "kind": "coupled Lyapunov: X_i > 0, X_i - F_i' (sum_j T_ij X_j) F_i > 0, "
-                        "F_0 = A, F_1 = A + K C, T = [[1-r, r], [f, 1-f]]"}
+                "matrices": self.matrices, "kind": COUPLED_KIND}
+
+
+COUPLED_KIND = ("coupled Lyapunov: X_i > 0, X_i - F_i' (sum_j T_ij X_j) F_i > 0, F_0 = A, "
+                "F_1 = A + K C, T = [[1-r, r], [f, 1-f]]")
+"""``kind`` of the coupled fixed-gain certificate."""
 
 
 def _finite(x: float | None) -> float | None:
     return None if x is None or not np.isfinite(x) else float(x)
+
+
+def _number(x: Any) -> float | int | None:
+    """A number of the record: an int stays an int, a float (NumPy's too) becomes a Python
+    float, None where it is not finite."""
+    if x is None:
+        return None
+    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
+        return int(x)
+    f = float(x)
+    return f if np.isfinite(f) else None
+
+
+def _rows(M: Any) -> list[list[float | int | None]]:
+    """A matrix of the record, row by row (:func:`_number` of each entry)."""
+    return [[_number(v) for v in row] for row in M]
+
+
+def _check_record(check: dict[str, Any] | None) -> CertificateCheck | None:
+    """The record of a ball-arithmetic check
+    (:meth:`kfcrit.theory.upper.certify.CheckResult.to_dict`)."""
+    if check is None:
+        return None
+    return CertificateCheck(ok=bool(check["ok"]), kind=check["kind"], p=_number(check["p"]),
+                            min_eig_x_lower=_number(check["min_eig_x_lower"]),
+                            margin_lower=_number(check["margin_lower"]), reason=check["reason"],
+                            margin_meaning=check["margin_meaning"],
+                            verified_by=check["verified_by"])
 
 
 def _mat(M: np.ndarray) -> list[list[float]]:
@@ -551,6 +646,22 @@ class BurstFacts:
     certificate: BurstCertificate | None
     claim: dict[str, Any] | None
 
+    def record(self, verdict: str, claim_verdict: str | None = None) -> BurstCertificateRecord:
+        """The ``certificate`` of the bursty section, judged ``verdict`` (read from
+        :attr:`facts` by the analysis); the literature's claim, when there is one, would give
+        ``claim_verdict`` were it true."""
+        c = self.claim
+        claim = None if c is None else BurstClaim(
+            label=c["label"], source=c["source"], statement=c["statement"],
+            verdict_if_true=str(claim_verdict), stable_if_true=bool(c["stable_if_true"]))
+        return BurstCertificateRecord(
+            verdict=verdict, basis=self.basis, failure_rate=_number(self.failure_rate),
+            recovery_rate=_number(self.recovery_rate),
+            stationary_arrival=_number(self.stationary_arrival),
+            necessary=self.necessary.record(),
+            certificate=None if self.certificate is None else self.certificate.record(),
+            claim=claim, facts=facts_record(self.facts))
+
     def to_dict(self) -> dict[str, Any]:
         return {"facts": self.facts.to_dict(), "basis": self.basis,
                 "failure_rate": self.failure_rate,
@@ -675,6 +786,21 @@ def scalar_theorem_applies(system: System) -> bool:
     return system.n == 1 and any(e != 0 for e in system.C)
 
 
+CURVE_MEANING = ("r <= necessary_recovery(f): mean-unstable (proven); r >= "
+                 "sufficient_recovery(f): mean-stable by the coupled fixed-gain certificate "
+                 "(curve found numerically); between: undetermined")
+"""``meaning`` of a critical curve whose sufficient end is the coupled certificate's."""
+SCALAR_CURVE_MEANING = ("r <= necessary_recovery(f): mean-unstable (proven); r > "
+                        "necessary_recovery(f) = sufficient_recovery(f): mean-stable (scalar "
+                        "theorem, docs/theory.md §7: for n = 1 the necessary threshold is also "
+                        "sufficient); no undetermined band")
+"""``meaning`` of the critical curve of a scalar plant seen by its sensor (theory §7)."""
+SCALAR_CURVE_METHOD = ("scalar theorem (docs/theory.md §7): for n = 1 and c != 0, (1 - r) a^2 < 1 "
+                       "is necessary and sufficient, so r_suf(f) = r_nec = max(1 - 1/a^2, 0) "
+                       "for every f (exact; no search)")
+"""``method`` of the critical curve of a scalar plant seen by its sensor (theory §7)."""
+
+
 @dataclass(frozen=True)
 class BurstCriticalCurve:
     """Both bounding curves of the critical curve in the (failure rate, recovery rate) plane:
@@ -691,6 +817,21 @@ class BurstCriticalCurve:
     operating_point: dict[str, float] | None
     notes: tuple[str, ...]
     seconds: float
+    meaning: str = CURVE_MEANING
+
+    def record(self) -> BurstCurveRecord:
+        """The ``critical_curve`` of the bursty section (its wall-clock seconds are not part
+        of it)."""
+        op = self.operating_point or {}
+        return BurstCurveRecord(
+            failure_rates=[_number(v) for v in self.failure_rates],
+            necessary_recovery=[_number(v) for v in self.necessary_recovery],
+            necessary_expression=self.necessary_expression,
+            sufficient_recovery=[_number(v) for v in self.sufficient_recovery],
+            tolerance=_number(self.tolerance), method=self.method,
+            operating_point=RatesPoint(failure_rate=_number(op.get("failure_rate")),
+                                       recovery_rate=_number(op.get("recovery_rate"))),
+            notes=list(self.notes), meaning=self.meaning)
 
     def to_dict(self) -> dict[str, Any]:
         return {"failure_rates": list(self.failure_rates),
@@ -699,10 +840,7 @@ class BurstCriticalCurve:
                 "sufficient_recovery": list(self.sufficient_recovery),
                 "tolerance": self.tolerance, "method": self.method,
                 "operating_point": self.operating_point, "notes": list(self.notes),
-                "seconds": self.seconds,
-                "meaning": "r <= necessary_recovery(f): mean-unstable (proven); "
-                           "r >= sufficient_recovery(f): mean-stable by the coupled fixed-gain "
-                           "certificate (curve found numerically); between: undetermined"}
+                "seconds": self.seconds, "meaning": self.meaning}
 
 
 CURVE_MAX_STATES = 12
@@ -753,8 +891,9 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     (r_nec, 1] and a bisection inside the first bracket where the grid changes from not
     certified to certified, to width ``tol`` (:func:`smallest_certified`: the certificate's
     feasibility is not assumed monotone in r, although stability is, Wu–Shi–Anderson–Johansson
-    TAC 2018). Grid: ``points``
-    values f = k/points (k = 1..points) unless ``failure_rates`` is given.
+    TAC 2018). For a scalar plant seen by its sensor (n = 1, c ≠ 0) the scalar theorem of
+    theory §7 makes the necessary threshold sufficient: r_suf(f) = r_nec, no search. Grid:
+    ``points`` values f = k/points (k = 1..points) unless ``failure_rates`` is given.
     """
     t0 = time.perf_counter()
     fs = (tuple(float(v) for v in failure_rates) if failure_rates is not None else
@@ -763,7 +902,10 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     notes: list[str] = []
     A, C = system.a, system.c
     suff: list[float | None] = []
-    if system.n > CURVE_MAX_STATES:
+    scalar = scalar_theorem_applies(system)
+    if scalar:
+        suff = [r_nec] * len(fs)
+    elif system.n > CURVE_MAX_STATES:
         notes.append(f"sufficient curve not computed for n = {system.n} > {CURVE_MAX_STATES}")
         suff = [None] * len(fs)
     else:
@@ -778,11 +920,13 @@ def burst_critical_curve(system: System, failure_rates: Any = None, points: int 
     if operating is not None:
         op = {"failure_rate": float(exact_rate(operating[0], "failure_rate")),
               "recovery_rate": float(exact_rate(operating[1], "recovery_rate"))}
+    method = SCALAR_CURVE_METHOD if scalar else (
+        "grid scan on r, then bisection inside the first not-certified → certified bracket, "
+        "of the coupled LMI / candidate-gain / previous-arrival-gain spectral radius "
+        "(numerical)")
     return BurstCriticalCurve(fs, tuple(r_nec for _ in fs), expr, tuple(suff), float(tol),
-                         "grid scan on r, then bisection inside the first not-certified → "
-                         "certified bracket, of the coupled LMI / candidate-gain / "
-                         "previous-arrival-gain spectral radius (numerical)", op, tuple(notes),
-                         time.perf_counter() - t0)
+                              method, op, tuple(notes), time.perf_counter() - t0,
+                              SCALAR_CURVE_MEANING if scalar else CURVE_MEANING)
 
 
 CURVE_GRID_POINTS = 12

@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import Any
 
@@ -45,8 +45,27 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.errors import InputError
+from kfcrit.io.typed import to_json
 from kfcrit.model.exprparse import exact_text
 from kfcrit.model.network import Network
+from kfcrit.records.bursty import facts_record
+from kfcrit.records.network import (
+    ExactRegion,
+    NecessaryConstraint,
+    NecessarySurfacePoint,
+    NetworkBottleneck,
+    NetworkCertificate,
+    NetworkMethod,
+    NetworkNMinus1,
+    NetworkSection,
+    NetworkSensor,
+    SensorCriticalValue,
+    SensorMargin,
+    SensorNMinus1,
+    SensorSurfaces,
+    SufficientSurface,
+    UniformMargin,
+)
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.critical.section import critical_value, structure_of
 from kfcrit.theory.facts import StabilityFacts
@@ -200,6 +219,33 @@ class SensorResult:
     margin_exact: sp.Expr | None = None
     """p_i − p_i* exactly where both are exact (ranks the bottleneck; not in the record)."""
 
+    def record(self, dead_verdict: str) -> NetworkSensor:
+        """The row of ``network.sensors``, its N − 1 case judged ``dead_verdict`` (the
+        verdict is read from :attr:`n_minus_1` by the analysis)."""
+        crit, surf = self.critical, self.surfaces
+        nec, suf = surf.get("necessary"), surf.get("sufficient")
+        return NetworkSensor(
+            name=self.name, arrival_probability=_real(self.arrival_probability),
+            arrival_probability_expression=self.arrival_expression,
+            critical_value=SensorCriticalValue(
+                value=_real(crit["value"]), interval=_reals(crit["interval"]),
+                exact=bool(crit["exact"]), expression=crit["expression"], basis=crit["basis"]),
+            surfaces=SensorSurfaces(
+                necessary=None if nec is None else NecessarySurfacePoint(
+                    value=_real(nec["value"]), expression=nec["expression"]),
+                sufficient=None if suf is None else SufficientSurface(
+                    value=_real(suf["value"]), certificate=certificate_record(suf["certificate"]),
+                    note=suf["note"])),
+            margin=SensorMargin(value=_real(self.margin["value"]),
+                                interval=_reals(self.margin["interval"])),
+            n_minus_1=SensorNMinus1(verdict=dead_verdict, reason=self.n_minus_1_reason,
+                                    facts=facts_record(self.n_minus_1)))
+
+    def dead_record(self, dead_verdict: str) -> NetworkNMinus1:
+        """The row of ``network.n_minus_1``: this sensor's link dead, judged ``dead_verdict``."""
+        return NetworkNMinus1(name=self.name, verdict=dead_verdict, reason=self.n_minus_1_reason,
+                              facts=facts_record(self.n_minus_1))
+
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "arrival_probability": self.arrival_probability,
                 "arrival_probability_expression": self.arrival_expression,
@@ -216,7 +262,8 @@ class NetworkResult:
     [SensorResult], uniform_margin {value, interval, unbounded, basis}, n_minus_1 [{name,
     facts, reason}], bottleneck {name, margin, rule}, necessary_constraints [...], exact_region
     {holds, reason, basis}, certificate, method, claims [str], warnings [str], seconds. The
-    verdicts that read these facts are added by :mod:`kfcrit.analysis.verdict`.
+    verdicts that read these facts are given by :mod:`kfcrit.analysis.verdict` to
+    :meth:`record`, which builds the record's ``network`` section.
     """
 
     facts: StabilityFacts
@@ -224,13 +271,17 @@ class NetworkResult:
     sensors: tuple[SensorResult, ...]
     uniform_margin: dict[str, Any]
     bottleneck: dict[str, Any]
-    constraints: tuple[dict[str, Any], ...]
+    constraints: tuple[NecessaryConstraint, ...]
     exact_region: dict[str, Any]
     certificate: dict[str, Any] | None
     method: dict[str, Any]
     claims: tuple[str, ...]
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
+    single_lower: Any = None
+    """One sensor: the single-link lower bound p_low = max(1 − 1/ρ(A)², 0) (a
+    :class:`~kfcrit.theory.critical.values.Num`), the necessary recovery threshold r_nec of a
+    bursty link (not in the record)."""
 
     def sensor(self, name: str) -> SensorResult:
         """The row of the named sensor."""
@@ -239,6 +290,33 @@ class NetworkResult:
                 return s
         raise KeyError(name)
 
+    def record(self, verdict: str, basis: str, dead_verdicts: Sequence[str]) -> NetworkSection:
+        """The ``network`` section of the record: judged ``verdict`` on ``basis``, the N − 1
+        case of sensor k judged ``dead_verdicts[k]`` (the verdicts are read from the facts by
+        :mod:`kfcrit.analysis.verdict`)."""
+        um, bn, ex, me = self.uniform_margin, self.bottleneck, self.exact_region, self.method
+        return NetworkSection(
+            verdict=verdict, reason=self.reason, basis=basis,
+            sensors=[s.record(v) for s, v in zip(self.sensors, dead_verdicts)],
+            uniform_margin=UniformMargin(value=_real(um["value"]), interval=_reals(um["interval"]),
+                                         unbounded=um["unbounded"], rule=um["rule"],
+                                         reason=um["reason"]),
+            n_minus_1=[s.dead_record(v) for s, v in zip(self.sensors, dead_verdicts)],
+            bottleneck=bottleneck_record(bn),
+            necessary_constraints=list(self.constraints),
+            exact_region=ExactRegion(holds=bool(ex["holds"]), reason=ex["reason"],
+                                     basis=ex["basis"]),
+            certificate=certificate_record(self.certificate),
+            method=NetworkMethod(received_sets=int(me["received_sets"]),
+                                 all_received_sets=bool(me["all_received_sets"]),
+                                 tolerance=_real(me["tolerance"]),
+                                 ball_checked=bool(me["ball_checked"]),
+                                 newton=int(me["newton"]), bisection=int(me["bisection"]),
+                                 certificates=int(me["certificates"]),
+                                 decided_by=me["decided_by"]),
+            claims=list(self.claims), warnings=list(self.warnings),
+            facts=facts_record(self.facts))
+
     def to_dict(self) -> dict[str, Any]:
         return {"facts": self.facts.to_dict(), "reason": self.reason,
                 "sensors": [s.to_dict() for s in self.sensors],
@@ -246,7 +324,7 @@ class NetworkResult:
                 "n_minus_1": [{"name": s.name, "facts": s.n_minus_1.to_dict(),
                                "reason": s.n_minus_1_reason} for s in self.sensors],
                 "bottleneck": dict(self.bottleneck),
-                "necessary_constraints": [dict(c) for c in self.constraints],
+                "necessary_constraints": [to_json(c) for c in self.constraints],
                 "exact_region": dict(self.exact_region), "certificate": self.certificate,
                 "method": dict(self.method), "claims": list(self.claims),
                 "warnings": list(self.warnings), "seconds": round(self.seconds, 4)}
@@ -293,6 +371,13 @@ def _probabilities(network: Network, p: Sequence[Any] | None
 
 def _expr_text(e: sp.Expr | None) -> str | None:
     return exact_text(e) if e is not None else None
+
+
+def bursty_iid_warning(names: Sequence[str]) -> str:
+    """The warning that the sensors ``names`` have bursty links, analysed here at their
+    stationary arrival probabilities (the i.i.d. theory of §9)."""
+    return (f"sensors {', '.join(names)} have bursty (Markov) links: the analysis uses their "
+            "stationary arrival probabilities (i.i.d. theory)")
 
 
 SEQUENTIAL = "sequential"
@@ -414,8 +499,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
                         "conservative sufficient condition)")
     bursty = [s.name for s in network.sensors if s.channel is not None and not s.channel.iid]
     if bursty and p is None:
-        warnings.append(f"sensors {', '.join(bursty)} have bursty (Markov) links: the analysis "
-                        "uses their stationary arrival probabilities (i.i.d. theory)")
+        warnings.append(bursty_iid_warning(bursty))
     if not structure_of(st).controllable_Q:
         warnings.append("(A, Q^1/2) is not controllable: the necessary surface assumes "
                         "every unobserved unstable mode is excited by the noise")
@@ -490,7 +574,7 @@ def network_analysis(network: Network, p: Sequence[Any] | None = None, *,
     result = NetworkResult(
         facts=facts, reason=reason, sensors=tuple(rows),
         uniform_margin=margin, bottleneck=bottleneck,
-        constraints=tuple(_constraint_dict(network, c) for c in cons),
+        constraints=tuple(constraint_record(network, c) for c in cons),
         exact_region={"holds": exact_region, "reason": why_exact,
                       "basis": "proof in kfcrit.theory.links.network (claim beyond docs/theory.md §9)"},
         certificate=cert,
@@ -638,13 +722,66 @@ def _uniform_margin(b: Boundary, bracket: tuple[float, float] | None,
                        if lo is not None else "necessary end only")}
 
 
-def _constraint_dict(network: Network, c: Constraint) -> dict[str, Any]:
-    return {"unobservable_without": [network.names[i] for i in range(network.size)
-                                     if i not in c.blind],
-            "blind_sensors": [network.names[i] for i in sorted(c.blind)],
-            "eigenvalue": c.eigenvalue, "modulus2": c.mod2,
-            "modulus2_expression": _expr_text(c.mod2_expr), "decided": c.decided,
-            "condition": "prod over sensors not blind of (1 - p_i) * modulus2 < 1"}
+def constraint_record(network: Network, c: Constraint) -> NecessaryConstraint:
+    r"""The record of one necessary constraint (theory §9.2):
+
+    .. math:: \prod_{i \notin T} (1 - p_i)\, |\lambda|^2 < 1 .
+    """
+    return NecessaryConstraint(
+        unobservable_without=[network.names[i] for i in range(network.size)
+                              if i not in c.blind],
+        blind_sensors=[network.names[i] for i in sorted(c.blind)],
+        eigenvalue=str(c.eigenvalue), modulus2=_real(c.mod2),
+        modulus2_expression=_expr_text(c.mod2_expr), decided=c.decided,
+        condition="prod over sensors not blind of (1 - p_i) * modulus2 < 1")
+
+
+def certificate_record(check: dict[str, Any] | None) -> NetworkCertificate | None:
+    """The record of a received-set certificate (:meth:`netkernels.NetworkCheck.to_dict`)."""
+    if check is None:
+        return None
+    return NetworkCertificate(
+        ok=bool(check["ok"]), p=[_real(v) for v in check["p"]],
+        received_sets=int(check["received_sets"]),
+        all_received_sets=bool(check["all_received_sets"]),
+        min_eig_x_lower=_real(check["min_eig_x_lower"]),
+        margin_lower=_real(check["margin_lower"]), reason=check["reason"],
+        kind=check["kind"], verified_by=check["verified_by"])
+
+
+def bottleneck_record(bn: dict[str, Any]) -> NetworkBottleneck:
+    """The record of the bottleneck (:func:`~kfcrit.theory.links.netmargins.network_bottleneck`;
+    ``margin_interval``, ``reason`` and ``candidates`` only where stated)."""
+    out = NetworkBottleneck(name=bn["name"], margin=_real(bn["margin"]), rule=bn["rule"])
+    if "margin_interval" in bn:
+        out = replace(out, margin_interval=_reals(bn["margin_interval"]))
+    if "reason" in bn:
+        out = replace(out, reason=bn["reason"])
+    if "candidates" in bn:
+        out = replace(out, candidates=[str(c) for c in bn["candidates"]])
+    return out
+
+
+def _real(v: Any) -> float | int | None:
+    """A number of the record: an int stays an int, a float (NumPy's or sympy's) becomes a
+    Python float, None where it is not finite."""
+    if v is None:
+        return None
+    if isinstance(v, (bool, np.bool_)):
+        raise TypeError(f"a number was expected, got {v!r}")
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, sp.Basic):
+        if v.is_Integer:
+            return int(v)
+        v = sp.N(v, 20)
+    f = float(v)
+    return f if math.isfinite(f) else None
+
+
+def _reals(vs: Sequence[Any] | None) -> list[float | int | None] | None:
+    """:func:`_real` of each entry (None stays None)."""
+    return None if vs is None else [_real(v) for v in vs]
 
 
 # ---- one sensor: the single-link theory
@@ -656,7 +793,7 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
     system = network.stacked_system()
     p = float(pf[0])
     row = res.sensors[0]
-    klass, crit, pc_exact, cv = _single_link_critical(system, tol)
+    klass, crit, pc_exact, cvo = _single_link_critical(system, tol)
     facts, reason = _single_link_facts(klass, crit, pe[0], pc_exact)
     iv = crit["interval"]
     margin = {"value": p - crit["value"] if crit["value"] is not None else None,
@@ -680,38 +817,43 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                                                         "margin_interval": margin["interval"]},
                          constraints=res.constraints, exact_region=res.exact_region,
                          certificate=res.certificate, method=res.method, claims=res.claims,
-                         warnings=res.warnings + tuple(cv.get("warnings") or ()),
-                         seconds=res.seconds)
+                         warnings=res.warnings + tuple(cvo.warnings),
+                         seconds=res.seconds, single_lower=cvo.lower)
 
 
 def _single_link_critical(system: Any, tol: float
-                          ) -> tuple[str, dict[str, Any], sp.Expr | None, dict[str, Any]]:
+                          ) -> tuple[str, dict[str, Any], sp.Expr | None, Any]:
     """The single-link critical value of one system (theory §3–§4): (classification, the
-    ``crit`` dict of a sensor row, the exact p_c or None, the critical-value record)."""
+    ``crit`` dict of a sensor row, the exact p_c or None, the theory's
+    :class:`~kfcrit.theory.critical.values.CriticalValue`)."""
     cvo = critical_value(system)
-    cv = cvo.to_dict()
-    klass = cv["classification"]
-    pc = cv["critical_value"]["value"]
+    klass = cvo.classification
+    value = cvo.value
     if klass == "stable":
         crit = {"value": 0.0, "interval": [0.0, 0.0], "exact": True, "expression": "0",
                 "basis": "single link: ρ(A) < 1"}
     elif klass == "not-detectable":
         crit = {"value": None, "interval": None, "exact": True, "expression": None,
                 "basis": "single link: (C, A) not detectable"}
-    elif pc is not None:
-        crit = {"value": pc, "interval": [pc, pc], "exact": bool(cv["critical_value"]["exact"]),
-                "expression": cv["critical_value"]["expression"],
-                "basis": f"single link: {cv['critical_value']['reason']}"}
+    elif value is not None:
+        exact = cvo.structure.path == "exact"
+        reason = cvo.reason
+        if exact and value.expr is None:
+            reason += (" (every decision exact; |λ₁|² is an algebraic number of degree ≥ 3, "
+                       "so the value is given in double precision)")
+        crit = {"value": value.value, "interval": [value.value, value.value],
+                "exact": exact and value.expr is not None, "expression": value.expression,
+                "basis": f"single link: {reason}"}
     else:
         up = upper_bound(system, tol)
-        lo = (cv.get("block_lower_bound") or {}).get("value")
+        lo = cvo.block_lower.value if cvo.block_lower is not None else None
         if lo is None:
-            lo = cv["lower_bound"]["value"]
+            lo = cvo.lower.value
         hi = up.interval[1] if up.certified else None
         crit = {"value": None, "interval": [lo, hi], "exact": False, "expression": None,
                 "basis": "single link: bracket [block lower bound, certified p_up]"}
     pc_exact = cvo.value.expr if cvo.value is not None and cvo.value.expr is not None else None
-    return klass, crit, pc_exact, cv
+    return klass, crit, pc_exact, cvo
 
 
 def _single_link_facts(klass: str, crit: dict[str, Any], p: sp.Expr | None,

@@ -71,7 +71,9 @@ def draw_critical_curve(rec: AnalysisRecord) -> Figure | None:
                             label=rf"r ≤ {R_NEC}: mean-unstable (proven)")
         if suf is not None:
             ax.fill_between(f, suf, 1, color="#dcfce7", linewidth=0,
-                            label=rf"r ≥ {R_SUF}: mean-stable (certificate)")
+                            label=rf"r > {R_NEC} = {R_SUF}: mean-stable (exact)"
+                            if is_exact_curve(curve) else
+                            rf"r ≥ {R_SUF}: mean-stable (certificate)")
         # Coinciding curves stay distinguishable: r_nec wide and solid with dots at every grid
         # point, r_suf narrower and dashed with open squares at every other point, the closed
         # form thin and dotted on top of both.
@@ -100,6 +102,14 @@ def draw_critical_curve(rec: AnalysisRecord) -> Figure | None:
         ax.set_ylabel("recovery rate r")
         fig.legend(loc="outside right center", frameon=False)
         return fig
+
+
+def is_exact_curve(curve: BurstCurveRecord) -> bool:
+    """Whether the record's sufficient recovery rate equals its necessary one at every grid
+    point (the scalar theorem of theory §7): then no band between them is undetermined."""
+    nec, suf = floats(curve.necessary_recovery), floats(curve.sufficient_recovery)
+    return (nec is not None and suf is not None and len(nec) == len(suf) > 0
+            and all(a == b for a, b in zip(nec, suf)))
 
 
 VISIBLE_GAP = 0.01

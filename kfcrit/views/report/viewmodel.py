@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from kfcrit.records.bursty import GilbertElliottSection
 from kfcrit.version import __version__
+from kfcrit.views.figures.burst import is_exact_curve
 from kfcrit.views.mesh.meshreport import mesh_view
 from kfcrit.views.report.design import design_view, link_figures
 from kfcrit.views.report.link import channel_view
@@ -70,13 +71,18 @@ def critical_curve_figure(rec: AnalysisRecord, figures: dict[str, str | None],
     """The critical-curve figure of a Gilbert–Elliott link (``None`` for i.i.d. channels)."""
     if not bursty and not has_critical_curve(rec):
         return None
+    exact = has_critical_curve(rec) and is_exact_curve(rec.link_budget.critical_curve)
     return figure_entry(
         figures.get("critical_curve"), "Critical curve of the bursty link",
         "The (failure rate f, recovery rate r) plane of the Gilbert–Elliott channel (docs/theory.md §10): "
-        "at or below the necessary recovery rate r_nec(f) E[P_t] diverges (proven); at or above "
-        "the sufficient one r_suf(f) the coupled fixed-gain certificate proves it bounded "
-        "(found numerically, drawn at the record's grid of f only); between, undetermined. "
-        "The dotted diagonal f + r = 1 is the i.i.d. channel.",
+        "at or below the necessary recovery rate r_nec(f) E[P_t] diverges (proven); "
+        + ("above it E[P_t] is bounded: for a scalar plant the necessary threshold is also "
+           "sufficient (docs/theory.md §7), so the record's r_suf(f) equals r_nec(f) and no "
+           "band is undetermined. " if exact else
+           "at or above the sufficient one r_suf(f) the coupled fixed-gain certificate proves "
+           "it bounded (found numerically, drawn at the record's grid of f only); between, "
+           "undetermined. ")
+        + "The dotted diagonal f + r = 1 is the i.i.d. channel.",
         "critical curve: not computed (the record has no critical curve: an analysis without "
         "details, a stable plant, or more than 12 states)")
 
