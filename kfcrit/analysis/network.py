@@ -6,12 +6,12 @@ from dataclasses import replace
 from typing import Any
 
 from kfcrit.analysis import verdict as vd
-from kfcrit.analysis.links import bursty_channel, design_check
+from kfcrit.analysis.links import bursty_channel
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.records.bursty import StabilityFactsRecord, facts_record
 from kfcrit.records.channel import NetworkChannel, NetworkChannelSensor, channel_record
 from kfcrit.records.contract import CriticalValueRecord, OperatingPoint, UpperBoundRecord
-from kfcrit.records.covariance import CovarianceBounds, CovarianceSummary
+from kfcrit.records.covariance import CovarianceBounds
 from kfcrit.records.network import (
     DeadLinkBurst,
     ExactRegion,
@@ -23,7 +23,6 @@ from kfcrit.records.network import (
     SensorSurfaces,
     UniformMargin,
 )
-from kfcrit.records.read import read_fields, read_plain
 from kfcrit.records.simulation import NetworkMeanTrace, NetworkSimulation, Simulation
 from kfcrit.theory.facts import StabilityFacts
 
@@ -243,9 +242,8 @@ def lyapunov_only_bounds(system: Any, lost: float, method: str, reason: str
     from kfcrit.theory.covariance import bounds
 
     S = bounds.lower_covariance(system.a, system.q, 1.0 - lost)
-    lower = read_plain(CovarianceSummary, bounds.covariance_summary(S), "covariance_bounds.lower")
-    upper = replace(read_plain(CovarianceSummary, bounds.covariance_summary(None),
-                               "covariance_bounds.upper"), computed=False, method=method)
+    lower = bounds.covariance_summary(S)
+    upper = replace(bounds.covariance_summary(None), computed=False, method=method)
     return CovarianceBounds(p=1.0 - lost, lower=lower, upper=upper, ordered=None,
                             applicable=True, reason=reason)
 
@@ -256,7 +254,7 @@ def network_link_designs(network: Any, net: NetworkSection, warnings: list[str],
     ``network.sensors``), by sensor name: the arrival probability it must exceed is its critical
     value with the other links at their operating values (the upper end of its interval when
     only bracketed)."""
-    from kfcrit.link import linkbudget
+    from kfcrit.link.budgetsection import link_budget_record
 
     out: dict[str, SensorLink] = {}
     for row, sensor in zip(net.sensors, network.sensors):
@@ -266,18 +264,16 @@ def network_link_designs(network: Any, net: NetworkSection, warnings: list[str],
         value, interval = row.critical_value.value, row.critical_value.interval
         bracket = (None, None) if value is not None or not interval else tuple(interval)
         try:
-            lb = linkbudget.design_section(ch, critical_value=value, robust_value=None,
-                                           bracket=bracket, upper_bound=None)
+            lb = link_budget_record(ch, critical_value=value, robust_value=None,
+                                    bracket=bracket, upper_bound=None)
         except (ValueError, ArithmeticError) as exc:
             warnings.append(f"link design of sensor {sensor.name} not computed: {exc}")
             continue
-        check = design_check(lb)
-        if check is not None:
-            out[row.name] = read_fields(
-                SensorLink, {k: lb.get(k) for k in ("link", "link_margin_db", "required_sinr_db",
-                                                    "max_distance_m", "margin_policy",
-                                                    "shadowing")},
-                "network.sensors.link", timings, design_check=check)
+        out[row.name] = SensorLink(link=lb.link, link_margin_db=lb.link_margin_db,
+                                   required_sinr_db=lb.required_sinr_db,
+                                   max_distance_m=lb.max_distance_m,
+                                   margin_policy=lb.margin_policy,
+                                   design_check=lb.design_check, shadowing=lb.shadowing)
     return out
 
 

@@ -480,12 +480,6 @@ def stamp_operating_verdict(sections: dict[str, Any]) -> None:
     sections["link_budget"] = link
 
 
-def network_verdict(result: Mapping[str, Any]) -> tuple[Verdict, str]:
-    """Mean stability of a sensor network at its operating point (theory §9), read from the
-    network analysis's facts by :func:`verdict_of`."""
-    return verdict_of(facts_from_dict(result.get("facts") or {}))
-
-
 def condition_verdict(holds: bool | None, *, necessary: bool) -> Verdict:
     """The verdict of one stated condition (theory §13: estimate relaying's p_cut·ρ(A)² < 1):
     it holding proves mean stability; it failing proves instability only when the condition is
