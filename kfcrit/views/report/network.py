@@ -15,6 +15,7 @@ from kfcrit.views.report.parts import closed_form_text, figure_entry, number, pr
 from kfcrit.views.text.netmargin import (
     NO_CRITICAL_VALUE,
     bottleneck_margin_text,
+    burst_margin_of,
     has_no_critical_value,
     margin_text,
     margin_value_text,
@@ -64,15 +65,18 @@ def node_rows(rec: AnalysisRecord, net: NetworkSection) -> list[dict[str, Any]]:
     return rows
 
 
-def constraint_lines(net: NetworkSection) -> list[str]:
-    """The necessary constraints as inequalities: |λ|²·Π(1 − p_k) < 1 over the mode's sensors."""
+def constraint_lines(net: NetworkSection, bursty: bool = False) -> list[str]:
+    """The necessary constraints as inequalities: |λ|²·Π(1 − p_k) < 1 over the mode's sensors
+    (with ``bursty``, a one-sensor network on a Markov link, the burst condition
+    |λ|²·(1 − r) < 1 in the link's recovery rate r, theory §10)."""
+    symbol = "r" if bursty else "p"
     out = []
     for c in net.necessary_constraints:
         members = [str(m) for m in c.unobservable_without]
         if not members:
             continue
         m2 = c.modulus2_expression or filters.num(number(c.modulus2))
-        product = "·".join(f"(1 − p_{m})" for m in members)
+        product = "·".join(f"(1 − {symbol}_{m})" for m in members)
         blind = [str(b) for b in c.blind_sensors]
         out.append(f"mode λ = {filters.pretty_expr(c.eigenvalue)}: {product}·{m2} < 1"
                    + (f" (blind to it: {', '.join(blind)})" if blind else "")
@@ -128,6 +132,7 @@ def network_view(rec: AnalysisRecord, figures: dict[str, str | None]) -> dict[st
     bn = net.bottleneck
     ex = net.exact_region
     has_positions = bool(positions_of(rec))
+    bursty = burst_margin_of(rec, net)
     return {
         "available": True, "size": len(net.sensors),
         "verdict": net.verdict, "verdict_css": VERDICT_CSS.get(net.verdict, "none"),
@@ -135,11 +140,12 @@ def network_view(rec: AnalysisRecord, figures: dict[str, str | None]) -> dict[st
         "nodes": node_rows(rec, net),
         "uniform_margin": margin_value_text(um.value, um.interval, 6)
         if not um.unbounded else "unbounded",
+        "uniform_label": "margin r − r_nec" if bursty else "uniform margin δ",
         "uniform_reason": prose(um.reason), "uniform_rule": prose(um.rule),
         "bottleneck": bn.name,
         "bottleneck_margin": bottleneck_margin_text(bn),
         "bottleneck_rule": prose(bn.rule),
-        "constraints": constraint_lines(net),
+        "constraints": constraint_lines(net, bursty),
         "exact_region": {"holds": ex.holds, "reason": prose(ex.reason),
                          "basis": prose(ex.basis)},
         "claims": [prose(c) for c in net.claims],

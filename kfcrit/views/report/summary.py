@@ -59,6 +59,6 @@ def markdown_summary(rec: AnalysisRecord) -> str:
 
 def _margin_label(verdict: dict[str, Any]) -> str:
     """What the operating point's margin measures (uniform δ, r − r_nec or p − p_c)."""
-    if verdict["network"]:
-        return "uniform margin δ"
-    return "r − r_nec" if verdict["burst_margin"] else "p − p_c"
+    if verdict["burst_margin"]:
+        return "r − r_nec"
+    return "uniform margin δ" if verdict["network"] else "p − p_c"

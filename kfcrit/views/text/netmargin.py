@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from kfcrit.io.typed import ABSENT
 from kfcrit.records.network import NetworkBottleneck, NetworkSensor
 from kfcrit.views import formatting as filters
 
@@ -106,3 +107,12 @@ def bottleneck_margin_text(bottleneck: NetworkBottleneck) -> str:
     like the sensor rows (:func:`margin_text`)."""
     interval = bottleneck.margin_interval or None   # an absent key: no interval
     return signed_range_text(*margin_range(bottleneck.margin, interval))
+
+
+def burst_margin_of(rec: Any, net: Any) -> bool:
+    """Whether the network's margin is a recovery-rate margin r − r_nec: one sensor on a
+    Markov (bursty) link, analysed as that link (theory §10), not a uniform δ on arrival
+    probabilities."""
+    op = rec.operating_point
+    return len(net.sensors) == 1 and op is not None and \
+        op.recovery_threshold not in (None, ABSENT)

@@ -17,6 +17,7 @@ from kfcrit.views.text.netmargin import (
     NETWORK_P_MEANING,
     NO_CRITICAL_VALUE,
     bottleneck_margin_text,
+    burst_margin_of,
     has_no_critical_value,
     margin_text,
 )
@@ -113,9 +114,10 @@ def design_lines(design: AccuracyDesign | None) -> list[str]:
     return lines
 
 
-def network_lines(net: NetworkSection | None) -> list[str]:
+def network_lines(net: NetworkSection | None, bursty: bool = False) -> list[str]:
     """The sensor network: one row per node (arrival probability, critical value, margin,
-    verdict with that link dead), the uniform margin and the bottleneck link."""
+    verdict with that link dead), the uniform margin and the bottleneck link (``bursty``: one
+    sensor on a Markov link, whose margin is r − r_nec, theory §10)."""
     if net is None or net is ABSENT:
         return []
     lines = ["  sensor network        " + f"{counted(len(net.sensors), 'sensor')}, verdict "
@@ -134,7 +136,9 @@ def network_lines(net: NetworkSection | None) -> list[str]:
     um = net.uniform_margin
     delta = (f"unbounded ({um.unbounded})" if um.unbounded else
              _value_text(um.value, um.interval))
-    lines.append(f"    uniform margin δ      {delta}  (every link "
+    lines.append(f"    margin r - r_nec      {delta}  (the link's recovery rate against the "
+                 "burst condition's threshold)" if bursty else
+                 f"    uniform margin δ      {delta}  (every link "
                  "degraded by δ reaches the boundary)")
     bn = net.bottleneck
     if bn.name:
@@ -165,7 +169,8 @@ def summary(rec: AnalysisRecord) -> str:
     lines.extend(_critical_lines(rec, exact_input))
     lines.extend(_operating_lines(rec))
     lines.extend(channel_fit_lines(rec.channel_fit))
-    lines.extend(network_lines(rec.network))
+    lines.extend(network_lines(rec.network, _present(rec.network) and burst_margin_of(
+        rec, rec.network)))
     lines.extend(mesh_lines(rec))
     lines.extend(loop_lines(rec.loop))
     lines.extend(design_lines(rec.design))
@@ -231,7 +236,7 @@ def _operating_lines(rec: AnalysisRecord) -> list[str]:
         lines.append(f"  operating point p     {_num(op.arrival_probability, 12)}")
     bursty = _present(op.recovery_threshold)
     if op.margin is not None:
-        label = ("uniform margin δ" if network else "margin r - r_nec" if bursty
+        label = ("margin r - r_nec" if bursty else "uniform margin δ" if network
                  else "margin p - p_c")
         lines.append(f"  {label:<21} {op.margin:+.6g}")
         if _present(op.margin_to_sufficient):
