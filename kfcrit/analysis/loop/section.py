@@ -378,32 +378,29 @@ def actuation_link(spec: SystemSpec, point: LoopPoint, design: FixedDesign | Non
     probability the loop needs there: ν_c (TCP-like) or the design's critical ν̄ at the
     operating γ̄ (the upper end of its bracket, from the ``comparison`` row of this design)."""
     ch = spec.loop.channel
-    if ch.model != "link-budget":
-        return None, None
-    from kfcrit.link import linkbudget
+    from kfcrit.link.budgetsection import link_budget_record
+    from kfcrit.link.linkbudget import LinkBudget
 
+    if ch.model != "link-budget" or not isinstance(ch, LinkBudget):
+        return None, None
     need, bracket, basis = _required_nu(point, design, comparison)
     try:
-        lb = linkbudget.design_section(ch, critical_value=need, robust_value=None,
-                                       bracket=bracket, upper_bound=None)
+        lb = link_budget_record(ch, critical_value=need, robust_value=None, bracket=bracket,
+                                upper_bound=None)
     except (ValueError, ArithmeticError) as exc:
         warnings.append(f"actuation link budget not computed: {exc}")
         return None, None
-    check = design_check(lb) if isinstance(lb, dict) else None
+    check = design_check(lb)
     if not check:
         return None, None
-    link = lb.get("link") or {}
-    req = (lb.get("required_arrival_probability") or {}).get("design_value")
-    radio = (lb.get("radio") or {}).get("model")
     summary = LoopLinkCheck(
-        required_arrival_probability=optional_float(req), required_basis=basis,
-        arrival_probability=point.nu, link_margin_db=check.link_margin_db,
-        required_margin_db=check.required_margin_db,
+        required_arrival_probability=lb.required_arrival_probability.design_value,
+        required_basis=basis, arrival_probability=point.nu,
+        link_margin_db=check.link_margin_db, required_margin_db=check.required_margin_db,
         margin_policy_met=check.margin_policy_met, distance_m=check.distance_m,
         max_distance_m=check.max_distance_m, outage_probability=check.outage_probability,
         max_outage=check.max_outage, outage_within_policy=check.outage_within_policy,
-        sinr_db=optional_float(link.get("sinr_db")),
-        radio=None if radio is None else str(radio))
+        sinr_db=lb.link.sinr_db, radio=lb.radio.model)
     return summary, check
 
 
