@@ -1,8 +1,9 @@
 """The typed ``loop`` section of the analysis record (theory §12), field by field.
 
-Built by :func:`kfcrit.analysis.loop.section.loop_record` from the working values of the loop's
-designs and Monte Carlo, where the section is made. Non-finite numbers (an infinite cost) are
-``null`` in JSON; ``finite`` then says which case it is.
+The designs, curves and Monte Carlo of :mod:`kfcrit.analysis.loop.designs` build their parts as
+these classes (Python numbers); :func:`kfcrit.analysis.loop.section.loop_record` assembles the
+section from them. Non-finite numbers (an infinite cost) are ``None`` (``null`` in JSON);
+``finite`` then says which case it is.
 """
 from __future__ import annotations
 

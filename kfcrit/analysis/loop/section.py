@@ -16,8 +16,7 @@ The verdict words come from :mod:`kfcrit.analysis.verdict` only.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -26,10 +25,14 @@ import sympy as sp
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import design_check
 from kfcrit.analysis.loop.designs import (
+    LoopPoint,
+    TcpParts,
     comparison_rows,
     cost_curves,
+    cost_summary,
     fixed_curve,
     loss_link,
+    optional_float,
     tcp_cost_at,
     tcp_rectangle,
 )
@@ -45,7 +48,6 @@ from kfcrit.analysis.loop.schema import (
     LoopStability,
     LoopThreshold,
 )
-from kfcrit.io.jsonio import jsonable
 from kfcrit.io.systemfile import SystemSpec
 from kfcrit.model.system import to_float
 from kfcrit.records.contract import RequirementAssessment
@@ -59,14 +61,27 @@ SIM_PATHS, SIM_STEPS = 1000, 1500
 """Closed-loop Monte Carlo size of ``kfcrit analyze`` (``--quick``: a third of each)."""
 
 
-def threshold_dict(th: LoopThresholdFact) -> dict[str, Any]:
-    """The record form {value, expression, exact, interval, basis, certified, reason}."""
-    return {"value": th.value, "expression": th.expression, "exact": bool(th.exact),
-            "interval": list(th.interval) if th.interval is not None else None,
-            "basis": th.basis, "certified": bool(th.certified), "reason": th.reason}
+@dataclass(frozen=True)
+class LoopDetails:
+    """The parts of the ``loop`` section computed only with details: the TCP-like/UDP-like
+    comparison, the other design's curve, the cost curves and the closed-loop Monte Carlo."""
+
+    comparison: list[LoopDesignRow]
+    alternative_curve: LoopCurve | None
+    cost_curves: list[LoopCostCurve]
+    simulation: LoopSimulationSummary | None
 
 
-def sensing_critical(sec: dict[str, Any]) -> dict[str, Any]:
+def loop_threshold(th: LoopThresholdFact) -> LoopThreshold:
+    """A threshold fact of :mod:`kfcrit.theory.loop.thresholds` as the record's threshold."""
+    return LoopThreshold(value=optional_float(th.value), expression=th.expression,
+                         exact=bool(th.exact),
+                         interval=None if th.interval is None else [float(x) for x in
+                                                                    th.interval],
+                         basis=th.basis, certified=bool(th.certified), reason=th.reason)
+
+
+def sensing_critical(sec: dict[str, Any]) -> LoopThreshold:
     r"""γ_c of the TCP-like loop: the record's p_c of (A, C) (theory §3–§4), or its bracket
     [block lower bound, p_up].
 
@@ -75,30 +90,31 @@ def sensing_critical(sec: dict[str, Any]) -> dict[str, Any]:
     cls = sec["classification"].value if sec.get("classification") is not None else None
     cv = sec.get("critical_value")
     if cls == "not-detectable":
-        return {"value": None, "expression": None, "exact": False, "interval": None,
-                "basis": "none", "certified": True, "reason": "(C, A) is not detectable"}
+        return LoopThreshold(value=None, expression=None, exact=False, interval=None,
+                             basis="none", certified=True, reason="(C, A) is not detectable")
     if cls == "stable":
-        return {"value": 0.0, "expression": "0", "exact": True, "interval": [0.0, 0.0],
-                "basis": "theorem", "certified": True, "reason": "ρ(A) < 1"}
+        return LoopThreshold(value=0.0, expression="0", exact=True, interval=[0.0, 0.0],
+                             basis="theorem", certified=True, reason="ρ(A) < 1")
     if cv is not None and cv.value is not None:
         v = float(cv.value)
-        return {"value": v, "expression": cv.expression if cv.exact else None,
-                "exact": bool(cv.exact), "interval": [v, v],
-                "basis": "theorem" if cv.exact else "numerical",
-                "certified": bool(cv.exact), "reason": cv.reason or ""}
+        return LoopThreshold(value=v, expression=cv.expression if cv.exact else None,
+                             exact=bool(cv.exact), interval=[v, v],
+                             basis="theorem" if cv.exact else "numerical",
+                             certified=bool(cv.exact), reason=cv.reason or "")
     ub = sec.get("upper_bound")
     blb, low = sec.get("block_lower_bound"), sec.get("lower_bound")
     lo = blb.value if blb is not None else None
     lo = lo if lo is not None else (low.value if low is not None else None) or 0.0
     hi = ((ub.interval or [None, ub.value])[1]) if ub is not None else None
-    return {"value": None, "expression": None, "exact": False,
-            "interval": [float(lo), float(hi)] if hi is not None else None,
-            "basis": "certified-interval" if ub is not None and ub.certified else "numerical",
-            "certified": bool(ub is not None and ub.certified),
-            "reason": "no closed form: [block lower bound, p_up(A, C)]"}
+    return LoopThreshold(
+        value=None, expression=None, exact=False,
+        interval=[float(lo), float(hi)] if hi is not None else None,
+        basis="certified-interval" if ub is not None and ub.certified else "numerical",
+        certified=bool(ub is not None and ub.certified),
+        reason="no closed form: [block lower bound, p_up(A, C)]")
 
 
-def threshold_below(p: Any, th: dict[str, Any], expression: Any = None) -> bool | None:
+def threshold_below(p: Any, th: LoopThreshold, expression: Any = None) -> bool | None:
     r"""Whether threshold < p is proven (True), threshold ≥ p is (False), or neither (None),
     compared exactly (:func:`kfcrit.analysis.verdict.exceeds`).
 
@@ -106,9 +122,9 @@ def threshold_below(p: Any, th: dict[str, Any], expression: Any = None) -> bool 
     """
     if expression is not None:
         return bool(vd.exceeds(p, expression))
-    if th.get("interval") is None:
+    if th.interval is None:
         return False          # no finite threshold: an unstable mode is unreachable/unseen
-    lo, hi = th["interval"]
+    lo, hi = th.interval
     if vd.exceeds(p, hi):
         return True
     if not vd.exceeds(p, lo):
@@ -116,17 +132,16 @@ def threshold_below(p: Any, th: dict[str, Any], expression: Any = None) -> bool 
     return None
 
 
-def _exact_threshold(th: dict[str, Any]) -> Any:
+def _exact_threshold(th: LoopThreshold) -> Any:
     """The exact threshold when a theorem gives it (a claim decides by its interval)."""
-    if not th.get("exact") or th.get("basis") != "theorem" or th.get("expression") is None:
+    if not th.exact or th.basis != "theorem" or th.expression is None:
         return None
     from kfcrit.model.exprparse import parse_expression
 
-    return parse_expression(str(th["expression"]).replace("**", "^"), "threshold")
+    return parse_expression(str(th.expression).replace("**", "^"), "threshold")
 
 
-def tcp_facts(gamma: Any, nu: Any, sens: dict[str, Any], act: dict[str, Any]
-              ) -> StabilityFacts:
+def tcp_facts(gamma: Any, nu: Any, sens: LoopThreshold, act: LoopThreshold) -> StabilityFacts:
     """The TCP-like loop's facts: finite cost iff γ̄ > γ_c and ν̄ > ν_c (theory §12)."""
     below = [threshold_below(gamma, sens, _exact_threshold(sens)),
              threshold_below(nu, act, _exact_threshold(act))]
@@ -189,76 +204,57 @@ def is_tcp_optimal(spec: SystemSpec) -> bool:
             and all(ch.iid and ch.model != "trace" for ch in (spec.channel, lp.channel)))
 
 
-def cost_dict(cost: Any) -> dict[str, Any]:
-    """A :class:`~kfcrit.theory.loop.tcp.LoopCost` as the record's ``{value, lower, upper, …}``."""
-    def num(x: float) -> float | None:
-        return float(x) if x is not None and math.isfinite(x) else None
-
-    return {"value": num(cost.value), "lower": num(cost.lower), "upper": num(cost.upper),
-            "finite": cost.finite, "method": cost.method,
-            "error": num(cost.error) if cost.error is not None else None, "reason": cost.reason}
-
-
 def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: list[str]
                   ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """The ``loop`` section, the review's loop reasons and the cost requirement's assessment.
 
     Also sets ``operating_point.verdict`` to the rule of
-    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop). The designs
-    and the Monte Carlo fill working values (:mod:`kfcrit.analysis.loop.designs` reads them);
-    :func:`loop_record` builds the section from them.
+    :func:`kfcrit.analysis.verdict.loop_operating_verdict` (estimator AND loop). The judged
+    design's facts make a :class:`~kfcrit.analysis.loop.designs.LoopPoint` that the designs,
+    curves and Monte Carlo of :mod:`kfcrit.analysis.loop.designs` read; :func:`loop_record`
+    builds the section from the parts.
     """
     lp = spec.loop
     m = plant(spec)
     gamma_x, nu_x = spec.channel.arrival_probability, lp.channel.arrival_probability
+    gamma, nu = float(gamma_x), float(nu_x)
     s_link, s_note = loss_link(spec.channel)
     a_link, a_note = loss_link(lp.channel)
     notes = [n for n in (s_note, a_note) if n]
     sens = sensing_critical(sec)
-    act = threshold_dict(actuation_threshold(spec.system.A, lp.B, lp.W, lp.U,
+    act = loop_threshold(actuation_threshold(spec.system.A, lp.B, lp.W, lp.U,
                                              tol=max(opts.upper_tol, 1e-9)))
-    out: dict[str, Any] = {
-        "acknowledged": lp.acknowledged, "on_loss": lp.on_loss,
-        "sensing_arrival_probability": float(gamma_x),
-        "actuation_arrival_probability": float(nu_x),
-        "sensing_iid": bool(spec.channel.iid), "actuation_iid": bool(lp.channel.iid),
-        "actuation_model": lp.channel.model,
-        "sensing_critical": sens, "actuation_critical": act, "spectral_radius": None,
-        "stability": None, "gains": None, "control_gain": None, "comparison": [],
-        "cost_curves": [], "simulation": None, "actuation_link": None,
-        "alternative_curve": None, "critical_curve": None}
     design = None
-    tcp_parts = None
+    tcp_parts: TcpParts | None = None
+    stability, gains, control_gain, critical_curve = None, None, None, None
     if is_tcp_optimal(spec):
-        out["design"] = "tcp-optimal"
         facts = tcp_facts(gamma_x, nu_x, sens, act)
-        tcp_parts = tcp_cost_at(m, spec.system, float(gamma_x), float(nu_x),
-                                finite=tcp_finite(facts), seed=opts.seed,
-                                quick=opts.quick or not opts.details)
-        out["cost"] = cost_dict(tcp_parts["cost"])
-        out["control_gain"] = tcp_parts["L"]
-        out["critical_curve"] = tcp_rectangle(sens, act)
+        tcp_parts = tcp_cost_at(m, spec.system, gamma, nu, finite=tcp_finite(facts),
+                                seed=opts.seed, quick=opts.quick or not opts.details)
+        point = LoopPoint("tcp-optimal", gamma, nu, sens, act, cost_summary(tcp_parts.cost))
+        control_gain = tcp_parts.L
+        critical_curve = tcp_rectangle(sens, act)
     else:
-        out["design"] = "fixed"
         try:
             design = judged_design(spec)
         except (ValueError, np.linalg.LinAlgError) as exc:
-            return _no_design(out, spec, sec, exc, act, notes, warnings)
+            return _no_design(spec, sec, exc, sens, act, notes, warnings)
         res = fixed_loop(design, s_link, a_link)
         facts = fixed_facts(res.stability)
-        out["stability"] = {"status": res.stability.status, "holds": res.stability.holds,
-                            "spectral_radius": res.stability.rho,
-                            "method": res.stability.method,
-                            "dimension": res.stability.dimension}
-        out["spectral_radius"] = res.stability.rho
-        out["cost"] = cost_dict(res.cost)
-        out["gains"] = {"estimator_gain": design.K.tolist(), "controller_gain": design.L.tolist(),
-                        "source": "the file's estimator_gain and controller_gain" if lp.fixed
-                        else "steady-state Kalman gain and LQR gain (defaults)"}
+        rho = float(res.stability.rho)
+        stability = LoopStability(
+            status=res.stability.status,
+            holds=None if res.stability.holds is None else bool(res.stability.holds),
+            spectral_radius=rho, method=res.stability.method,
+            dimension=int(res.stability.dimension))
+        point = LoopPoint("fixed", gamma, nu, sens, act, cost_summary(res.cost), rho)
+        gains = LoopGains(estimator_gain=design.K.tolist(), controller_gain=design.L.tolist(),
+                          source="the file's estimator_gain and controller_gain" if lp.fixed
+                          else "steady-state Kalman gain and LQR gain (defaults)")
         notes.append("the fixed design's matrices are judged as binary floats (each taken as "
                      "the rational it is)")
         if opts.details:
-            out["critical_curve"] = fixed_curve(design, "this design", quick=opts.quick)
+            critical_curve = fixed_curve(design, "this design", quick=opts.quick)
     if _trace_link(spec):
         facts = StabilityFacts(True, False, False, "measured trace: the theorems are about "
                                "arrival models; the loop is judged at the empirical rate for "
@@ -266,161 +262,165 @@ def loop_analysis(spec: SystemSpec, opts: Any, sec: dict[str, Any], warnings: li
     verdict, basis = vd.loop_verdict(facts)
     if verdict is vd.LoopVerdict.UNDETERMINED and facts.necessary_basis:
         basis = facts.necessary_basis
-    out["verdict"], out["basis"] = verdict.value, basis
-    if opts.details:
-        _details(spec, opts, out, design, tcp_parts, s_link, a_link, m, warnings)
-    out["actuation_link"], check = actuation_link(spec, out, design, warnings)
-    out["notes"] = notes
+    details = (_details(spec, opts, point, design, tcp_parts, s_link, a_link, m, warnings)
+               if opts.details else None)
+    link, check = actuation_link(spec, point, design, details.comparison if details else [],
+                                 warnings)
+    joint = _join_operating_point(sec, verdict, basis)
+    section = loop_record(spec, point, verdict, basis, joint, notes, stability=stability,
+                          gains=gains, control_gain=control_gain,
+                          critical_curve=critical_curve, details=details,
+                          actuation_link=link)
+    return section, vd.loop_reasons(verdict, basis, check), cost_assessment(spec, point.cost)
+
+
+def _join_operating_point(sec: dict[str, Any], verdict: vd.LoopVerdict, basis: str
+                          ) -> vd.Verdict:
+    """Set ``operating_point`` to the estimator's verdict AND the loop's; return the joint
+    verdict (:func:`kfcrit.analysis.verdict.loop_operating_verdict`)."""
     op = sec["operating_point"]
     joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
     sec["operating_point"] = replace(op, verdict=joint, basis=why)
-    out["operating_verdict"] = joint.value
-    return loop_record(out), vd.loop_reasons(verdict, basis, check), cost_assessment(spec, out)
+    return joint
 
 
-def loop_record(out: dict[str, Any]) -> LoopSection:
-    """The ``loop`` section built from the loop's working values (the groups the designs and
-    the Monte Carlo fill, their NumPy numbers as Python numbers, each as its class)."""
-    def each(cls: type, value: Any) -> Any:
-        return None if value is None else cls(**jsonable(value))
-
-    def row(value: dict[str, Any]) -> LoopDesignRow:
-        plain = jsonable(value)
-        return LoopDesignRow(**{**plain, "cost": LoopCostSummary(**plain["cost"])})
-
+def loop_record(spec: SystemSpec, point: LoopPoint, verdict: vd.LoopVerdict, basis: str,
+                operating_verdict: vd.Verdict, notes: list[str], *,
+                stability: LoopStability | None = None, gains: LoopGains | None = None,
+                control_gain: list[list[float]] | None = None,
+                critical_curve: LoopCurve | None = None, details: LoopDetails | None = None,
+                actuation_link: LoopLinkCheck | None = None) -> LoopSection:
+    """The ``loop`` section, field by field, from the operating point of the judged design and
+    the parts computed beside it (None or empty where not computed)."""
+    lp = spec.loop
     return LoopSection(
-        acknowledged=bool(out["acknowledged"]), on_loss=out["on_loss"], design=out["design"],
-        sensing_arrival_probability=out["sensing_arrival_probability"],
-        actuation_arrival_probability=out["actuation_arrival_probability"],
-        sensing_iid=out["sensing_iid"], actuation_iid=out["actuation_iid"],
-        actuation_model=out["actuation_model"],
-        sensing_critical=each(LoopThreshold, out["sensing_critical"]),
-        actuation_critical=each(LoopThreshold, out["actuation_critical"]),
-        verdict=vd.LoopVerdict(out["verdict"]), basis=out["basis"],
-        operating_verdict=vd.Verdict(out["operating_verdict"]),
-        spectral_radius=jsonable(out["spectral_radius"]),
-        stability=each(LoopStability, out["stability"]), cost=each(LoopCostSummary, out["cost"]),
-        critical_curve=each(LoopCurve, out["critical_curve"]),
-        alternative_curve=each(LoopCurve, out["alternative_curve"]),
-        comparison=[row(r) for r in out["comparison"]],
-        cost_curves=[each(LoopCostCurve, c) for c in out["cost_curves"]],
-        simulation=each(LoopSimulationSummary, out["simulation"]),
-        actuation_link=each(LoopLinkCheck, out["actuation_link"]),
-        gains=each(LoopGains, out["gains"]), control_gain=jsonable(out["control_gain"]),
-        notes=list(out["notes"]))
+        acknowledged=bool(lp.acknowledged), on_loss=lp.on_loss, design=point.design,
+        sensing_arrival_probability=point.gamma, actuation_arrival_probability=point.nu,
+        sensing_iid=bool(spec.channel.iid), actuation_iid=bool(lp.channel.iid),
+        actuation_model=lp.channel.model,
+        sensing_critical=point.sensing, actuation_critical=point.actuation,
+        verdict=verdict, basis=basis, operating_verdict=operating_verdict,
+        spectral_radius=optional_float(point.spectral_radius), stability=stability,
+        cost=point.cost, critical_curve=critical_curve,
+        alternative_curve=details.alternative_curve if details is not None else None,
+        comparison=list(details.comparison) if details is not None else [],
+        cost_curves=list(details.cost_curves) if details is not None else [],
+        simulation=details.simulation if details is not None else None,
+        actuation_link=actuation_link, gains=gains, control_gain=control_gain,
+        notes=list(notes))
 
 
 def _trace_link(spec: SystemSpec) -> bool:
     return "trace" in (spec.channel.model, spec.loop.channel.model)
 
 
-def _no_design(out: dict[str, Any], spec: SystemSpec, sec: dict[str, Any], exc: Exception,
-               act: dict[str, Any], notes: list[str], warnings: list[str]
+def _no_design(spec: SystemSpec, sec: dict[str, Any], exc: Exception, sens: LoopThreshold,
+               act: LoopThreshold, notes: list[str], warnings: list[str]
                ) -> tuple[LoopSection, list[vd.Reason], RequirementAssessment | None]:
     """No default gains exist (a Riccati equation has no stabilising solution): the loop is
     mean-square unstable when (A, B) is not stabilisable (ν_c does not exist), else
     undetermined."""
     warnings.append(f"closed loop: the default design could not be formed ({exc})")
-    unstab = act.get("basis") == "none"
+    unstab = act.basis == "none"
     facts = StabilityFacts(False, False, True, "(A, B) is not stabilisable: no controller "
                            "bounds the state") if unstab else StabilityFacts(
         True, False, False, f"no default design: {exc}")
     verdict, basis = vd.loop_verdict(facts)
     if not unstab:
         basis = facts.necessary_basis
-    out.update(verdict=verdict.value, basis=basis, notes=notes,
-               cost={"value": None, "lower": None, "upper": None,
-                     "finite": False if unstab else None, "method": "none", "error": None,
-                     "reason": str(exc)})
-    op = sec["operating_point"]
-    joint, why = vd.loop_operating_verdict((op.verdict, op.basis or ""), (verdict, basis))
-    sec["operating_point"] = replace(op, verdict=joint, basis=why)
-    out["operating_verdict"] = joint.value
-    return loop_record(out), vd.loop_reasons(verdict, basis, None), cost_assessment(spec, out)
+    cost = LoopCostSummary(value=None, lower=None, upper=None,
+                           finite=False if unstab else None, method="none", error=None,
+                           reason=str(exc))
+    point = LoopPoint("fixed", float(spec.channel.arrival_probability),
+                      float(spec.loop.channel.arrival_probability), sens, act, cost)
+    joint = _join_operating_point(sec, verdict, basis)
+    return (loop_record(spec, point, verdict, basis, joint, notes),
+            vd.loop_reasons(verdict, basis, None), cost_assessment(spec, cost))
 
 
-def _details(spec: SystemSpec, opts: Any, out: dict[str, Any], design: FixedDesign | None,
-             tcp_parts: dict[str, Any] | None, s_link: Any, a_link: Any,
-             m: dict[str, np.ndarray], warnings: list[str]) -> None:
-    """The comparison, the cost curves, the other design's curve and the Monte Carlo."""
+def _details(spec: SystemSpec, opts: Any, point: LoopPoint, design: FixedDesign | None,
+             tcp_parts: TcpParts | None, s_link: Any, a_link: Any,
+             m: dict[str, np.ndarray], warnings: list[str]) -> LoopDetails:
+    """The comparison, the cost curves, the other design's curve and the Monte Carlo (what
+    was computed before a failure is kept, with a warning)."""
+    rows: list[LoopDesignRow] = []
+    alternative: LoopCurve | None = None
+    curves: list[LoopCostCurve] = []
     try:
         finite = tcp_finite(tcp_facts(spec.channel.arrival_probability,
                                       spec.loop.channel.arrival_probability,
-                                      out["sensing_critical"], out["actuation_critical"]))
-        rows, udp = comparison_rows(spec, m, out, design, tcp_parts, s_link, a_link,
-                                    judged_design, tcp_finite=finite, cost_of=cost_dict,
-                                    quick=opts.quick, seed=opts.seed)
-        out["comparison"] = rows
-        if out["design"] == "tcp-optimal" and udp is not None:
-            out["alternative_curve"] = fixed_curve(udp, "UDP-like (Kalman + LQR)",
-                                                   quick=opts.quick)
+                                      point.sensing, point.actuation))
+        rows, udp = comparison_rows(spec, m, point, design, tcp_parts, s_link, a_link,
+                                    judged_design, tcp_finite=finite, quick=opts.quick,
+                                    seed=opts.seed)
+        if point.design == "tcp-optimal" and udp is not None:
+            alternative = fixed_curve(udp, "UDP-like (Kalman + LQR)", quick=opts.quick)
         elif spec.loop.on_loss == "zero":
-            out["alternative_curve"] = tcp_rectangle(out["sensing_critical"],
-                                                     out["actuation_critical"])
-        out["cost_curves"] = cost_curves(spec, m, out, design, tcp_parts, udp,
-                                         quick=opts.quick, seed=opts.seed)
+            alternative = tcp_rectangle(point.sensing, point.actuation)
+        curves = cost_curves(spec, m, point, design, tcp_parts, udp, quick=opts.quick,
+                             seed=opts.seed)
     except (ValueError, np.linalg.LinAlgError, ArithmeticError) as exc:
         warnings.append(f"closed loop: comparison or cost curves not computed ({exc})")
+    simulation = None
     if opts.simulate:
         from kfcrit.analysis.loop.designs import loop_monte_carlo
 
-        out["simulation"] = loop_monte_carlo(out, design, m, s_link, a_link,
-                                             seed=opts.seed, quick=opts.quick,
-                                             L=(tcp_parts or {}).get("L"))
+        simulation = loop_monte_carlo(point, design, m, s_link, a_link, seed=opts.seed,
+                                      quick=opts.quick,
+                                      L=tcp_parts.L if tcp_parts is not None else None)
+    return LoopDetails(rows, alternative, curves, simulation)
 
 
-def actuation_link(spec: SystemSpec, out: dict[str, Any], design: FixedDesign | None,
-                   warnings: list[str]) -> tuple[dict[str, Any] | None, DesignCheck | None]:
+def actuation_link(spec: SystemSpec, point: LoopPoint, design: FixedDesign | None,
+                   comparison: list[LoopDesignRow], warnings: list[str]
+                   ) -> tuple[LoopLinkCheck | None, DesignCheck | None]:
     """The actuation link budget against its margin policy, read against the arrival
     probability the loop needs there: ν_c (TCP-like) or the design's critical ν̄ at the
-    operating γ̄ (the upper end of its bracket)."""
+    operating γ̄ (the upper end of its bracket, from the ``comparison`` row of this design)."""
     ch = spec.loop.channel
-    if ch.model != "link-budget":
-        return None, None
-    from kfcrit.link import linkbudget
+    from kfcrit.link.budgetsection import link_budget_record
+    from kfcrit.link.linkbudget import LinkBudget
 
-    need, bracket, basis = _required_nu(out, design)
+    if ch.model != "link-budget" or not isinstance(ch, LinkBudget):
+        return None, None
+    need, bracket, basis = _required_nu(point, design, comparison)
     try:
-        lb = linkbudget.design_section(ch, critical_value=need, robust_value=None,
-                                       bracket=bracket, upper_bound=None)
+        lb = link_budget_record(ch, critical_value=need, robust_value=None, bracket=bracket,
+                                upper_bound=None)
     except (ValueError, ArithmeticError) as exc:
         warnings.append(f"actuation link budget not computed: {exc}")
         return None, None
-    check = design_check(lb) if isinstance(lb, dict) else None
+    check = design_check(lb)
     if not check:
         return None, None
-    link = lb.get("link") or {}
-    req = (lb.get("required_arrival_probability") or {}).get("design_value")
-    summary = {"required_arrival_probability": req, "required_basis": basis,
-               "arrival_probability": out["actuation_arrival_probability"],
-               "link_margin_db": check.link_margin_db,
-               "required_margin_db": check.required_margin_db,
-               "margin_policy_met": check.margin_policy_met,
-               "distance_m": check.distance_m, "max_distance_m": check.max_distance_m,
-               "outage_probability": check.outage_probability,
-               "max_outage": check.max_outage,
-               "outage_within_policy": check.outage_within_policy,
-               "sinr_db": link.get("sinr_db"), "radio": (lb.get("radio") or {}).get("model")}
+    summary = LoopLinkCheck(
+        required_arrival_probability=lb.required_arrival_probability.design_value,
+        required_basis=basis, arrival_probability=point.nu,
+        link_margin_db=check.link_margin_db, required_margin_db=check.required_margin_db,
+        margin_policy_met=check.margin_policy_met, distance_m=check.distance_m,
+        max_distance_m=check.max_distance_m, outage_probability=check.outage_probability,
+        max_outage=check.max_outage, outage_within_policy=check.outage_within_policy,
+        sinr_db=lb.link.sinr_db, radio=lb.radio.model)
     return summary, check
 
 
-def _required_nu(out: dict[str, Any], design: FixedDesign | None
+def _required_nu(point: LoopPoint, design: FixedDesign | None,
+                 comparison: list[LoopDesignRow]
                  ) -> tuple[float | None, tuple[float | None, float | None], str]:
-    if out["design"] == "tcp-optimal" or design is None:
-        act = out["actuation_critical"]
-        if act.get("exact") and act.get("value") is not None:
-            return act["value"], (None, None), "ν_c of the TCP-like loop"
-        iv = act.get("interval") or [None, None]
+    if point.design == "tcp-optimal" or design is None:
+        act = point.actuation
+        if act.exact and act.value is not None:
+            return act.value, (None, None), "ν_c of the TCP-like loop"
+        iv = act.interval or [None, None]
         return None, (iv[0], iv[1]), "the bracket of ν_c"
-    row = next((r for r in out.get("comparison") or [] if r.get("design") == "this design"),
-               None)
-    iv = (row or {}).get("critical_nu_interval")
+    row = next((r for r in comparison if r.design == "this design"), None)
+    iv = row.critical_nu_interval if row is not None else None
     if iv:
         return None, (iv[0], iv[1]), "the design's critical ν̄ at the operating γ̄"
     return None, (None, None), "the design's critical ν̄ (not found)"
 
 
-def cost_assessment(spec: SystemSpec, out: dict[str, Any]) -> RequirementAssessment | None:
+def cost_assessment(spec: SystemSpec, c: LoopCostSummary) -> RequirementAssessment | None:
     r"""The cost requirement J ≤ max_cost: met when the upper bound (or the Monte Carlo value
     plus three standard errors) is within it, not met when the lower bound (or the value minus
     three standard errors) exceeds it or J is infinite, else not demonstrated.
@@ -431,15 +431,14 @@ def cost_assessment(spec: SystemSpec, out: dict[str, Any]) -> RequirementAssessm
     limit = spec.requirements.max_cost
     if limit is None:
         return None
-    c = out.get("cost") or {}
-    value, lo, hi, err = c.get("value"), c.get("lower"), c.get("upper"), c.get("error") or 0.0
+    value, lo, hi, err = c.value, c.lower, c.upper, c.error or 0.0
     name = f"closed-loop cost J ≤ {limit:g}"
     interval = [lo, hi] if lo is not None or hi is not None else None
 
     def assessed(status: str, basis: str) -> RequirementAssessment:
         return RequirementAssessment(name, status, basis, estimate=value, interval=interval)
 
-    if c.get("finite") is False:
+    if c.finite is False:
         return assessed("not met", "J is infinite (the loop is not "
                 "mean-square stable at the operating point)")
     if hi is not None and hi <= limit:

@@ -19,21 +19,19 @@ certificate found at π̂ alone is reported, not extended to the region.
 """
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.measured.section import (
-    ChannelFitSection,
     JointConstraintFit,
     JointLawFit,
     SensorTraceFit,
 )
-from kfcrit.analysis.measured.single import MeasuredFit, fit_fields
+from kfcrit.analysis.measured.single import MeasuredFit, fit_section, real_or_none
 from kfcrit.errors import InputError
-from kfcrit.io.jsonio import jsonable
 from kfcrit.link.tracefit import clopper_pearson, fit_trace, joint_law, rows_to_decide
 from kfcrit.model.network import Network
 from kfcrit.theory.critical.compare import compare_probability
@@ -81,8 +79,21 @@ def _sign(prob: float, c: Constraint) -> int | None:
         return None
 
 
+@dataclass(frozen=True)
+class ConstraintEvidence:
+    """One necessary constraint's row of the record and what decides it: the exact signs of
+    P(S ⊆ T)·ρ_T² − 1 at the ends of the simultaneous interval (None: undecidable), the count
+    of periods with S ⊆ T and the simultaneous level."""
+
+    fit: JointConstraintFit
+    sign_low: int | None
+    sign_high: int | None
+    count: int
+    level: float
+
+
 def constraint_rows(network: Network, traces: list[np.ndarray], cons: list[Constraint],
-                    confidence: float) -> list[dict[str, Any]]:
+                    confidence: float) -> list[ConstraintEvidence]:
     """Each necessary constraint with its empirical probability, simultaneous interval and
     the product of marginals (independent links)."""
     level = 1.0 - (1.0 - confidence) / max(len(cons), 1)
@@ -96,12 +107,13 @@ def constraint_rows(network: Network, traces: list[np.ndarray], cons: list[Const
         lo, hi = clopper_pearson(k, n, level)
         product = float(np.prod([1.0 - p_hat[i] for i in range(len(traces))
                                  if i not in c.blind]))
-        rows.append({"unobservable": [network.names[i] for i in sorted(c.blind)],
-                     "modulus2": c.mod2, "probability": k / n, "interval": [lo, hi],
-                     "product": product, "value": k / n * c.mod2, "value_low": lo * c.mod2,
-                     "value_high": hi * c.mod2, "product_value": product * c.mod2,
-                     "_sign_low": _sign(lo, c), "_sign_high": _sign(hi, c), "_k": k,
-                     "_level": level})
+        mod2 = float(c.mod2)
+        row = JointConstraintFit(
+            unobservable=[network.names[i] for i in sorted(c.blind)], modulus2=mod2,
+            probability=k / n, interval=[float(lo), float(hi)], product=product,
+            value=k / n * mod2, value_low=lo * mod2, value_high=hi * mod2,
+            product_value=product * mod2)
+        rows.append(ConstraintEvidence(row, _sign(lo, c), _sign(hi, c), k, level))
     return rows
 
 
@@ -114,27 +126,27 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     ls = law_stability(network, law, certify=certify)
     cons = list(necessary_constraints(network))
     rows = constraint_rows(network, traces, cons, confidence)
-    fails = [r for r in rows if r["_sign_low"] is not None and r["_sign_low"] >= 0]
-    holds = all(r["_sign_high"] is not None and r["_sign_high"] < 0 for r in rows)
-    binding = max(rows, key=lambda r: r["value"]) if rows else None
+    fails = [r for r in rows if r.sign_low is not None and r.sign_low >= 0]
+    holds = all(r.sign_high is not None and r.sign_high < 0 for r in rows)
+    binding = max(rows, key=lambda r: r.fit.value) if rows else None
     length = None
     decided = bool(fails) or (holds and bool(ls.exact_region))
-    if binding is not None and not decided and (ls.exact_region or binding["value"] >= 1):
-        length = rows_to_decide(binding["probability"], 1.0 / binding["modulus2"],
-                                binding["_level"])
+    if binding is not None and not decided and (ls.exact_region or binding.fit.value >= 1):
+        length = rows_to_decide(binding.fit.probability, 1.0 / binding.fit.modulus2,
+                                binding.level)
     c = vd.confidence_text(confidence)
     fails_basis = holds_basis = ""
     if fails:
-        f = max(fails, key=lambda r: r["value_low"])
+        f = max(fails, key=lambda r: r.fit.value_low).fit
         fails_basis = (f"the joint law of the time-aligned traces gives P(S ⊆ "
-                       f"{set_text(f['unobservable'])}) ≥ {f['interval'][0]:.6g} (lower end "
+                       f"{set_text(f.unobservable)}) ≥ {f.interval[0]:.6g} (lower end "
                        f"of its simultaneous {c} interval), and that times ρ_T² = "
-                       f"{f['modulus2']:.6g} is {f['value_low']:.6g} ≥ 1: the necessary "
+                       f"{f.modulus2:.6g} is {f.value_low:.6g} ≥ 1: the necessary "
                        "condition fails on the whole confidence region (theory §13)")
     if holds:
-        top = max(rows, key=lambda r: r["value_high"]) if rows else None
+        top = max(rows, key=lambda r: r.fit.value_high).fit if rows else None
         holds_basis = ("every upper end of the simultaneous intervals keeps P(S ⊆ T)·ρ_T² < 1"
-                       + (f" (largest {top['value_high']:.6g})" if top else "")
+                       + (f" (largest {top.value_high:.6g})" if top else "")
                        + "; the necessary condition is also sufficient here ("
                        + ls.exact_region_reason + ")")
     inputs = vd.JointLawInputs(confidence, ls.facts, bool(fails), holds,
@@ -144,22 +156,24 @@ def joint_fit(network: Network, traces: list[np.ndarray], confidence: float, *,
     p_hat = np.array([t.mean() for t in traces])
     independent = None if not cons else all(c.factor(p_hat) < 1 for c in cons)
     covered = decided
+    necessary = ls.facts.necessary
     law = JointLawFit(
-        constraints=[JointConstraintFit(**jsonable({k: v for k, v in r.items()
-                                                    if not k.startswith("_")})) for r in rows],
-        **jsonable({"sensors": list(network.names), "n": ej.n, "confidence": confidence,
-                    "p_all_lost": ej.p_all_lost,
-                    "p_all_lost_interval": list(ej.p_all_lost_interval),
-                    "p_all_lost_product": ej.p_all_lost_product,
-                    "all_lost_ratio": ej.all_lost_ratio,
-                    "law": ([float(v) for v in ej.counts / ej.n]
-                            if ej.counts.size <= MAX_LAW_CELLS_SHOWN else []),
-                    "necessary": ls.facts.necessary, "sufficient": ls.facts.sufficient,
-                    "exact_region": bool(ls.exact_region), "independent_necessary": independent,
-                    "region_covered": covered, "statement": _statement(covered, ls.reason)}))
-    section = ChannelFitSection(
+        sensors=list(network.names), n=int(ej.n), confidence=float(confidence),
+        p_all_lost=float(ej.p_all_lost),
+        p_all_lost_interval=[float(v) for v in ej.p_all_lost_interval],
+        p_all_lost_product=float(ej.p_all_lost_product),
+        all_lost_ratio=real_or_none(ej.all_lost_ratio),
+        law=([float(v) for v in ej.counts / ej.n]
+             if ej.counts.size <= MAX_LAW_CELLS_SHOWN else []),
+        constraints=[r.fit for r in rows],
+        necessary=None if necessary is None else bool(necessary),
+        sufficient=bool(ls.facts.sufficient), exact_region=bool(ls.exact_region),
+        independent_necessary=None if independent is None else bool(independent),
+        region_covered=covered, statement=_statement(covered, ls.reason))
+    section = fit_section(
+        fit, any_received,
         subject="at least one sensor received (the network's time-aligned traces)",
-        **fit_fields(fit, any_received), length_to_decide=jsonable(length),
+        length_to_decide=length,
         length_to_decide_basis=(
             "decided: the whole confidence region is on one side" if decided else
             "the binding constraint's probability against 1/ρ_T²" if length is not None
@@ -190,10 +204,11 @@ def _statement(covered: bool, reason: str) -> str:
 
 def _sensor_row(name: str, trace: np.ndarray, confidence: float) -> SensorTraceFit:
     fit = fit_trace(trace, confidence)
-    return SensorTraceFit(name=name, **jsonable({
-        "n": fit.n, "p_hat": fit.p_hat, "p_interval": list(fit.p_interval),
-        "failure_rate_hat": fit.failure_rate_hat, "recovery_rate_hat": fit.recovery_rate_hat,
-        "lrt_p_value": fit.lrt_p_value}))
+    return SensorTraceFit(name=name, n=int(fit.n), p_hat=float(fit.p_hat),
+                          p_interval=[float(v) for v in fit.p_interval],
+                          failure_rate_hat=real_or_none(fit.failure_rate_hat),
+                          recovery_rate_hat=real_or_none(fit.recovery_rate_hat),
+                          lrt_p_value=float(fit.lrt_p_value))
 
 
 def network_confidence(network: Network) -> float:
@@ -201,5 +216,5 @@ def network_confidence(network: Network) -> float:
     return max(float(getattr(s.channel, "confidence", 0.95)) for s in network.sensors)
 
 
-__all__ = ["MAX_LAW_CELLS_SHOWN", "constraint_rows", "empirical_law", "joint_fit",
+__all__ = ["MAX_LAW_CELLS_SHOWN", "ConstraintEvidence", "constraint_rows", "empirical_law", "joint_fit",
            "network_confidence", "network_traces", "set_text"]

@@ -17,6 +17,7 @@ This module gathers facts; :func:`kfcrit.analysis.verdict.measured_verdict` deci
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,10 +28,11 @@ from kfcrit.analysis.measured.section import (
     BurstLengthHistogram,
     ChannelFitSection,
     ConfidenceRegion,
+    JointLawFit,
     RegionCorner,
+    SensorTraceFit,
     StabilityBoundary,
 )
-from kfcrit.io.jsonio import jsonable
 from kfcrit.link.tracefit import (
     ChannelFit,
     fit_trace,
@@ -59,30 +61,47 @@ def plant_spectral_radius(system: System) -> float:
     return float(max(abs(np.linalg.eigvals(system.a)))) if system.n else 0.0
 
 
+def real_or_none(x: Any) -> float | None:
+    """A statistic as a Python float; None when missing or not finite (JSON has no
+    infinity)."""
+    if x is None:
+        return None
+    f = float(x)
+    return f if math.isfinite(f) else None
+
+
 def burst_section(fit: ChannelFit) -> BurstLengthHistogram:
-    """The burst-length histogram of a fit in the record's form (the fit's NumPy numbers as
-    Python numbers)."""
+    """The burst-length histogram of a fit in the record's form (Python numbers)."""
     b = fit.bursts
-    return BurstLengthHistogram(**jsonable({
-        "lengths": list(b.lengths), "counts": list(b.counts), "expected": list(b.expected),
-        "runs": b.runs, "censored": b.censored, "mean_length": b.mean_length,
-        "fitted_recovery_rate": fit.recovery_rate_hat, "statistic": b.statistic,
-        "dof": b.dof, "p_value": b.p_value}))
+    return BurstLengthHistogram(
+        lengths=[int(v) for v in b.lengths], counts=[int(c) for c in b.counts],
+        expected=[float(e) for e in b.expected], runs=int(b.runs), censored=int(b.censored),
+        mean_length=real_or_none(b.mean_length),
+        fitted_recovery_rate=real_or_none(fit.recovery_rate_hat),
+        statistic=real_or_none(b.statistic), dof=None if b.dof is None else int(b.dof),
+        p_value=real_or_none(b.p_value))
 
 
-def fit_fields(fit: ChannelFit, arrivals: Any) -> dict[str, Any]:
-    """The fields of ``channel_fit`` that describe the fit itself (theory §14), as the keyword
-    arguments of :class:`~kfcrit.analysis.measured.section.ChannelFitSection`."""
+def fit_section(fit: ChannelFit, arrivals: Any, *, subject: str, length_to_decide: int | None,
+                length_to_decide_basis: str, region: ConfidenceRegion | None = None,
+                boundary: StabilityBoundary | None = None,
+                sensors: list[SensorTraceFit] | None = None,
+                joint_law: JointLawFit | None = None,
+                notes: list[str] | None = None) -> ChannelFitSection:
+    """The ``channel_fit`` section: the fit itself (theory §14) and the parts given."""
     stat, _ = lrt_iid_vs_markov(transition_counts(arrivals))
-    return {**jsonable({"model": fit.model, "n": fit.n, "p_hat": fit.p_hat,
-                        "p_interval": list(fit.p_interval),
-                        "failure_rate_hat": fit.failure_rate_hat,
-                        "failure_rate_interval": list(fit.failure_rate_interval),
-                        "recovery_rate_hat": fit.recovery_rate_hat,
-                        "recovery_rate_interval": list(fit.recovery_rate_interval),
-                        "lrt_statistic": stat, "lrt_p_value": fit.lrt_p_value,
-                        "confidence": fit.confidence}),
-            "bursts": burst_section(fit)}
+    return ChannelFitSection(
+        subject=subject, model=str(fit.model), n=int(fit.n), p_hat=float(fit.p_hat),
+        p_interval=[float(v) for v in fit.p_interval],
+        failure_rate_hat=real_or_none(fit.failure_rate_hat),
+        failure_rate_interval=[float(v) for v in fit.failure_rate_interval],
+        recovery_rate_hat=real_or_none(fit.recovery_rate_hat),
+        recovery_rate_interval=[float(v) for v in fit.recovery_rate_interval],
+        lrt_statistic=float(stat), lrt_p_value=float(fit.lrt_p_value),
+        confidence=float(fit.confidence),
+        length_to_decide=None if length_to_decide is None else int(length_to_decide),
+        length_to_decide_basis=length_to_decide_basis, bursts=burst_section(fit),
+        region=region, boundary=boundary, sensors=sensors, joint_law=joint_law, notes=notes)
 
 
 # ----------------------------------------------------------------------------- i.i.d. corners
@@ -129,18 +148,31 @@ def iid_threshold(p_hat: float, crit: vd.CriticalInputs) -> tuple[float | None, 
 
 # ----------------------------------------------------------------------------- GE corners
 
+def iid_corner(p: float, crit: vd.CriticalInputs) -> RegionCorner:
+    """The facts of :func:`iid_facts` at arrival probability ``p``, as a corner of the
+    region."""
+    nec, suf, basis = iid_facts(p, crit)
+    return RegionCorner(arrival_probability=float(p), failure_rate=None, recovery_rate=None,
+                        necessary=None if nec is None else bool(nec), sufficient=bool(suf),
+                        basis=basis)
+
+
 def burst_corner(system: System, crit: vd.CriticalInputs, f: float, r: float, *,
-                 sufficient: bool, structure: Any = None) -> tuple[vd.BurstInputs, dict]:
+                 sufficient: bool, structure: Any = None
+                 ) -> tuple[vd.BurstInputs, RegionCorner]:
     r"""The facts at one corner (f, r) of the Gilbert–Elliott rectangle.
 
     Necessary: (1 − r)ρ² < 1 ⇔ r > 1 − 1/ρ² = p_low (exactly). With ``sufficient`` the
     sufficient condition is sought: for a scalar plant the exact condition of theory §7
     ((1 − r)a² < 1 is also sufficient), else the coupled certificate of theory §10.
     """
+    def corner(nec: bool | None, suf: bool, basis: str) -> RegionCorner:
+        return RegionCorner(arrival_probability=None, failure_rate=float(f),
+                            recovery_rate=float(r), necessary=nec, sufficient=suf, basis=basis)
+
     p_low = crit.p_low_exact if crit.p_low_exact is not None else crit.p_low
     if crit.classification == "stable" and crit.robust is None:
-        corner = {"necessary": True, "sufficient": True, "basis": "ρ(A) < 1"}
-        return vd.BurstInputs(r, f, True, "ρ(A) < 1"), corner
+        return vd.BurstInputs(r, f, True, "ρ(A) < 1"), corner(True, True, "ρ(A) < 1")
     nec = True if not crit.p_low else bool(vd.exceeds(r, p_low))
     basis = (f"(1 − r)·ρ(A)² = {(1.0 - r) / (1.0 - crit.p_low):.6g}" if crit.p_low and
              crit.p_low < 1 else "(1 − r)·ρ(A)² < 1")
@@ -155,15 +187,8 @@ def burst_corner(system: System, crit: vd.CriticalInputs, f: float, r: float, *,
             facts = markov.burst_facts(system, f, r, structure=structure,
                                        classification=crit.classification)
             suf, why = bool(facts.facts.sufficient), facts.basis
-    corner = {"necessary": nec, "sufficient": suf, "basis": why or basis}
-    return vd.BurstInputs(r, f, True if suf else None, why), corner
-
-
-def _corner_row(p: float | None, f: float | None, r: float | None, facts: dict
-                ) -> RegionCorner:
-    return RegionCorner(arrival_probability=jsonable(p), failure_rate=jsonable(f),
-                        recovery_rate=jsonable(r), necessary=jsonable(facts["necessary"]),
-                        sufficient=bool(facts["sufficient"]), basis=facts["basis"])
+    return (vd.BurstInputs(r, f, True if suf else None, why),
+            corner(bool(nec), bool(suf), why or basis))
 
 
 def _outcome(worst: RegionCorner, best: RegionCorner) -> str:
@@ -196,37 +221,31 @@ def boundary_section(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *
                      curve: bool, structure: Any = None) -> StabilityBoundary:
     """The stability boundary of the (f, r) plane: r = 1 − 1/ρ² and, for small vector plants,
     the sufficient curve of the coupled certificate (theory §10)."""
-    return StabilityBoundary(**jsonable(_boundary_fields(system, crit, fit, curve=curve,
-                                                         structure=structure)))
-
-
-def _boundary_fields(system: System, crit: vd.CriticalInputs, fit: ChannelFit, *,
-                     curve: bool, structure: Any = None) -> dict[str, Any]:
-    """The fields of :func:`boundary_section` (the curve's numbers as the theory gives them)."""
     rho = plant_spectral_radius(system)
     nec = crit.p_low if crit.p_low else (max(0.0, 1.0 - 1.0 / rho ** 2) if rho > 1 else None)
-    out = {"spectral_radius": rho, "necessary_recovery": nec, "failure_rates": [],
-           "sufficient_recovery": [], "note": ""}
+
+    def boundary(note: str, failure_rates: Any = (), sufficient: Any = ()
+                 ) -> StabilityBoundary:
+        return StabilityBoundary(spectral_radius=real_or_none(rho),
+                                 necessary_recovery=real_or_none(nec),
+                                 failure_rates=[float(v) for v in failure_rates],
+                                 sufficient_recovery=[real_or_none(v) for v in sufficient],
+                                 note=note)
+
     if nec is None:
-        out["note"] = "ρ(A) ≤ 1: no burst boundary"
-        return out
+        return boundary("ρ(A) ≤ 1: no burst boundary")
     if system.n == 1:
-        out["note"] = "scalar plant: (1 − r)a² < 1 is necessary and sufficient (theory §7)"
-        return out
+        return boundary("scalar plant: (1 − r)a² < 1 is necessary and sufficient (theory §7)")
     if not curve or system.n > CURVE_MAX_STATES:
-        out["note"] = "sufficient curve not computed (only for plants of at most " \
-                      f"{CURVE_MAX_STATES} states with a Gilbert–Elliott fit)"
-        return out
+        return boundary("sufficient curve not computed (only for plants of at most "
+                        f"{CURVE_MAX_STATES} states with a Gilbert–Elliott fit)")
     from kfcrit.theory.links import markov
 
     hi = fit.failure_rate_interval[1]
     grid = sorted({round(k / 6, 6) for k in range(1, 7)} | {round(min(max(hi, 1e-3), 1.0), 6)})
     cc = markov.burst_critical_curve(system, failure_rates=grid, tol=1e-2, structure=structure)
-    out.update(failure_rates=list(cc.failure_rates),
-               sufficient_recovery=list(cc.sufficient_recovery),
-               note="sufficient curve: least r with a coupled fixed-gain certificate (width "
-                    "1e-2, theory §10)")
-    return out
+    return boundary("sufficient curve: least r with a coupled fixed-gain certificate (width "
+                    "1e-2, theory §10)", cc.failure_rates, cc.sufficient_recovery)
 
 
 # ----------------------------------------------------------------------------- the section
@@ -237,10 +256,7 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
     fit = fit_trace(arrivals, confidence)
     if fit.model == "bernoulli":
         lo, hi = fit.p_interval
-        wn, ws, wb = iid_facts(lo, crit)
-        bn, bs, bb = iid_facts(hi, crit)
-        worst = _corner_row(lo, None, None, {"necessary": wn, "sufficient": ws, "basis": wb})
-        best = _corner_row(hi, None, None, {"necessary": bn, "sufficient": bs, "basis": bb})
+        worst, best = iid_corner(lo, crit), iid_corner(hi, crit)
         threshold, text = iid_threshold(fit.p_hat, crit)
         length = None if threshold is None else rows_to_decide(fit.p_hat, threshold,
                                                                fit.confidence)
@@ -248,22 +264,22 @@ def trace_fit(system: System, arrivals: Any, confidence: float, crit: vd.Critica
                                    length_to_decide=length, threshold_text=text)
     else:
         (f_lo, f_hi), (r_lo, r_hi) = fit.failure_rate_interval, fit.recovery_rate_interval
-        w_in, w = burst_corner(system, crit, f_hi, r_lo, sufficient=True, structure=structure)
-        b_in, b = burst_corner(system, crit, f_lo, r_hi, sufficient=system.n == 1,
-                               structure=structure)
-        worst, best = _corner_row(None, f_hi, r_lo, w), _corner_row(None, f_lo, r_hi, b)
+        w_in, worst = burst_corner(system, crit, f_hi, r_lo, sufficient=True,
+                                   structure=structure)
+        b_in, best = burst_corner(system, crit, f_lo, r_hi, sufficient=system.n == 1,
+                                  structure=structure)
         length, text = ge_length(fit, crit, system.n)
         inputs = vd.MeasuredInputs("gilbert-elliott", fit.confidence, worst_burst=w_in,
                                    best_burst=b_in, length_to_decide=length,
                                    threshold_text=text)
     outcome = _outcome(worst, best)
     decided = outcome != "neither"  # a decided region needs no longer trace
-    section = ChannelFitSection(
-        subject="the channel's trace", **fit_fields(fit, arrivals),
-        length_to_decide=None if decided else jsonable(inputs.length_to_decide),
+    section = fit_section(
+        fit, arrivals, subject="the channel's trace",
+        length_to_decide=None if decided else inputs.length_to_decide,
         length_to_decide_basis=("decided: the whole confidence region is on one side"
                                 if decided else inputs.threshold_text),
-        region=ConfidenceRegion(model=fit.model, confidence=jsonable(fit.confidence),
+        region=ConfidenceRegion(model=str(fit.model), confidence=float(fit.confidence),
                                 worst=worst, best=best, outcome=outcome),
         boundary=boundary_section(system, crit, fit, structure=structure,
                                   curve=details and fit.model == "gilbert-elliott"),
@@ -284,5 +300,5 @@ def model_notes(fit: ChannelFit) -> list[str]:
 
 
 __all__ = ["CURVE_MAX_STATES", "MeasuredFit", "boundary_section", "burst_corner",
-           "burst_section", "fit_fields", "ge_length", "iid_facts", "iid_threshold", "model_notes",
-           "plant_spectral_radius", "trace_fit"]
+           "burst_section", "fit_section", "ge_length", "iid_corner", "iid_facts",
+           "iid_threshold", "model_notes", "plant_spectral_radius", "real_or_none", "trace_fit"]

@@ -276,13 +276,16 @@ def simulation_row(mfile: Any, opts: Any, verdict: vd.Verdict, facts: MeshFacts,
 def record_simulation(sim: MeshSimulation, opts: Any, sensors: Any) -> Simulation:
     """The record's ``simulation`` section of a mesh (the same run, in the network form)."""
     if sim.mean_trace is None:
-        mean: dict[str, Any] = {"mean_exists": False, "sample_mean_trace": None}
+        summary = NetworkSimulation(paths=sim.paths, steps=sim.steps, seed=sim.seed,
+                                    sensors=list(sensors), mean_exists=False,
+                                    sample_mean_trace=None, statement=sim.statement)
     else:
         band = sim.mean_trace_band or [None, None]
-        mean = {"mean_exists": True, "mean_trace": NetworkMeanTrace(
-            mean=sim.mean_trace, lower=band[0], upper=band[1])}
-    summary = NetworkSimulation(paths=sim.paths, steps=sim.steps, seed=sim.seed,
-                                sensors=list(sensors), statement=sim.statement, **mean)
+        summary = NetworkSimulation(paths=sim.paths, steps=sim.steps, seed=sim.seed,
+                                    sensors=list(sensors), mean_exists=True,
+                                    mean_trace=NetworkMeanTrace(mean=sim.mean_trace,
+                                                                lower=band[0], upper=band[1]),
+                                    statement=sim.statement)
     return Simulation(seed=opts.seed, quick=opts.quick, network=summary,
                       reason="mesh: received sets drawn from the hop outcomes (theory §13)",
                       checks=[simulation_check(sim)])
