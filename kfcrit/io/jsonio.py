@@ -59,6 +59,16 @@ def jsonable(obj: Any) -> Any:
     raise TypeError(f"cannot convert {type(obj).__name__} to JSON")
 
 
+def native_number(x: Any) -> int | float | None:
+    """``x`` as a native number of the record: an integer (NumPy's too) stays an integer (its
+    JSON form is ``1``, not ``1.0``), any other real becomes a float, None stays None."""
+    if x is None:
+        return None
+    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
+        return int(x)
+    return float(x)
+
+
 def dumps(record: Any) -> str:
     """Deterministic JSON text of a record (sorted keys off: the contract order is kept)."""
     return json.dumps(jsonable(record), indent=2, allow_nan=False, ensure_ascii=False)

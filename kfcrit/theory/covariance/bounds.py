@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from kfcrit.io.jsonio import native_number
 from kfcrit.io.typed import ABSENT, to_json
 from kfcrit.model.system import System
 from kfcrit.records.covariance import (
@@ -77,16 +78,6 @@ LARGE_QUICK_PHASE_POINTS = 12
 
 def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
     return None if M is None else [[float(v) for v in row] for row in M]
-
-
-def native_number(x: Any) -> int | float | None:
-    """``x`` as a native number of the record: an integer stays an integer (its JSON form is
-    ``1``, not ``1.0``), any other real becomes a float, None stays None."""
-    if x is None:
-        return None
-    if isinstance(x, int | np.integer) and not isinstance(x, bool | np.bool_):
-        return int(x)
-    return float(x)
 
 
 def covariance_summary(M: np.ndarray | None) -> CovarianceSummary:

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from kfcrit.io.jsonio import native_number
 from kfcrit.io.typed import ABSENT, to_json
 from kfcrit.model.system import System
 from kfcrit.records.bounds import CertificateCheck, UpperCertificate, UpperLowerEvidence, UpperSolver
@@ -64,16 +65,6 @@ class UpperBound:
         if "seconds" in self.solver:
             out["solver"]["seconds"] = native_number(self.solver["seconds"])
         return out
-
-
-def native_number(x: Any) -> float | int | None:
-    """``x`` as a Python number of the JSON form it had: an integer stays an integer, any other
-    number (a NumPy float among them) becomes a float; None stays None."""
-    if x is None:
-        return None
-    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
-        return int(x)
-    return float(x)
 
 
 SOLVER_INTEGERS = ("power_iterations", "newton_iterations", "certificate_checks",
