@@ -2,12 +2,11 @@
 the link policy check, the curves the report draws."""
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 from kfcrit.io.systemfile import SystemSpec
-from kfcrit.io.typed import ABSENT, from_json
-from kfcrit.records.link import DesignCheck, LinkBudgetRecord, LinkCurves
+from kfcrit.io.typed import ABSENT
+from kfcrit.records.link import LinkCurves
 
 
 def bursty_channel(channel: Any) -> Any:
@@ -20,21 +19,6 @@ def bursty_channel(channel: Any) -> Any:
     if channel.model == "link-budget" and not channel.iid:
         return channel.gilbert_elliott()
     return None
-
-
-def design_check(lb: LinkBudgetRecord | Mapping[str, Any]) -> DesignCheck | None:
-    """The configured link against its own margin policy: the section's ``design_check``
-    (:func:`kfcrit.link.budgetsection.policy_check`).
-
-    ``lb`` is the typed section (:func:`kfcrit.link.budgetsection.link_budget_record`) or its
-    JSON form (:func:`kfcrit.link.linkbudget.design_section`); None when the section does not
-    apply (the channel is not a link budget).
-    """
-    if isinstance(lb, LinkBudgetRecord):
-        return lb.design_check
-    if not lb.get("applicable"):
-        return None
-    return from_json(DesignCheck, lb["design_check"], "link_budget.design_check")
 
 
 def link_curves(channel: Any, sec: dict[str, Any], spec: SystemSpec,

@@ -65,7 +65,6 @@ from kfcrit.records.covariance import (
     TailSection,
 )
 from kfcrit.records.link import LinkBudgetRecord
-from kfcrit.records.read import TIMING_KEYS
 from kfcrit.records.simulation import Simulation
 from kfcrit.records.system import (
     AnalysisOptionsRecord,
@@ -470,9 +469,8 @@ def record_hints() -> dict[str, Any]:
 
 TYPED_KEYS = frozenset(f.name for f in dataclasses.fields(AnalysisRecord)
                        if f.name != "timings")
-"""The record's sections :func:`analysis_sections` builds as typed values: all of them (each
-where it is made; a lower layer's plain result is read strictly there,
-:mod:`kfcrit.records.read`)."""
+"""The record's sections :func:`analysis_sections` builds as typed values: all of them, each
+built as its class by the layer that computes it."""
 
 
 def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySections, *,
@@ -624,8 +622,8 @@ def analysis_data(system: System | SystemSpec, options: AnalysisOptions | None =
 
 def _json_sections(sec: dict[str, Any], theory: TheorySections,
                    timings: dict[str, float]) -> dict[str, Any]:
-    """The plain JSON form of the sections (without ``review``), their wall-clock seconds moved
-    to ``timings``; a theory section's JSON form is computed once per :class:`TheorySections`
+    """The plain JSON form of the sections (without ``review``), the theory's wall-clock seconds
+    joined to ``timings``; a theory section's JSON form is computed once per :class:`TheorySections`
     (a sweep shares it across points; callers must not mutate it)."""
     memo: dict[str, Any] | None = theory.__dict__.get("_json_memo")
     if memo is None:
@@ -637,9 +635,7 @@ def _json_sections(sec: dict[str, Any], theory: TheorySections,
         key = str(k)
         if k == "review":
             continue
-        if key in TIMING_KEYS and (v is None or isinstance(v, (int, float))):
-            timings[key] = v
-        elif k in theory.sections and v is theory.sections[k]:
+        if k in theory.sections and v is theory.sections[k]:
             if key not in memo:
                 memo[key] = to_json(v)
             out[key] = memo[key]

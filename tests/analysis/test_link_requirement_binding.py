@@ -18,11 +18,11 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from kfcrit.analysis.links import design_check
 from kfcrit.analysis.sweep.journal import valid_result
 from kfcrit.analysis.sweep.points import RESULT_COLUMNS, row_of
 from kfcrit.analysis.verdict import CheckStatus, link_reasons
 from kfcrit.io.typed import ABSENT, to_json
+from kfcrit.link.budgetsection import link_budget_record
 from kfcrit.link.linkbudget import LinkBudget, design_section
 from kfcrit.model.system import System
 from kfcrit.theory.covariance.design import required_arrival
@@ -64,9 +64,10 @@ def accuracy(interval, status="interval", reason=None) -> dict:
 
 
 def section(link: LinkBudget, acc: dict | None) -> dict:
-    lb = design_section(link, critical_value=P_C, robust_value=None, bracket=(None, None),
-                        upper_bound=None, accuracy=acc)
-    lb["design_check"] = design_check(lb)
+    args = {"critical_value": P_C, "robust_value": None, "bracket": (None, None),
+            "upper_bound": None, "accuracy": acc}
+    lb = design_section(link, **args)
+    lb["design_check"] = link_budget_record(link, **args).design_check
     return lb
 
 

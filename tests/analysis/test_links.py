@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from kfcrit.analysis.links import design_check
 from kfcrit.analysis.verdict import CheckStatus, link_reasons
 from kfcrit.io.typed import ABSENT
-from kfcrit.link.budgetsection import link_budget_record, policy_check
-from kfcrit.link.linkbudget import LinkBudget, design_section
+from kfcrit.link.budgetsection import policy_check
 from kfcrit.link.requirement import binding_requirement, stability_requirement
 from kfcrit.records.link import LinkThreshold, MarginPolicy, Shadowing
 
@@ -49,17 +47,3 @@ def test_a_missing_margin_with_a_positive_requirement_stays_unknown():
     assert dc.margin_policy_met is None
 
 
-def test_the_check_is_read_from_the_section_and_from_its_json_form():
-    link = LinkBudget.from_mapping({
-        "radio": "ieee802154-oqpsk-2450", "tx_power_dbm": "0", "distance_m": "105",
-        "packet_bytes": "40", "margin_db": "2", "max_outage": "0.1",
-        "path_loss": {"model": "log-distance", "exponent": "3.0", "reference_distance_m": "1",
-                      "reference_loss_db": "40.2", "shadowing_sigma_db": "4"},
-        "noise": {"noise_figure_db": "10", "bandwidth_hz": "2.0e6", "temperature_k": "290"}},
-        "channel")
-    args = {"critical_value": 0.36, "robust_value": None, "bracket": (None, None),
-            "upper_bound": None}
-    typed = link_budget_record(link, **args)
-    assert design_check(typed) is typed.design_check
-    assert design_check(design_section(link, **args)) == typed.design_check
-    assert design_check({"applicable": False, "reason": "not a link budget"}) is None

@@ -23,7 +23,6 @@ import numpy as np
 import sympy as sp
 
 from kfcrit.analysis import verdict as vd
-from kfcrit.analysis.links import design_check
 from kfcrit.analysis.loop.designs import (
     LoopPoint,
     TcpParts,
@@ -390,7 +389,7 @@ def actuation_link(spec: SystemSpec, point: LoopPoint, design: FixedDesign | Non
     except (ValueError, ArithmeticError) as exc:
         warnings.append(f"actuation link budget not computed: {exc}")
         return None, None
-    check = design_check(lb)
+    check = lb.design_check
     if not check:
         return None, None
     summary = LoopLinkCheck(
