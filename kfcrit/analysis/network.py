@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
+import sympy as sp
+
 from kfcrit.analysis import verdict as vd
 from kfcrit.analysis.links import bursty_channel
 from kfcrit.io.systemfile import SystemSpec
@@ -205,7 +207,8 @@ def one_bursty_link(section: NetworkSection, network: Any, ge: Any, lower: Any,
         certificate=None, facts=facts_record(facts))
 
 
-def network_lower_bound(network: Any, all_lost: float | None = None) -> CovarianceBounds:
+def network_lower_bound(network: Any, all_lost: float | None = None,
+                        p_low_exact: Any = None) -> CovarianceBounds:
     r"""The Lyapunov lower bound of a network's error covariance (theory §9).
 
     .. math:: \bar S = \pi(\emptyset)\, A \bar S A' + Q, \qquad
@@ -216,6 +219,10 @@ def network_lower_bound(network: Any, all_lost: float | None = None) -> Covarian
     ``upper.exists`` False says nothing about existence). ``p = 1 − π(∅)`` is the probability
     that at least one sensor's packet arrives. ``all_lost`` is a measured π̂(∅) (time-aligned
     traces, theory §14) that replaces the independence product.
+
+    S̄ exists iff π(∅)·ρ(A)² < 1, i.e. 1 − π(∅) > p_low = 1 − 1/ρ(A)²; with exact arrival
+    probabilities and ``p_low_exact`` that is decided exactly (a product that rounds onto
+    1/ρ(A)² in float64 finds no bounded S̄ there, yet S̄ exists, beyond float64).
     """
     import numpy as np
 
@@ -223,12 +230,19 @@ def network_lower_bound(network: Any, all_lost: float | None = None) -> Covarian
     lost = float(np.prod([1.0 - float(s.channel.arrival_probability)
                           for s in network.sensors if s.channel is not None])) if product \
         else float(all_lost)
-    return lyapunov_only_bounds(network.stacked_system(), lost, "not computed for a network", (
+    bounds = lyapunov_only_bounds(network.stacked_system(), lost, "not computed for a network", (
         "sensor network: S̄ solves S = Π(1 − p_i) A S A' + Q (all packets lost together); p is "
         "1 − Π(1 − p_i); V̄ is not computed" if product else
         "sensor network of time-aligned traces: S̄ solves S = π̂(∅) A S A' + Q with the "
         "measured probability π̂(∅) that every packet is lost; p is 1 − π̂(∅); V̄ is not "
         "computed"))
+    if product and bounds.lower.exists is False and p_low_exact is not None:
+        at_least_one = 1 - sp.Mul(*[1 - s.channel.arrival_probability
+                                    for s in network.sensors if s.channel is not None])
+        if vd.exceeds(at_least_one, p_low_exact):
+            bounds = replace(bounds, lower=replace(bounds.lower, exists=True,
+                                                   beyond_float64=True))
+    return bounds
 
 
 def lyapunov_only_bounds(system: Any, lost: float, method: str, reason: str

@@ -547,7 +547,8 @@ def analysis_sections(spec: SystemSpec, opts: AnalysisOptions, theory: TheorySec
         fit = sec.get("channel_fit")
         joint = fit.joint_law if fit is not None else None
         sec["covariance_bounds"] = network_lower_bound(
-            spec.network, joint.p_all_lost if joint is not None else None)
+            spec.network, joint.p_all_lost if joint is not None else None,
+            p_low_exact=theory.p_low_exact)
     elif spec.mesh is None and (opts.details
                                 or getattr(reqs, "max_mean_error_trace", None) is not None):
         _bounds_sections(spec, sec, warnings, timings, curves=opts.details, quick=opts.quick,
@@ -733,6 +734,13 @@ def _bounds_sections(spec: SystemSpec, sec: dict[str, Any], warnings: list[str],
         warnings.append(f"phase-transition curve incomplete: {pt.limits.stopped}")
 
 
+IID_COMPARISON = ("an i.i.d. comparison only: S̄ and V̄ are the bounds of i.i.d. losses at the "
+                  "stationary arrival probability and do not bound lim E[P_t] for this channel "
+                  "with memory (whether they exist says nothing of its mean stability; the "
+                  "Markov-jump bounds of a Gilbert–Elliott chain do bound it, theory §10)")
+"""``covariance_bounds.reason`` for a channel that is not i.i.d. (``applicable`` False)."""
+
+
 def not_detectable_bounds(s: System, p: float) -> CovarianceBounds:
     """The covariance bounds of an undetectable system at ``p``: the Lyapunov lower bound S̄
     (theory §3) and no V̄ (E[P_t] diverges for every p)."""
@@ -764,6 +772,8 @@ def _bounds_and_curves(spec: SystemSpec, s: System, sec: dict[str, Any], markers
                 necessary_holds=burst_necessary(s, ge.recovery_rate).holds).record())
         cb = replace(cb, lower=_lower_exists_exactly(cb.lower, spec.channel, sec),
                      upper=_upper_exists_exactly(cb.upper, spec.channel, sec))
+        if spec.channel is not None and not spec.channel.iid:
+            cb = replace(cb, applicable=False, reason=IID_COMPARISON)
         sec["covariance_bounds"] = cb
         warnings.extend(cb.warnings or [])
         if curves:

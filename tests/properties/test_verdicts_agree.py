@@ -66,11 +66,19 @@ def mean_facts(record: dict) -> list[tuple[str, str]]:
         out.append(("simulation.mean_exists",
                     "mean-stable" if sim_op["mean_exists"] else "mean-unstable"))
     cb = record.get("covariance_bounds") or {}
-    for path, bound in (("covariance_bounds.lower", cb.get("lower")),
-                        ("covariance_bounds.markov_jump.lower",
-                         (cb.get("markov_jump") or {}).get("lower"))):
+    # a channel with memory states S̄, V̄ as an i.i.d. comparison (applicable False): they
+    # bound nothing of its mean there, the Markov-jump bounds do
+    bounds = [] if cb.get("applicable") is False else [("covariance_bounds.lower",
+                                                        cb.get("lower"))]
+    for path, bound in bounds + [("covariance_bounds.markov_jump.lower",
+                                  (cb.get("markov_jump") or {}).get("lower"))]:
         if isinstance(bound, dict) and bound.get("exists") is False:
             out.append((path, "mean-unstable"))
+    # V̄ ⪰ lim E[P_t] bounds the estimator's mean; a closed loop's verdict also needs the loop
+    upper = cb.get("upper") if cb.get("applicable") is not False and not record.get("loop") \
+        else None
+    if isinstance(upper, dict) and upper.get("exists") is True:
+        out.append(("covariance_bounds.upper", "mean-stable"))
     if any("diverges at this operating point" in w for w in record.get("warnings") or []):
         out.append(("warnings", "mean-unstable"))
     return out
@@ -112,7 +120,29 @@ def test_one_sensor_network_at_the_threshold(p: str, expected: str) -> None:
          "channel": {"model": "bernoulli", "arrival_probability": p}}]}
     record = analyze_doc(doc)
     assert assert_one_verdict(record) == expected
-    assert record["network"]["verdict"] == expected
+    net = record["network"]
+    assert net["verdict"] == expected
+    # every margin of the block has the verdict's sign (p − 9/25 exactly: ±10⁻⁴⁰, not 0)
+    margins = [net["uniform_margin"]["value"], net["sensors"][0]["margin"]["value"],
+               net["bottleneck"]["margin"], record["operating_point"]["margin"]]
+    assert all((m > 0) == (expected == "mean-stable") for m in margins), margins
+    assert net["facts"]["exact_region"] == net["exact_region"]["holds"]
+
+
+@pytest.mark.parametrize("p2, expected", [
+    ("1/2 + 10^-40", "mean-stable"), ("1/2", "mean-unstable"),
+    ("1/2 - 10^-40", "mean-unstable")])
+def test_two_sensor_network_at_the_threshold(p2: str, expected: str) -> None:
+    """a = 2 seen by two sensors: stable iff (1 − p₁)(1 − p₂)·4 < 1, at p₁ = 1/2 iff p₂ > 1/2;
+    S̄ exists exactly then, although 1 − 2·10⁻⁴⁰ rounds to 1."""
+    doc = {"name": "two", "A": [[2]], "Q": 1, "sensors": [
+        {"name": "s1", "C": [[1]], "R": 1,
+         "channel": {"model": "bernoulli", "arrival_probability": "1/2"}},
+        {"name": "s2", "C": [[1]], "R": 1,
+         "channel": {"model": "bernoulli", "arrival_probability": p2}}]}
+    record = analyze_doc(doc)
+    assert assert_one_verdict(record) == expected
+    assert record["covariance_bounds"]["lower"]["exists"] is (expected == "mean-stable")
 
 
 @pytest.mark.parametrize("r, expected", [
@@ -287,3 +317,13 @@ def test_upper_covariance_bound_exists_just_above_an_exact_p_up() -> None:
            "channel": {"model": "bernoulli", "arrival_probability": "9/25 + 10^-40"}}
     cb = analyze_simulated(doc)["covariance_bounds"]
     assert cb["upper"]["exists"] is True and cb["lower"]["exists"] is True
+
+
+def test_iid_bounds_of_a_bursty_link_are_labelled_a_comparison() -> None:
+    """ge-bursty-scalar is mean-unstable (r = 1/10 < r_nec = 9/25, by hand): its S̄ and V̄ at
+    the stationary p exist, so they are stated as an i.i.d. comparison, not as bounds."""
+    record = kfcrit.analyze(kfcrit.load_spec(REPORTS / "ge-bursty-scalar.yaml"),
+                            simulate=False, quick=True).to_dict()
+    assert assert_one_verdict(record) == "mean-unstable"
+    cb = record["covariance_bounds"]
+    assert cb["applicable"] is False and "i.i.d. comparison" in cb["reason"]

@@ -799,6 +799,12 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
     margin = {"value": p - crit["value"] if crit["value"] is not None else None,
               "interval": ([p - iv[1] if iv[1] is not None else None, p - iv[0]]
                            if iv is not None else None)}
+    margin_exact = exact_margin(pe[0], pc_exact)
+    if margin_exact is not None:
+        # p = 9/25 + 10⁻⁴⁰ rounds onto p_c: the float difference would say 0, the exact one
+        # says what the verdict says
+        m = float(sp.N(margin_exact, 30))
+        margin = {"value": m, "interval": [m, m]}
     stable = klass == "stable"
     n1 = StabilityFacts(necessary=stable, sufficient=stable, exact_region=True,
                         necessary_basis="no measurement reaches the estimator",
@@ -815,10 +821,23 @@ def _single_link_overlay(network: Network, res: NetworkResult, pf: np.ndarray,
                          uniform_margin=um, bottleneck={**res.bottleneck, "name": row.name,
                                                         "margin": margin["value"],
                                                         "margin_interval": margin["interval"]},
-                         constraints=res.constraints, exact_region=res.exact_region,
+                         constraints=res.constraints,
+                         exact_region=_single_exact_region(res.exact_region, facts),
                          certificate=res.certificate, method=res.method, claims=res.claims,
                          warnings=res.warnings + tuple(cvo.warnings),
                          seconds=res.seconds, single_lower=cvo.lower)
+
+
+def _single_exact_region(region: dict[str, Any], facts: StabilityFacts) -> dict[str, Any]:
+    """The ``exact_region`` entry of one sensor: where the single-link theory gives p_c exactly
+    (facts ``exact_region``), the region {p > p_c} is exact whatever modal one-step
+    observability says (the two entries state one fact)."""
+    if not facts.exact_region or region.get("holds"):
+        return region
+    return {**region, "holds": True,
+            "reason": "one sensor: the single-link theory gives p_c exactly, so p > p_c is the "
+                      "exact stability region",
+            "basis": "single-link critical value (docs/theory.md §3–§4)"}
 
 
 def _single_link_critical(system: Any, tol: float

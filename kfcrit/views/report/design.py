@@ -113,13 +113,26 @@ def mean_assessment_rows(rec: AnalysisRecord) -> dict[str, Any] | None:
     return None
 
 
+def beta_text(value: float, finite_mean: bool | None, finite_variance: bool | None) -> str:
+    """β as text, never contradicting the exact comparisons: β > 1 iff E[tr P] is finite and
+    β > 2 iff its variance is (theory §5); a β that rounds onto 1 or 2 in float64 while the
+    exact comparison decides the side is written with that side."""
+    for edge, finite in ((1.0, finite_mean), (2.0, finite_variance)):
+        if finite is True and value <= edge:
+            return f"{edge:g}⁺ (above {edge:g} exactly; {edge:g} to float64 precision)"
+        if finite is False and value > edge:
+            return f"≤ {edge:g} (exactly; {value:.6g} in float64)"
+    return filters.num(value, 6)
+
+
 def tail_view(rec: AnalysisRecord) -> dict[str, Any] | None:
     """The power-law tail exponent of tr P (a labelled claim), or ``None``."""
     tail = stated(rec.tail)
     ex = tail.exponent if tail is not None else None
     if ex is None or not ex.applicable or number(ex.value) is None:
         return None
-    return {"value": ex.value, "expression": short_closed_form(ex.expression),
+    return {"value": ex.value, "value_text": beta_text(ex.value, ex.finite_mean, ex.finite_variance),
+            "expression": short_closed_form(ex.expression),
             "formula": prose(ex.formula), "statement": prose(ex.statement),
             "label": prose(ex.label), "source": ex.source}
 

@@ -269,9 +269,11 @@ def _bounds_lines(rec: AnalysisRecord) -> list[str]:
     lo, up = cb.lower, cb.upper
     if up.computed is False or str(up.method or "").startswith("not computed"):
         return _uncomputed_upper_lines(cb)
-    out = [f"  lim E[P] bounds at p   tr S̄ = {_num(lo.trace) if lo.exists else '∞'}"
-           f" ≤ tr lim E[P] ≤ tr V̄ = {_num(up.trace) if up.exists else '∞'}"]
-    if rec.operating_point is not None and rec.operating_point.iid is False:
+    s_text, v_text = (_num(lo.trace) if lo.exists else '∞'), (_num(up.trace) if up.exists else '∞')
+    iid = rec.operating_point is None or rec.operating_point.iid is not False
+    out = [f"  lim E[P] bounds at p   tr S̄ = {s_text} ≤ tr lim E[P] ≤ tr V̄ = {v_text}" if iid
+           else f"  i.i.d. comparison      tr S̄ = {s_text}, tr V̄ = {v_text}"]
+    if not iid:
         out.append("      (i.i.d. bounds at the stationary arrival probability: they do not "
                    "bound E[P] for this channel)")
     mj = cb.markov_jump
@@ -280,7 +282,8 @@ def _bounds_lines(rec: AnalysisRecord) -> list[str]:
         out.append(f"  lim E[P] bursty link   {_num(mlo.trace) if mlo.exists else '∞'}"
                    f" ≤ tr lim E[P] ≤ {_num(mup.trace) if mup.exists else '∞'}"
                    "  (Markov-jump bounds valid for this Gilbert–Elliott channel, theory §10)")
-    if cb.applicable is False and cb.reason:
+    if cb.applicable is False and cb.reason and rec.operating_point is not None \
+            and rec.operating_point.iid is not False:
         out.append(f"      V̄ {cb.reason}")
     return out
 
