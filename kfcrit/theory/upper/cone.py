@@ -158,11 +158,14 @@ class NewtonResult:
 
 
 def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, eps: float = 0.0,
-                     max_iterations: int = 40, atol: float = 1e-14) -> NewtonResult:
+                     max_iterations: int = 40, atol: float = 1e-14,
+                     floor: float = NEWTON_REG) -> NewtonResult:
     """Newton on G^ε_p(X) = X, tr X = 1 in (X, p) (see the module docstring).
 
     G^ε_p(X) = A X A' + εt I − p A X C'(C X C' + εt I)^{-1} C X A', t = tr X. Its Jacobian in X
     is L_{K,p}(dX) + ε tr(dX) (I + p K K') with K the optimal gain; in p, −A X C' S^{-1} C X A'.
+    ``floor`` (times t) is the least regulariser of C X C' (:data:`NEWTON_REG`; varied by
+    :func:`root_error`).
     """
     n, m = A.shape[0], C.shape[0]
     N = n * (n + 1) // 2
@@ -173,7 +176,7 @@ def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, ep
     res = np.inf
     for it in range(max_iterations + 1):
         t = np.trace(X)
-        S = C @ X @ C.T + max(eps, NEWTON_REG) * t * np.eye(m)   # keep S invertible
+        S = C @ X @ C.T + max(eps, floor) * t * np.eye(m)   # keep S invertible
         AXC = A @ X @ C.T
         try:
             K = -np.linalg.solve(S.T, AXC.T).T
@@ -202,6 +205,36 @@ def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, ep
         X = X + unvech(d[:N], n)
         p = p + float(d[N])
     return NewtonResult(X, p, K, max_iterations, res < 1e3 * atol, res)
+
+
+ROOT_CHECK_FACTOR = 100.0
+"""The regulariser floor of the second threshold Newton of :func:`root_error` (times
+:data:`NEWTON_REG`)."""
+
+
+def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult,
+               factor: float = ROOT_CHECK_FACTOR) -> tuple[float, int]:
+    r"""Estimated error of the threshold root p* from its shift when the regulariser floor of
+    C X C' is multiplied by f = ``factor`` (Newton warm-started at the root).
+
+    The floor δ = :data:`NEWTON_REG` biases p* by b(δ) = a δ^α: α = 1 for a well-conditioned
+    eigenvector, α down to 1/2 where the eigenvector sits on a face of the cone or the cone
+    eigenvalue is defective (then rounding of size u moves p* by ~√u as well). Taking the worst
+    exponent,
+
+    .. math::
+
+        |b(δ)| \le \frac{|p^*(fδ) - p^*(δ)|}{\sqrt{f} - 1},
+
+    and the returned error is twice that bound (the bias plus a rounding error of the same
+    order). Seen: A with the eigenvalues 2 ± i, −2 ± i and a block seen through one output
+    (p_up = 0.96 exactly) gave p* = 0.96 + 1.5e-8, and p*(100 δ) = 0.96 + 1.5e-7. Returns
+    (error, Newton iterations); the error is inf when the second Newton does not converge.
+    """
+    alt = threshold_newton(A, C, root.X, root.p, floor=factor * NEWTON_REG)
+    if not (alt.converged and np.isfinite(alt.p)):
+        return float("inf"), alt.iterations
+    return 2.0 * abs(alt.p - root.p) / (np.sqrt(factor) - 1.0), alt.iterations
 
 
 def perron_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float, eps: float = 0.0,
