@@ -207,34 +207,54 @@ def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, ep
     return NewtonResult(X, p, K, max_iterations, res < 1e3 * atol, res)
 
 
-ROOT_CHECK_FACTOR = 100.0
-"""The regulariser floor of the second threshold Newton of :func:`root_error` (times
-:data:`NEWTON_REG`)."""
+ROOT_CHECK_FACTOR = 10.0
+"""The regulariser floors of the two extra threshold Newtons of :func:`root_error` are this
+and its square times :data:`NEWTON_REG`."""
+ROOT_CHECK_LEAST_EXPONENT = 0.25
+"""The least exponent α of the regulariser bias a δ^α that :func:`root_error` assumes (a
+defective cone eigenvalue of multiplicity k gives α = 1/k)."""
 
 
 def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult,
                factor: float = ROOT_CHECK_FACTOR) -> tuple[float, int]:
-    r"""Estimated error of the threshold root p* from its shift when the regulariser floor of
-    C X C' is multiplied by f = ``factor`` (Newton warm-started at the root).
+    r"""Estimated error of the threshold root p* from its shifts d_1, d_2 when the
+    regulariser floor δ = :data:`NEWTON_REG` of C X C' is multiplied by f and f²
+    (f = ``factor``; Newton warm-started at the root).
 
-    The floor δ = :data:`NEWTON_REG` biases p* by b(δ) = a δ^α: α = 1 for a well-conditioned
-    eigenvector, α down to 1/2 where the eigenvector sits on a face of the cone or the cone
-    eigenvalue is defective (then rounding of size u moves p* by ~√u as well). Taking the worst
-    exponent,
+    The floor biases p* by b(δ) = a δ^α: α = 1 for a well-conditioned eigenvector, α < 1 where
+    the eigenvector sits on a face of the cone or the cone eigenvalue is defective (several
+    blocks crossing 1 together; rounding of size u then moves p* by ~u^α as well). The shifts
+    give g = f^α and b(δ):
 
     .. math::
 
-        |b(δ)| \le \frac{|p^*(fδ) - p^*(δ)|}{\sqrt{f} - 1},
+        d_k = b(f^k δ) - b(δ), \qquad rac{d_2}{d_1} = g + 1, \qquad
+        |b(δ)| = rac{|d_2|}{g^2 - 1},
 
-    and the returned error is twice that bound (the bias plus a rounding error of the same
-    order). Seen: A with the eigenvalues 2 ± i, −2 ± i and a block seen through one output
-    (p_up = 0.96 exactly) gave p* = 0.96 + 1.5e-8, and p*(100 δ) = 0.96 + 1.5e-7. Returns
-    (error, Newton iterations); the error is inf when the second Newton does not converge.
+    with g clipped to [f^{1/4}, f] (:data:`ROOT_CHECK_LEAST_EXPONENT`; shifts of opposite
+    signs, rounding-dominated, take the least exponent). The returned error is twice |b(δ)|
+    (the bias plus a rounding error of the same order). Seen: A with the eigenvalues 2 ± i,
+    −2 ± i and one block seen through one output (p_up = 24/25 exactly) gave
+    p* = 24/25 + 1.5e-8 with d_1 = 3.1e-8, d_2 = 1.3e-7 (α ≈ 1/2), while
+    ``random_system(12, 4, 0)`` has α = 1 and |b(δ)| = 2.3e-11. Returns (error, Newton
+    iterations); the error is inf when a Newton does not converge.
     """
-    alt = threshold_newton(A, C, root.X, root.p, floor=factor * NEWTON_REG)
-    if not (alt.converged and np.isfinite(alt.p)):
-        return float("inf"), alt.iterations
-    return 2.0 * abs(alt.p - root.p) / (np.sqrt(factor) - 1.0), alt.iterations
+    shifts: list[float] = []
+    iterations = 0
+    X, p = root.X, root.p
+    for k in (1, 2):
+        alt = threshold_newton(A, C, X, p, floor=factor ** k * NEWTON_REG)
+        iterations += alt.iterations
+        if not (alt.converged and np.isfinite(alt.p)):
+            return float("inf"), iterations
+        shifts.append(alt.p - root.p)
+        X, p = alt.X, alt.p
+    d1, d2 = shifts
+    least = factor ** ROOT_CHECK_LEAST_EXPONENT
+    if d2 == 0.0:
+        return 0.0, iterations
+    g = factor if d1 == 0.0 else min(max(d2 / d1 - 1.0, least), factor)
+    return 2.0 * abs(d2) / (g * g - 1.0), iterations
 
 
 def perron_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float, eps: float = 0.0,

@@ -238,10 +238,10 @@ def root_accuracy_note(p_star: float, err: float, tol: float, lo: float) -> str:
                 "larger regulariser did not converge): its accuracy is unknown and the lower "
                 "end falls back to p_low")
     return (f"the Newton root p* = {p_star:.12g} is sensitive to the regulariser of the "
-            f"noise-free MARE map (estimated error {err:.2g}, from the root with a "
-            f"{ROOT_CHECK_FACTOR:g} times larger regulariser; a nearly singular or defective "
-            f"cone eigenvector): the lower end is moved down to {lo:.12g} (numerical), and the "
-            f"bracket may be wider than the requested {tol:g}")
+            f"noise-free MARE map (estimated error {err:.2g}, from the roots with "
+            f"{ROOT_CHECK_FACTOR:g} and {ROOT_CHECK_FACTOR ** 2:g} times the regulariser; a "
+            f"nearly singular or defective cone eigenvector): the lower end is moved down to "
+            f"{lo:.12g} (numerical), and the bracket may be wider than the requested {tol:g}")
 
 
 BALL_CHECK_MAX_STATES = 250
