@@ -215,7 +215,7 @@ ROOT_CHECK_LEAST_EXPONENT = 0.25
 defective cone eigenvalue of multiplicity k gives α = 1/k)."""
 
 
-def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult,
+def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult, slack: float,
                factor: float = ROOT_CHECK_FACTOR) -> tuple[float, int]:
     r"""Estimated error of the threshold root p* from its shifts d_1, d_2 when the
     regulariser floor δ = :data:`NEWTON_REG` of C X C' is multiplied by f and f²
@@ -231,13 +231,16 @@ def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult,
         d_k = b(f^k δ) - b(δ), \qquad rac{d_2}{d_1} = g + 1, \qquad
         |b(δ)| = rac{|d_2|}{g^2 - 1},
 
-    with g clipped to [f^{1/4}, f] (:data:`ROOT_CHECK_LEAST_EXPONENT`; shifts of opposite
-    signs, rounding-dominated, take the least exponent). The returned error is twice |b(δ)|
-    (the bias plus a rounding error of the same order). Seen: A with the eigenvalues 2 ± i,
-    −2 ± i and one block seen through one output (p_up = 24/25 exactly) gave
-    p* = 24/25 + 1.5e-8 with d_1 = 3.1e-8, d_2 = 1.3e-7 (α ≈ 1/2), while
-    ``random_system(12, 4, 0)`` has α = 1 and |b(δ)| = 2.3e-11. Returns (error, Newton
-    iterations); the error is inf when a Newton does not converge.
+    with g at most f. The returned error is twice |b(δ)| (the bias plus a rounding error of
+    the same order). Shifts that fit no such bias (g < f^{1/4},
+    :data:`ROOT_CHECK_LEAST_EXPONENT`, or of opposite signs) come from elsewhere — Newton
+    stopped early at a singular root, where it converges linearly, or rounding: the error is
+    then 2 max |d_k| if that is within ``slack``, else unknown (inf). Seen: A with the
+    eigenvalues 2 ± i, −2 ± i and one block seen through one output (p_up = 24/25 exactly)
+    gave p* = 24/25 + 1.5e-8 with d_1 = 3.1e-8, d_2 = 1.3e-7 (α ≈ 1/2);
+    ``random_system(12, 4, 0)`` has α = 1 and |b(δ)| = 2.3e-11; A = 2·rotation ⊕ 1 with one
+    output (p_up = 15/16) had p* = 15/16 + 8.3e-9 and d_1 = d_2 = −4.2e-9 (a singular root).
+    Returns (error, Newton iterations); the error is inf also when a Newton does not converge.
     """
     shifts: list[float] = []
     iterations = 0
@@ -250,10 +253,13 @@ def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult,
         shifts.append(alt.p - root.p)
         X, p = alt.X, alt.p
     d1, d2 = shifts
-    least = factor ** ROOT_CHECK_LEAST_EXPONENT
     if d2 == 0.0:
         return 0.0, iterations
-    g = factor if d1 == 0.0 else min(max(d2 / d1 - 1.0, least), factor)
+    g = factor if d1 == 0.0 else d2 / d1 - 1.0
+    if g < factor ** ROOT_CHECK_LEAST_EXPONENT:
+        spread = 2.0 * max(abs(d1), abs(d2))
+        return (spread if spread <= slack else float("inf")), iterations
+    g = min(g, factor)
     return 2.0 * abs(d2) / (g * g - 1.0), iterations
 
 

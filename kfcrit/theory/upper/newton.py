@@ -208,7 +208,7 @@ def newton_method(system: System, tol: float,
     accuracy = ""
     if plain_ok and p_star is not None and lo_p > p_low:
         # the lower end rests on the Newton root: is the root itself accurate to the slack?
-        err, its = root_error(Au, Cu, plain)
+        err, its = root_error(Au, Cu, plain, p_star - lo_p)
         stats["newton_iterations"] += its
         if p_star - err < lo_p:
             lo_p = max(p_low, p_star - err)
@@ -216,12 +216,12 @@ def newton_method(system: System, tol: float,
             warnings.append(accuracy)
     lower = lower_evidence(system, red, plain, lo_p, p_low, stats, tol) if plain_ok else \
         evidence_p_low(p_low)
-    if accuracy and lower.kind == "numerical":
-        lower = replace(lower, statement=lower.statement + "; " + accuracy)
     if isinstance(lower, str):       # the evidence contradicts lo
         warnings.append(lower)
         lo_p = p_low
         lower = evidence_p_low(p_low)
+    if accuracy and lower.kind == "numerical":
+        lower = replace(lower, statement=lower.statement + "; " + accuracy)
     status = "determined" if hi_p - lo_p <= tol else "undetermined"
     return done(hi_p, (lo_p, hi_p), check.ok, status, cert, lower,
                 {"X": X, "K": K, "basis": Z, "X_basis": Xz, "K_basis": Kz, "p_star": p_star,
@@ -234,9 +234,10 @@ def root_accuracy_note(p_star: float, err: float, tol: float, lo: float) -> str:
     """The warning for a Newton root less accurate than the bracket's slack
     (:func:`kfcrit.theory.upper.cone.root_error`)."""
     if not np.isfinite(err):
-        return (f"the Newton root p* = {p_star:.12g} could not be checked (Newton with a "
-                "larger regulariser did not converge): its accuracy is unknown and the lower "
-                "end falls back to p_low")
+        return (f"the accuracy of the Newton root p* = {p_star:.12g} is unknown (with a "
+                "larger regulariser Newton did not converge, or the root moved by more than "
+                "the bracket's slack in a way no regulariser bias explains: a singular root "
+                "or rounding); the lower end falls back to p_low")
     return (f"the Newton root p* = {p_star:.12g} is sensitive to the regulariser of the "
             f"noise-free MARE map (estimated error {err:.2g}, from the roots with "
             f"{ROOT_CHECK_FACTOR:g} and {ROOT_CHECK_FACTOR ** 2:g} times the regulariser; a "
