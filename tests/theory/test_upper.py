@@ -682,3 +682,32 @@ def test_power_bisection_checks_once_in_balls_and_defers_beyond_the_size_limit(m
     assert not deferred.certified and deferred.status == "undetermined"
     assert deferred.solver["certificate_checks"] == 0
     assert any("deferred" in w for w in deferred.warnings)
+
+
+def test_defective_threshold_lower_end_is_widened_not_misplaced():
+    # A = diag(block a, block b) up to a permutation: block a on (x1, x4) with eigenvalues
+    # 2 ± i, block b on (x2, x3) with −2 ± i, both of modulus √5; y1 = x1, y2 = 2 x3 − x4.
+    # p_up = 24/25 exactly: span(e2, e3) is A-invariant and C sees it through the one
+    # column 2 e2' (rank 1), so p_up ≥ 1 − 1/|λ1 λ2|² = 1 − 1/25 of that single-output pair
+    # (its noise-free MARE cone is invariant); a gain using y1 for block a and y2 for block b
+    # makes A + K C block triangular with two single-output pairs on the diagonal, whose
+    # thresholds are both 1 − 1/25, so p_up ≤ 24/25. The cone eigenvalue at 24/25 is
+    # defective (two blocks cross 1 together), which once put the numerical lower end
+    # 1.4e-8 (and, after the similarity T below, 2.8e-8) above 24/25 in a bracket of width 1e-9
+    import sympy as sp
+
+    A = sp.Matrix([[2, 0, 0, -1], [0, -2, 1, 0], [0, -1, -2, 0], [1, 0, 0, 2]])
+    C = sp.Matrix([[1, 0, 0, 0], [0, 0, 2, -1]])
+    T = sp.Matrix([[1, -2, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    Ti = T.inv()
+    brackets = []
+    for AA, CC in ((A, C), (T * A * Ti, C * Ti)):
+        ub = upper_bound(System(AA, CC, sp.eye(4), sp.eye(2)), tol=1e-9)
+        lo, hi = ub.interval
+        assert ub.certified and Fraction(lo) <= Fraction(24, 25) <= Fraction(hi)
+        assert not ub.lower_evidence.certified
+        if hi - lo > 1e-9:
+            assert ub.status == "undetermined" and any("regulariser" in w for w in ub.warnings)
+        brackets.append((lo, hi))
+    (la, ha), (lb, hb) = brackets
+    assert la <= hb and lb <= ha

@@ -20,7 +20,9 @@ The default method ("newton") works in four steps:
    p_ε ≥ p_up (a little above p*), with X_ε ≻ 0 and X_ε − L_{K,p_ε}(X_ε) ⪰ ε·tr(X_ε)·I.
 4. *Certify.* Lift (X_ε, K_ε) to the full state and prove X ≻ 0, X − L_{K,hi}(X) ≻ 0 in ball
    arithmetic on the exact matrices (:mod:`kfcrit.theory.upper.certify`). The lower end is p_low (Thm 3,
-   proven) when hi − tol ≤ p_low, otherwise the Newton root p* (numerical), upgraded to a
+   proven) when hi − tol ≤ p_low, otherwise the Newton root p* (numerical; moved down, and
+   the bracket then wider than tol, when its shift under a larger regulariser shows it less
+   accurate than that: :func:`kfcrit.theory.upper.cone.root_error`), upgraded to a
    proof when a positive definite eigenvector X_u of G_lo on the unstable block with eigenvalue
    > 1 is verified in balls on an exactly A-invariant subspace (enclosed by Stewart's theorem,
    :func:`kfcrit.theory.upper.certify.invariant_block`). That is valid with stable modes too: G_p maps the

@@ -158,11 +158,14 @@ class NewtonResult:
 
 
 def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, eps: float = 0.0,
-                     max_iterations: int = 40, atol: float = 1e-14) -> NewtonResult:
+                     max_iterations: int = 40, atol: float = 1e-14,
+                     floor: float = NEWTON_REG) -> NewtonResult:
     """Newton on G^ε_p(X) = X, tr X = 1 in (X, p) (see the module docstring).
 
     G^ε_p(X) = A X A' + εt I − p A X C'(C X C' + εt I)^{-1} C X A', t = tr X. Its Jacobian in X
     is L_{K,p}(dX) + ε tr(dX) (I + p K K') with K the optimal gain; in p, −A X C' S^{-1} C X A'.
+    ``floor`` (times t) is the least regulariser of C X C' (:data:`NEWTON_REG`; varied by
+    :func:`root_error`).
     """
     n, m = A.shape[0], C.shape[0]
     N = n * (n + 1) // 2
@@ -173,7 +176,7 @@ def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, ep
     res = np.inf
     for it in range(max_iterations + 1):
         t = np.trace(X)
-        S = C @ X @ C.T + max(eps, NEWTON_REG) * t * np.eye(m)   # keep S invertible
+        S = C @ X @ C.T + max(eps, floor) * t * np.eye(m)   # keep S invertible
         AXC = A @ X @ C.T
         try:
             K = -np.linalg.solve(S.T, AXC.T).T
@@ -202,6 +205,62 @@ def threshold_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p0: float, ep
         X = X + unvech(d[:N], n)
         p = p + float(d[N])
     return NewtonResult(X, p, K, max_iterations, res < 1e3 * atol, res)
+
+
+ROOT_CHECK_FACTOR = 10.0
+"""The regulariser floors of the two extra threshold Newtons of :func:`root_error` are this
+and its square times :data:`NEWTON_REG`."""
+ROOT_CHECK_LEAST_EXPONENT = 0.25
+"""The least exponent α of the regulariser bias a δ^α that :func:`root_error` assumes (a
+defective cone eigenvalue of multiplicity k gives α = 1/k)."""
+
+
+def root_error(A: np.ndarray, C: np.ndarray, root: NewtonResult, slack: float,
+               factor: float = ROOT_CHECK_FACTOR) -> tuple[float, int]:
+    r"""Estimated error of the threshold root p* from its shifts d_1, d_2 when the
+    regulariser floor δ = :data:`NEWTON_REG` of C X C' is multiplied by f and f²
+    (f = ``factor``; Newton warm-started at the root).
+
+    The floor biases p* by b(δ) = a δ^α: α = 1 for a well-conditioned eigenvector, α < 1 where
+    the eigenvector sits on a face of the cone or the cone eigenvalue is defective (several
+    blocks crossing 1 together; rounding of size u then moves p* by ~u^α as well). The shifts
+    give g = f^α and b(δ):
+
+    .. math::
+
+        d_k = b(f^k δ) - b(δ), \qquad rac{d_2}{d_1} = g + 1, \qquad
+        |b(δ)| = rac{|d_2|}{g^2 - 1},
+
+    with g at most f. The returned error is twice |b(δ)| (the bias plus a rounding error of
+    the same order). Shifts that fit no such bias (g < f^{1/4},
+    :data:`ROOT_CHECK_LEAST_EXPONENT`, or of opposite signs) come from elsewhere — Newton
+    stopped early at a singular root, where it converges linearly, or rounding: the error is
+    then 2 max |d_k| if that is within ``slack``, else unknown (inf). Seen: A with the
+    eigenvalues 2 ± i, −2 ± i and one block seen through one output (p_up = 24/25 exactly)
+    gave p* = 24/25 + 1.5e-8 with d_1 = 3.1e-8, d_2 = 1.3e-7 (α ≈ 1/2);
+    ``random_system(12, 4, 0)`` has α = 1 and |b(δ)| = 2.3e-11; A = 2·rotation ⊕ 1 with one
+    output (p_up = 15/16) had p* = 15/16 + 8.3e-9 and d_1 = d_2 = −4.2e-9 (a singular root).
+    Returns (error, Newton iterations); the error is inf also when a Newton does not converge.
+    """
+    shifts: list[float] = []
+    iterations = 0
+    X, p = root.X, root.p
+    for k in (1, 2):
+        alt = threshold_newton(A, C, X, p, floor=factor ** k * NEWTON_REG)
+        iterations += alt.iterations
+        if not (alt.converged and np.isfinite(alt.p)):
+            return float("inf"), iterations
+        shifts.append(alt.p - root.p)
+        X, p = alt.X, alt.p
+    d1, d2 = shifts
+    if d2 == 0.0:
+        return 0.0, iterations
+    g = factor if d1 == 0.0 else d2 / d1 - 1.0
+    if g < factor ** ROOT_CHECK_LEAST_EXPONENT:
+        spread = 2.0 * max(abs(d1), abs(d2))
+        return (spread if spread <= slack else float("inf")), iterations
+    g = min(g, factor)
+    return 2.0 * abs(d2) / (g * g - 1.0), iterations
 
 
 def perron_newton(A: np.ndarray, C: np.ndarray, X0: np.ndarray, p: float, eps: float = 0.0,

@@ -9,6 +9,7 @@ threshold of the cone spectral radius, and ball-checked certificates (module doc
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,7 @@ from kfcrit.theory.upper.certs import (
 from kfcrit.theory.upper.cone import (
     FLOAT_SCREEN_MARGIN,
     NEWTON_MAX_REDUCED,
+    ROOT_CHECK_FACTOR,
     Reduced,
     cone_radius,
     float_upper_margin,
@@ -35,6 +37,7 @@ from kfcrit.theory.upper.cone import (
     optimal_gain_noise_free,
     reduce_system,
     refine_bracket,
+    root_error,
     stable_certificate,
     stable_gramian,
     threshold_newton,
@@ -202,18 +205,44 @@ def newton_method(system: System, tol: float,
         warnings.append(f"the certificate holds only at hi = {hi_p:.12g}, more than tol above "
                         f"the Newton root {p_star:.12g}: the bracket is wider than requested")
         lo_p = max(p_low, p_star)
+    accuracy = ""
+    if plain_ok and p_star is not None and lo_p > p_low:
+        # the lower end rests on the Newton root: is the root itself accurate to the slack?
+        err, its = root_error(Au, Cu, plain, p_star - lo_p)
+        stats["newton_iterations"] += its
+        if p_star - err < lo_p:
+            lo_p = max(p_low, p_star - err)
+            accuracy = root_accuracy_note(p_star, err, tol, lo_p)
+            warnings.append(accuracy)
     lower = lower_evidence(system, red, plain, lo_p, p_low, stats, tol) if plain_ok else \
         evidence_p_low(p_low)
     if isinstance(lower, str):       # the evidence contradicts lo
         warnings.append(lower)
         lo_p = p_low
         lower = evidence_p_low(p_low)
+    if accuracy and lower.kind == "numerical":
+        lower = replace(lower, statement=lower.statement + "; " + accuracy)
     status = "determined" if hi_p - lo_p <= tol else "undetermined"
     return done(hi_p, (lo_p, hi_p), check.ok, status, cert, lower,
                 {"X": X, "K": K, "basis": Z, "X_basis": Xz, "K_basis": Kz, "p_star": p_star,
                  "output_map": red.M})
 
 
+
+
+def root_accuracy_note(p_star: float, err: float, tol: float, lo: float) -> str:
+    """The warning for a Newton root less accurate than the bracket's slack
+    (:func:`kfcrit.theory.upper.cone.root_error`)."""
+    if not np.isfinite(err):
+        return (f"the accuracy of the Newton root p* = {p_star:.12g} is unknown (with a "
+                "larger regulariser Newton did not converge, or the root moved by more than "
+                "the bracket's slack in a way no regulariser bias explains: a singular root "
+                "or rounding); the lower end falls back to p_low")
+    return (f"the Newton root p* = {p_star:.12g} is sensitive to the regulariser of the "
+            f"noise-free MARE map (estimated error {err:.2g}, from the roots with "
+            f"{ROOT_CHECK_FACTOR:g} and {ROOT_CHECK_FACTOR ** 2:g} times the regulariser; a "
+            f"nearly singular or defective cone eigenvector): the lower end is moved down to "
+            f"{lo:.12g} (numerical), and the bracket may be wider than the requested {tol:g}")
 
 
 BALL_CHECK_MAX_STATES = 250
