@@ -71,6 +71,12 @@ def check(file: str, max_states: int, debug: bool) -> None:
             m = spec.mesh.mesh
             channel = (f"mesh of {len(m.sensors)} sensors, {len(m.relays)} relays, "
                        f"{len(m.hops)} hops, {len(m.routes)} routes")
+        elif spec.network is not None:
+            models = sorted({sn.channel.model for sn in spec.network.sensors
+                             if sn.channel is not None})
+            channel = (f"network of {spec.network.size} sensor"
+                       f"{'' if spec.network.size == 1 else 's'}"
+                       + (f" ({', '.join(models)})" if models else ", no channels"))
         click.echo(f"{file}: valid system file: n = {s.n}, m = {s.m}, {channel}")
     sys.exit(0)
 

@@ -213,3 +213,10 @@ def test_the_schema_and_the_reader_agree_on_radio_mappings(tmp_path: Path) -> No
         path = tmp_path / "r.yaml"
         path.write_text(yaml.safe_dump(doc))
         assert (run("check", str(path)).exit_code == 0) is ok, radio
+
+
+def test_check_describes_a_network_by_its_sensors() -> None:
+    r = run("check", str(REPORTS / "network-redundant-gauges.yaml"))
+    assert r.exit_code == 0, r.stderr
+    sensors = yaml.safe_load((REPORTS / "network-redundant-gauges.yaml").read_text())["sensors"]
+    assert f"network of {len(sensors)} sensors" in r.stdout and "no channel" not in r.stdout
