@@ -247,8 +247,9 @@ def burst_inputs(spec: SystemSpec, link: Any) -> vd.BurstInputs | None:
     if cond is not None and cond.decides is True and cond.holds is True:
         sufficient = True
         shown = (f"{cond.value:.6g}" if cond.value != 1.0 else
-                 "1 to float precision, below 1 exactly (r exceeds 1 - 1/a^2)")
-        basis = f"Gilbert–Elliott condition {cond.expression} = {shown} < 1 ({cond.status})"
+                 "1 - ε (1 to float precision; below 1 exactly, as r exceeds 1 - 1/a^2)")
+        basis = (f"Gilbert–Elliott condition {cond.expression} holds: (1 - r) a^2 = {shown} "
+                 f"({cond.status})")
     cert = part.certificate if part is not None else None
     if sufficient is None and cert and cert.facts and cert.facts.sufficient is True:
         sufficient, basis = True, cert.basis or "coupled fixed-gain certificate"

@@ -28,6 +28,7 @@ from kfcrit.io.typed import ABSENT
 from kfcrit.records.contract import Verdict
 from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.facts import StabilityFacts
+from kfcrit.theory.links.markov import near_one_text
 
 
 def mean_bounded(verdict: Verdict | None) -> bool | None:
@@ -399,6 +400,19 @@ def _iid_verdict(p: Any, crit: CriticalInputs) -> tuple[Verdict, str]:
     return Verdict.UNDETERMINED, f"p inside the bracket [{lo:.6g}, {up}] of p_c"
 
 
+def _burst_value_text(recovery: Any, crit: CriticalInputs) -> str:
+    r"""(1 − r)·ρ(A)² = (1 − r)/(1 − p_low) as text: exact where r and p_low are (a value
+    within 10⁻⁹ of 1 is written 1 ± ε, never a bare 1 that a float would print).
+
+    .. math::  (1 - r)\,\rho(A)^2 = \frac{1 - r}{1 - p_{low}}
+    """
+    import sympy as sp
+
+    if isinstance(recovery, sp.Basic) and isinstance(crit.p_low_exact, sp.Basic):
+        return near_one_text((1 - recovery) / (1 - crit.p_low_exact) - 1)
+    return f"{(1.0 - float(recovery)) / (1.0 - crit.p_low):.6g}"
+
+
 def _burst_verdict(crit: CriticalInputs, burst: BurstInputs) -> tuple[Verdict, str]:
     """Gilbert–Elliott verdict. With ρ(A) > 1, (1 − r)ρ² ≥ 1 ⇔ r ≤ 1 − 1/ρ² = p_low, which is
     compared exactly when p_low and r are exact."""
@@ -407,8 +421,8 @@ def _burst_verdict(crit: CriticalInputs, burst: BurstInputs) -> tuple[Verdict, s
     p_low = crit.p_low_exact if crit.p_low_exact is not None else crit.p_low
     if p_low is not None and crit.p_low is not None and crit.p_low > 0 \
             and not exceeds(burst.recovery, p_low):
-        beta = (1.0 - float(burst.recovery)) / (1.0 - crit.p_low)
-        return (Verdict.MEAN_UNSTABLE, f"burst condition (1 − r)·ρ(A)² = {beta:.6g} ≥ 1 "
+        return (Verdict.MEAN_UNSTABLE, f"burst condition (1 − r)·ρ(A)² = "
+                f"{_burst_value_text(burst.recovery, crit)} ≥ 1 "
                 f"(r = {float(burst.recovery):.6g} ≤ 1 − 1/ρ(A)² = {crit.p_low:.6g}; necessary "
                 "for bounded E[P_t] for any system, docs/theory.md §10): loss bursts make E[P_t] diverge")
     if burst.sufficient is True:

@@ -3,7 +3,7 @@
 Reference values come from independent computations: ``kfcrit.theory.covariance.riccati`` (the standard-form
 Riccati maps, not the kernel's Joseph form), closed-form scalar recursions, scipy's
 ``solve_discrete_lyapunov`` for S̄ and a plain MARE iteration for V̄ (Sinopoli Thm 4/6), and the
-Gilbert–Elliott condition (1 − r) a² < 1 of MATH.md §7.
+Gilbert–Elliott condition (1 − r) a² < 1 of docs/theory.md §7.
 
 Statistical tolerance. Sample means are compared with their bound using the standard error
 estimated from the same sample: |mean − target| ≤ 5 · sd/√N (one-sided where the theorem is an

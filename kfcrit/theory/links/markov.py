@@ -251,7 +251,7 @@ def burst_necessary(system: System, recovery_rate: Any,
                      f"r = {rs:.12g}: too close to 1 to decide")
     elif holds:
         statement = (f"(1 - r) rho(A)^2 = {shown} < 1 at r = {rs:.12g}: the necessary burst "
-                     "condition holds (not sufficient on its own)")
+                     "condition holds (for n > 1 not sufficient on its own)")
     else:
         statement = (f"(1 - r) rho(A)^2 = {shown} >= 1 at r = {rs:.12g}: a loss burst of j "
                      "steps has probability (1 - r)^(j-1) r and lets the dominant mode grow like "
