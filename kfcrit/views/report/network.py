@@ -140,6 +140,7 @@ def network_view(rec: AnalysisRecord, figures: dict[str, str | None]) -> dict[st
         "nodes": node_rows(rec, net),
         "uniform_margin": margin_value_text(um.value, um.interval, 6)
         if not um.unbounded else "unbounded",
+        "bursty": bursty,
         "uniform_label": "margin r − r_nec" if bursty else "uniform margin δ",
         "uniform_reason": prose(um.reason), "uniform_rule": prose(um.rule),
         "bottleneck": bn.name,
