@@ -236,12 +236,13 @@ def network_lower_bound(network: Any, all_lost: float | None = None,
         "sensor network of time-aligned traces: S̄ solves S = π̂(∅) A S A' + Q with the "
         "measured probability π̂(∅) that every packet is lost; p is 1 − π̂(∅); V̄ is not "
         "computed"))
-    if product and bounds.lower.exists is False and p_low_exact is not None:
+    if product and bounds.lower.exists is False:
+        from kfcrit.theory.covariance.bounds import lower_exists_exactly
+
         at_least_one = 1 - sp.Mul(*[1 - s.channel.arrival_probability
                                     for s in network.sensors if s.channel is not None])
-        if vd.exceeds(at_least_one, p_low_exact):
-            bounds = replace(bounds, lower=replace(bounds.lower, exists=True,
-                                                   beyond_float64=True))
+        bounds = replace(bounds, lower=lower_exists_exactly(bounds.lower, at_least_one,
+                                                            p_low_exact))
     return bounds
 
 

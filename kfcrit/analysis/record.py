@@ -799,13 +799,12 @@ def _lower_exists_exactly(lower: CovarianceSummary, channel: Any,
 
     .. math::  \exists\,\bar S \iff p > p_{low} = 1 - 1/\rho(A)^2
     """
-    if lower.exists is not False or channel is None or not channel.iid:
+    from kfcrit.theory.covariance.bounds import lower_exists_exactly
+
+    if channel is None or not channel.iid:
         return lower
-    low = sec.get("lower_bound")
-    expr = getattr(low, "expression", None)
-    if expr is None or not vd.exceeds(channel.arrival_probability, expr):
-        return lower
-    return replace(lower, exists=True, beyond_float64=True)
+    return lower_exists_exactly(lower, channel.arrival_probability,
+                                getattr(sec.get("lower_bound"), "expression", None))
 
 
 def _upper_exists_exactly(upper: CovarianceSummary, channel: Any,

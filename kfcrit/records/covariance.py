@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from kfcrit.io.typed import opt_key
+from kfcrit.records.bounds import CertificateCheck
 from kfcrit.records.link import LinkDesignRecord
 
 
@@ -241,27 +242,13 @@ class Invariant:
 
 
 @dataclass(frozen=True, kw_only=True)
-class RequiredArrivalCheck:
-    """`design.required_arrival_probability.p_S.check`"""
-
-    ok: bool
-    kind: str
-    p: float | None
-    min_eig_x_lower: float | None
-    margin_lower: float | None
-    reason: str
-    margin_meaning: str
-    verified_by: str
-
-
-@dataclass(frozen=True, kw_only=True)
 class RequiredArrivalEnd:
     """`design.required_arrival_probability.p_S`"""
 
     value: float | None
     certified: bool
     how: str
-    check: RequiredArrivalCheck | None
+    check: CertificateCheck | None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -50,6 +50,7 @@ from kfcrit.theory.covariance.riccati import (
     symmetrize,
 )
 from kfcrit.theory.critical import plow
+from kfcrit.theory.critical.compare import compare_probability
 from kfcrit.theory.upper import bracket as upper_module
 
 NEWTON_MAX_STATES = 60
@@ -78,6 +79,22 @@ LARGE_QUICK_PHASE_POINTS = 12
 
 def _matrix(M: np.ndarray | None) -> list[list[float]] | None:
     return None if M is None else [[float(v) for v in row] for row in M]
+
+
+def lower_exists_exactly(lower: CovarianceSummary, p: Any, p_low: Any) -> CovarianceSummary:
+    r"""``lower`` with S̄'s existence decided on the exact ``p`` and ``p_low`` (Sinopoli Thm 3,
+    4): a p that rounds onto p_low in float64 (p = 9/25 + 10⁻⁴⁰) finds no bounded S̄ there, yet
+    S̄ exists, beyond float64. Unchanged when it exists in float64 or either side is unknown.
+
+    .. math::  \exists\,\bar S \iff p > p_{low} = 1 - 1/\rho(A)^2
+    """
+    if lower.exists is not False or p is None or p_low is None:
+        return lower
+    try:
+        above = compare_probability(p, p_low) > 0
+    except ArithmeticError:   # undecidable: the float64 answer stands
+        return lower
+    return replace(lower, exists=True, beyond_float64=True) if above else lower
 
 
 def covariance_summary(M: np.ndarray | None) -> CovarianceSummary:

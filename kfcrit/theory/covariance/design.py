@@ -28,8 +28,8 @@ import sympy as sp
 
 from kfcrit.io.typed import to_json
 from kfcrit.model.system import System
+from kfcrit.records.bounds import CertificateCheck
 from kfcrit.records.covariance import (
-    RequiredArrivalCheck,
     RequiredArrivalEnd,
     RequiredArrivalProbability,
 )
@@ -59,7 +59,7 @@ class DesignEnd:
     value: float | None
     certified: bool
     how: str
-    check: RequiredArrivalCheck | None = None
+    check: CertificateCheck | None = None
 
     def record(self) -> RequiredArrivalEnd:
         """The end as its record class (``design.required_arrival_probability.p_S``/``p_V``)."""
@@ -99,17 +99,6 @@ class RequiredArrival:
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON data: the record's form and the wall-clock ``seconds``."""
         return {**to_json(self.record()), "seconds": self.seconds}
-
-
-def _check_record(check: certify.CheckResult) -> RequiredArrivalCheck:
-    """A passed ball check of an end as its record class (``p_S.check``/``p_V.check``)."""
-    stated = check.to_dict()   # the meaning of the margin and the method, worded by the check
-    return RequiredArrivalCheck(
-        ok=bool(check.ok), kind=check.kind, p=float(check.p),
-        min_eig_x_lower=None if check.min_eig_x is None else float(check.min_eig_x),
-        margin_lower=None if check.margin is None else float(check.margin),
-        reason=check.reason, margin_meaning=stated["margin_meaning"],
-        verified_by=stated["verified_by"])
 
 
 def _exact_level(level: Any) -> Fraction:
@@ -181,7 +170,7 @@ def _certify_p_s(system: System, p: float, level: Fraction, p_low_down: float) -
         if check.ok:
             return DesignEnd(q, True, "tr S_bar(p_S) >= L proven in ball arithmetic "
                                       "(sub-solution of the Lyapunov equation)",
-                             _check_record(check))
+                             check.record())
         q = max(q - step, 0.0)
         step *= 2
         if q <= p_low_down:
@@ -217,7 +206,7 @@ def _certify_p_v(system: System, p: float, level: Fraction,
                 check = certify.verify_mare_above(system, Fraction(q), symmetrize(Ve), K, level)
                 if check.ok:
                     return DesignEnd(q, True, "tr V_bar(p_V) <= L proven in ball arithmetic "
-                                              "(super-solution V >= phi(K, V))", _check_record(check))
+                                              "(super-solution V >= phi(K, V))", check.record())
         q = min(q + step, 1.0)
         step *= 2
     return DesignEnd(p, False, "bisection on tr V_bar (numerical; the ball check did not pass)")

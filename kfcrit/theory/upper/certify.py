@@ -32,7 +32,9 @@ import flint
 import numpy as np
 import sympy as sp
 
+from kfcrit.io.jsonio import native_number
 from kfcrit.model.system import System
+from kfcrit.records.bounds import CertificateCheck
 
 PRECISION_BITS = 160
 """Working precision of the ball arithmetic."""
@@ -50,6 +52,15 @@ class CheckResult:
     reason: str
     verified_by: str | None = None
     """How the check was done, when not by :func:`verify_upper`'s ball arithmetic."""
+
+    def record(self) -> CertificateCheck:
+        """The check as the record states it (``check`` of a certificate, of the lower-end
+        evidence or of an end of the required arrival probability)."""
+        return CertificateCheck(
+            ok=bool(self.ok), kind=self.kind, p=native_number(self.p),
+            min_eig_x_lower=native_number(self.min_eig_x),
+            margin_lower=native_number(self.margin), reason=self.reason,
+            margin_meaning=MARGIN_MEANING, verified_by=self.verified_by or BALL_CHECK)
 
     def to_dict(self) -> dict[str, Any]:
         return {"ok": self.ok, "kind": self.kind, "p": self.p, "min_eig_x_lower": self.min_eig_x,

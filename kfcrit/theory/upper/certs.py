@@ -37,7 +37,6 @@ from kfcrit.theory.upper.cone import (
 )
 from kfcrit.theory.upper.record import (
     RECORD_MATRIX_MAX,
-    check_record,
     evidence_p_low,
     matrix_list,
     native_number,
@@ -344,7 +343,7 @@ def lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float,
                       f"{red.k}-dimensional unstable invariant subspace, proven "
                       "in ball arithmetic; valid for the full system because "
                       "G_p maps the cone of that subspace into itself",
-            check=check_record(conf["check"]))
+            check=conf["check"].record())
         if system.n <= RECORD_MATRIX_MAX:
             evidence = replace(evidence, X_u=matrix_list(conf["X"]), basis=matrix_list(red.Z),
                                reduced_states=int(red.k))
@@ -357,7 +356,7 @@ def lower_evidence(system: System, red: Reduced, plain: NewtonResult, lo: float,
             c2 = cone_lower_check(system, red, p, conf["X"], stats, memo)
             if c2["certified"]:
                 evidence = replace(evidence, proven_lower=ProvenLowerEnd(
-                    value=native_number(p), check=check_record(c2["check"]),
+                    value=native_number(p), check=c2["check"].record(),
                     statement=f"p_up >= {p!r} proven: X_u > 0 with G_p(X_u) - X_u > 0 on "
                               "the unstable invariant subspace, ball arithmetic (at lo "
                               "itself the margin was below the ball widths: "

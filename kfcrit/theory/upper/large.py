@@ -48,7 +48,6 @@ from kfcrit.theory.upper.cone import (
 )
 from kfcrit.theory.upper.record import (
     certificate_summary,
-    check_record,
     evidence_p_low,
     native_number,
 )
@@ -353,7 +352,7 @@ def interior_lower(system: System, red: Reduced, thr: krylov.KrylovResult, p_low
             f"(Newton root p* = {p_star:.15g})")
         return ck.p, UpperLowerEvidence(kind="certificate", value=native_number(ck.p),
                                         certified=True, statement=statement,
-                                        check=check_record(check),
+                                        check=check.record(),
                                         p_low_theorem=native_number(p_low))
     warnings.append("the lower end is numerical (matrix-free Newton root); only the upper "
                     "end is certified")

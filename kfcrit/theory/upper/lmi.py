@@ -60,7 +60,6 @@ from kfcrit.theory.upper.record import (
     RECORD_MATRIX_MAX,
     UpperBound,
     certificate_summary,
-    check_record,
     compression_note,
     evidence_p_low,
     matrix_list,
@@ -325,7 +324,7 @@ def lmi_upper_bound(system: System, tol: float = 1e-6, max_solves: int = 80):
                           "; numerical, not proven")),
             p_low_theorem=native_number(p_low))
         if proven:
-            lower = replace(lower, check=check_record(conf["check"]))
+            lower = replace(lower, check=conf["check"].record())
             if system.n <= RECORD_MATRIX_MAX:
                 lower = replace(lower, X_u=matrix_list(conf["X"]), basis=matrix_list(red.Z),
                                 reduced_states=int(red.k))

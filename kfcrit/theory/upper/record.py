@@ -11,7 +11,7 @@ import numpy as np
 from kfcrit.io.jsonio import native_number
 from kfcrit.io.typed import ABSENT, to_json
 from kfcrit.model.system import System
-from kfcrit.records.bounds import CertificateCheck, UpperCertificate, UpperLowerEvidence, UpperSolver
+from kfcrit.records.bounds import UpperCertificate, UpperLowerEvidence, UpperSolver
 from kfcrit.records.contract import UpperBoundRecord
 from kfcrit.theory.upper import certify
 from kfcrit.theory.upper.cone import OUTPUT_CONDITION_LIMIT, Reduced
@@ -91,16 +91,6 @@ def solver_record(stats: dict[str, Any]) -> UpperSolver:
     return UpperSolver(**fields)
 
 
-def check_record(check: certify.CheckResult) -> CertificateCheck:
-    """A ball-arithmetic check as the record states it (``check`` of a certificate or of the
-    lower-end evidence)."""
-    return CertificateCheck(
-        ok=bool(check.ok), kind=check.kind, p=native_number(check.p),
-        min_eig_x_lower=native_number(check.min_eig_x), margin_lower=native_number(check.margin),
-        reason=check.reason, margin_meaning=certify.MARGIN_MEANING,
-        verified_by=check.verified_by or certify.BALL_CHECK)
-
-
 def evidence_p_low(p_low: float, note: str = "") -> UpperLowerEvidence:
     """The lower end p_low of Sinopoli's Theorem 3 (proven), ``note`` appended to its
     statement."""
@@ -134,7 +124,7 @@ def certificate_summary(system: System, check: certify.CheckResult, X: np.ndarra
     record alone re-verifies; the rounded full-state copies ``X``, ``K`` are re-checked directly
     (``matrices_verified``) — they may fail on their own when the margin is below the rounding.
     """
-    c = check_record(check)
+    c = check.record()
     cert = UpperCertificate(kind=c.kind, origin=origin, ok=c.ok, p=c.p,
                             min_eig_x_lower=c.min_eig_x_lower, margin_lower=c.margin_lower,
                             reason=c.reason, margin_meaning=c.margin_meaning,
